@@ -1,0 +1,4 @@
+//! The `sparc3d` command line.
+fn main() {
+    println!("sparc3d");
+}

@@ -1,0 +1,46 @@
+//! Sparcubes: sparse deformable marching cubes (after "Sparc3D: Sparse Representation and
+//! Construction for High-Resolution 3D Shapes Modeling").
+//!
+//! Any triangle mesh becomes a sparse cube grid with a signed distance and a deformation on
+//! every active vertex ([`SparseCubes`]), from which a watertight, 2-manifold mesh is
+//! extracted. Closed parts keep their true surface, open parts become thin closed shells, and
+//! no component is dropped. The stages of [`convert`] are free functions over plain data, one
+//! module each:
+//!
+//! 1. [`normalize`] — fit the mesh into the grid with a margin,
+//! 2. [`voxelize`] — wall cells (cells a triangle touches) and grid edges a triangle crosses,
+//! 3. [`flood`] — outside cells by a hierarchical flood fill (bricks, then cells),
+//! 4. [`band`] — exact unsigned distance and closest point on the vertices near the surface,
+//! 5. [`sign`] — inside/outside per vertex, thin-shell treatment of open parts,
+//! 6. [`deform`] — bounded displacement of each vertex towards the surface,
+//! 7. [`extract`] — marching cubes over the active cells → closed manifold mesh.
+//!
+//! The crate knows nothing of jobs or file formats beyond loading and saving meshes ([`io`]).
+#![deny(missing_docs)]
+
+pub mod band;
+pub mod convert;
+pub mod cubes;
+pub mod deform;
+pub mod error;
+pub mod extract;
+pub mod flood;
+pub mod grid;
+pub mod holes;
+pub mod io;
+pub mod mc_table;
+pub mod mesh;
+pub mod normalize;
+pub mod params;
+pub mod sanitize;
+pub mod sign;
+pub mod topology;
+pub mod voxelize;
+
+pub use convert::{convert, Conversion, ConvertStats};
+pub use cubes::SparseCubes;
+pub use error::{Error, ErrorClass};
+pub use extract::extract;
+pub use mesh::TriMesh;
+pub use normalize::Normalization;
+pub use params::Params;

@@ -1,0 +1,59 @@
+//! Stage 1: fit the mesh into the grid. Grid coordinates are in voxels: the grid spans
+//! `[0, N]³`, the unit cube `[-0.5, 0.5]³` maps onto it, and the mesh's bounding box is
+//! centred with `margin_cells` free cells on each side of its longest extent.
+
+use serde::{Deserialize, Serialize};
+
+/// The affine map between the source frame and the unit cube: `unit = (p − center) · scale`.
+/// Grid coordinates are `g = (unit + 0.5) · N`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Normalization {
+    /// Centre of the source mesh's bounding box.
+    pub center: [f64; 3],
+    /// Factor from source units to unit-cube units.
+    pub scale: f64,
+}
+
+impl Normalization {
+    /// The normalization that centres `bounds` and fits its longest side into
+    /// `(N − 2·margin) / N` of the unit cube. A degenerate (flat or point) box keeps scale
+    /// finite by treating its longest side as at least 1e-12 of the coordinates' magnitude.
+    pub fn fit(bounds: ([f64; 3], [f64; 3]), resolution: u32, margin_cells: u32) -> Self {
+        let (lo, hi) = bounds;
+        let center = [
+            0.5 * (lo[0] + hi[0]),
+            0.5 * (lo[1] + hi[1]),
+            0.5 * (lo[2] + hi[2]),
+        ];
+        let extent = (0..3).map(|a| hi[a] - lo[a]).fold(0.0f64, f64::max);
+        let magnitude = (0..3).map(|a| lo[a].abs().max(hi[a].abs())).fold(1e-30, f64::max);
+        let extent = extent.max(magnitude * 1e-12);
+        let usable = (resolution - 2 * margin_cells) as f64 / resolution as f64;
+        Self {
+            center,
+            scale: usable / extent,
+        }
+    }
+
+    /// Source point → grid coordinates (voxels) at resolution `n`.
+    #[inline]
+    pub fn source_to_grid(&self, p: [f64; 3], n: u32) -> [f64; 3] {
+        let n = n as f64;
+        [
+            ((p[0] - self.center[0]) * self.scale + 0.5) * n,
+            ((p[1] - self.center[1]) * self.scale + 0.5) * n,
+            ((p[2] - self.center[2]) * self.scale + 0.5) * n,
+        ]
+    }
+
+    /// Grid coordinates (voxels) at resolution `n` → source point.
+    #[inline]
+    pub fn grid_to_source(&self, g: [f64; 3], n: u32) -> [f64; 3] {
+        let n = n as f64;
+        [
+            (g[0] / n - 0.5) / self.scale + self.center[0],
+            (g[1] / n - 0.5) / self.scale + self.center[1],
+            (g[2] / n - 0.5) / self.scale + self.center[2],
+        ]
+    }
+}

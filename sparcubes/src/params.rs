@@ -1,0 +1,88 @@
+//! Conversion parameters, with the defaults used by the CLI and the pipeline.
+
+use crate::error::{Error, Result};
+use serde::{Deserialize, Serialize};
+
+/// Largest supported resolution: vertex coordinates are stored as `u16`.
+pub const MAX_RESOLUTION: u32 = 8192;
+
+/// Parameters of one conversion. `Copy`, so a job config can hand it to every item.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Params {
+    /// Cells per axis of the grid (N); the voxel size is 1/N of the unit cube.
+    pub resolution: u32,
+    /// Empty cells kept between the mesh's bounding box and the grid border, per side.
+    /// At least 3: one for the shell, one for the band around it, one for the flood to pass.
+    pub margin_cells: u32,
+    /// Half-thickness `t` of the shell built around open parts, in voxels. The shell's
+    /// surface is the level set `UDF = t`. Just above √3/2 ≈ 0.866 (the farthest any surface
+    /// point can be from its nearest grid vertex), so the inside vertices of a sheet form a
+    /// 6-connected digital plane (thickness 2t ≥ |n|₁ ≤ √3) and the shell has no pinholes.
+    pub shell_half_thickness: f32,
+    /// Whether to move active vertices towards the surface (paper step 3).
+    pub deform: bool,
+    /// Fraction η of the distance to the surface each vertex moves (x′ = x − η·UDF·∇UDF).
+    pub deform_step: f32,
+    /// Largest displacement per axis, in voxels; below 0.5 so neighbouring vertices never swap
+    /// order and cells never invert.
+    pub deform_max: f32,
+}
+
+impl Default for Params {
+    fn default() -> Self {
+        Self {
+            resolution: 512,
+            margin_cells: 3,
+            shell_half_thickness: 0.9,
+            deform: true,
+            deform_step: 0.5,
+            deform_max: 0.45,
+        }
+    }
+}
+
+impl Params {
+    /// Default parameters at the given resolution.
+    pub fn with_resolution(resolution: u32) -> Self {
+        Self {
+            resolution,
+            ..Self::default()
+        }
+    }
+
+    /// Checks every field's range; the error names the field.
+    pub fn validate(&self) -> Result<()> {
+        if self.margin_cells < 3 {
+            return Err(Error::InvalidParams(format!(
+                "margin_cells must be at least 3, got {}",
+                self.margin_cells
+            )));
+        }
+        let min_res = 2 * self.margin_cells + 2;
+        if self.resolution < min_res || self.resolution > MAX_RESOLUTION {
+            return Err(Error::InvalidParams(format!(
+                "resolution must be in {min_res}..={MAX_RESOLUTION}, got {}",
+                self.resolution
+            )));
+        }
+        if !(self.shell_half_thickness > 0.0 && self.shell_half_thickness < 1.0) {
+            return Err(Error::InvalidParams(format!(
+                "shell_half_thickness must be in (0, 1) voxel, got {}",
+                self.shell_half_thickness
+            )));
+        }
+        if !(0.0..1.0).contains(&self.deform_step) {
+            return Err(Error::InvalidParams(format!(
+                "deform_step must be in [0, 1), got {}",
+                self.deform_step
+            )));
+        }
+        if !(0.0..0.5).contains(&self.deform_max) {
+            return Err(Error::InvalidParams(format!(
+                "deform_max must be in [0, 0.5) voxel, got {}",
+                self.deform_max
+            )));
+        }
+        Ok(())
+    }
+}

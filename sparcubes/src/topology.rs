@@ -1,0 +1,1 @@
+//! Topological checks on triangle meshes: half-edge closedness, 2-manifoldness, components.
