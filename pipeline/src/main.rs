@@ -1,4 +1,16 @@
-//! The `sparc3d` command line.
-fn main() {
-    println!("sparc3d");
+//! The `sparc3d` command line: parses arguments and hands each subcommand to `commands/`.
+
+mod commands;
+
+use clap::Parser;
+
+fn main() -> std::process::ExitCode {
+    let cli = commands::Cli::parse();
+    match commands::run(cli) {
+        Ok(code) => code,
+        Err(err) => {
+            eprintln!("error: {err:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
 }

@@ -1,0 +1,28 @@
+//! One module per subcommand; [`run`] dispatches. Each module has an `Args` struct (clap) and
+//! a `run(args) -> anyhow::Result<ExitCode>`.
+
+pub mod convert;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// sparc3d: raw meshes → watertight sparse cube tensors (Sparcubes), sharded into Parquet.
+#[derive(Debug, Parser)]
+#[command(name = "sparc3d", version, about)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Convert one mesh to sparse cubes and write the extracted watertight mesh.
+    Convert(convert::Args),
+}
+
+/// Runs the parsed command line and returns the process exit code.
+pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
+    match cli.command {
+        Command::Convert(args) => convert::run(args),
+    }
+}
