@@ -1,8 +1,28 @@
 //! Loading and saving meshes: OBJ, PLY, STL, OFF, glTF/GLB in; PLY, OBJ, STL, GLB out.
+//!
+//! [`load`] picks the reader by extension (case-insensitive), or by content when the extension
+//! says nothing, and then [`crate::sanitize`]s what it read. Every reader takes the whole file as
+//! bytes, never trusts a count from a header for an allocation, and turns anything it cannot
+//! read into an [`Error`] that names the file; a panic inside a third-party parser is caught and
+//! reported the same way. [`save`] writes to a temporary file beside the target and renames it.
 
-use crate::error::Result;
+mod gltf;
+mod obj;
+mod off;
+mod ply;
+mod stl;
+mod write;
+
+use crate::error::{Error, Result};
 use crate::mesh::TriMesh;
+use crate::sanitize::sanitize;
+use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;
+
+/// Largest input file read, in bytes.
+pub const MAX_FILE_BYTES: u64 = 4 << 30;
+/// Largest number of vertices or triangles a loaded mesh may have.
+pub const MAX_ELEMENTS: usize = 200_000_000;
 
 /// What loading skipped or repaired, for the conversion summary and shard rows.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
@@ -11,12 +31,14 @@ pub struct LoadStats {
     pub polygons_triangulated: u64,
     /// Point primitives skipped.
     pub points_skipped: u64,
-    /// Line primitives skipped.
+    /// Line primitives skipped (segments).
     pub lines_skipped: u64,
     /// Faces dropped because an index was out of range.
     pub faces_bad_index: u64,
     /// Faces dropped because a corner had a non-finite coordinate.
     pub faces_non_finite: u64,
+    /// Vertices dropped because no kept face used them.
+    pub vertices_unused: u64,
 }
 
 /// A loaded, sanitised mesh and what loading did to it.
@@ -28,14 +50,206 @@ pub struct LoadedMesh {
     pub stats: LoadStats,
 }
 
+/// The file formats [`load`] reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    /// Wavefront OBJ (text).
+    Obj,
+    /// Stanford PLY (ascii or binary).
+    Ply,
+    /// STL (ascii or binary).
+    Stl,
+    /// Object File Format (text).
+    Off,
+    /// glTF 2.0, JSON (`.gltf`) or binary (`.glb`).
+    Gltf,
+}
+
+impl Format {
+    /// The format named by a file extension (case-insensitive), if any.
+    pub fn from_extension(path: &Path) -> Option<Format> {
+        let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+        Some(match ext.as_str() {
+            "obj" => Format::Obj,
+            "ply" => Format::Ply,
+            "stl" => Format::Stl,
+            "off" => Format::Off,
+            "gltf" | "glb" => Format::Gltf,
+            _ => return None,
+        })
+    }
+
+    /// Guesses the format from the first bytes of a file.
+    pub fn sniff(bytes: &[u8]) -> Option<Format> {
+        let head = &bytes[..bytes.len().min(4096)];
+        if head.starts_with(b"glTF") {
+            return Some(Format::Gltf);
+        }
+        if head.starts_with(b"ply") {
+            return Some(Format::Ply);
+        }
+        if stl::looks_binary(bytes) {
+            return Some(Format::Stl);
+        }
+        let text = String::from_utf8_lossy(head);
+        let trimmed = text.trim_start();
+        if trimmed.starts_with("solid") {
+            return Some(Format::Stl);
+        }
+        if trimmed.starts_with('{') && text.contains("\"asset\"") {
+            return Some(Format::Gltf);
+        }
+        let first = trimmed.split_whitespace().next().unwrap_or("");
+        if first.ends_with("OFF") && first.len() <= 8 {
+            return Some(Format::Off);
+        }
+        if text
+            .lines()
+            .any(|l| l.starts_with("v ") || l.starts_with("f "))
+        {
+            return Some(Format::Obj);
+        }
+        None
+    }
+}
+
+/// A parse error for `path`.
+pub(crate) fn parse_err(path: &Path, reason: impl Into<String>) -> Error {
+    Error::Parse {
+        path: path.to_path_buf(),
+        reason: reason.into(),
+    }
+}
+
+/// A too-large error for `path`.
+pub(crate) fn too_large(path: &Path, reason: impl Into<String>) -> Error {
+    Error::TooLarge {
+        context: path.display().to_string(),
+        reason: reason.into(),
+    }
+}
+
+/// Fails when `count` elements of `what` exceed [`MAX_ELEMENTS`].
+pub(crate) fn check_count(path: &Path, what: &str, count: usize) -> Result<()> {
+    if count > MAX_ELEMENTS {
+        return Err(too_large(
+            path,
+            format!("{count} {what} (the limit is {MAX_ELEMENTS})"),
+        ));
+    }
+    Ok(())
+}
+
+/// Adds a polygon (as vertex indices) as a triangle fan. Points and lines are counted, not
+/// added.
+pub(crate) fn push_polygon(tris: &mut Vec<[u32; 3]>, poly: &[u32], stats: &mut LoadStats) {
+    match poly.len() {
+        0 => {}
+        1 => stats.points_skipped += 1,
+        2 => stats.lines_skipped += 1,
+        3 => tris.push([poly[0], poly[1], poly[2]]),
+        n => {
+            stats.polygons_triangulated += 1;
+            for k in 1..n - 1 {
+                tris.push([poly[0], poly[k], poly[k + 1]]);
+            }
+        }
+    }
+}
+
+/// Reads a file whole, refusing files over [`MAX_FILE_BYTES`] and empty files.
+fn read_file(path: &Path) -> Result<Vec<u8>> {
+    let io_err = |source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let meta = std::fs::metadata(path).map_err(io_err)?;
+    if meta.is_dir() {
+        return Err(parse_err(path, "is a directory, not a mesh file"));
+    }
+    if meta.len() > MAX_FILE_BYTES {
+        return Err(too_large(
+            path,
+            format!(
+                "file is {} bytes (the limit is {MAX_FILE_BYTES})",
+                meta.len()
+            ),
+        ));
+    }
+    let bytes = std::fs::read(path).map_err(io_err)?;
+    if bytes.is_empty() {
+        return Err(parse_err(path, "empty file"));
+    }
+    Ok(bytes)
+}
+
 /// Loads a mesh file, choosing the format by extension (then by content), and sanitises it.
 pub fn load(path: &Path) -> Result<LoadedMesh> {
-    let _ = path;
-    unimplemented!("io::load is being written")
+    let bytes = read_file(path)?;
+    let format = match Format::from_extension(path) {
+        Some(f) => f,
+        None => Format::sniff(&bytes).ok_or_else(|| Error::UnsupportedFormat {
+            path: path.to_path_buf(),
+            reason: "unknown extension and unrecognised content (supported: .obj, .ply, \
+                     .stl, .off, .gltf, .glb)"
+                .to_string(),
+        })?,
+    };
+    load_bytes(&bytes, format, path)
+}
+
+/// Reads and sanitises a mesh of a known format from bytes; `path` names it in errors and
+/// locates a glTF file's external buffers.
+pub fn load_bytes(bytes: &[u8], format: Format, path: &Path) -> Result<LoadedMesh> {
+    let raw = catch_unwind(AssertUnwindSafe(|| {
+        let mut stats = LoadStats::default();
+        let mesh = match format {
+            Format::Obj => obj::read(bytes, path, &mut stats),
+            Format::Ply => ply::read(bytes, path, &mut stats),
+            Format::Stl => stl::read(bytes, path, &mut stats),
+            Format::Off => off::read(bytes, path, &mut stats),
+            Format::Gltf => gltf::read(bytes, path, &mut stats),
+        };
+        mesh.map(|m| (m, stats))
+    }))
+    .map_err(|panic| {
+        let msg = panic
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| panic.downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "unknown panic".to_string());
+        parse_err(path, format!("the {format:?} parser failed: {msg}"))
+    })??;
+    let (raw, mut stats) = raw;
+    check_count(path, "vertices", raw.positions.len())?;
+    check_count(path, "triangles", raw.triangles.len())?;
+    let context = path.display().to_string();
+    let (mesh, s) = match sanitize(raw, &context) {
+        Ok(r) => r,
+        Err(Error::EmptyMesh { context, reason }) => {
+            let skipped = stats.points_skipped + stats.lines_skipped;
+            let reason = if skipped > 0 {
+                format!(
+                    "{reason}; skipped {} points and {} line segments",
+                    stats.points_skipped, stats.lines_skipped
+                )
+            } else {
+                reason
+            };
+            return Err(Error::EmptyMesh { context, reason });
+        }
+        Err(e) => return Err(e),
+    };
+    stats.faces_bad_index += s.faces_bad_index;
+    stats.faces_non_finite += s.faces_non_finite;
+    stats.vertices_unused += s.vertices_unused;
+    Ok(LoadedMesh { mesh, stats })
 }
 
 /// Saves a mesh; the format follows the extension (`.ply`, `.obj`, `.stl`, `.glb`).
+///
+/// The file is written to a temporary name in the same folder and renamed, so a failed write
+/// never leaves a partial file behind.
 pub fn save(mesh: &TriMesh, path: &Path) -> Result<()> {
-    let _ = (mesh, path);
-    unimplemented!("io::save is being written")
+    write::save(mesh, path)
 }

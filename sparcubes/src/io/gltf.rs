@@ -1,0 +1,383 @@
+//! glTF 2.0 (`.gltf` JSON and `.glb` binary) via `gltf`.
+//!
+//! Every triangle primitive (`TRIANGLES`, `TRIANGLE_STRIP`, `TRIANGLE_FAN`) of every mesh
+//! instance in the default scene (or the first scene when none is the default) is read, with
+//! the node transforms composed down the hierarchy. Points and lines are counted, not read.
+//!
+//! Only buffers are imported, never images. An external buffer is either a `data:` URI
+//! (base64) or a relative path inside the glTF file's own folder: absolute paths, `..`
+//! components and every other URI scheme are refused, so a file can never make us read
+//! elsewhere on disk or touch the network. Accessors are read by hand with checked bounds.
+
+use super::{check_count, parse_err, LoadStats, MAX_ELEMENTS};
+use crate::error::{Error, Result};
+use crate::mesh::TriMesh;
+use base64::Engine as _;
+use gltf::accessor::{DataType, Dimensions};
+use gltf::mesh::Mode;
+use std::path::{Component, Path};
+
+/// Deepest node hierarchy followed (deeper means a cycle or an absurd file).
+const MAX_DEPTH: usize = 256;
+
+pub(crate) fn read(bytes: &[u8], path: &Path, stats: &mut LoadStats) -> Result<TriMesh> {
+    let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| parse_err(path, format!("glTF: {e}")))?;
+    let buffers = load_buffers(&gltf, path)?;
+
+    let scene = gltf
+        .default_scene()
+        .or_else(|| gltf.scenes().next())
+        .ok_or_else(|| Error::EmptyMesh {
+            context: path.display().to_string(),
+            reason: "glTF without a scene".to_string(),
+        })?;
+
+    let mut mesh = TriMesh::default();
+    let mut stack: Vec<(gltf::Node, [[f64; 4]; 4], usize)> =
+        scene.nodes().map(|n| (n, IDENTITY, 0)).collect();
+    let mut visits = 0usize;
+    while let Some((node, parent, depth)) = stack.pop() {
+        visits += 1;
+        if depth > MAX_DEPTH || visits > MAX_ELEMENTS {
+            return Err(parse_err(path, "glTF: node hierarchy too deep or cyclic"));
+        }
+        let world = mul(&parent, &to_f64(node.transform().matrix()));
+        if let Some(m) = node.mesh() {
+            for prim in m.primitives() {
+                read_primitive(&prim, &world, &buffers, path, stats, &mut mesh)?;
+            }
+        }
+        for child in node.children() {
+            stack.push((child, world, depth + 1));
+        }
+    }
+    Ok(mesh)
+}
+
+/// The data of every buffer, in order.
+fn load_buffers(gltf: &gltf::Gltf, path: &Path) -> Result<Vec<Vec<u8>>> {
+    let mut out = Vec::new();
+    for buffer in gltf.buffers() {
+        let data = match buffer.source() {
+            gltf::buffer::Source::Bin => gltf
+                .blob
+                .clone()
+                .ok_or_else(|| parse_err(path, "glTF: buffer refers to a missing GLB BIN chunk"))?,
+            gltf::buffer::Source::Uri(uri) => read_uri(uri, path)?,
+        };
+        if data.len() < buffer.length() {
+            return Err(parse_err(
+                path,
+                format!(
+                    "glTF: buffer {} has {} bytes, less than its declared {} (truncated?)",
+                    buffer.index(),
+                    data.len(),
+                    buffer.length()
+                ),
+            ));
+        }
+        out.push(data);
+    }
+    Ok(out)
+}
+
+/// Reads a buffer URI: `data:` base64, or a relative path inside the file's folder.
+fn read_uri(uri: &str, path: &Path) -> Result<Vec<u8>> {
+    let refuse = |why: &str| {
+        parse_err(
+            path,
+            format!("glTF: refusing buffer uri `{}`: {why}", clip(uri)),
+        )
+    };
+    if let Some(rest) = uri.strip_prefix("data:") {
+        let (_, payload) = rest
+            .split_once(";base64,")
+            .ok_or_else(|| refuse("only base64 data URIs are supported"))?;
+        return base64::engine::general_purpose::STANDARD
+            .decode(payload.trim())
+            .map_err(|e| refuse(&format!("bad base64: {e}")));
+    }
+    // A scheme ("http:", "file:", ...) is letters, digits, + - . before the first ':'.
+    if let Some((scheme, _)) = uri.split_once(':') {
+        if !scheme.is_empty()
+            && scheme
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || "+-.".contains(c))
+        {
+            return Err(refuse("only relative paths and data: URIs are read"));
+        }
+    }
+    let decoded = percent_decode(uri).ok_or_else(|| refuse("bad percent-encoding"))?;
+    if decoded.contains('\\') || decoded.contains('\0') {
+        return Err(refuse("backslashes and NUL are not allowed"));
+    }
+    let rel = Path::new(&decoded);
+    if rel
+        .components()
+        .any(|c| !matches!(c, Component::Normal(_) | Component::CurDir))
+    {
+        return Err(refuse("absolute paths and `..` components are not allowed"));
+    }
+    let dir = path.parent().unwrap_or(Path::new(""));
+    let file = dir.join(rel);
+    std::fs::read(&file).map_err(|e| {
+        parse_err(
+            path,
+            format!("glTF: cannot read buffer `{}`: {e}", file.display()),
+        )
+    })
+}
+
+fn percent_decode(s: &str) -> Option<String> {
+    let b = s.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        if b[i] == b'%' {
+            let hex = std::str::from_utf8(b.get(i + 1..i + 3)?).ok()?;
+            out.push(u8::from_str_radix(hex, 16).ok()?);
+            i += 3;
+        } else {
+            out.push(b[i]);
+            i += 1;
+        }
+    }
+    String::from_utf8(out).ok()
+}
+
+fn clip(s: &str) -> String {
+    s.chars().take(60).collect()
+}
+
+fn read_primitive(
+    prim: &gltf::Primitive,
+    world: &[[f64; 4]; 4],
+    buffers: &[Vec<u8>],
+    path: &Path,
+    stats: &mut LoadStats,
+    mesh: &mut TriMesh,
+) -> Result<()> {
+    let Some(pos_acc) = prim.get(&gltf::Semantic::Positions) else {
+        return Ok(());
+    };
+    let mode = prim.mode();
+    let n_vertices = pos_acc.count();
+    let indices: Option<Vec<u32>> = match prim.indices() {
+        Some(acc) => Some(
+            read_accessor(&acc, buffers, path)?
+                .into_iter()
+                .map(|v| {
+                    if v[0] >= 0.0 && v[0] <= u32::MAX as f64 {
+                        v[0] as u32
+                    } else {
+                        u32::MAX
+                    }
+                })
+                .collect(),
+        ),
+        None => None,
+    };
+    let n = indices.as_ref().map_or(n_vertices, Vec::len);
+    match mode {
+        Mode::Points => {
+            stats.points_skipped += n as u64;
+            return Ok(());
+        }
+        Mode::Lines => {
+            stats.lines_skipped += (n / 2) as u64;
+            return Ok(());
+        }
+        Mode::LineStrip => {
+            stats.lines_skipped += n.saturating_sub(1) as u64;
+            return Ok(());
+        }
+        Mode::LineLoop => {
+            stats.lines_skipped += n as u64;
+            return Ok(());
+        }
+        Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan => {}
+    }
+
+    let positions = read_accessor(&pos_acc, buffers, path)?;
+    let base = mesh.positions.len();
+    check_count(path, "vertices", base + positions.len())?;
+    let base = base as u32;
+    mesh.positions.extend(positions.iter().map(|p| {
+        let q = transform(world, [p[0], p[1], p[2]]);
+        [q[0] as f32, q[1] as f32, q[2] as f32]
+    }));
+    let idx = |k: usize| -> u32 {
+        let i = indices.as_ref().map_or(k as u32, |v| v[k]);
+        if (i as usize) < positions.len() {
+            base + i
+        } else {
+            u32::MAX
+        }
+    };
+    let before = mesh.triangles.len();
+    match mode {
+        Mode::Triangles => {
+            for k in 0..n / 3 {
+                mesh.triangles
+                    .push([idx(3 * k), idx(3 * k + 1), idx(3 * k + 2)]);
+            }
+        }
+        Mode::TriangleStrip => {
+            for k in 0..n.saturating_sub(2) {
+                if k % 2 == 0 {
+                    mesh.triangles.push([idx(k), idx(k + 1), idx(k + 2)]);
+                } else {
+                    mesh.triangles.push([idx(k + 1), idx(k), idx(k + 2)]);
+                }
+            }
+        }
+        _ => {
+            for k in 1..n.saturating_sub(1) {
+                mesh.triangles.push([idx(0), idx(k), idx(k + 1)]);
+            }
+        }
+    }
+    // A mirroring transform flips the winding; flip it back.
+    if det3(world) < 0.0 {
+        for t in &mut mesh.triangles[before..] {
+            t.swap(1, 2);
+        }
+    }
+    check_count(path, "triangles", mesh.triangles.len())
+}
+
+/// Reads an accessor's elements (up to 3 components each) as f64, with bounds checked.
+fn read_accessor(acc: &gltf::Accessor, buffers: &[Vec<u8>], path: &Path) -> Result<Vec<[f64; 3]>> {
+    let err = |why: String| parse_err(path, format!("glTF accessor {}: {why}", acc.index()));
+    if acc.sparse().is_some() {
+        return Err(err("sparse accessors are not supported".into()));
+    }
+    let comps = match acc.dimensions() {
+        Dimensions::Scalar => 1,
+        Dimensions::Vec2 => 2,
+        Dimensions::Vec3 => 3,
+        other => return Err(err(format!("unexpected type {other:?}"))),
+    };
+    let dt = acc.data_type();
+    let size = match dt {
+        DataType::I8 | DataType::U8 => 1,
+        DataType::I16 | DataType::U16 => 2,
+        DataType::U32 | DataType::F32 => 4,
+    };
+    let count = acc.count();
+    check_count(path, "accessor elements", count)?;
+    let Some(view) = acc.view() else {
+        return Err(err("no buffer view".into()));
+    };
+    let data = buffers
+        .get(view.buffer().index())
+        .ok_or_else(|| err("missing buffer".into()))?;
+    let elem = comps * size;
+    let stride = view.stride().unwrap_or(elem).max(elem);
+    let view_start = view.offset();
+    let view_end = view_start
+        .checked_add(view.length())
+        .filter(|&e| e <= data.len())
+        .ok_or_else(|| err("buffer view runs past its buffer".into()))?;
+    let bytes = &data[view_start..view_end];
+    let need = match count {
+        0 => 0,
+        c => (c - 1)
+            .checked_mul(stride)
+            .and_then(|x| x.checked_add(elem))
+            .and_then(|x| x.checked_add(acc.offset()))
+            .unwrap_or(usize::MAX),
+    };
+    if need > bytes.len() {
+        return Err(err(format!(
+            "needs {need} bytes, its buffer view has {}",
+            bytes.len()
+        )));
+    }
+    let norm = acc.normalized();
+    let mut out = Vec::with_capacity(count);
+    for k in 0..count {
+        let at = acc.offset() + k * stride;
+        let mut v = [0.0f64; 3];
+        for (c, slot) in v.iter_mut().enumerate().take(comps) {
+            let o = at + c * size;
+            let b = &bytes[o..o + size];
+            *slot = match dt {
+                DataType::F32 => f32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f64,
+                DataType::U32 => u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f64,
+                DataType::U16 => {
+                    let x = u16::from_le_bytes([b[0], b[1]]) as f64;
+                    if norm {
+                        x / 65535.0
+                    } else {
+                        x
+                    }
+                }
+                DataType::I16 => {
+                    let x = i16::from_le_bytes([b[0], b[1]]) as f64;
+                    if norm {
+                        (x / 32767.0).max(-1.0)
+                    } else {
+                        x
+                    }
+                }
+                DataType::U8 => {
+                    let x = b[0] as f64;
+                    if norm {
+                        x / 255.0
+                    } else {
+                        x
+                    }
+                }
+                DataType::I8 => {
+                    let x = b[0] as i8 as f64;
+                    if norm {
+                        (x / 127.0).max(-1.0)
+                    } else {
+                        x
+                    }
+                }
+            };
+        }
+        out.push(v);
+    }
+    Ok(out)
+}
+
+const IDENTITY: [[f64; 4]; 4] = [
+    [1.0, 0.0, 0.0, 0.0],
+    [0.0, 1.0, 0.0, 0.0],
+    [0.0, 0.0, 1.0, 0.0],
+    [0.0, 0.0, 0.0, 1.0],
+];
+
+fn to_f64(m: [[f32; 4]; 4]) -> [[f64; 4]; 4] {
+    m.map(|c| c.map(f64::from))
+}
+
+/// Product of column-major matrices `a * b`.
+fn mul(a: &[[f64; 4]; 4], b: &[[f64; 4]; 4]) -> [[f64; 4]; 4] {
+    let mut r = [[0.0; 4]; 4];
+    for (c, col) in r.iter_mut().enumerate() {
+        for (row, x) in col.iter_mut().enumerate() {
+            *x = (0..4).map(|k| a[k][row] * b[c][k]).sum();
+        }
+    }
+    r
+}
+
+/// Applies a column-major affine matrix to a point.
+fn transform(m: &[[f64; 4]; 4], p: [f64; 3]) -> [f64; 3] {
+    let mut q = [0.0; 3];
+    for (row, x) in q.iter_mut().enumerate() {
+        *x = m[0][row] * p[0] + m[1][row] * p[1] + m[2][row] * p[2] + m[3][row];
+    }
+    q
+}
+
+/// Determinant of the linear part of a column-major matrix.
+fn det3(m: &[[f64; 4]; 4]) -> f64 {
+    m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+}

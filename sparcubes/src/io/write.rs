@@ -1,0 +1,230 @@
+//! Writers: binary little-endian PLY, OBJ, binary STL and GLB, each written to a temporary
+//! file beside the target, synced, then renamed over it.
+
+use crate::error::{Error, Result};
+use crate::mesh::TriMesh;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Output formats.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum OutFormat {
+    Ply,
+    Obj,
+    Stl,
+    Glb,
+}
+
+pub(crate) fn save(mesh: &TriMesh, path: &Path) -> Result<()> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    let format = match ext.as_deref() {
+        Some("ply") => OutFormat::Ply,
+        Some("obj") => OutFormat::Obj,
+        Some("stl") => OutFormat::Stl,
+        Some("glb") => OutFormat::Glb,
+        _ => {
+            return Err(Error::UnsupportedFormat {
+                path: path.to_path_buf(),
+                reason: "cannot write this extension (supported: .ply, .obj, .stl, .glb)"
+                    .to_string(),
+            })
+        }
+    };
+    let n = mesh.positions.len();
+    if let Some(t) = mesh
+        .triangles
+        .iter()
+        .find(|t| t.iter().any(|&i| i as usize >= n))
+    {
+        return Err(Error::InvalidParams(format!(
+            "cannot save {}: triangle {t:?} has an index out of range ({n} vertices)",
+            path.display()
+        )));
+    }
+    if format == OutFormat::Glb && (mesh.triangles.is_empty() || n == 0) {
+        return Err(Error::EmptyMesh {
+            context: path.display().to_string(),
+            reason: "a GLB needs at least one triangle".to_string(),
+        });
+    }
+    atomic_write(path, |w| match format {
+        OutFormat::Ply => write_ply(mesh, w),
+        OutFormat::Obj => write_obj(mesh, w),
+        OutFormat::Stl => write_stl(mesh, w),
+        OutFormat::Glb => write_glb(mesh, w),
+    })
+}
+
+/// A temporary name beside `path`, unique within this process and across processes.
+fn temp_path(path: &Path) -> PathBuf {
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let k = COUNTER.fetch_add(1, Ordering::Relaxed);
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    path.with_file_name(format!(".{name}.tmp-{}-{k}", std::process::id()))
+}
+
+/// Writes through `body` to a temporary file, syncs it and renames it to `path`; on any error
+/// the temporary file is removed and `path` is left as it was.
+fn atomic_write(
+    path: &Path,
+    body: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
+) -> Result<()> {
+    let tmp = temp_path(path);
+    let result = (|| {
+        let file = std::fs::File::create(&tmp)?;
+        let mut w = std::io::BufWriter::new(file);
+        body(&mut w)?;
+        let file = w.into_inner().map_err(|e| e.into_error())?;
+        file.sync_all()?;
+        drop(file);
+        std::fs::rename(&tmp, path)
+    })();
+    result.map_err(|source| {
+        let _ = std::fs::remove_file(&tmp);
+        Error::Io {
+            path: path.to_path_buf(),
+            source,
+        }
+    })
+}
+
+fn write_ply(mesh: &TriMesh, w: &mut impl Write) -> std::io::Result<()> {
+    write!(
+        w,
+        "ply\nformat binary_little_endian 1.0\ncomment written by sparcubes\n\
+         element vertex {}\nproperty float x\nproperty float y\nproperty float z\n\
+         element face {}\nproperty list uchar uint vertex_indices\nend_header\n",
+        mesh.positions.len(),
+        mesh.triangles.len()
+    )?;
+    for p in &mesh.positions {
+        for c in p {
+            w.write_all(&c.to_le_bytes())?;
+        }
+    }
+    for t in &mesh.triangles {
+        w.write_all(&[3u8])?;
+        for i in t {
+            w.write_all(&i.to_le_bytes())?;
+        }
+    }
+    Ok(())
+}
+
+fn write_obj(mesh: &TriMesh, w: &mut impl Write) -> std::io::Result<()> {
+    writeln!(w, "# written by sparcubes")?;
+    // `{}` of an f32 prints the shortest text that reads back as the same f32.
+    for p in &mesh.positions {
+        writeln!(w, "v {} {} {}", p[0], p[1], p[2])?;
+    }
+    for t in &mesh.triangles {
+        writeln!(w, "f {} {} {}", t[0] + 1, t[1] + 1, t[2] + 1)?;
+    }
+    Ok(())
+}
+
+fn write_stl(mesh: &TriMesh, w: &mut impl Write) -> std::io::Result<()> {
+    let mut header = [0u8; 80];
+    let text = b"binary STL written by sparcubes";
+    header[..text.len()].copy_from_slice(text);
+    w.write_all(&header)?;
+    let count = u32::try_from(mesh.triangles.len()).map_err(|_| {
+        std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "more than 2^32 triangles do not fit a binary STL",
+        )
+    })?;
+    w.write_all(&count.to_le_bytes())?;
+    for t in 0..mesh.triangles.len() {
+        let [a, b, c] = mesh.triangle(t);
+        let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+        let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+        let n = [
+            u[1] * v[2] - u[2] * v[1],
+            u[2] * v[0] - u[0] * v[2],
+            u[0] * v[1] - u[1] * v[0],
+        ];
+        let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        let n = if len > 0.0 {
+            n.map(|x| (x / len) as f32)
+        } else {
+            [0.0; 3]
+        };
+        let mut rec = [0u8; 50];
+        let corners = mesh.triangles[t].map(|i| mesh.positions[i as usize]);
+        let floats = n.iter().chain(corners.iter().flatten());
+        for (k, f) in floats.enumerate() {
+            rec[4 * k..4 * k + 4].copy_from_slice(&f.to_le_bytes());
+        }
+        w.write_all(&rec)?;
+    }
+    Ok(())
+}
+
+fn write_glb(mesh: &TriMesh, w: &mut impl Write) -> std::io::Result<()> {
+    let n = mesh.positions.len();
+    let m = mesh.triangles.len();
+    let mut lo = [f32::INFINITY; 3];
+    let mut hi = [f32::NEG_INFINITY; 3];
+    for p in &mesh.positions {
+        for a in 0..3 {
+            lo[a] = lo[a].min(p[a]);
+            hi[a] = hi[a].max(p[a]);
+        }
+    }
+    let pos_bytes = 12 * n;
+    let idx_bytes = 12 * m;
+    let bin_len = pos_bytes + idx_bytes;
+    let json = serde_json::json!({
+        "asset": { "version": "2.0", "generator": "sparcubes" },
+        "scene": 0,
+        "scenes": [ { "nodes": [0] } ],
+        "nodes": [ { "mesh": 0 } ],
+        "meshes": [ { "primitives": [ { "attributes": { "POSITION": 0 }, "indices": 1, "mode": 4 } ] } ],
+        "accessors": [
+            { "bufferView": 0, "componentType": 5126, "count": n, "type": "VEC3",
+              "min": lo, "max": hi },
+            { "bufferView": 1, "componentType": 5125, "count": 3 * m, "type": "SCALAR" }
+        ],
+        "bufferViews": [
+            { "buffer": 0, "byteOffset": 0, "byteLength": pos_bytes, "target": 34962 },
+            { "buffer": 0, "byteOffset": pos_bytes, "byteLength": idx_bytes, "target": 34963 }
+        ],
+        "buffers": [ { "byteLength": bin_len } ]
+    });
+    let mut json = serde_json::to_vec(&json).map_err(std::io::Error::other)?;
+    while json.len() % 4 != 0 {
+        json.push(b' ');
+    }
+    let bin_padded = bin_len.div_ceil(4) * 4;
+    let total = 12 + 8 + json.len() + 8 + bin_padded;
+    let too_big = || std::io::Error::new(std::io::ErrorKind::InvalidInput, "GLB over 4 GiB");
+    let u32_of = |x: usize| u32::try_from(x).map_err(|_| too_big());
+    w.write_all(b"glTF")?;
+    w.write_all(&2u32.to_le_bytes())?;
+    w.write_all(&u32_of(total)?.to_le_bytes())?;
+    w.write_all(&u32_of(json.len())?.to_le_bytes())?;
+    w.write_all(b"JSON")?;
+    w.write_all(&json)?;
+    w.write_all(&u32_of(bin_padded)?.to_le_bytes())?;
+    w.write_all(b"BIN\0")?;
+    for p in &mesh.positions {
+        for c in p {
+            w.write_all(&c.to_le_bytes())?;
+        }
+    }
+    for t in &mesh.triangles {
+        for i in t {
+            w.write_all(&i.to_le_bytes())?;
+        }
+    }
+    w.write_all(&[0u8; 3][..bin_padded - bin_len])?;
+    Ok(())
+}
