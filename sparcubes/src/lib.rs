@@ -29,6 +29,7 @@ pub mod grid;
 pub mod holes;
 pub mod io;
 pub mod mc_table;
+pub mod metrics;
 pub mod mesh;
 pub mod normalize;
 pub mod params;
