@@ -1,1 +1,238 @@
-//! (being written)
+//! Stage 4: the active band and its exact unsigned distance. Candidate cells are the wall
+//! cells grown by one cell in every direction (the shell around an open sheet lies within one
+//! cell of the sheet); candidate vertices are their corners. Every candidate vertex is within
+//! [`REACH`] voxels of the surface, so only triangles within that reach of a brick are binned
+//! to it, and each brick scans its own triangles — no per-vertex tree query.
+
+use crate::grid::{count, dilate, for_each_bit, rank, split, BrickSet, Dilation, Numbered, BRICK};
+use crate::voxelize::{triangle_box_overlap, GridMesh};
+use rayon::prelude::*;
+
+/// Farthest a candidate vertex can be from the surface: a corner of a cell next to a wall
+/// cell is within the 2×2×2-cell box around a surface point, whose diagonal is 2√3 ≈ 3.46.
+pub const REACH: f64 = 3.5;
+
+/// The active band: candidate cells and vertices with distance and closest point.
+#[derive(Debug, Clone)]
+pub struct Band {
+    /// Candidate cells: wall cells and their 26 neighbours.
+    pub cells: BrickSet,
+    /// Candidate vertices (corners of candidate cells), numbered.
+    pub verts: Numbered,
+    /// Unsigned distance per vertex, voxels.
+    pub udf: Vec<f32>,
+    /// Closest surface point per vertex, grid coordinates.
+    pub closest: Vec<[f32; 3]>,
+}
+
+#[inline]
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+#[inline]
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+#[inline]
+fn madd(a: [f64; 3], s: f64, d: [f64; 3]) -> [f64; 3] {
+    [a[0] + s * d[0], a[1] + s * d[1], a[2] + s * d[2]]
+}
+
+/// Closest point to `p` on triangle `abc` (Ericson, "Real-Time Collision Detection", §5.1.5).
+/// The triangle must have non-zero area.
+#[inline]
+pub fn closest_point_on_triangle(p: [f64; 3], t: &[[f64; 3]; 3]) -> [f64; 3] {
+    let [a, b, c] = *t;
+    let ab = sub(b, a);
+    let ac = sub(c, a);
+    let ap = sub(p, a);
+    let d1 = dot(ab, ap);
+    let d2 = dot(ac, ap);
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = sub(p, b);
+    let d3 = dot(ab, bp);
+    let d4 = dot(ac, bp);
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return madd(a, d1 / (d1 - d3), ab);
+    }
+    let cp = sub(p, c);
+    let d5 = dot(ab, cp);
+    let d6 = dot(ac, cp);
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return madd(a, d2 / (d2 - d6), ac);
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        return madd(b, (d4 - d3) / ((d4 - d3) + (d5 - d6)), sub(c, b));
+    }
+    let denom = 1.0 / (va + vb + vc);
+    madd(madd(a, vb * denom, ab), vc * denom, ac)
+}
+
+/// For each brick of `verts`, the triangles within [`REACH`] of it, ascending (CSR layout).
+fn bin_triangles(mesh: &GridMesh, verts: &BrickSet) -> (Vec<u32>, Vec<u32>) {
+    let index = &verts.index;
+    let mut pairs: Vec<u64> = (0..mesh.tris.len())
+        .into_par_iter()
+        .with_min_len(256)
+        .fold(Vec::new, |mut out: Vec<u64>, t| {
+            let tri = mesh.tri(t);
+            let mut lo = [0i64; 3];
+            let mut hi = [0i64; 3];
+            for a in 0..3 {
+                let mn = tri[0][a].min(tri[1][a]).min(tri[2][a]) - REACH;
+                let mx = tri[0][a].max(tri[1][a]).max(tri[2][a]) + REACH;
+                lo[a] = ((mn / BRICK as f64).floor() as i64).max(0);
+                hi[a] = ((mx / BRICK as f64).floor() as i64).min(index.dims[a] as i64 - 1);
+            }
+            for bz in lo[2]..=hi[2] {
+                for by in lo[1]..=hi[1] {
+                    for bx in lo[0]..=hi[0] {
+                        let Some(slot) = index.slot([bx, by, bz]) else {
+                            continue;
+                        };
+                        let center = [
+                            bx as f64 * 8.0 + 3.5,
+                            by as f64 * 8.0 + 3.5,
+                            bz as f64 * 8.0 + 3.5,
+                        ];
+                        if triangle_box_overlap(&tri, center, 3.5 + REACH) {
+                            out.push(((slot as u64) << 32) | t as u64);
+                        }
+                    }
+                }
+            }
+            out
+        })
+        .reduce(Vec::new, |mut a, b| {
+            a.extend(b);
+            a
+        });
+    pairs.par_sort_unstable();
+    let bricks = verts.keys.len();
+    let mut starts = vec![0u32; bricks + 1];
+    for &p in &pairs {
+        starts[(p >> 32) as usize + 1] += 1;
+    }
+    for i in 0..bricks {
+        starts[i + 1] += starts[i];
+    }
+    let tris = pairs.iter().map(|&p| p as u32).collect();
+    (starts, tris)
+}
+
+/// Computes the band around the wall cells: candidate cells and vertices, and for each vertex
+/// its exact distance to the surface and closest point (ties go to the lowest triangle index,
+/// so the result does not depend on thread count).
+pub fn compute_band(mesh: &GridMesh, walls: &BrickSet, n: u32) -> Band {
+    let cells = dilate(walls, n, Dilation::Box);
+    let verts = Numbered::new(dilate(&cells, n, Dilation::Corners));
+    let (starts, bins) = bin_triangles(mesh, &verts.set);
+    let planes: Vec<[f64; 4]> = (0..mesh.tris.len())
+        .map(|t| {
+            let [a, b, c] = mesh.tri(t);
+            let u = sub(b, a);
+            let v = sub(c, a);
+            let nrm = [
+                u[1] * v[2] - u[2] * v[1],
+                u[2] * v[0] - u[0] * v[2],
+                u[0] * v[1] - u[1] * v[0],
+            ];
+            let len = dot(nrm, nrm).sqrt();
+            let nrm = [nrm[0] / len, nrm[1] / len, nrm[2] / len];
+            [nrm[0], nrm[1], nrm[2], dot(nrm, a)]
+        })
+        .collect();
+    let per_brick: Vec<(Vec<f32>, Vec<[f32; 3]>)> = (0..verts.set.keys.len())
+        .into_par_iter()
+        .map(|s| {
+            let mask = &verts.set.masks[s];
+            let b = verts.set.index.coord(verts.set.keys[s] as usize);
+            let base = [b[0] as i64 * 8, b[1] as i64 * 8, b[2] as i64 * 8];
+            let k = count(mask) as usize;
+            let mut best = vec![f64::INFINITY; k];
+            let mut best_p = vec![[0f64; 3]; k];
+            for &t in &bins[starts[s] as usize..starts[s + 1] as usize] {
+                let tri = mesh.tri(t as usize);
+                let pl = planes[t as usize];
+                let mut lo = [0i64; 3];
+                let mut hi = [0i64; 3];
+                for a in 0..3 {
+                    let mn = tri[0][a].min(tri[1][a]).min(tri[2][a]) - REACH;
+                    let mx = tri[0][a].max(tri[1][a]).max(tri[2][a]) + REACH;
+                    lo[a] = (mn.ceil() as i64).max(base[a]);
+                    hi[a] = (mx.floor() as i64).min(base[a] + 7);
+                }
+                for z in lo[2]..=hi[2] {
+                    for y in lo[1]..=hi[1] {
+                        for x in lo[0]..=hi[0] {
+                            let (_, w, bit) = split([x as u32, y as u32, z as u32]);
+                            if (mask[w] >> bit) & 1 == 0 {
+                                continue;
+                            }
+                            let i = rank(mask, w, bit) as usize;
+                            let p = [x as f64, y as f64, z as f64];
+                            let plane = pl[0] * p[0] + pl[1] * p[1] + pl[2] * p[2] - pl[3];
+                            if plane * plane >= best[i] {
+                                continue;
+                            }
+                            let q = closest_point_on_triangle(p, &tri);
+                            let d = sub(p, q);
+                            let d2 = dot(d, d);
+                            if d2 < best[i] {
+                                best[i] = d2;
+                                best_p[i] = q;
+                            }
+                        }
+                    }
+                }
+            }
+            let mut udf = Vec::with_capacity(k);
+            let mut cp = Vec::with_capacity(k);
+            let mut i = 0;
+            for_each_bit(mask, |x, y, z| {
+                let p = [
+                    (base[0] + x as i64) as f64,
+                    (base[1] + y as i64) as f64,
+                    (base[2] + z as i64) as f64,
+                ];
+                if best[i].is_finite() {
+                    udf.push(best[i].sqrt() as f32);
+                    cp.push([
+                        best_p[i][0] as f32,
+                        best_p[i][1] as f32,
+                        best_p[i][2] as f32,
+                    ]);
+                } else {
+                    // Unreachable by the REACH argument; keep the vertex far and outside.
+                    udf.push(REACH as f32);
+                    cp.push([p[0] as f32, p[1] as f32, p[2] as f32]);
+                }
+                i += 1;
+            });
+            (udf, cp)
+        })
+        .collect();
+    let mut udf = Vec::with_capacity(verts.len);
+    let mut closest = Vec::with_capacity(verts.len);
+    for (u, c) in per_brick {
+        udf.extend(u);
+        closest.extend(c);
+    }
+    Band {
+        cells,
+        verts,
+        udf,
+        closest,
+    }
+}

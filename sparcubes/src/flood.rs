@@ -1,1 +1,198 @@
-//! (being written)
+//! Stage 3: which cells are outside. A flood fill from the grid's border over cells the
+//! surface does not touch, hierarchical as in OpenVDB's signed flood fill: whole empty bricks
+//! are flooded at once, and inside bricks that hold wall cells the flood advances with
+//! bit-parallel dilations of 512-bit masks. Cells it never reaches are inside.
+
+use crate::grid::{face_carry, or_assign, shift, split, test, BrickMask, BrickSet, NO_BRICK};
+use std::collections::VecDeque;
+
+/// The flood's result: outside flags for empty bricks and outside masks for wall bricks.
+#[derive(Debug, Clone)]
+pub struct Flood {
+    /// Per brick key: whether an empty brick (one without wall cells) is outside.
+    pub empty_outside: Vec<bool>,
+    /// Per wall brick (parallel to `walls.masks`): its outside cells.
+    pub wall_outside: Vec<BrickMask>,
+}
+
+const FULL: BrickMask = [u64::MAX; 8];
+const DIRS: [(usize, bool); 6] = [
+    (0, false),
+    (0, true),
+    (1, false),
+    (1, true),
+    (2, false),
+    (2, true),
+];
+
+fn grow_within(out: &mut BrickMask, wall: &BrickMask) {
+    loop {
+        let mut grown = *out;
+        for (axis, plus) in DIRS {
+            or_assign(&mut grown, &shift(out, axis, plus));
+        }
+        for z in 0..8 {
+            grown[z] &= !wall[z];
+        }
+        if grown == *out {
+            return;
+        }
+        *out = grown;
+    }
+}
+
+/// Floods the outside over non-wall cells, starting from every cell on the border of the
+/// brick space. The result is the unique least fixpoint, so it does not depend on order.
+pub fn flood_outside(walls: &BrickSet) -> Flood {
+    let index = &walls.index;
+    let dims = index.dims;
+    let nb = index.slots.len();
+    let mut empty_outside = vec![false; nb];
+    let mut wall_outside = vec![[0u64; 8]; walls.masks.len()];
+    let mut queued = vec![false; walls.masks.len()];
+    let mut queue: VecDeque<usize> = VecDeque::new();
+
+    // Seeds: every brick on the border of the brick space.
+    for key in 0..nb {
+        let b = index.coord(key);
+        let on_border: Vec<(usize, bool)> = (0..3)
+            .flat_map(|a| {
+                let mut v = Vec::new();
+                if b[a] == 0 {
+                    v.push((a, false));
+                }
+                if b[a] == dims[a] - 1 {
+                    v.push((a, true));
+                }
+                v
+            })
+            .collect();
+        if on_border.is_empty() {
+            continue;
+        }
+        let slot = index.slots[key];
+        if slot == NO_BRICK {
+            empty_outside[key] = true;
+            queue.push_back(key);
+        } else {
+            let s = slot as usize;
+            let mut seed = [0u64; 8];
+            for (axis, high) in on_border {
+                // The face at local 0 (or 7) of this brick: carry a full face from the
+                // opposite side onto it.
+                or_assign(&mut seed, &face_carry(&FULL, axis, !high));
+            }
+            for z in 0..8 {
+                seed[z] &= !walls.masks[s][z];
+            }
+            or_assign(&mut wall_outside[s], &seed);
+            queued[s] = true;
+            queue.push_back(key);
+        }
+    }
+
+    while let Some(key) = queue.pop_front() {
+        let b = index.coord(key);
+        let slot = index.slots[key];
+        let carries: [BrickMask; 6] = if slot == NO_BRICK {
+            let mut c = [[0u64; 8]; 6];
+            for (i, &(axis, high)) in DIRS.iter().enumerate() {
+                c[i] = face_carry(&FULL, axis, high);
+            }
+            c
+        } else {
+            let s = slot as usize;
+            queued[s] = false;
+            let mut out = wall_outside[s];
+            grow_within(&mut out, &walls.masks[s]);
+            wall_outside[s] = out;
+            let mut c = [[0u64; 8]; 6];
+            for (i, &(axis, high)) in DIRS.iter().enumerate() {
+                c[i] = face_carry(&out, axis, high);
+            }
+            c
+        };
+        for (i, &(axis, high)) in DIRS.iter().enumerate() {
+            if carries[i].iter().all(|&w| w == 0) {
+                continue;
+            }
+            let mut nbr = [b[0] as i64, b[1] as i64, b[2] as i64];
+            nbr[axis] += if high { 1 } else { -1 };
+            if nbr[axis] < 0 || nbr[axis] >= dims[axis] as i64 {
+                continue;
+            }
+            let nkey = index.key([nbr[0] as u32, nbr[1] as u32, nbr[2] as u32]);
+            let nslot = index.slots[nkey];
+            if nslot == NO_BRICK {
+                if !empty_outside[nkey] {
+                    empty_outside[nkey] = true;
+                    queue.push_back(nkey);
+                }
+            } else {
+                let t = nslot as usize;
+                let mut changed = false;
+                for z in 0..8 {
+                    let incoming = carries[i][z] & !walls.masks[t][z] & !wall_outside[t][z];
+                    if incoming != 0 {
+                        wall_outside[t][z] |= incoming;
+                        changed = true;
+                    }
+                }
+                if changed && !queued[t] {
+                    queued[t] = true;
+                    queue.push_back(nkey);
+                }
+            }
+        }
+    }
+    Flood {
+        empty_outside,
+        wall_outside,
+    }
+}
+
+/// What the flood says of one cell.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CellSide {
+    /// The surface touches the cell.
+    Wall,
+    /// Reached from the border without touching the surface.
+    Outside,
+    /// Not reached.
+    Inside,
+}
+
+impl Flood {
+    /// The side of cell `c`; cells outside the brick space are outside.
+    #[inline]
+    pub fn cell(&self, walls: &BrickSet, c: [i64; 3]) -> CellSide {
+        if c.iter().any(|&v| v < 0) {
+            return CellSide::Outside;
+        }
+        let (b, w, bit) = split([c[0] as u32, c[1] as u32, c[2] as u32]);
+        let index = &walls.index;
+        if (0..3).any(|a| b[a] >= index.dims[a]) {
+            return CellSide::Outside;
+        }
+        let key = index.key(b);
+        match index.slots[key] {
+            NO_BRICK => {
+                if self.empty_outside[key] {
+                    CellSide::Outside
+                } else {
+                    CellSide::Inside
+                }
+            }
+            s => {
+                let s = s as usize;
+                if test(&walls.masks[s], w, bit) {
+                    CellSide::Wall
+                } else if test(&self.wall_outside[s], w, bit) {
+                    CellSide::Outside
+                } else {
+                    CellSide::Inside
+                }
+            }
+        }
+    }
+}

@@ -1,1 +1,408 @@
-//! (being written)
+//! The sparse grid's data structures: bricks of 8³ cells (or vertices) with a 512-bit mask,
+//! addressed through a dense index over brick coordinates (4 bytes per brick, so about 9 MB
+//! at N = 1024 — never a dense array per cell).
+//!
+//! Cells and vertices share one brick space: brick `b` holds cells / vertices whose integer
+//! coordinates `c` satisfy `c >> 3 == b`. A brick mask is eight `u64` words, word `z & 7`,
+//! bit `(x & 7) + 8 · (y & 7)`.
+
+/// Edge length of a brick, in cells.
+pub const BRICK: u32 = 8;
+/// Sentinel in a brick index for "no brick here".
+pub const NO_BRICK: u32 = u32::MAX;
+
+/// One brick's bits: word = local z, bit = local x + 8 · local y.
+pub type BrickMask = [u64; 8];
+
+/// Bits of a brick word whose local x is 0.
+pub const X0: u64 = 0x0101_0101_0101_0101;
+/// Bits of a brick word whose local x is 7.
+pub const X7: u64 = X0 << 7;
+/// Bits of a brick word whose local y is 0.
+pub const Y0: u64 = 0xFF;
+/// Bits of a brick word whose local y is 7.
+pub const Y7: u64 = 0xFF << 56;
+
+/// Splits a cell or vertex coordinate into (brick coordinate, word, bit).
+#[inline]
+pub fn split(c: [u32; 3]) -> ([u32; 3], usize, u32) {
+    (
+        [c[0] >> 3, c[1] >> 3, c[2] >> 3],
+        (c[2] & 7) as usize,
+        (c[0] & 7) + 8 * (c[1] & 7),
+    )
+}
+
+/// Whether bit `(word, bit)` is set.
+#[inline]
+pub fn test(m: &BrickMask, word: usize, bit: u32) -> bool {
+    (m[word] >> bit) & 1 == 1
+}
+
+/// Number of set bits.
+#[inline]
+pub fn count(m: &BrickMask) -> u32 {
+    m.iter().map(|w| w.count_ones()).sum()
+}
+
+/// Number of set bits before `(word, bit)` in local order.
+#[inline]
+pub fn rank(m: &BrickMask, word: usize, bit: u32) -> u32 {
+    let before: u32 = m[..word].iter().map(|w| w.count_ones()).sum();
+    before + (m[word] & ((1u64 << bit) - 1)).count_ones()
+}
+
+/// Whether the mask is empty.
+#[inline]
+pub fn is_empty(m: &BrickMask) -> bool {
+    m.iter().all(|&w| w == 0)
+}
+
+/// Calls `f(local x, local y, local z)` for each set bit, in local order.
+#[inline]
+pub fn for_each_bit(m: &BrickMask, mut f: impl FnMut(u32, u32, u32)) {
+    for (z, &word) in m.iter().enumerate() {
+        let mut w = word;
+        while w != 0 {
+            let b = w.trailing_zeros();
+            f(b & 7, b >> 3, z as u32);
+            w &= w - 1;
+        }
+    }
+}
+
+/// The dense index of a brick space: brick coordinate → slot in a sparse list.
+#[derive(Debug, Clone)]
+pub struct BrickIndex {
+    /// Bricks per axis.
+    pub dims: [u32; 3],
+    /// Slot per brick (x fastest), or [`NO_BRICK`].
+    pub slots: Vec<u32>,
+}
+
+impl BrickIndex {
+    /// An empty index over a brick space covering coordinates `0..=n` per axis.
+    pub fn for_resolution(n: u32) -> Self {
+        let d = n / BRICK + 1;
+        Self {
+            dims: [d; 3],
+            slots: vec![NO_BRICK; (d as usize).pow(3)],
+        }
+    }
+
+    /// Linear key of a brick coordinate (x fastest).
+    #[inline]
+    pub fn key(&self, b: [u32; 3]) -> usize {
+        (b[0] + self.dims[0] * (b[1] + self.dims[1] * b[2])) as usize
+    }
+
+    /// Brick coordinate of a linear key.
+    #[inline]
+    pub fn coord(&self, key: usize) -> [u32; 3] {
+        let k = key as u32;
+        [
+            k % self.dims[0],
+            (k / self.dims[0]) % self.dims[1],
+            k / (self.dims[0] * self.dims[1]),
+        ]
+    }
+
+    /// Slot of brick `b`, if present; `None` also for coordinates outside the space.
+    #[inline]
+    pub fn slot(&self, b: [i64; 3]) -> Option<usize> {
+        if (0..3).any(|a| b[a] < 0 || b[a] >= self.dims[a] as i64) {
+            return None;
+        }
+        let s = self.slots[self.key([b[0] as u32, b[1] as u32, b[2] as u32])];
+        (s != NO_BRICK).then_some(s as usize)
+    }
+}
+
+/// A sparse set of cells or vertices: bricks with their masks, sorted by linear key.
+#[derive(Debug, Clone)]
+pub struct BrickSet {
+    /// Dense index from brick coordinate to position in `keys`/`masks`.
+    pub index: BrickIndex,
+    /// Linear keys of the present bricks, ascending.
+    pub keys: Vec<u32>,
+    /// Mask per present brick (parallel to `keys`).
+    pub masks: Vec<BrickMask>,
+}
+
+impl BrickSet {
+    /// Builds a set from sorted, deduplicated `(brick key, word, bit)`-packed entries
+    /// (`key << 9 | local`), where `local = x + 8y + 64z`.
+    pub fn from_sorted_packed(n: u32, packed: &[u64]) -> Self {
+        let mut index = BrickIndex::for_resolution(n);
+        let mut keys = Vec::new();
+        let mut masks: Vec<BrickMask> = Vec::new();
+        for &p in packed {
+            let key = (p >> 9) as u32;
+            let local = (p & 511) as u32;
+            if keys.last() != Some(&key) {
+                index.slots[key as usize] = keys.len() as u32;
+                keys.push(key);
+                masks.push([0; 8]);
+            }
+            if let Some(m) = masks.last_mut() {
+                m[(local >> 6) as usize] |= 1u64 << (local & 63);
+            }
+        }
+        Self { index, keys, masks }
+    }
+
+    /// Builds a set from bricks given as sorted keys with their masks (empty masks dropped).
+    pub fn from_masks(index_dims_n: u32, keyed: Vec<(u32, BrickMask)>) -> Self {
+        let mut index = BrickIndex::for_resolution(index_dims_n);
+        let mut keys = Vec::with_capacity(keyed.len());
+        let mut masks = Vec::with_capacity(keyed.len());
+        for (k, m) in keyed {
+            if is_empty(&m) {
+                continue;
+            }
+            index.slots[k as usize] = keys.len() as u32;
+            keys.push(k);
+            masks.push(m);
+        }
+        Self { index, keys, masks }
+    }
+
+    /// Whether the cell / vertex at `c` is in the set (`false` outside the space).
+    #[inline]
+    pub fn contains(&self, c: [i64; 3]) -> bool {
+        if c.iter().any(|&v| v < 0) {
+            return false;
+        }
+        let (b, w, bit) = split([c[0] as u32, c[1] as u32, c[2] as u32]);
+        match self.index.slot([b[0] as i64, b[1] as i64, b[2] as i64]) {
+            Some(s) => test(&self.masks[s], w, bit),
+            None => false,
+        }
+    }
+
+    /// Mask of the brick at brick coordinate `b`, if present.
+    #[inline]
+    pub fn mask_at(&self, b: [i64; 3]) -> Option<&BrickMask> {
+        self.index.slot(b).map(|s| &self.masks[s])
+    }
+
+    /// Total number of members.
+    pub fn len(&self) -> u64 {
+        self.masks.iter().map(|m| count(m) as u64).sum()
+    }
+
+    /// Whether the set has no member.
+    pub fn is_empty(&self) -> bool {
+        self.keys.is_empty()
+    }
+}
+
+/// Packs a cell / vertex coordinate as `brick key << 9 | local index` for sorting.
+#[inline]
+pub fn pack(index: &BrickIndex, c: [u32; 3]) -> u64 {
+    let (b, w, bit) = split(c);
+    ((index.key(b) as u64) << 9) | ((w as u64) << 6) | bit as u64
+}
+
+/// Shifts of a mask by one along an axis within a brick, with the bits that leave the brick
+/// dropped: `plus` moves every bit from local coordinate k to k + 1.
+#[inline]
+pub fn shift(m: &BrickMask, axis: usize, plus: bool) -> BrickMask {
+    let mut out = [0u64; 8];
+    match (axis, plus) {
+        (0, true) => (0..8).for_each(|z| out[z] = (m[z] << 1) & !X0),
+        (0, false) => (0..8).for_each(|z| out[z] = (m[z] >> 1) & !X7),
+        (1, true) => (0..8).for_each(|z| out[z] = m[z] << 8),
+        (1, false) => (0..8).for_each(|z| out[z] = m[z] >> 8),
+        (2, true) => (1..8).for_each(|z| out[z] = m[z - 1]),
+        _ => (0..7).for_each(|z| out[z] = m[z + 1]),
+    }
+    out
+}
+
+/// The bits of `m` on its face at local coordinate 7 (`high`) or 0 along `axis`, moved to the
+/// opposite face (as they enter the neighbouring brick).
+#[inline]
+pub fn face_carry(m: &BrickMask, axis: usize, high: bool) -> BrickMask {
+    let mut out = [0u64; 8];
+    match (axis, high) {
+        (0, true) => (0..8).for_each(|z| out[z] = (m[z] & X7) >> 7),
+        (0, false) => (0..8).for_each(|z| out[z] = (m[z] & X0) << 7),
+        (1, true) => (0..8).for_each(|z| out[z] = (m[z] & Y7) >> 56),
+        (1, false) => (0..8).for_each(|z| out[z] = (m[z] & Y0) << 56),
+        (2, true) => out[0] = m[7],
+        _ => out[7] = m[0],
+    }
+    out
+}
+
+/// Bitwise OR in place.
+#[inline]
+pub fn or_assign(a: &mut BrickMask, b: &BrickMask) {
+    for z in 0..8 {
+        a[z] |= b[z];
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rank_counts_bits_before() {
+        let mut m = [0u64; 8];
+        m[0] = 0b1011;
+        m[3] = 1 << 5;
+        assert_eq!(rank(&m, 0, 0), 0);
+        assert_eq!(rank(&m, 0, 3), 2);
+        assert_eq!(rank(&m, 3, 5), 3);
+        assert_eq!(rank(&m, 3, 6), 4);
+        assert_eq!(count(&m), 4);
+    }
+
+    #[test]
+    fn shift_and_carry_move_bits_across_axes() {
+        let mut m = [0u64; 8];
+        let (_, w, b) = split([7, 3, 2]);
+        m[w] |= 1 << b;
+        let s = shift(&m, 0, true);
+        assert!(is_empty(&s), "a bit at x = 7 leaves the brick");
+        let c = face_carry(&m, 0, true);
+        let (_, w2, b2) = split([0, 3, 2]);
+        assert!(test(&c, w2, b2));
+        let s = shift(&m, 2, false);
+        let (_, w3, b3) = split([7, 3, 1]);
+        assert!(test(&s, w3, b3));
+    }
+}
+
+/// How [`dilate`] grows a set.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Dilation {
+    /// By one along every axis both ways: the 26-neighbourhood.
+    Box,
+    /// By one towards +x, +y and +z: the corners of a set of cells.
+    Corners,
+}
+
+/// Grows a set by one (see [`Dilation`]), separably per axis; coordinates that would fall
+/// outside the brick space are dropped.
+pub fn dilate(set: &BrickSet, n: u32, how: Dilation) -> BrickSet {
+    let index = &set.index;
+    let dims = index.dims;
+    let reach: &[i64] = match how {
+        Dilation::Box => &[-1, 0, 1],
+        Dilation::Corners => &[0, 1],
+    };
+    let mut keys: Vec<u32> = Vec::with_capacity(set.keys.len() * 3);
+    for &k in &set.keys {
+        let b = index.coord(k as usize);
+        for &dz in reach {
+            for &dy in reach {
+                for &dx in reach {
+                    let c = [b[0] as i64 + dx, b[1] as i64 + dy, b[2] as i64 + dz];
+                    if (0..3).all(|a| c[a] >= 0 && c[a] < dims[a] as i64) {
+                        keys.push(index.key([c[0] as u32, c[1] as u32, c[2] as u32]) as u32);
+                    }
+                }
+            }
+        }
+    }
+    keys.sort_unstable();
+    keys.dedup();
+    let mut grown = BrickIndex::for_resolution(n);
+    for (i, &k) in keys.iter().enumerate() {
+        grown.slots[k as usize] = i as u32;
+    }
+    let mut masks: Vec<BrickMask> = keys
+        .iter()
+        .map(|&k| match set.index.slots[k as usize] {
+            NO_BRICK => [0; 8],
+            s => set.masks[s as usize],
+        })
+        .collect();
+    for axis in 0..3 {
+        let before = masks.clone();
+        for (i, &k) in keys.iter().enumerate() {
+            let b = grown.coord(k as usize);
+            let m = &before[i];
+            let mut out = *m;
+            or_assign(&mut out, &shift(m, axis, true));
+            let mut lower = [b[0] as i64, b[1] as i64, b[2] as i64];
+            lower[axis] -= 1;
+            if let Some(s) = grown.slot(lower) {
+                or_assign(&mut out, &face_carry(&before[s], axis, true));
+            }
+            if how == Dilation::Box {
+                or_assign(&mut out, &shift(m, axis, false));
+                let mut upper = [b[0] as i64, b[1] as i64, b[2] as i64];
+                upper[axis] += 1;
+                if let Some(s) = grown.slot(upper) {
+                    or_assign(&mut out, &face_carry(&before[s], axis, false));
+                }
+            }
+            masks[i] = out;
+        }
+    }
+    BrickSet {
+        index: grown,
+        keys,
+        masks,
+    }
+}
+
+/// A [`BrickSet`] whose members are numbered `0..len` in brick order, so per-member data can
+/// live in flat arrays.
+#[derive(Debug, Clone)]
+pub struct Numbered {
+    /// The members.
+    pub set: BrickSet,
+    /// Per brick: the number of the brick's first member.
+    pub offsets: Vec<u32>,
+    /// Total members.
+    pub len: usize,
+}
+
+impl Numbered {
+    /// Numbers the members of `set`.
+    pub fn new(set: BrickSet) -> Self {
+        let mut offsets = Vec::with_capacity(set.masks.len());
+        let mut total = 0u64;
+        for m in &set.masks {
+            offsets.push(total as u32);
+            total += count(m) as u64;
+        }
+        Self {
+            set,
+            offsets,
+            len: total as usize,
+        }
+    }
+
+    /// Number of the member at `c`, if it is one.
+    #[inline]
+    pub fn id(&self, c: [i64; 3]) -> Option<u32> {
+        if c.iter().any(|&v| v < 0) {
+            return None;
+        }
+        let (b, w, bit) = split([c[0] as u32, c[1] as u32, c[2] as u32]);
+        let s = self
+            .set
+            .index
+            .slot([b[0] as i64, b[1] as i64, b[2] as i64])?;
+        let m = &self.set.masks[s];
+        test(m, w, bit).then(|| self.offsets[s] + rank(m, w, bit))
+    }
+
+    /// Coordinates of every member, in number order.
+    pub fn coords(&self) -> Vec<[u32; 3]> {
+        let mut out = Vec::with_capacity(self.len);
+        for (s, m) in self.set.masks.iter().enumerate() {
+            let b = self.set.index.coord(self.set.keys[s] as usize);
+            for_each_bit(m, |x, y, z| {
+                out.push([b[0] * 8 + x, b[1] * 8 + y, b[2] * 8 + z])
+            });
+        }
+        out
+    }
+}

@@ -34,6 +34,7 @@ pub mod mesh;
 pub mod normalize;
 pub mod params;
 pub mod sanitize;
+pub mod shapes;
 pub mod sign;
 pub mod topology;
 pub mod voxelize;

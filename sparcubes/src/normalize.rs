@@ -4,6 +4,13 @@
 
 use serde::{Deserialize, Serialize};
 
+/// Sub-voxel shift of the grid against the mesh, per axis: (√2−1)/16, (√3−1)/20, (√5−2)/13.
+pub const GRID_OFFSET: [f64; 3] = [
+    0.025_888_347_648_318,
+    0.036_602_540_378_444,
+    0.018_155_785_765_794,
+];
+
 /// The affine map between the source frame and the unit cube: `unit = (p − center) · scale`.
 /// Grid coordinates are `g = (unit + 0.5) · N`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -26,13 +33,19 @@ impl Normalization {
             0.5 * (lo[2] + hi[2]),
         ];
         let extent = (0..3).map(|a| hi[a] - lo[a]).fold(0.0f64, f64::max);
-        let magnitude = (0..3).map(|a| lo[a].abs().max(hi[a].abs())).fold(1e-30, f64::max);
+        let magnitude = (0..3)
+            .map(|a| lo[a].abs().max(hi[a].abs()))
+            .fold(1e-30, f64::max);
         let extent = extent.max(magnitude * 1e-12);
         let usable = (resolution - 2 * margin_cells) as f64 / resolution as f64;
-        Self {
-            center,
-            scale: usable / extent,
-        }
+        let scale = usable / extent;
+        // Shift by a small, different irrational fraction of a voxel per axis, so that the
+        // axis-aligned and diagonal faces common in real meshes (at "round" coordinates) never
+        // lie exactly on grid planes or through grid vertices, where every predicate of the
+        // later stages would be degenerate.
+        let center =
+            std::array::from_fn(|a| center[a] - GRID_OFFSET[a] / (scale * resolution as f64));
+        Self { center, scale }
     }
 
     /// Source point → grid coordinates (voxels) at resolution `n`.
