@@ -21,7 +21,7 @@ use std::path::{Component, Path};
 const MAX_DEPTH: usize = 256;
 
 pub(crate) fn read(bytes: &[u8], path: &Path, stats: &mut LoadStats) -> Result<TriMesh> {
-    let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| parse_err(path, format!("glTF: {e}")))?;
+    let gltf = open(bytes, path)?;
     let buffers = load_buffers(&gltf, path)?;
 
     let scene = gltf
@@ -52,6 +52,59 @@ pub(crate) fn read(bytes: &[u8], path: &Path, stats: &mut LoadStats) -> Result<T
         }
     }
     Ok(mesh)
+}
+
+/// Parses and validates the document. Missing POSITION `min`/`max` (common in exported files,
+/// and never used here) is tolerated; glTF 1.0 and required extensions we cannot read (Draco
+/// compression, ...) are reported as unsupported formats.
+fn open(bytes: &[u8], path: &Path) -> Result<gltf::Gltf> {
+    let unsupported = |reason: String| Error::UnsupportedFormat {
+        path: path.to_path_buf(),
+        reason,
+    };
+    if bytes.starts_with(b"glTF") && bytes.get(4..8) == Some(&1u32.to_le_bytes()[..]) {
+        return Err(unsupported(
+            "binary glTF 1.0 (only glTF 2.0 is read)".into(),
+        ));
+    }
+    match gltf::Gltf::from_slice(bytes) {
+        Ok(g) => Ok(g),
+        Err(gltf::Error::Validation(errors)) => {
+            let only_bounds = errors.iter().all(|(p, e)| {
+                matches!(e, gltf::json::validation::Error::Missing)
+                    && (p.0.ends_with(".min") || p.0.ends_with(".max"))
+            });
+            if only_bounds {
+                return gltf::Gltf::from_slice_without_validation(bytes)
+                    .map_err(|e| parse_err(path, format!("glTF: {e}")));
+            }
+            let list: Vec<String> = errors
+                .iter()
+                .take(5)
+                .map(|(p, e)| format!("{p}: {e}"))
+                .collect();
+            let text = format!("invalid glTF: {}", list.join("; "));
+            if errors
+                .iter()
+                .any(|(p, _)| p.0.starts_with("extensionsRequired"))
+            {
+                Err(unsupported(text))
+            } else {
+                Err(parse_err(path, format!("glTF: {text}")))
+            }
+        }
+        Err(e) => {
+            let v1 = serde_json::from_slice::<serde_json::Value>(bytes)
+                .ok()
+                .and_then(|v| v["asset"]["version"].as_str().map(|s| s.starts_with('1')))
+                .unwrap_or(false);
+            if v1 {
+                Err(unsupported("glTF 1.0 (only glTF 2.0 is read)".into()))
+            } else {
+                Err(parse_err(path, format!("glTF: {e}")))
+            }
+        }
+    }
 }
 
 /// The data of every buffer, in order.
