@@ -1,6 +1,47 @@
 //! Contracts shared by every part of sparc3d: the manifest record, the job config and its
-//! fingerprint, the Arrow schema of a shard row and the tensor encodings.
+//! fingerprint, the layout of a job folder, the Arrow schema of a shard row and the tensor
+//! encodings (dtype, byte order, zstd), and the completion record that marks a shard done.
+//!
+//! This crate does no I/O beyond encoding and decoding its own types.
 #![deny(missing_docs)]
+
+pub mod arrow;
+pub mod class;
+pub mod columns;
+pub mod completion;
+pub mod config;
+pub mod digest;
+pub mod error;
+pub mod layout;
+pub mod manifest;
+pub mod row;
+pub mod tensor;
+
+pub use class::{ErrorClass, ItemStatus};
+pub use completion::CompletionRecord;
+pub use config::{JobConfig, JobFile, Limits};
+pub use error::{Result, SchemaError};
+pub use layout::JobLayout;
+pub use manifest::{FrozenItem, ManifestRecord};
+pub use row::{RowCounts, RowTensors, RowTimings, ShardRow};
+pub use tensor::{DType, EncodedTensor};
 
 /// Version of the shard format; bumped on any change to columns or encodings.
 pub const SCHEMA_VERSION: u32 = 1;
+
+/// Version of the tool that wrote a file (the workspace version).
+pub const TOOL_VERSION: &str = env!("CARGO_PKG_VERSION");
+
+/// Parquet key-value metadata keys written into every shard.
+pub mod meta_keys {
+    /// The shard format's schema version ([`crate::SCHEMA_VERSION`]).
+    pub const SCHEMA_VERSION: &str = "sparc3d.schema_version";
+    /// The job config as JSON.
+    pub const CONFIG: &str = "sparc3d.config";
+    /// The config fingerprint.
+    pub const FINGERPRINT: &str = "sparc3d.fingerprint";
+    /// The version of the tool that wrote the shard.
+    pub const TOOL_VERSION: &str = "sparc3d.tool_version";
+    /// The shard's index in its job.
+    pub const SHARD_INDEX: &str = "sparc3d.shard_index";
+}

@@ -1,0 +1,412 @@
+//! The Arrow schema of a shard row, and conversion between [`ShardRow`]s and record batches.
+
+use crate::class::{ErrorClass, ItemStatus};
+use crate::columns as c;
+use crate::error::{Result, SchemaError};
+use crate::row::{RowCounts, RowTensors, RowTimings, ShardRow};
+use crate::tensor::{DType, EncodedTensor};
+use arrow_array::types::Int64Type;
+use arrow_array::{
+    Array, ArrayRef, BinaryArray, Float64Array, ListArray, RecordBatch, StringArray, UInt32Array,
+    UInt64Array,
+};
+use arrow_schema::{DataType, Field, Schema, SchemaRef};
+use sparcubes::Normalization;
+use std::sync::Arc;
+
+fn shape_type() -> DataType {
+    DataType::List(Arc::new(Field::new("item", DataType::Int64, true)))
+}
+
+/// The Arrow schema of a shard (without key-value metadata).
+pub fn schema() -> SchemaRef {
+    use DataType::*;
+    let mut f = vec![
+        Field::new(c::ITEM_INDEX, UInt64, false),
+        Field::new(c::ID, Utf8, false),
+        Field::new(c::URI, Utf8, false),
+        Field::new(c::SOURCE_SHA256, Utf8, true),
+        Field::new(c::STATUS, Utf8, false),
+        Field::new(c::ERROR_CLASS, Utf8, true),
+        Field::new(c::ERROR_MESSAGE, Utf8, true),
+        Field::new(c::STDERR_TAIL, Utf8, true),
+        Field::new(c::ATTEMPTS, UInt32, false),
+        Field::new(c::RESOLUTION, UInt32, false),
+        Field::new(c::CENTER_X, Float64, true),
+        Field::new(c::CENTER_Y, Float64, true),
+        Field::new(c::CENTER_Z, Float64, true),
+        Field::new(c::SCALE, Float64, true),
+    ];
+    for name in COUNT_COLUMNS {
+        f.push(Field::new(name, UInt64, true));
+    }
+    for name in TIME_COLUMNS {
+        f.push(Field::new(name, Float64, false));
+    }
+    f.push(Field::new(c::TIME_STAGES, Utf8, false));
+    for t in c::TENSORS {
+        f.push(Field::new(t, Binary, true));
+        f.push(Field::new(c::dtype_column(t), Utf8, true));
+        f.push(Field::new(c::shape_column(t), shape_type(), true));
+    }
+    Arc::new(Schema::new(f))
+}
+
+const COUNT_COLUMNS: [&str; 8] = [
+    c::INPUT_FACES,
+    c::INPUT_VERTICES,
+    c::INPUT_COMPONENTS,
+    c::ACTIVE_VERTICES,
+    c::ACTIVE_CELLS,
+    c::OUTPUT_FACES,
+    c::SHELL_VERTICES,
+    c::WALL_CELLS,
+];
+
+const TIME_COLUMNS: [&str; 5] = [
+    c::TIME_LOAD,
+    c::TIME_CONVERT,
+    c::TIME_EXTRACT,
+    c::TIME_ENCODE,
+    c::TIME_TOTAL,
+];
+
+fn count_values(k: &RowCounts) -> [Option<u64>; 8] {
+    [
+        Some(k.input_faces),
+        Some(k.input_vertices),
+        k.input_components,
+        Some(k.active_vertices),
+        Some(k.active_cells),
+        k.output_faces,
+        Some(k.shell_vertices),
+        Some(k.wall_cells),
+    ]
+}
+
+fn time_values(t: &RowTimings) -> [f64; 5] {
+    [t.load_s, t.convert_s, t.extract_s, t.encode_s, t.total_s]
+}
+
+fn stages_json(t: &RowTimings) -> String {
+    let map: serde_json::Map<String, serde_json::Value> = t
+        .stages
+        .iter()
+        .map(|(k, v)| (k.clone(), serde_json::json!(v)))
+        .collect();
+    serde_json::Value::Object(map).to_string()
+}
+
+fn tensor_of<'a>(row: &'a ShardRow, stem: &str) -> Option<&'a EncodedTensor> {
+    let t = row.tensors.as_ref()?;
+    t.iter().into_iter().find(|(s, _)| *s == stem)?.1
+}
+
+/// Builds a record batch of rows (in the given order) with [`schema`].
+pub fn rows_to_batch(rows: &[ShardRow]) -> Result<RecordBatch> {
+    let strs = |f: &dyn Fn(&ShardRow) -> Option<&str>| -> ArrayRef {
+        Arc::new(StringArray::from(rows.iter().map(f).collect::<Vec<_>>()))
+    };
+    let norm = |f: &dyn Fn(&Normalization) -> f64| -> ArrayRef {
+        Arc::new(Float64Array::from(
+            rows.iter()
+                .map(|r| r.normalization.as_ref().map(f))
+                .collect::<Vec<_>>(),
+        ))
+    };
+    let mut cols: Vec<ArrayRef> = vec![
+        Arc::new(UInt64Array::from(
+            rows.iter().map(|r| r.item_index).collect::<Vec<_>>(),
+        )),
+        strs(&|r| Some(r.id.as_str())),
+        strs(&|r| Some(r.uri.as_str())),
+        strs(&|r| r.source_sha256.as_deref()),
+        strs(&|r| Some(r.status.as_str())),
+        strs(&|r| r.error_class.map(ErrorClass::as_str)),
+        strs(&|r| r.error_message.as_deref()),
+        strs(&|r| r.stderr_tail.as_deref()),
+        Arc::new(UInt32Array::from(
+            rows.iter().map(|r| r.attempts).collect::<Vec<_>>(),
+        )),
+        Arc::new(UInt32Array::from(
+            rows.iter().map(|r| r.resolution).collect::<Vec<_>>(),
+        )),
+        norm(&|n| n.center[0]),
+        norm(&|n| n.center[1]),
+        norm(&|n| n.center[2]),
+        norm(&|n| n.scale),
+    ];
+    for i in 0..COUNT_COLUMNS.len() {
+        cols.push(Arc::new(UInt64Array::from(
+            rows.iter()
+                .map(|r| r.counts.as_ref().and_then(|k| count_values(k)[i]))
+                .collect::<Vec<_>>(),
+        )));
+    }
+    for i in 0..TIME_COLUMNS.len() {
+        cols.push(Arc::new(Float64Array::from(
+            rows.iter()
+                .map(|r| time_values(&r.timings)[i])
+                .collect::<Vec<_>>(),
+        )));
+    }
+    cols.push(Arc::new(StringArray::from(
+        rows.iter()
+            .map(|r| stages_json(&r.timings))
+            .collect::<Vec<_>>(),
+    )));
+    for stem in c::TENSORS {
+        let ts: Vec<Option<&EncodedTensor>> = rows.iter().map(|r| tensor_of(r, stem)).collect();
+        cols.push(Arc::new(BinaryArray::from_opt_vec(
+            ts.iter().map(|t| t.map(|t| t.blob.as_slice())).collect(),
+        )));
+        cols.push(Arc::new(StringArray::from(
+            ts.iter()
+                .map(|t| t.map(|t| t.dtype.as_str()))
+                .collect::<Vec<_>>(),
+        )));
+        cols.push(Arc::new(ListArray::from_iter_primitive::<Int64Type, _, _>(
+            ts.iter()
+                .map(|t| t.map(|t| t.shape.iter().map(|&d| Some(d as i64)).collect::<Vec<_>>())),
+        )));
+    }
+    Ok(RecordBatch::try_new(schema(), cols)?)
+}
+
+fn col<'a, T: 'static>(batch: &'a RecordBatch, name: &str) -> Result<&'a T> {
+    batch
+        .column_by_name(name)
+        .ok_or_else(|| SchemaError::Column {
+            name: name.to_string(),
+            reason: "missing".into(),
+        })?
+        .as_any()
+        .downcast_ref::<T>()
+        .ok_or_else(|| SchemaError::Column {
+            name: name.to_string(),
+            reason: "unexpected type".into(),
+        })
+}
+
+fn opt_str(a: &StringArray, i: usize) -> Option<String> {
+    a.is_valid(i).then(|| a.value(i).to_string())
+}
+
+fn opt_u64(a: &UInt64Array, i: usize) -> Option<u64> {
+    a.is_valid(i).then(|| a.value(i))
+}
+
+fn opt_f64(a: &Float64Array, i: usize) -> Option<f64> {
+    a.is_valid(i).then(|| a.value(i))
+}
+
+fn read_tensor(batch: &RecordBatch, stem: &str, i: usize) -> Result<Option<EncodedTensor>> {
+    let blob = col::<BinaryArray>(batch, stem)?;
+    if !blob.is_valid(i) {
+        return Ok(None);
+    }
+    let dtype_col = c::dtype_column(stem);
+    let dtype = col::<StringArray>(batch, &dtype_col)?;
+    let shape_col = c::shape_column(stem);
+    let shape = col::<ListArray>(batch, &shape_col)?;
+    if !dtype.is_valid(i) || !shape.is_valid(i) {
+        return Err(SchemaError::Column {
+            name: stem.to_string(),
+            reason: format!("row {i} has a blob but no dtype or shape"),
+        });
+    }
+    let dims = shape.value(i);
+    let dims = dims
+        .as_any()
+        .downcast_ref::<arrow_array::Int64Array>()
+        .ok_or_else(|| SchemaError::Column {
+            name: shape_col.clone(),
+            reason: "shape items are not int64".into(),
+        })?;
+    Ok(Some(EncodedTensor {
+        dtype: DType::parse(dtype.value(i))?,
+        shape: dims.values().iter().map(|&d| d.max(0) as u64).collect(),
+        blob: blob.value(i).to_vec(),
+    }))
+}
+
+fn parse_stages(s: &str) -> Vec<(String, f64)> {
+    match serde_json::from_str::<serde_json::Value>(s) {
+        Ok(serde_json::Value::Object(m)) => m
+            .into_iter()
+            .map(|(k, v)| (k, v.as_f64().unwrap_or(0.0)))
+            .collect(),
+        _ => Vec::new(),
+    }
+}
+
+/// Decodes every row of a record batch written with [`schema`].
+pub fn batch_to_rows(batch: &RecordBatch) -> Result<Vec<ShardRow>> {
+    let index = col::<UInt64Array>(batch, c::ITEM_INDEX)?;
+    let id = col::<StringArray>(batch, c::ID)?;
+    let uri = col::<StringArray>(batch, c::URI)?;
+    let sha = col::<StringArray>(batch, c::SOURCE_SHA256)?;
+    let status = col::<StringArray>(batch, c::STATUS)?;
+    let class = col::<StringArray>(batch, c::ERROR_CLASS)?;
+    let message = col::<StringArray>(batch, c::ERROR_MESSAGE)?;
+    let stderr = col::<StringArray>(batch, c::STDERR_TAIL)?;
+    let attempts = col::<UInt32Array>(batch, c::ATTEMPTS)?;
+    let resolution = col::<UInt32Array>(batch, c::RESOLUTION)?;
+    let norm: Vec<&Float64Array> = [c::CENTER_X, c::CENTER_Y, c::CENTER_Z, c::SCALE]
+        .iter()
+        .map(|n| col::<Float64Array>(batch, n))
+        .collect::<Result<_>>()?;
+    let counts: Vec<&UInt64Array> = COUNT_COLUMNS
+        .iter()
+        .map(|n| col::<UInt64Array>(batch, n))
+        .collect::<Result<_>>()?;
+    let times: Vec<&Float64Array> = TIME_COLUMNS
+        .iter()
+        .map(|n| col::<Float64Array>(batch, n))
+        .collect::<Result<_>>()?;
+    let stages = col::<StringArray>(batch, c::TIME_STAGES)?;
+    let mut rows = Vec::with_capacity(batch.num_rows());
+    for i in 0..batch.num_rows() {
+        let normalization = match (
+            opt_f64(norm[0], i),
+            opt_f64(norm[1], i),
+            opt_f64(norm[2], i),
+            opt_f64(norm[3], i),
+        ) {
+            (Some(x), Some(y), Some(z), Some(s)) => Some(Normalization {
+                center: [x, y, z],
+                scale: s,
+            }),
+            _ => None,
+        };
+        let k: Vec<Option<u64>> = counts.iter().map(|a| opt_u64(a, i)).collect();
+        let row_counts = match (k[0], k[1], k[3], k[4], k[6], k[7]) {
+            (Some(f), Some(v), Some(av), Some(ac), Some(sv), Some(wc)) => Some(RowCounts {
+                input_faces: f,
+                input_vertices: v,
+                input_components: k[2],
+                active_vertices: av,
+                active_cells: ac,
+                output_faces: k[5],
+                shell_vertices: sv,
+                wall_cells: wc,
+            }),
+            _ => None,
+        };
+        let tensor = |stem| read_tensor(batch, stem, i);
+        let tensors = match (
+            tensor("coords")?,
+            tensor("sdf")?,
+            tensor("deformation")?,
+            tensor("cells")?,
+        ) {
+            (Some(coords), Some(sdf), Some(deformation), Some(cells)) => Some(RowTensors {
+                coords,
+                sdf,
+                deformation,
+                cells,
+                mesh_vertices: tensor("mesh_vertices")?,
+                mesh_faces: tensor("mesh_faces")?,
+            }),
+            _ => None,
+        };
+        rows.push(ShardRow {
+            item_index: index.value(i),
+            id: id.value(i).to_string(),
+            uri: uri.value(i).to_string(),
+            source_sha256: opt_str(sha, i),
+            status: ItemStatus::parse(status.value(i))?,
+            error_class: opt_str(class, i)
+                .map(|s| ErrorClass::parse(&s))
+                .transpose()?,
+            error_message: opt_str(message, i),
+            stderr_tail: opt_str(stderr, i),
+            attempts: attempts.value(i),
+            resolution: resolution.value(i),
+            normalization,
+            counts: row_counts,
+            timings: RowTimings {
+                load_s: times[0].value(i),
+                convert_s: times[1].value(i),
+                extract_s: times[2].value(i),
+                encode_s: times[3].value(i),
+                total_s: times[4].value(i),
+                stages: parse_stages(stages.value(i)),
+            },
+            tensors,
+        });
+    }
+    Ok(rows)
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use sparcubes::SparseCubes;
+
+    /// An ok row and a failed row, for tests.
+    pub(crate) fn sample_rows() -> Vec<ShardRow> {
+        let cubes = SparseCubes {
+            resolution: 64,
+            normalization: Normalization {
+                center: [0.5, -1.0, 2.0],
+                scale: 0.25,
+            },
+            coords: vec![[1, 2, 3], [1, 2, 4]],
+            sdf: vec![-0.5, 0.5],
+            deformation: vec![[0.1, 0.0, -0.1], [0.0, 0.2, 0.0]],
+            cells: vec![[1, 2, 3]],
+        };
+        let mut tensors = RowTensors::from_cubes(&cubes, 3).unwrap_or_else(|e| panic!("{e}"));
+        tensors.mesh_faces = EncodedTensor::from_u32x3(&[[0, 1, 2]], 3).ok();
+        let ok = ShardRow {
+            item_index: 0,
+            id: "a".into(),
+            uri: "/x/a.obj".into(),
+            source_sha256: Some("ab".into()),
+            status: ItemStatus::Ok,
+            error_class: None,
+            error_message: None,
+            stderr_tail: None,
+            attempts: 1,
+            resolution: 64,
+            normalization: Some(cubes.normalization),
+            counts: Some(RowCounts {
+                input_faces: 12,
+                input_vertices: 8,
+                input_components: None,
+                active_vertices: 2,
+                active_cells: 1,
+                output_faces: Some(1),
+                shell_vertices: 0,
+                wall_cells: 1,
+            }),
+            timings: RowTimings {
+                load_s: 0.1,
+                convert_s: 0.2,
+                extract_s: 0.0,
+                encode_s: 0.01,
+                total_s: 0.4,
+                stages: vec![("band".into(), 0.1)],
+            },
+            tensors: Some(tensors),
+        };
+        let mut failed =
+            ShardRow::failed(1, "b", "/x/b.obj", 64, ErrorClass::ParseError, "bad".into());
+        failed.stderr_tail = Some("boom".into());
+        vec![ok, failed]
+    }
+
+    #[test]
+    fn rows_round_trip_through_a_batch() -> Result<()> {
+        let rows = sample_rows();
+        let batch = rows_to_batch(&rows)?;
+        assert_eq!(batch.num_rows(), 2);
+        let back = batch_to_rows(&batch)?;
+        assert_eq!(back, rows);
+        let cubes = back[0].cubes()?;
+        assert_eq!(cubes.coords, vec![[1, 2, 3], [1, 2, 4]]);
+        assert!(back[1].cubes().is_err());
+        Ok(())
+    }
+}

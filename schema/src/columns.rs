@@ -1,0 +1,88 @@
+//! Column names of a shard row, as constants. docs/FORMAT.md documents each one.
+
+/// Position of the item in the frozen manifest (`u64`); rows are sorted by it.
+pub const ITEM_INDEX: &str = "item_index";
+/// Item id (`utf8`), unique in the job.
+pub const ID: &str = "id";
+/// Source path or URI (`utf8`).
+pub const URI: &str = "uri";
+/// sha256 of the source file's bytes (`utf8`, hex), when known.
+pub const SOURCE_SHA256: &str = "source_sha256";
+/// `ok`, `failed` or `skipped` (`utf8`).
+pub const STATUS: &str = "status";
+/// Error class of a failed item (`utf8`, null when ok).
+pub const ERROR_CLASS: &str = "error_class";
+/// Error message of a failed item (`utf8`, null when ok).
+pub const ERROR_MESSAGE: &str = "error_message";
+/// Last lines of the item's stderr when it failed in its process (`utf8`, nullable).
+pub const STDERR_TAIL: &str = "stderr_tail";
+/// How many times the item was started (`u32`).
+pub const ATTEMPTS: &str = "attempts";
+/// Grid resolution N (`u32`).
+pub const RESOLUTION: &str = "resolution";
+/// Normalization centre, x (`f64`): `unit = (p − center) · scale`.
+pub const CENTER_X: &str = "center_x";
+/// Normalization centre, y (`f64`).
+pub const CENTER_Y: &str = "center_y";
+/// Normalization centre, z (`f64`).
+pub const CENTER_Z: &str = "center_z";
+/// Normalization scale (`f64`).
+pub const SCALE: &str = "scale";
+/// Input triangles (`u64`).
+pub const INPUT_FACES: &str = "input_faces";
+/// Input vertices (`u64`).
+pub const INPUT_VERTICES: &str = "input_vertices";
+/// Input connected components (`u64`, null when not computed).
+pub const INPUT_COMPONENTS: &str = "input_components";
+/// Active grid vertices stored (`u64`).
+pub const ACTIVE_VERTICES: &str = "active_vertices";
+/// Active cells stored (`u64`).
+pub const ACTIVE_CELLS: &str = "active_cells";
+/// Triangles of the extracted mesh (`u64`, null when extraction is off).
+pub const OUTPUT_FACES: &str = "output_faces";
+/// Vertices treated as thin shell (`u64`).
+pub const SHELL_VERTICES: &str = "shell_vertices";
+/// Cells touched by the surface (`u64`).
+pub const WALL_CELLS: &str = "wall_cells";
+/// Seconds loading the file (`f64`).
+pub const TIME_LOAD: &str = "time_load_s";
+/// Seconds converting (`f64`).
+pub const TIME_CONVERT: &str = "time_convert_s";
+/// Seconds extracting the mesh (`f64`).
+pub const TIME_EXTRACT: &str = "time_extract_s";
+/// Seconds encoding the tensors (`f64`).
+pub const TIME_ENCODE: &str = "time_encode_s";
+/// Seconds for the whole item, as seen by the supervisor (`f64`).
+pub const TIME_TOTAL: &str = "time_total_s";
+/// Seconds per conversion stage as a JSON object (`utf8`).
+pub const TIME_STAGES: &str = "time_stages";
+
+/// Prefix of every timing column.
+pub const TIMING_PREFIX: &str = "time_";
+
+/// Columns whose value depends on the run (timings, attempts, captured stderr); they are
+/// excluded from the content digest.
+pub fn is_run_dependent(name: &str) -> bool {
+    name.starts_with(TIMING_PREFIX) || name == ATTEMPTS || name == STDERR_TAIL
+}
+
+/// The tensors of a row, in column order: name stem (`coords` → columns `coords`,
+/// `coords_dtype`, `coords_shape`).
+pub const TENSORS: [&str; 6] = [
+    "coords",
+    "sdf",
+    "deformation",
+    "cells",
+    "mesh_vertices",
+    "mesh_faces",
+];
+
+/// Name of a tensor's dtype column.
+pub fn dtype_column(tensor: &str) -> String {
+    format!("{tensor}_dtype")
+}
+
+/// Name of a tensor's shape column.
+pub fn shape_column(tensor: &str) -> String {
+    format!("{tensor}_shape")
+}

@@ -1,0 +1,295 @@
+//! The job config, its fingerprint, and the job file that freezes both into a job folder.
+
+use crate::error::{Result, SchemaError};
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+use sha2::{Digest, Sha256};
+
+/// Per-item limits and retry policy. Run-time settings: they may change between runs of the
+/// same job (`run --item-timeout`), so they are not part of the fingerprint.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Limits {
+    /// Seconds one item may run before it is killed and recorded as `timeout`.
+    pub item_timeout_s: f64,
+    /// Address-space limit of the process converting an item, in bytes (0: none).
+    pub item_memory_bytes: u64,
+    /// How many times a `crashed` item is retried before its failure is final.
+    pub max_crash_retries: u32,
+    /// How many times an item may be found started but unfinished after its worker was
+    /// killed (kill -9, lost node) before it is recorded as `crashed`.
+    pub max_interrupted_attempts: u32,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Self {
+            item_timeout_s: 600.0,
+            item_memory_bytes: 8 << 30,
+            max_crash_retries: 2,
+            max_interrupted_attempts: 5,
+        }
+    }
+}
+
+/// Everything that decides a job's output, plus its run-time [`Limits`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JobConfig {
+    /// Conversion parameters (resolution, margin, shell thickness, deformation).
+    pub params: sparcubes::Params,
+    /// Items per shard.
+    pub shard_size: u32,
+    /// zstd level of the tensor blobs.
+    pub zstd_level: i32,
+    /// Whether to extract the mesh of each item (gives `output_faces`).
+    pub extract_mesh: bool,
+    /// Whether to store the extracted mesh in the row (`mesh_vertices`, `mesh_faces`).
+    pub store_mesh: bool,
+    /// Fraction of ok items a later validation step samples.
+    pub validation_sample_rate: f64,
+    /// Per-item limits (not fingerprinted).
+    pub limits: Limits,
+}
+
+impl Default for JobConfig {
+    fn default() -> Self {
+        Self {
+            params: sparcubes::Params::default(),
+            shard_size: 256,
+            zstd_level: 3,
+            extract_mesh: true,
+            store_mesh: false,
+            validation_sample_rate: 0.01,
+            limits: Limits::default(),
+        }
+    }
+}
+
+/// Keys of the config that are excluded from the fingerprint.
+pub const UNFINGERPRINTED: [&str; 1] = ["limits"];
+
+/// Sorts object keys recursively so the JSON text is canonical.
+fn canonical(v: &Value) -> Value {
+    match v {
+        Value::Object(m) => {
+            let mut keys: Vec<&String> = m.keys().collect();
+            keys.sort();
+            let mut out = serde_json::Map::new();
+            for k in keys {
+                out.insert(k.clone(), canonical(&m[k]));
+            }
+            Value::Object(out)
+        }
+        Value::Array(a) => Value::Array(a.iter().map(canonical).collect()),
+        other => other.clone(),
+    }
+}
+
+fn to_value(config: &JobConfig) -> Result<Value> {
+    serde_json::to_value(config).map_err(|source| SchemaError::Json {
+        context: "serializing the job config".into(),
+        source,
+    })
+}
+
+/// Writes a canonical JSON text of sorted keys (serde_json keeps insertion order when its
+/// `preserve_order` feature is on somewhere in the build, so sort explicitly).
+fn canonical_text(v: &Value) -> String {
+    match v {
+        Value::Object(m) => {
+            let mut keys: Vec<&String> = m.keys().collect();
+            keys.sort();
+            let parts: Vec<String> = keys
+                .iter()
+                .map(|k| format!("{}:{}", Value::String((*k).clone()), canonical_text(&m[*k])))
+                .collect();
+            format!("{{{}}}", parts.join(","))
+        }
+        Value::Array(a) => format!(
+            "[{}]",
+            a.iter().map(canonical_text).collect::<Vec<_>>().join(",")
+        ),
+        other => other.to_string(),
+    }
+}
+
+impl JobConfig {
+    /// The config as canonical JSON (sorted keys).
+    pub fn to_canonical_json(&self) -> Result<String> {
+        Ok(canonical_text(&canonical(&to_value(self)?)))
+    }
+
+    /// Fingerprint: hex sha256 of the schema version and the canonical JSON of the config
+    /// without its run-time [`Limits`].
+    pub fn fingerprint(&self) -> Result<String> {
+        let mut v = to_value(self)?;
+        if let Value::Object(m) = &mut v {
+            for k in UNFINGERPRINTED {
+                m.remove(k);
+            }
+        }
+        let text = format!(
+            "sparc3d-shard-v{}\n{}",
+            crate::SCHEMA_VERSION,
+            canonical_text(&v)
+        );
+        Ok(hex(&Sha256::digest(text.as_bytes())))
+    }
+
+    /// Builds a config from defaults overlaid with a partial JSON object (e.g. a parsed
+    /// `job.toml`). Unknown keys are refused with their dotted name.
+    pub fn from_overrides(overrides: &Value) -> Result<Self> {
+        let mut base = to_value(&Self::default())?;
+        merge(&mut base, overrides, "")?;
+        let config: JobConfig =
+            serde_json::from_value(base).map_err(|source| SchemaError::Json {
+                context: "job config".into(),
+                source,
+            })?;
+        config.params.validate().map_err(|e| SchemaError::Invalid {
+            what: "job config",
+            value: e.to_string(),
+        })?;
+        if config.shard_size == 0 {
+            return Err(SchemaError::Invalid {
+                what: "job config",
+                value: "shard_size must be at least 1".into(),
+            });
+        }
+        Ok(config)
+    }
+
+    /// Dotted keys whose values differ between two configs (e.g. `params.resolution`).
+    pub fn diff_keys(&self, other: &JobConfig) -> Result<Vec<String>> {
+        let mut out = Vec::new();
+        diff(&to_value(self)?, &to_value(other)?, "", &mut out);
+        out.sort();
+        Ok(out)
+    }
+}
+
+fn merge(base: &mut Value, over: &Value, path: &str) -> Result<()> {
+    match (base, over) {
+        (Value::Object(b), Value::Object(o)) => {
+            for (k, v) in o {
+                let p = if path.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{path}.{k}")
+                };
+                match b.get_mut(k) {
+                    Some(slot) => merge(slot, v, &p)?,
+                    None => {
+                        return Err(SchemaError::Invalid {
+                            what: "config key",
+                            value: p,
+                        })
+                    }
+                }
+            }
+            Ok(())
+        }
+        (slot, v) => {
+            *slot = v.clone();
+            Ok(())
+        }
+    }
+}
+
+fn diff(a: &Value, b: &Value, path: &str, out: &mut Vec<String>) {
+    match (a, b) {
+        (Value::Object(x), Value::Object(y)) => {
+            let mut keys: Vec<&String> = x.keys().chain(y.keys()).collect();
+            keys.sort();
+            keys.dedup();
+            for k in keys {
+                let p = if path.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{path}.{k}")
+                };
+                match (x.get(k), y.get(k)) {
+                    (Some(u), Some(v)) => diff(u, v, &p, out),
+                    _ => out.push(p),
+                }
+            }
+        }
+        (u, v) if u != v => out.push(path.to_string()),
+        _ => {}
+    }
+}
+
+/// Lower-case hex of bytes.
+pub fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// The job file (`job.json`): what `init` froze.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct JobFile {
+    /// Schema version of the shards this job writes.
+    pub schema_version: u32,
+    /// Version of the tool that initialised the job.
+    pub tool_version: String,
+    /// The config.
+    pub config: JobConfig,
+    /// [`JobConfig::fingerprint`] of `config`.
+    pub fingerprint: String,
+    /// Items in the frozen manifest.
+    pub items: u64,
+    /// Number of shards.
+    pub shards: u64,
+    /// sha256 of the frozen manifest file.
+    pub manifest_sha256: String,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fingerprint_ignores_limits_and_sees_params() -> Result<()> {
+        let a = JobConfig::default();
+        let mut b = a.clone();
+        b.limits.item_timeout_s = 1.0;
+        assert_eq!(a.fingerprint()?, b.fingerprint()?);
+        b.params.resolution = 256;
+        assert_ne!(a.fingerprint()?, b.fingerprint()?);
+        assert_eq!(
+            a.diff_keys(&b)?,
+            vec!["limits.item_timeout_s", "params.resolution"]
+        );
+        assert_eq!(a.fingerprint()?.len(), 64);
+        Ok(())
+    }
+
+    #[test]
+    fn overrides_merge_and_unknown_keys_are_refused() -> Result<()> {
+        let c = JobConfig::from_overrides(
+            &serde_json::json!({"shard_size": 8, "params": {"resolution": 128}}),
+        )?;
+        assert_eq!(c.shard_size, 8);
+        assert_eq!(c.params.resolution, 128);
+        assert_eq!(
+            c.params.margin_cells,
+            JobConfig::default().params.margin_cells
+        );
+        let e = JobConfig::from_overrides(&serde_json::json!({"params": {"resolutoin": 1}}));
+        assert!(
+            matches!(e, Err(SchemaError::Invalid { value, .. }) if value == "params.resolutoin")
+        );
+        assert!(
+            JobConfig::from_overrides(&serde_json::json!({"params": {"resolution": 2}})).is_err()
+        );
+        Ok(())
+    }
+
+    #[test]
+    fn canonical_json_sorts_keys() -> Result<()> {
+        let text = JobConfig::default().to_canonical_json()?;
+        let ext = text.find("\"extract_mesh\"").unwrap_or(usize::MAX);
+        let lim = text.find("\"limits\"").unwrap_or(0);
+        assert!(ext < lim);
+        Ok(())
+    }
+}

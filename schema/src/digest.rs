@@ -1,0 +1,119 @@
+//! The content digest of rows: a sha256 over every column except the run-dependent ones
+//! (timings, attempts, captured stderr), so that two runs of the same job agree whatever the
+//! number of workers or interruptions.
+
+use crate::config::hex;
+use crate::row::ShardRow;
+use sha2::{Digest, Sha256};
+
+fn field(h: &mut Sha256, bytes: &[u8]) {
+    h.update((bytes.len() as u64).to_le_bytes());
+    h.update(bytes);
+}
+
+fn opt(h: &mut Sha256, v: Option<&[u8]>) {
+    match v {
+        Some(b) => {
+            h.update([1]);
+            field(h, b);
+        }
+        None => h.update([0]),
+    }
+}
+
+/// Feeds one row's content into a hasher.
+pub fn update_row(h: &mut Sha256, row: &ShardRow) {
+    h.update(row.item_index.to_le_bytes());
+    field(h, row.id.as_bytes());
+    field(h, row.uri.as_bytes());
+    opt(h, row.source_sha256.as_deref().map(str::as_bytes));
+    field(h, row.status.as_str().as_bytes());
+    opt(h, row.error_class.map(|c| c.as_str().as_bytes()));
+    opt(h, row.error_message.as_deref().map(str::as_bytes));
+    h.update(row.resolution.to_le_bytes());
+    match &row.normalization {
+        Some(n) => {
+            h.update([1]);
+            for x in n.center {
+                h.update(x.to_le_bytes());
+            }
+            h.update(n.scale.to_le_bytes());
+        }
+        None => h.update([0]),
+    }
+    match &row.counts {
+        Some(k) => {
+            h.update([1]);
+            let vals = [
+                Some(k.input_faces),
+                Some(k.input_vertices),
+                k.input_components,
+                Some(k.active_vertices),
+                Some(k.active_cells),
+                k.output_faces,
+                Some(k.shell_vertices),
+                Some(k.wall_cells),
+            ];
+            for v in vals {
+                opt(h, v.map(|x| x.to_le_bytes()).as_ref().map(|b| &b[..]));
+            }
+        }
+        None => h.update([0]),
+    }
+    match &row.tensors {
+        Some(t) => {
+            h.update([1]);
+            for (stem, tensor) in t.iter() {
+                field(h, stem.as_bytes());
+                match tensor {
+                    Some(t) => {
+                        h.update([1]);
+                        field(h, t.dtype.as_str().as_bytes());
+                        for d in &t.shape {
+                            h.update(d.to_le_bytes());
+                        }
+                        field(h, &t.blob);
+                    }
+                    None => h.update([0]),
+                }
+            }
+        }
+        None => h.update([0]),
+    }
+}
+
+/// Hex content digest of rows in the given order.
+pub fn rows_digest(rows: &[ShardRow]) -> String {
+    let mut h = Sha256::new();
+    for r in rows {
+        update_row(&mut h, r);
+    }
+    hex(&h.finalize())
+}
+
+/// Hex digest of shard digests in shard order: the content digest of a whole job.
+pub fn combine(digests: &[String]) -> String {
+    let mut h = Sha256::new();
+    for d in digests {
+        field(&mut h, d.as_bytes());
+    }
+    hex(&h.finalize())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn digest_ignores_run_dependent_columns_only() {
+        let rows = crate::arrow::tests::sample_rows();
+        let d = rows_digest(&rows);
+        let mut other = rows.clone();
+        other[0].timings.total_s = 99.0;
+        other[0].attempts = 3;
+        other[1].stderr_tail = None;
+        assert_eq!(rows_digest(&other), d);
+        other[1].error_message = Some("different".into());
+        assert_ne!(rows_digest(&other), d);
+    }
+}

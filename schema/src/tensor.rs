@@ -1,0 +1,252 @@
+//! Tensor encodings: a tensor is a zstd-compressed blob of its elements in little-endian byte
+//! order, row-major, with its dtype (numpy notation: `<u2`, `<u4`, `<f4`) and shape stored
+//! beside it. `np.frombuffer(zstd_decompress(blob), dtype).reshape(shape)` reads it back.
+
+use crate::error::{Result, SchemaError};
+use serde::{Deserialize, Serialize};
+
+/// Element type of a tensor, named as numpy names it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum DType {
+    /// Little-endian unsigned 16-bit integer (`<u2`).
+    U16,
+    /// Little-endian unsigned 32-bit integer (`<u4`).
+    U32,
+    /// Little-endian IEEE 754 single precision (`<f4`).
+    F32,
+}
+
+impl DType {
+    /// The numpy dtype string stored in the `*_dtype` column.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            DType::U16 => "<u2",
+            DType::U32 => "<u4",
+            DType::F32 => "<f4",
+        }
+    }
+
+    /// Parses a stored dtype string.
+    pub fn parse(s: &str) -> Result<Self> {
+        match s {
+            "<u2" => Ok(DType::U16),
+            "<u4" => Ok(DType::U32),
+            "<f4" => Ok(DType::F32),
+            other => Err(SchemaError::Invalid {
+                what: "dtype",
+                value: other.to_string(),
+            }),
+        }
+    }
+
+    /// Bytes per element.
+    pub fn size(self) -> usize {
+        match self {
+            DType::U16 => 2,
+            DType::U32 | DType::F32 => 4,
+        }
+    }
+}
+
+/// One encoded tensor as stored in a row: dtype, shape and the zstd-compressed bytes.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct EncodedTensor {
+    /// Element type.
+    pub dtype: DType,
+    /// Shape, row-major (`[n, 3]` for coordinates, `[n]` for the SDF).
+    pub shape: Vec<u64>,
+    /// zstd frame of the little-endian element bytes.
+    pub blob: Vec<u8>,
+}
+
+fn compress(raw: &[u8], level: i32) -> Result<Vec<u8>> {
+    zstd::bulk::compress(raw, level).map_err(SchemaError::Zstd)
+}
+
+impl EncodedTensor {
+    /// Encodes `n × 3` unsigned 16-bit integers.
+    pub fn from_u16x3(v: &[[u16; 3]], level: i32) -> Result<Self> {
+        let raw: Vec<u8> = v.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
+        Ok(Self {
+            dtype: DType::U16,
+            shape: vec![v.len() as u64, 3],
+            blob: compress(&raw, level)?,
+        })
+    }
+
+    /// Encodes `n × 3` unsigned 32-bit integers.
+    pub fn from_u32x3(v: &[[u32; 3]], level: i32) -> Result<Self> {
+        let raw: Vec<u8> = v.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
+        Ok(Self {
+            dtype: DType::U32,
+            shape: vec![v.len() as u64, 3],
+            blob: compress(&raw, level)?,
+        })
+    }
+
+    /// Encodes `n × 3` floats.
+    pub fn from_f32x3(v: &[[f32; 3]], level: i32) -> Result<Self> {
+        let raw: Vec<u8> = v.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
+        Ok(Self {
+            dtype: DType::F32,
+            shape: vec![v.len() as u64, 3],
+            blob: compress(&raw, level)?,
+        })
+    }
+
+    /// Encodes `n` floats.
+    pub fn from_f32(v: &[f32], level: i32) -> Result<Self> {
+        let raw: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+        Ok(Self {
+            dtype: DType::F32,
+            shape: vec![v.len() as u64],
+            blob: compress(&raw, level)?,
+        })
+    }
+
+    /// Number of elements the shape describes.
+    pub fn elements(&self) -> u64 {
+        self.shape.iter().product()
+    }
+
+    /// Decompresses the blob and checks its length against dtype and shape.
+    pub fn raw_bytes(&self, name: &str) -> Result<Vec<u8>> {
+        let expected = self.elements() as usize * self.dtype.size();
+        let raw = zstd::bulk::decompress(&self.blob, expected.max(1)).map_err(|e| {
+            SchemaError::Tensor {
+                name: name.to_string(),
+                reason: format!("zstd: {e}"),
+            }
+        })?;
+        if raw.len() != expected {
+            return Err(SchemaError::Tensor {
+                name: name.to_string(),
+                reason: format!(
+                    "{} bytes after decompression, shape {:?} of {} needs {expected}",
+                    raw.len(),
+                    self.shape,
+                    self.dtype.as_str()
+                ),
+            });
+        }
+        Ok(raw)
+    }
+
+    fn check(&self, name: &str, dtype: DType, cols: Option<u64>) -> Result<()> {
+        let shape_ok = match cols {
+            Some(c) => self.shape.len() == 2 && self.shape[1] == c,
+            None => self.shape.len() == 1,
+        };
+        if self.dtype != dtype || !shape_ok {
+            return Err(SchemaError::Tensor {
+                name: name.to_string(),
+                reason: format!(
+                    "expected {} with {} columns, found {} shape {:?}",
+                    dtype.as_str(),
+                    cols.unwrap_or(1),
+                    self.dtype.as_str(),
+                    self.shape
+                ),
+            });
+        }
+        Ok(())
+    }
+
+    /// Decodes an `n × 3` `<u2` tensor.
+    pub fn to_u16x3(&self, name: &str) -> Result<Vec<[u16; 3]>> {
+        self.check(name, DType::U16, Some(3))?;
+        let raw = self.raw_bytes(name)?;
+        Ok(raw
+            .chunks_exact(6)
+            .map(|c| {
+                [
+                    u16::from_le_bytes([c[0], c[1]]),
+                    u16::from_le_bytes([c[2], c[3]]),
+                    u16::from_le_bytes([c[4], c[5]]),
+                ]
+            })
+            .collect())
+    }
+
+    /// Decodes an `n × 3` `<u4` tensor.
+    pub fn to_u32x3(&self, name: &str) -> Result<Vec<[u32; 3]>> {
+        self.check(name, DType::U32, Some(3))?;
+        let raw = self.raw_bytes(name)?;
+        Ok(raw
+            .chunks_exact(12)
+            .map(|c| {
+                [
+                    u32::from_le_bytes([c[0], c[1], c[2], c[3]]),
+                    u32::from_le_bytes([c[4], c[5], c[6], c[7]]),
+                    u32::from_le_bytes([c[8], c[9], c[10], c[11]]),
+                ]
+            })
+            .collect())
+    }
+
+    /// Decodes an `n × 3` `<f4` tensor.
+    pub fn to_f32x3(&self, name: &str) -> Result<Vec<[f32; 3]>> {
+        self.check(name, DType::F32, Some(3))?;
+        let raw = self.raw_bytes(name)?;
+        Ok(raw
+            .chunks_exact(12)
+            .map(|c| {
+                [
+                    f32::from_le_bytes([c[0], c[1], c[2], c[3]]),
+                    f32::from_le_bytes([c[4], c[5], c[6], c[7]]),
+                    f32::from_le_bytes([c[8], c[9], c[10], c[11]]),
+                ]
+            })
+            .collect())
+    }
+
+    /// Decodes an `n` `<f4` tensor.
+    pub fn to_f32(&self, name: &str) -> Result<Vec<f32>> {
+        self.check(name, DType::F32, None)?;
+        let raw = self.raw_bytes(name)?;
+        Ok(raw
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_trips_every_dtype() -> Result<()> {
+        let c = vec![[1u16, 2, 3], [65535, 0, 7]];
+        let t = EncodedTensor::from_u16x3(&c, 3)?;
+        assert_eq!(t.shape, vec![2, 3]);
+        assert_eq!(t.to_u16x3("c")?, c);
+        let f = vec![0.5f32, -1.25, f32::MAX];
+        assert_eq!(EncodedTensor::from_f32(&f, 3)?.to_f32("f")?, f);
+        let d = vec![[0.1f32, -0.2, 0.3]];
+        assert_eq!(EncodedTensor::from_f32x3(&d, 3)?.to_f32x3("d")?, d);
+        let u = vec![[1u32, 2, 4_000_000_000]];
+        assert_eq!(EncodedTensor::from_u32x3(&u, 3)?.to_u32x3("u")?, u);
+        let e = EncodedTensor::from_f32(&[], 3)?;
+        assert!(e.to_f32("e")?.is_empty());
+        Ok(())
+    }
+
+    #[test]
+    fn little_endian_on_disk() -> Result<()> {
+        let t = EncodedTensor::from_u16x3(&[[0x0102, 0x0304, 0x0506]], 1)?;
+        assert_eq!(t.raw_bytes("t")?, vec![2, 1, 4, 3, 6, 5]);
+        Ok(())
+    }
+
+    #[test]
+    fn wrong_shape_or_length_is_an_error() -> Result<()> {
+        let mut t = EncodedTensor::from_f32(&[1.0, 2.0], 3)?;
+        assert!(t.to_u16x3("t").is_err());
+        t.shape = vec![3];
+        assert!(t.to_f32("t").is_err());
+        t.blob = vec![1, 2, 3];
+        assert!(t.to_f32("t").is_err());
+        Ok(())
+    }
+}
