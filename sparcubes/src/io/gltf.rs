@@ -255,8 +255,10 @@ fn read_primitive(
     let base = mesh.positions.len();
     check_count(path, "vertices", base + positions.len())?;
     let base = base as u32;
+    let identity = *world == IDENTITY;
     mesh.positions.extend(positions.iter().map(|p| {
-        let q = transform(world, [p[0], p[1], p[2]]);
+        // Untransformed points are copied exactly (even the sign of a zero).
+        let q = if identity { *p } else { transform(world, *p) };
         [q[0] as f32, q[1] as f32, q[2] as f32]
     }));
     let idx = |k: usize| -> u32 {
