@@ -2,6 +2,7 @@
 //! a `run(args) -> anyhow::Result<ExitCode>`.
 
 pub mod convert;
+pub mod eval;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -18,11 +19,14 @@ pub struct Cli {
 enum Command {
     /// Convert one mesh to sparse cubes and write the extracted watertight mesh.
     Convert(convert::Args),
+    /// Measure a mesh against its source: Chamfer, normal consistency, F1, components, offset.
+    Eval(eval::Args),
 }
 
 /// Runs the parsed command line and returns the process exit code.
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
         Command::Convert(args) => convert::run(args),
+        Command::Eval(args) => eval::run(args),
     }
 }
