@@ -42,8 +42,9 @@ def parse_args():
     return p.parse_args()
 
 
-def run_json(cmd, timeout):
-    """Runs a command that prints JSON on its last stdout line; returns (dict, seconds, error)."""
+def run_json(cmd, timeout, json_optional=False):
+    """Runs a command that prints JSON on its last stdout line; returns (dict, seconds, error).
+    With json_optional, a successful run that prints no JSON gives an empty dict."""
     start = time.monotonic()
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
@@ -54,6 +55,8 @@ def run_json(cmd, timeout):
         tail = (proc.stderr or proc.stdout).strip().splitlines()[-3:]
         return None, seconds, f"exit {proc.returncode}: {' | '.join(tail)}"
     lines = [l for l in proc.stdout.strip().splitlines() if l.strip()]
+    if json_optional and not lines:
+        return {}, seconds, None
     try:
         return json.loads(lines[-1]), seconds, None
     except (IndexError, json.JSONDecodeError) as e:
@@ -85,6 +88,7 @@ def measure(args, mesh, workdir):
         convert, t_convert, err = run_json(
             [args.bin, "convert", mesh, "-o", out, "--resolution", str(args.resolution), "--json", *flags],
             args.timeout,
+            json_optional=True,
         )
         entry = {"convert_seconds": round(t_convert, 3)}
         if err:
@@ -120,6 +124,8 @@ def summarize(records, resolution):
         ok = [e["eval"] for e in entries if "eval" in e]
         watertight = [find_key(e.get("convert"), "watertight") for e in entries if "convert" in e]
         manifold = [find_key(e.get("convert"), "manifold") for e in entries if "convert" in e]
+        # Closed after welding, measured by eval itself (every edge shared by two triangles).
+        output_closed = [r.get("output_closed") for r in ok]
         closed = [r for r in ok if r.get("source_closed")]
         summary[mode] = {
             "evaluated": len(ok),
@@ -137,6 +143,7 @@ def summarize(records, resolution):
             "watertight_outputs": sum(w is True for w in watertight),
             "watertight_reported": sum(w is not None for w in watertight),
             "manifold_outputs": sum(m is True for m in manifold),
+            "closed_outputs_by_eval": sum(c is True for c in output_closed),
             "median_convert_seconds": median(e.get("convert_seconds") for e in entries if "convert" in e),
         }
     pairs = [(r["deform"]["eval"], r["no_deform"]["eval"]) for r in records
@@ -165,6 +172,7 @@ def print_summary(s):
         ("closed sources; median offset", lambda m: f"{m['closed_sources']}; {m['median_offset_voxels_closed']}"),
         ("watertight outputs (reported)", lambda m: f"{m['watertight_outputs']} ({m['watertight_reported']})"),
         ("manifold outputs", lambda m: m["manifold_outputs"]),
+        ("closed outputs (eval's check)", lambda m: m["closed_outputs_by_eval"]),
         ("median convert seconds", lambda m: m["median_convert_seconds"]),
     ]
     print(f"{'':32}{'deform':>18}{'no deform':>18}")

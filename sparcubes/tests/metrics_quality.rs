@@ -114,6 +114,7 @@ fn identical_meshes_score_perfectly() {
         assert_eq!(f.f1, 100.0, "F1 at {}", f.threshold);
     }
     assert!(r.source_closed, "a welded cube is closed");
+    assert!(r.output_closed);
     assert_eq!((r.components_kept, r.components_total), (1, 1));
     let offset = r.offset_voxels.unwrap_or(f64::NAN);
     assert!(offset.abs() < 1e-9, "offset {offset}");
@@ -240,7 +241,7 @@ fn open_source_has_no_offset() {
         false,
     );
     let r = eval(&sheet, &sheet, options(10_000, 64));
-    assert!(!r.source_closed);
+    assert!(!r.source_closed && !r.output_closed);
     assert_eq!(r.offset_voxels, None);
     assert_eq!((r.components_kept, r.components_total), (1, 1));
 }

@@ -110,6 +110,10 @@ fn table(r: &QualityReport) -> String {
         if r.source_closed { "yes" } else { "no" }.into(),
     ));
     rows.push((
+        "output closed".into(),
+        if r.output_closed { "yes" } else { "no" }.into(),
+    ));
+    rows.push((
         "offset (voxels)".into(),
         match r.offset_voxels {
             Some(o) => format!("{o:+.3}  (positive: output outside the source)"),
