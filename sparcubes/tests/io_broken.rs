@@ -1,0 +1,350 @@
+//! Broken, hostile and odd inputs give a typed error that names the file, never a panic.
+
+use sparcubes::io::{load, LoadedMesh};
+use sparcubes::{Error, ErrorClass};
+use std::path::{Path, PathBuf};
+
+fn example(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../examples")
+        .join(name)
+}
+
+fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, bytes).expect("write fixture");
+    p
+}
+
+/// Loads `path` expecting an error of `class` whose message names the file.
+fn expect_err(path: &Path, class: ErrorClass) -> Error {
+    let e = match load(path) {
+        Ok(LoadedMesh { mesh, .. }) => panic!(
+            "{}: loaded {} faces, expected {class:?}",
+            path.display(),
+            mesh.face_count()
+        ),
+        Err(e) => e,
+    };
+    assert_eq!(e.class(), class, "{}: {e}", path.display());
+    let name = path.file_name().expect("name").to_string_lossy();
+    assert!(
+        e.to_string().contains(&*name),
+        "message does not name the file: {e}"
+    );
+    e
+}
+
+/// Deterministic garbage: not UTF-8, no format's magic.
+fn garbage(n: usize) -> Vec<u8> {
+    let mut x: u32 = 0x9E37_79B9;
+    (0..n)
+        .map(|_| {
+            x = x.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            ((x >> 24) as u8) | 0x80
+        })
+        .collect()
+}
+
+const EXTS: [&str; 6] = ["obj", "ply", "stl", "off", "gltf", "glb"];
+
+#[test]
+fn empty_files() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    for ext in EXTS {
+        expect_err(
+            &write(dir.path(), &format!("empty.{ext}"), b""),
+            ErrorClass::ParseError,
+        );
+    }
+}
+
+#[test]
+fn garbage_with_every_extension() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    for n in [1, 83, 84, 134, 4096] {
+        for ext in EXTS {
+            let p = write(dir.path(), &format!("garbage{n}.{ext}"), &garbage(n));
+            expect_err(&p, ErrorClass::ParseError);
+        }
+    }
+    // Text that is no mesh at all.
+    for ext in EXTS {
+        let p = write(
+            dir.path(),
+            &format!("text.{ext}"),
+            b"hello world\nthis is no mesh\n",
+        );
+        expect_err(&p, ErrorClass::ParseError);
+    }
+}
+
+#[test]
+fn unknown_extension_is_sniffed_or_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    expect_err(
+        &write(dir.path(), "x.dat", &garbage(500)),
+        ErrorClass::UnsupportedFormat,
+    );
+    expect_err(
+        &write(dir.path(), "noext", &garbage(500)),
+        ErrorClass::UnsupportedFormat,
+    );
+    let ply = std::fs::read(example("cube_binary.ply")).expect("read");
+    let p = write(dir.path(), "cube.bin", &ply);
+    assert_eq!(load(&p).expect("sniffed PLY").mesh.face_count(), 12);
+    let off = std::fs::read(example("cube.off")).expect("read");
+    let p = write(dir.path(), "cube", &off);
+    assert_eq!(load(&p).expect("sniffed OFF").mesh.face_count(), 12);
+}
+
+#[test]
+fn extension_is_case_insensitive() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let stl = std::fs::read(example("wuson.stl")).expect("read");
+    let p = write(dir.path(), "WUSON.StL", &stl);
+    assert_eq!(load(&p).expect("load").mesh.face_count(), 3732);
+}
+
+#[test]
+fn missing_file_and_folder() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    expect_err(&dir.path().join("nothing.obj"), ErrorClass::IoError);
+    let sub = dir.path().join("folder.obj");
+    std::fs::create_dir(&sub).expect("mkdir");
+    expect_err(&sub, ErrorClass::ParseError);
+}
+
+#[test]
+fn truncated_binary_ply_and_stl() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ply = std::fs::read(example("cube_binary.ply")).expect("read");
+    for cut in [1, 10, 100] {
+        let p = write(
+            dir.path(),
+            &format!("cut{cut}.ply"),
+            &ply[..ply.len() - cut],
+        );
+        expect_err(&p, ErrorClass::ParseError);
+    }
+    // Cut inside the header.
+    expect_err(
+        &write(dir.path(), "header.ply", &ply[..40]),
+        ErrorClass::ParseError,
+    );
+
+    let stl = std::fs::read(example("wuson.stl")).expect("read");
+    for cut in [1, 50, 1000, stl.len() - 90, stl.len() - 10] {
+        let p = write(
+            dir.path(),
+            &format!("cut{cut}.stl"),
+            &stl[..stl.len() - cut],
+        );
+        let e = expect_err(&p, ErrorClass::ParseError);
+        if cut < stl.len() - 84 {
+            assert!(e.to_string().contains("truncated"), "{e}");
+        }
+    }
+}
+
+#[test]
+fn huge_claimed_counts_do_not_allocate() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ply = b"ply\nformat binary_little_endian 1.0\nelement vertex 4000000000\n\
+        property float x\nproperty float y\nproperty float z\nelement face 4000000000\n\
+        property list uchar uint vertex_indices\nend_header\n\0\0\0\0";
+    expect_err(&write(dir.path(), "huge.ply", ply), ErrorClass::ParseError);
+    let ascii = b"ply\nformat ascii 1.0\nelement vertex 999999999999\nproperty float x\n\
+        property float y\nproperty float z\nelement face 1\n\
+        property list uchar int vertex_indices\nend_header\n0 0 0\n";
+    expect_err(
+        &write(dir.path(), "huge_ascii.ply", ascii),
+        ErrorClass::ParseError,
+    );
+    let off = b"OFF\n999999999999 999999999999 0\n0 0 0\n";
+    expect_err(&write(dir.path(), "huge.off", off), ErrorClass::ParseError);
+    let mut stl = vec![0u8; 84 + 50];
+    stl[80..84].copy_from_slice(&u32::MAX.to_le_bytes());
+    expect_err(&write(dir.path(), "huge.stl", &stl), ErrorClass::ParseError);
+    // A face claiming 4 billion corners.
+    let ply = b"ply\nformat binary_little_endian 1.0\nelement vertex 3\n\
+        property float x\nproperty float y\nproperty float z\nelement face 1\n\
+        property list uint uint vertex_indices\nend_header\n";
+    let mut bytes = ply.to_vec();
+    bytes.extend(std::iter::repeat_n(0u8, 36));
+    bytes.extend(u32::MAX.to_le_bytes());
+    bytes.extend([0u8; 12]);
+    expect_err(
+        &write(dir.path(), "longface.ply", &bytes),
+        ErrorClass::ParseError,
+    );
+}
+
+#[test]
+fn nan_coordinates_in_obj() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let all_nan = b"v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    let e = expect_err(
+        &write(dir.path(), "nan.obj", all_nan),
+        ErrorClass::EmptyMesh,
+    );
+    assert!(e.to_string().contains("non-finite"), "{e}");
+
+    let some_nan = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv inf 0 0\nf 1 2 3\nf 1 2 4\nf 4 3 2\n";
+    let loaded = load(&write(dir.path(), "some_nan.obj", some_nan)).expect("load");
+    assert_eq!(loaded.mesh.face_count(), 1);
+    assert_eq!(loaded.stats.faces_non_finite, 2);
+    assert!(loaded
+        .mesh
+        .positions
+        .iter()
+        .flatten()
+        .all(|c| c.is_finite()));
+}
+
+#[test]
+fn out_of_range_indices() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    // OBJ: tobj refuses the whole file.
+    let obj = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n";
+    expect_err(&write(dir.path(), "bad.obj", obj), ErrorClass::ParseError);
+    let obj = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n";
+    expect_err(&write(dir.path(), "zero.obj", obj), ErrorClass::ParseError);
+
+    // PLY and OFF: bad faces are dropped and counted.
+    let ply = b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+        property float z\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n\
+        0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n3 0 1 -5\n";
+    let loaded = load(&write(dir.path(), "some_bad.ply", ply)).expect("load");
+    assert_eq!(loaded.mesh.face_count(), 1);
+    assert_eq!(loaded.stats.faces_bad_index, 1);
+    let off = b"OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n4 0 1 2 7\n";
+    let loaded = load(&write(dir.path(), "some_bad.off", off)).expect("load");
+    // The quad's fan keeps the triangle that does not touch the bad corner.
+    assert_eq!(loaded.mesh.face_count(), 2);
+    assert_eq!(loaded.stats.faces_bad_index, 1);
+
+    let off = b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n";
+    let e = expect_err(
+        &write(dir.path(), "all_bad.off", off),
+        ErrorClass::EmptyMesh,
+    );
+    assert!(e.to_string().contains("out-of-range"), "{e}");
+}
+
+#[test]
+fn points_and_lines_are_counted() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let obj = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\np 1 2\nl 1 2 3\nf 1 2 3 4\n";
+    let loaded = load(&write(dir.path(), "mixed.obj", obj)).expect("load");
+    assert_eq!(loaded.mesh.face_count(), 2);
+    assert_eq!(loaded.stats.points_skipped, 2);
+    assert_eq!(loaded.stats.lines_skipped, 2);
+    assert_eq!(loaded.stats.polygons_triangulated, 1);
+
+    let only_lines = b"v 0 0 0\nv 1 0 0\nl 1 2\n";
+    let e = expect_err(
+        &write(dir.path(), "lines.obj", only_lines),
+        ErrorClass::EmptyMesh,
+    );
+    assert!(e.to_string().contains("line"), "{e}");
+}
+
+/// A minimal glTF with one triangle whose buffer comes from `uri`.
+fn gltf_with_uri(uri: &str) -> String {
+    format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],
+        "nodes":[{{"mesh":0}}],
+        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}}}]}}],
+        "accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3",
+            "min":[0,0,0],"max":[1,1,0]}}],
+        "bufferViews":[{{"buffer":0,"byteLength":36}}],
+        "buffers":[{{"byteLength":36,"uri":"{uri}"}}]}}"#
+    )
+}
+
+fn triangle_bytes() -> Vec<u8> {
+    [0f32, 0., 0., 1., 0., 0., 0., 1., 0.]
+        .iter()
+        .flat_map(|f| f.to_le_bytes())
+        .collect()
+}
+
+#[test]
+fn gltf_buffers_only_from_own_folder_or_data_uri() {
+    let root = tempfile::tempdir().expect("tempdir");
+    let dir = root.path().join("models");
+    std::fs::create_dir(&dir).expect("mkdir");
+    // A real file outside the folder that must never be read.
+    write(root.path(), "secret.bin", &triangle_bytes());
+    write(&dir, "tri.bin", &triangle_bytes());
+
+    let ok = write(&dir, "ok.gltf", gltf_with_uri("tri.bin").as_bytes());
+    assert_eq!(load(&ok).expect("relative uri").mesh.face_count(), 1);
+    let ok = write(&dir, "ok_dot.gltf", gltf_with_uri("./tri.bin").as_bytes());
+    assert_eq!(load(&ok).expect("./ uri").mesh.face_count(), 1);
+
+    use base64::Engine as _;
+    let b64 = base64::engine::general_purpose::STANDARD.encode(triangle_bytes());
+    let uri = format!("data:application/octet-stream;base64,{b64}");
+    let ok = write(&dir, "data.gltf", gltf_with_uri(&uri).as_bytes());
+    assert_eq!(load(&ok).expect("data uri").mesh.face_count(), 1);
+
+    let secret = root.path().join("secret.bin");
+    for (name, uri) in [
+        ("dotdot.gltf", "../secret.bin".to_string()),
+        ("dotdot_enc.gltf", "%2E%2E/secret.bin".to_string()),
+        ("nested.gltf", "sub/../../secret.bin".to_string()),
+        ("absolute.gltf", secret.display().to_string()),
+        ("http.gltf", "http://example.com/secret.bin".to_string()),
+        ("https.gltf", "https://example.com/secret.bin".to_string()),
+        ("file.gltf", format!("file://{}", secret.display())),
+        ("missing.gltf", "nothing_here.bin".to_string()),
+        (
+            "data_bad.gltf",
+            "data:application/octet-stream;base64,@@@".to_string(),
+        ),
+        ("data_plain.gltf", "data:text/plain,hello".to_string()),
+    ] {
+        let p = write(&dir, name, gltf_with_uri(&uri).as_bytes());
+        let e = expect_err(&p, ErrorClass::ParseError);
+        assert!(e.to_string().contains("buffer"), "{name}: {e}");
+    }
+}
+
+#[test]
+fn gltf_short_buffer_and_bad_views() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(dir.path(), "short.bin", &triangle_bytes()[..20]);
+    let p = write(
+        dir.path(),
+        "short.gltf",
+        gltf_with_uri("short.bin").as_bytes(),
+    );
+    expect_err(&p, ErrorClass::ParseError);
+
+    // A buffer view that claims more than its buffer.
+    write(dir.path(), "tri.bin", &triangle_bytes());
+    let text = gltf_with_uri("tri.bin").replace(
+        r#""bufferViews":[{"buffer":0,"byteLength":36}]"#,
+        r#""bufferViews":[{"buffer":0,"byteOffset":4000000000,"byteLength":36}]"#,
+    );
+    let p = write(dir.path(), "view.gltf", text.as_bytes());
+    expect_err(&p, ErrorClass::ParseError);
+}
+
+#[test]
+fn gltf_node_transforms_are_applied() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(dir.path(), "tri.bin", &triangle_bytes());
+    // Parent translates by (10, 0, 0); child scales by 2: corners at 10 + 2 * p.
+    let text = gltf_with_uri("tri.bin").replace(
+        r#""nodes":[{"mesh":0}]"#,
+        r#""nodes":[{"translation":[10,0,0],"children":[1]},{"scale":[2,2,2],"mesh":0}]"#,
+    );
+    let p = write(dir.path(), "moved.gltf", text.as_bytes());
+    let m = load(&p).expect("load").mesh;
+    let (lo, hi) = m.bounds().expect("bounds");
+    assert_eq!(lo, [10.0, 0.0, 0.0]);
+    assert_eq!(hi, [12.0, 2.0, 0.0]);
+}
