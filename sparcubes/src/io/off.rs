@@ -26,12 +26,13 @@ pub(crate) fn read(bytes: &[u8], path: &Path, stats: &mut LoadStats) -> Result<T
     let off =
         off_rs::parse(&canonical.0, options).map_err(|e| parse_err(path, format!("OFF: {e}")))?;
 
-    let mut mesh = TriMesh::default();
-    mesh.positions = off
-        .vertices
-        .iter()
-        .map(|v| [v.position.x, v.position.y, v.position.z])
-        .collect();
+    let mut mesh = TriMesh::new(
+        off.vertices
+            .iter()
+            .map(|v| [v.position.x, v.position.y, v.position.z])
+            .collect(),
+        Vec::new(),
+    );
     let mut poly = Vec::new();
     for f in &off.faces {
         poly.clear();
