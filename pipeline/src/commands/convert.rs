@@ -1,38 +1,135 @@
-//! `sparc3d convert IN -o OUT`: one mesh through Sparcubes and back to a watertight mesh.
+//! `sparc3d convert IN -o OUT`: one mesh through Sparcubes and back to a watertight mesh,
+//! with a short summary (faces in/out, active vertices and cells, components, time per stage,
+//! peak memory).
 
 use anyhow::Context;
+use serde_json::json;
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::time::Instant;
 
 /// Arguments of `sparc3d convert`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Input mesh (OBJ, PLY, STL, OFF, glTF, GLB).
     pub input: PathBuf,
-    /// Output mesh (.ply, .obj, .stl, .glb).
+    /// Output mesh (.ply, .obj, .stl, .glb), in the source's coordinate frame.
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Grid resolution N (cells per axis).
+    /// Grid resolution N (cells per axis, up to 4096).
     #[arg(long, default_value_t = 512)]
     pub resolution: u32,
     /// Turn off the deformation of active vertices.
     #[arg(long)]
     pub no_deform: bool,
+    /// Write the output in grid coordinates (voxels) instead of the source frame.
+    #[arg(long)]
+    pub grid_frame: bool,
     /// Print the summary as JSON.
     #[arg(long)]
     pub json: bool,
 }
 
+/// Peak resident set size of this process in bytes (Linux `VmHWM`), if known.
+pub fn peak_rss_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
 /// Runs `sparc3d convert`.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    let start = Instant::now();
     let loaded = sparcubes::io::load(&args.input)
         .with_context(|| format!("loading {}", args.input.display()))?;
+    let load_seconds = start.elapsed().as_secs_f64();
     let mut params = sparcubes::Params::with_resolution(args.resolution);
     params.deform = !args.no_deform;
     let conversion = sparcubes::convert(&loaded.mesh, &params)
         .with_context(|| format!("converting {}", args.input.display()))?;
-    let mesh = sparcubes::extract(&conversion.cubes);
+    let t = Instant::now();
+    let cubes = &conversion.cubes;
+    let mut mesh = sparcubes::extract(cubes);
+    let extract_seconds = t.elapsed().as_secs_f64();
+    let topo = sparcubes::topology::check(&mesh);
+    if !args.grid_frame {
+        sparcubes::extract::to_source(&mut mesh, &cubes.normalization, cubes.resolution);
+    }
+    let t = Instant::now();
     sparcubes::io::save(&mesh, &args.output)
         .with_context(|| format!("writing {}", args.output.display()))?;
+    let save_seconds = t.elapsed().as_secs_f64();
+    let input_components =
+        sparcubes::topology::check(&sparcubes::topology::weld(&loaded.mesh)).components;
+
+    let s = &conversion.stats;
+    let mut stages: Vec<(&str, f64)> = vec![("load", load_seconds)];
+    stages.extend(s.stage_seconds.iter().cloned());
+    stages.push(("extract", extract_seconds));
+    stages.push(("save", save_seconds));
+    let total = start.elapsed().as_secs_f64();
+    let peak = peak_rss_bytes();
+    let summary = json!({
+        "input": args.input.display().to_string(),
+        "output": args.output.display().to_string(),
+        "resolution": args.resolution,
+        "deform": params.deform,
+        "input_faces": s.input_faces,
+        "input_vertices": s.input_vertices,
+        "input_components": input_components,
+        "degenerate_faces": s.degenerate_faces,
+        "wall_cells": s.wall_cells,
+        "active_vertices": s.active_vertices,
+        "active_cells": s.active_cells,
+        "shell_vertices": s.shell_vertices,
+        "output_faces": mesh.triangles.len(),
+        "output_vertices": mesh.positions.len(),
+        "output_components": topo.components,
+        "watertight": topo.is_watertight(),
+        "manifold": topo.is_manifold(),
+        "stage_seconds": stages.iter().map(|(k, v)| (k.to_string(), json!(v))).collect::<serde_json::Map<_, _>>(),
+        "total_seconds": total,
+        "peak_rss_bytes": peak,
+    });
+    if args.json {
+        println!("{summary}");
+    } else {
+        println!(
+            "{} → {} at {}³{}",
+            args.input.display(),
+            args.output.display(),
+            args.resolution,
+            if params.deform {
+                ""
+            } else {
+                " (no deformation)"
+            }
+        );
+        println!(
+            "  faces        {} in ({} components) → {} out ({} components)",
+            s.input_faces,
+            input_components,
+            mesh.triangles.len(),
+            topo.components
+        );
+        println!(
+            "  active       {} vertices, {} cells ({} in thin shells)",
+            s.active_vertices, s.active_cells, s.shell_vertices
+        );
+        println!(
+            "  watertight   {}, manifold {}",
+            topo.is_watertight(),
+            topo.is_manifold()
+        );
+        let parts: Vec<String> = stages
+            .iter()
+            .map(|(k, v)| format!("{k} {:.3}s", v))
+            .collect();
+        println!("  time         {:.3}s: {}", total, parts.join(", "));
+        if let Some(p) = peak {
+            println!("  peak memory  {:.1} MB", p as f64 / 1e6);
+        }
+    }
     Ok(ExitCode::SUCCESS)
 }
