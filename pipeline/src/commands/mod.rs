@@ -3,6 +3,7 @@
 
 pub mod convert;
 pub mod eval;
+pub mod fill_holes;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -19,6 +20,8 @@ pub struct Cli {
 enum Command {
     /// Convert one mesh to sparse cubes and write the extracted watertight mesh.
     Convert(convert::Args),
+    /// Fill the holes of a mesh (e.g. decoded from a VAE) by smallest-angle ear filling.
+    FillHoles(fill_holes::Args),
     /// Measure a mesh against its source: Chamfer, normal consistency, F1, components, offset.
     Eval(eval::Args),
 }
@@ -27,6 +30,7 @@ enum Command {
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
         Command::Convert(args) => convert::run(args),
+        Command::FillHoles(args) => fill_holes::run(args),
         Command::Eval(args) => eval::run(args),
     }
 }
