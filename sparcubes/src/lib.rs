@@ -17,6 +17,9 @@
 //!
 //! The crate knows nothing of jobs or file formats beyond loading and saving meshes ([`io`]).
 #![deny(missing_docs)]
+// Geometry code indexes several arrays by the same axis or word number; iterator chains would
+// hide that parallel structure.
+#![allow(clippy::needless_range_loop)]
 
 pub mod band;
 pub mod convert;
