@@ -45,7 +45,7 @@ pub struct RowTimings {
 }
 
 /// The encoded tensors of an ok item.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct RowTensors {
     /// Active vertex coordinates, `n × 3` `<u2`, sorted lexicographically.
     pub coords: EncodedTensor,
@@ -101,6 +101,24 @@ impl RowTensors {
         })
     }
 
+    /// Mutable access to every present blob, in column order (for framing blobs apart
+    /// from the JSON form).
+    pub fn blobs_mut(&mut self) -> Vec<&mut Vec<u8>> {
+        let mut v = vec![
+            &mut self.coords.blob,
+            &mut self.sdf.blob,
+            &mut self.deformation.blob,
+            &mut self.cells.blob,
+        ];
+        if let Some(t) = self.mesh_vertices.as_mut() {
+            v.push(&mut t.blob);
+        }
+        if let Some(t) = self.mesh_faces.as_mut() {
+            v.push(&mut t.blob);
+        }
+        v
+    }
+
     /// The tensors in column order with their stems ([`crate::columns::TENSORS`]).
     pub fn iter(&self) -> [(&'static str, Option<&EncodedTensor>); 6] {
         [
@@ -114,8 +132,8 @@ impl RowTensors {
     }
 }
 
-/// One row of a shard: one manifest item.
-#[derive(Debug, Clone, PartialEq)]
+/// One row of a shard: one manifest item. The serde form leaves tensor blobs out.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ShardRow {
     /// Position in the frozen manifest.
     pub item_index: u64,

@@ -48,14 +48,16 @@ impl DType {
     }
 }
 
-/// One encoded tensor as stored in a row: dtype, shape and the zstd-compressed bytes.
-#[derive(Debug, Clone, PartialEq, Eq)]
+/// One encoded tensor as stored in a row: dtype, shape and the zstd-compressed bytes. The
+/// serde form leaves the blob out (it travels beside the JSON, see `sparc3d-workers`).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct EncodedTensor {
     /// Element type.
     pub dtype: DType,
     /// Shape, row-major (`[n, 3]` for coordinates, `[n]` for the SDF).
     pub shape: Vec<u64>,
     /// zstd frame of the little-endian element bytes.
+    #[serde(skip)]
     pub blob: Vec<u8>,
 }
 

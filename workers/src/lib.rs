@@ -1,3 +1,36 @@
 //! Processing of one shard of a sparc3d job: claim it, convert each item in isolation,
 //! checkpoint finished items, and write the Parquet shard atomically.
+//!
+//! Roles, one module each: [`job`] (read a job folder), [`lease`] (who works on a shard),
+//! [`journal`] (finished items, appended and fsynced), [`convert`] (the one function that
+//! touches geometry), [`child`] (the isolated process that runs it), [`supervisor`] (runs
+//! items in a child, with a watchdog, and classifies its deaths), [`writer`] (tmp → fsync →
+//! rename → completion record), [`shard`] (the loop over a shard's items), [`state`] (is a
+//! shard done, running or pending), [`events`] (progress reports).
 #![deny(missing_docs)]
+
+pub mod child;
+pub mod convert;
+pub mod error;
+pub mod events;
+pub mod frame;
+pub mod fsutil;
+pub mod job;
+pub mod journal;
+pub mod lease;
+pub mod shard;
+pub mod state;
+pub mod supervisor;
+pub mod writer;
+
+pub use error::{Result, WorkerError};
+pub use job::Job;
+pub use shard::{process_shard, ShardOutcome, WorkOptions};
+
+/// Seconds since the Unix epoch.
+pub fn now() -> f64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_secs_f64())
+        .unwrap_or(0.0)
+}

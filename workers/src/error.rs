@@ -1,0 +1,90 @@
+//! Errors of processing a shard. An item's failure is never an error here (it becomes a
+//! `failed` row); these are failures of the job's own machinery: files, leases, config drift.
+
+use std::path::PathBuf;
+
+/// What stopped a shard from being processed.
+#[derive(Debug, thiserror::Error)]
+pub enum WorkerError {
+    /// A file operation failed; `stage` says what was being done.
+    #[error("{stage} {}: {source}{}", path.display(), hint(source))]
+    Io {
+        /// What was being done (e.g. "appending to journal").
+        stage: &'static str,
+        /// The file or folder.
+        path: PathBuf,
+        /// The underlying error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A job file is malformed.
+    #[error("{}: {reason}", path.display())]
+    BadFile {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        reason: String,
+    },
+    /// The shard or its journal was written with another config.
+    #[error("{what} was written with config fingerprint {found}, this job's is {expected}; refusing to mix configs")]
+    ConfigDrift {
+        /// Which file.
+        what: String,
+        /// The fingerprint found.
+        found: String,
+        /// The job's fingerprint.
+        expected: String,
+    },
+    /// Another worker took this shard's lease over (our heartbeat was too late).
+    #[error("lost the lease of shard {shard} to {owner}")]
+    LeaseLost {
+        /// Shard index.
+        shard: u64,
+        /// The new owner.
+        owner: String,
+    },
+    /// The item worker process could not be started or talked to.
+    #[error("item worker: {0}")]
+    Child(String),
+    /// Encoding or decoding a contract type failed.
+    #[error(transparent)]
+    Schema(#[from] sparc3d_schema::SchemaError),
+    /// Writing Parquet failed.
+    #[error("writing parquet {}: {source}", path.display())]
+    Parquet {
+        /// The file.
+        path: PathBuf,
+        /// The underlying error.
+        #[source]
+        source: parquet::errors::ParquetError,
+    },
+}
+
+fn hint(e: &std::io::Error) -> &'static str {
+    match e.raw_os_error() {
+        Some(libc::ENOSPC) | Some(libc::EDQUOT) => {
+            " (disk full: free space and run again; finished items are kept)"
+        }
+        Some(libc::EFBIG) => {
+            " (file size limit reached: raise the limit and run again; finished items are kept)"
+        }
+        Some(libc::EACCES) | Some(libc::EROFS) | Some(libc::EPERM) => {
+            " (output folder not writable: fix permissions and run again)"
+        }
+        _ => "",
+    }
+}
+
+impl WorkerError {
+    /// An I/O error with its stage and path.
+    pub fn io(stage: &'static str, path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        WorkerError::Io {
+            stage,
+            path: path.into(),
+            source,
+        }
+    }
+}
+
+/// Result with [`WorkerError`].
+pub type Result<T, E = WorkerError> = std::result::Result<T, E>;

@@ -1,0 +1,61 @@
+//! Progress events of a worker, printed one JSON object per line by `sparc3d work --events`
+//! and read by the local orchestrator.
+
+use serde::{Deserialize, Serialize};
+
+/// Something that happened while processing shards.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "event", rename_all = "snake_case")]
+pub enum Event {
+    /// A shard was claimed; `done` of its `items` were already finished.
+    ShardStarted {
+        /// Shard index.
+        shard: u64,
+        /// Items in the shard.
+        items: u64,
+        /// Items already finished (resumed from the journal).
+        done: u64,
+    },
+    /// An item started.
+    ItemStarted {
+        /// Shard index.
+        shard: u64,
+        /// Item index.
+        index: u64,
+        /// Item id.
+        id: String,
+        /// Source path.
+        uri: String,
+    },
+    /// An item finished (final outcome, or a crash that will be retried).
+    ItemFinished {
+        /// Shard index.
+        shard: u64,
+        /// Item index.
+        index: u64,
+        /// `ok`, `failed`, or `retry` for a crash that will be retried.
+        status: String,
+        /// Error class when failed.
+        class: Option<String>,
+        /// Seconds the item took.
+        seconds: f64,
+    },
+    /// A shard was written and its completion record made.
+    ShardFinished {
+        /// Shard index.
+        shard: u64,
+        /// Rows.
+        rows: u64,
+        /// Ok rows.
+        ok: u64,
+        /// Failed rows.
+        failed: u64,
+    },
+    /// A shard was not processed (already done, or leased by another worker).
+    ShardSkipped {
+        /// Shard index.
+        shard: u64,
+        /// Why.
+        reason: String,
+    },
+}

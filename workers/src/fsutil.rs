@@ -1,0 +1,50 @@
+//! Durable file operations: fsync of files and folders, atomic replacement.
+
+use crate::error::{Result, WorkerError};
+use std::fs::File;
+use std::io::Write;
+use std::path::Path;
+
+/// Fsyncs a folder so that renames and creations inside it are durable.
+pub fn sync_dir(dir: &Path) -> Result<()> {
+    let f = File::open(dir).map_err(|e| WorkerError::io("opening folder", dir, e))?;
+    f.sync_all()
+        .map_err(|e| WorkerError::io("syncing folder", dir, e))
+}
+
+/// Writes `bytes` to `path` atomically: a temporary file in the same folder, fsync, rename,
+/// fsync of the folder.
+pub fn write_atomic(path: &Path, bytes: &[u8], stage: &'static str) -> Result<()> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_string())
+        .unwrap_or_default();
+    let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
+    let result = (|| {
+        let mut f = File::create(&tmp).map_err(|e| WorkerError::io(stage, &tmp, e))?;
+        f.write_all(bytes)
+            .map_err(|e| WorkerError::io(stage, &tmp, e))?;
+        f.sync_all().map_err(|e| WorkerError::io(stage, &tmp, e))?;
+        std::fs::rename(&tmp, path).map_err(|e| WorkerError::io(stage, path, e))?;
+        sync_dir(dir)
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+/// Reads and parses a JSON file.
+pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
+    let bytes = std::fs::read(path).map_err(|e| WorkerError::io("reading", path, e))?;
+    serde_json::from_slice(&bytes).map_err(|e| WorkerError::BadFile {
+        path: path.to_path_buf(),
+        reason: e.to_string(),
+    })
+}
+
+/// Creates a folder and its parents.
+pub fn create_dir(path: &Path) -> Result<()> {
+    std::fs::create_dir_all(path).map_err(|e| WorkerError::io("creating folder", path, e))
+}

@@ -1,0 +1,322 @@
+//! The journal of a shard in progress: finished items are appended and fsynced as they
+//! finish, and the item about to start is recorded before it starts, so a crash is attributed
+//! to it and a kill loses at most the item in flight.
+
+use crate::error::{Result, WorkerError};
+use crate::frame::{self, ReadFrame, Record};
+use sparc3d_schema::{ErrorClass, ItemStatus, ShardRow};
+use std::collections::{BTreeMap, HashMap};
+use std::fs::{File, OpenOptions};
+use std::io::{BufReader, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+
+/// What the journal says about a finished item (its row stays on disk).
+#[derive(Debug, Clone, PartialEq)]
+pub struct DoneItem {
+    /// Outcome.
+    pub status: ItemStatus,
+    /// Error class when failed.
+    pub class: Option<ErrorClass>,
+    /// Seconds the item took.
+    pub total_s: f64,
+    /// Byte offset of its frame in the journal.
+    pub offset: u64,
+    /// Unix time it finished.
+    pub at: f64,
+}
+
+/// Attempts of an unfinished item.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Attempts {
+    /// Times it was started.
+    pub started: u32,
+    /// Times it died with a crash-class failure (observed by the supervisor).
+    pub crashes: u32,
+    /// Times it was stopped on purpose.
+    pub aborted: u32,
+    /// The last crash: class and message.
+    pub last_crash: Option<(ErrorClass, String)>,
+}
+
+impl Attempts {
+    /// Starts that ended with neither a result, a crash nor an abort: the worker itself was
+    /// killed while the item ran.
+    pub fn interrupted(&self) -> u32 {
+        self.started.saturating_sub(self.crashes + self.aborted)
+    }
+}
+
+/// The replayed content of a journal.
+#[derive(Debug, Clone, Default)]
+pub struct JournalState {
+    /// Shard and fingerprint from the header.
+    pub header: Option<(u64, String)>,
+    /// Finished items by index.
+    pub done: BTreeMap<u64, DoneItem>,
+    /// Attempts of items not finished.
+    pub attempts: HashMap<u64, Attempts>,
+    /// The item started last and not finished, with its start time.
+    pub in_flight: Option<(u64, f64)>,
+    /// Unix time of the first record.
+    pub created_at: Option<f64>,
+    /// Bytes of valid frames.
+    pub valid_len: u64,
+    /// Whether the journal ended in a torn or corrupt frame.
+    pub torn: bool,
+}
+
+impl JournalState {
+    fn apply(&mut self, record: &Record, offset: u64) {
+        match record {
+            Record::Header {
+                shard,
+                fingerprint,
+                created_at,
+            } => {
+                self.header = Some((*shard, fingerprint.clone()));
+                self.created_at = Some(*created_at);
+            }
+            Record::Start { index, at, .. } => {
+                self.attempts.entry(*index).or_default().started += 1;
+                self.in_flight = Some((*index, *at));
+            }
+            Record::Done { row, at } => {
+                self.attempts.remove(&row.item_index);
+                if self.in_flight.map(|(i, _)| i) == Some(row.item_index) {
+                    self.in_flight = None;
+                }
+                self.done.insert(
+                    row.item_index,
+                    DoneItem {
+                        status: row.status,
+                        class: row.error_class,
+                        total_s: row.timings.total_s,
+                        offset,
+                        at: *at,
+                    },
+                );
+            }
+            Record::Crash {
+                index,
+                class,
+                message,
+                ..
+            } => {
+                let a = self.attempts.entry(*index).or_default();
+                a.crashes += 1;
+                a.last_crash = Some((*class, message.clone()));
+                self.in_flight = None;
+            }
+            Record::Abort { index, .. } => {
+                self.attempts.entry(*index).or_default().aborted += 1;
+                self.in_flight = None;
+            }
+        }
+    }
+}
+
+/// Replays a journal without modifying it (safe while a worker appends to it).
+pub fn replay(path: &Path) -> Result<JournalState> {
+    let f = File::open(path).map_err(|e| WorkerError::io("reading journal", path, e))?;
+    let mut r = BufReader::new(f);
+    let mut state = JournalState::default();
+    loop {
+        match frame::read(&mut r).map_err(|e| WorkerError::io("reading journal", path, e))? {
+            ReadFrame::Record(rec, len) => {
+                state.apply(&rec, state.valid_len);
+                state.valid_len += len;
+            }
+            ReadFrame::End => break,
+            ReadFrame::Torn | ReadFrame::Corrupt(_) => {
+                state.torn = true;
+                break;
+            }
+        }
+    }
+    Ok(state)
+}
+
+/// An open journal, appended to by the one worker holding the shard's lease.
+#[derive(Debug)]
+pub struct Journal {
+    path: PathBuf,
+    file: File,
+    /// What the journal holds.
+    pub state: JournalState,
+}
+
+impl Journal {
+    /// Opens (or creates) the journal of `shard`, drops a torn tail left by a kill, and
+    /// refuses a journal written with another config.
+    pub fn open(path: &Path, shard: u64, fingerprint: &str) -> Result<Self> {
+        let exists = path.exists();
+        let state = if exists {
+            replay(path)?
+        } else {
+            JournalState::default()
+        };
+        if let Some((_, found)) = &state.header {
+            if found != fingerprint {
+                return Err(WorkerError::ConfigDrift {
+                    what: format!("journal {}", path.display()),
+                    found: found.clone(),
+                    expected: fingerprint.to_string(),
+                });
+            }
+        }
+        let mut file = OpenOptions::new()
+            .create(true)
+            .read(true)
+            .write(true)
+            .truncate(false)
+            .open(path)
+            .map_err(|e| WorkerError::io("opening journal", path, e))?;
+        if state.torn || state.header.is_none() {
+            file.set_len(state.valid_len)
+                .map_err(|e| WorkerError::io("truncating torn journal", path, e))?;
+        }
+        file.seek(SeekFrom::Start(state.valid_len))
+            .map_err(|e| WorkerError::io("opening journal", path, e))?;
+        let mut journal = Self {
+            path: path.to_path_buf(),
+            file,
+            state,
+        };
+        journal.state.torn = false;
+        if journal.state.header.is_none() {
+            journal.append(&Record::Header {
+                shard,
+                fingerprint: fingerprint.to_string(),
+                created_at: crate::now(),
+            })?;
+            if let Some(dir) = path.parent() {
+                crate::fsutil::sync_dir(dir)?;
+            }
+        }
+        Ok(journal)
+    }
+
+    /// Appends a record and fsyncs it.
+    pub fn append(&mut self, record: &Record) -> Result<()> {
+        let bytes = frame::encode(record).map_err(|e| WorkerError::BadFile {
+            path: self.path.clone(),
+            reason: format!("encoding a record: {e}"),
+        })?;
+        let offset = self.state.valid_len;
+        let written = self
+            .file
+            .write_all(&bytes)
+            .and_then(|_| self.file.sync_data());
+        if let Err(e) = written {
+            // Leave no half record behind: the next open would drop it anyway.
+            let _ = self.file.set_len(offset);
+            let _ = self.file.seek(SeekFrom::Start(offset));
+            return Err(WorkerError::io("appending to journal", &self.path, e));
+        }
+        self.state.apply(record, offset);
+        self.state.valid_len += bytes.len() as u64;
+        Ok(())
+    }
+
+    /// Reads back the row of a finished item.
+    pub fn read_row(&self, item: &DoneItem) -> Result<ShardRow> {
+        read_row_at(&self.path, item.offset)
+    }
+
+    /// The journal's path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+}
+
+/// Reads the row in the `Done` frame at `offset` of a journal.
+pub fn read_row_at(path: &Path, offset: u64) -> Result<ShardRow> {
+    let mut f = File::open(path).map_err(|e| WorkerError::io("reading journal", path, e))?;
+    f.seek(SeekFrom::Start(offset))
+        .map_err(|e| WorkerError::io("reading journal", path, e))?;
+    let mut r = BufReader::new(f);
+    match frame::read(&mut r).map_err(|e| WorkerError::io("reading journal", path, e))? {
+        ReadFrame::Record(Record::Done { row, .. }, _) => Ok(*row),
+        other => Err(WorkerError::BadFile {
+            path: path.to_path_buf(),
+            reason: format!("no finished item at offset {offset}: {other:?}"),
+        }),
+    }
+}
+
+/// Writes a fresh journal holding `rows` as finished items (used to retry failed items of a
+/// finished shard), atomically.
+pub fn write_with_rows(
+    path: &Path,
+    shard: u64,
+    fingerprint: &str,
+    rows: &[ShardRow],
+) -> Result<()> {
+    let mut bytes = Vec::new();
+    let enc = |r: &Record| {
+        frame::encode(r).map_err(|e| WorkerError::BadFile {
+            path: path.to_path_buf(),
+            reason: format!("encoding a record: {e}"),
+        })
+    };
+    bytes.extend(enc(&Record::Header {
+        shard,
+        fingerprint: fingerprint.to_string(),
+        created_at: crate::now(),
+    })?);
+    for row in rows {
+        bytes.extend(enc(&Record::Done {
+            row: Box::new(row.clone()),
+            at: crate::now(),
+        })?);
+    }
+    crate::fsutil::write_atomic(path, &bytes, "writing journal")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn journal_survives_a_torn_tail_and_refuses_drift() -> Result<()> {
+        let dir = tempfile::tempdir().map_err(|e| WorkerError::io("tmp", "/tmp", e))?;
+        let path = dir.path().join("j");
+        let mut j = Journal::open(&path, 0, "fp")?;
+        j.append(&Record::Start {
+            index: 0,
+            attempt: 1,
+            at: 1.0,
+        })?;
+        let row = ShardRow::failed(0, "a", "/a", 8, ErrorClass::ParseError, "bad".into());
+        j.append(&Record::Done {
+            row: Box::new(row.clone()),
+            at: 2.0,
+        })?;
+        j.append(&Record::Start {
+            index: 1,
+            attempt: 1,
+            at: 3.0,
+        })?;
+        drop(j);
+        // A torn write at the end.
+        let mut f = OpenOptions::new()
+            .append(true)
+            .open(&path)
+            .map_err(|e| WorkerError::io("t", &path, e))?;
+        f.write_all(b"SPF1\x10\x00")
+            .map_err(|e| WorkerError::io("t", &path, e))?;
+        drop(f);
+        let j = Journal::open(&path, 0, "fp")?;
+        assert_eq!(j.state.done.len(), 1);
+        assert_eq!(j.state.attempts[&1].interrupted(), 1);
+        assert_eq!(j.state.in_flight.map(|x| x.0), Some(1));
+        let back = j.read_row(&j.state.done[&0])?;
+        assert_eq!(back, row);
+        drop(j);
+        assert!(matches!(
+            Journal::open(&path, 0, "other"),
+            Err(WorkerError::ConfigDrift { .. })
+        ));
+        Ok(())
+    }
+}

@@ -1,0 +1,230 @@
+//! The loop over one shard: claim its lease, resume from its journal, run each unfinished
+//! item in the supervised item worker, journal the outcome, and write the shard when every
+//! item is finished.
+
+use crate::error::{Result, WorkerError};
+use crate::events::Event;
+use crate::frame::Record;
+use crate::job::Job;
+use crate::journal::Journal;
+use crate::lease;
+use crate::state;
+use crate::supervisor::{ChildCommand, ItemOutcome, ItemRunner};
+use sparc3d_schema::{CompletionRecord, ErrorClass, ItemStatus, Limits, ShardRow};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+/// How to process shards.
+pub struct WorkOptions {
+    /// How to start the item worker process.
+    pub child: ChildCommand,
+    /// Per-item limits for this run.
+    pub limits: Limits,
+    /// Seconds a lease stays valid without a heartbeat.
+    pub lease_ttl_s: f64,
+    /// Set to stop cleanly (Ctrl-C): the item in flight is abandoned, not counted.
+    pub stop: Arc<AtomicBool>,
+    /// Receives progress events.
+    pub events: Box<dyn FnMut(Event) + Send>,
+}
+
+/// What happened to a shard.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ShardOutcome {
+    /// Written now.
+    Done(CompletionRecord),
+    /// Already finished before; its completion record.
+    AlreadyDone(CompletionRecord),
+    /// Another live worker holds its lease.
+    Busy(String),
+    /// Stopped on request; the journal keeps what finished.
+    Stopped,
+}
+
+/// Processes shard `shard` of `job`. Item failures become rows; errors are failures of the
+/// job's machinery (files, leases, config drift) and leave the journal for a later resume.
+pub fn process_shard(job: &Job, shard: u64, opts: &mut WorkOptions) -> Result<ShardOutcome> {
+    let layout = &job.layout;
+    let fp = job.fingerprint().to_string();
+    if let Some(r) = state::completion(layout, shard, &fp)? {
+        (opts.events)(Event::ShardSkipped {
+            shard,
+            reason: "already done".into(),
+        });
+        return Ok(ShardOutcome::AlreadyDone(r));
+    }
+    crate::fsutil::create_dir(&layout.state_dir())?;
+    crate::fsutil::create_dir(&layout.shards_dir())?;
+    let owner = lease::owner_name();
+    let held = match lease::acquire(&layout.lease(shard), &owner, opts.lease_ttl_s)? {
+        Ok(l) => l,
+        Err(holder) => {
+            (opts.events)(Event::ShardSkipped {
+                shard,
+                reason: format!("leased by {}", holder.owner),
+            });
+            return Ok(ShardOutcome::Busy(holder.owner));
+        }
+    };
+    let result = run_leased(job, shard, opts, &held, &owner);
+    held.release();
+    result
+}
+
+fn run_leased(
+    job: &Job,
+    shard: u64,
+    opts: &mut WorkOptions,
+    held: &lease::Lease,
+    owner: &str,
+) -> Result<ShardOutcome> {
+    let layout = &job.layout;
+    let fp = job.fingerprint().to_string();
+    // Someone may have finished it between our check and our lease.
+    if let Some(r) = state::completion(layout, shard, &fp)? {
+        return Ok(ShardOutcome::AlreadyDone(r));
+    }
+    let items = job.shard_items(shard);
+    let mut journal = Journal::open(&layout.journal(shard), shard, &fp)?;
+    let started_at = journal.state.created_at.unwrap_or_else(crate::now);
+    (opts.events)(Event::ShardStarted {
+        shard,
+        items: items.len() as u64,
+        done: journal.state.done.len() as u64,
+    });
+    let config = &job.file.config;
+    let mut runner = ItemRunner::new(opts.child.clone(), config, opts.limits)?;
+    let resolution = config.params.resolution;
+    for item in items {
+        if journal.state.done.contains_key(&item.index) {
+            continue;
+        }
+        loop {
+            if opts.stop.load(Ordering::SeqCst) {
+                return Ok(ShardOutcome::Stopped);
+            }
+            if let Some(new_owner) = held.lost_to() {
+                return Err(WorkerError::LeaseLost {
+                    shard,
+                    owner: new_owner,
+                });
+            }
+            let attempts = journal
+                .state
+                .attempts
+                .get(&item.index)
+                .cloned()
+                .unwrap_or_default();
+            let id = &item.record.id;
+            let uri = &item.record.uri;
+            if attempts.interrupted() >= opts.limits.max_interrupted_attempts {
+                let mut row = ShardRow::failed(
+                    item.index,
+                    id,
+                    uri,
+                    resolution,
+                    ErrorClass::Crashed,
+                    format!(
+                        "the worker was killed {} times while converting this item",
+                        attempts.interrupted()
+                    ),
+                );
+                row.attempts = attempts.started;
+                row.source_sha256 = item.record.sha256.clone();
+                finish(&mut journal, opts, shard, row)?;
+                break;
+            }
+            journal.append(&Record::Start {
+                index: item.index,
+                attempt: attempts.started + 1,
+                at: crate::now(),
+            })?;
+            (opts.events)(Event::ItemStarted {
+                shard,
+                index: item.index,
+                id: id.clone(),
+                uri: uri.clone(),
+            });
+            let t = std::time::Instant::now();
+            let outcome = runner.run(item, &opts.stop)?;
+            let seconds = t.elapsed().as_secs_f64();
+            match outcome {
+                ItemOutcome::Finished(mut row) => {
+                    row.attempts = attempts.started + 1;
+                    row.timings.total_s = seconds;
+                    finish(&mut journal, opts, shard, *row)?;
+                    break;
+                }
+                ItemOutcome::Stopped => {
+                    journal.append(&Record::Abort {
+                        index: item.index,
+                        at: crate::now(),
+                    })?;
+                    return Ok(ShardOutcome::Stopped);
+                }
+                ItemOutcome::Died {
+                    class,
+                    message,
+                    stderr_tail,
+                } => {
+                    if class.is_crash() && attempts.crashes < opts.limits.max_crash_retries {
+                        journal.append(&Record::Crash {
+                            index: item.index,
+                            class,
+                            message,
+                            at: crate::now(),
+                        })?;
+                        (opts.events)(Event::ItemFinished {
+                            shard,
+                            index: item.index,
+                            status: "retry".into(),
+                            class: Some(class.as_str().into()),
+                            seconds,
+                        });
+                        continue;
+                    }
+                    let mut row = ShardRow::failed(item.index, id, uri, resolution, class, message);
+                    row.source_sha256 = item.record.sha256.clone();
+                    row.stderr_tail = (!stderr_tail.is_empty()).then_some(stderr_tail);
+                    row.attempts = attempts.started + 1;
+                    row.timings.total_s = seconds;
+                    finish(&mut journal, opts, shard, row)?;
+                    break;
+                }
+            }
+        }
+    }
+    drop(runner);
+    let record = crate::writer::write_shard(job, shard, &journal, owner, started_at)?;
+    let journal_path = journal.path().to_path_buf();
+    drop(journal);
+    let _ = std::fs::remove_file(&journal_path);
+    (opts.events)(Event::ShardFinished {
+        shard,
+        rows: record.rows,
+        ok: record.ok,
+        failed: record.failed,
+    });
+    Ok(ShardOutcome::Done(record))
+}
+
+fn finish(journal: &mut Journal, opts: &mut WorkOptions, shard: u64, row: ShardRow) -> Result<()> {
+    let event = Event::ItemFinished {
+        shard,
+        index: row.item_index,
+        status: match row.status {
+            ItemStatus::Ok => "ok",
+            ItemStatus::Failed => "failed",
+            ItemStatus::Skipped => "skipped",
+        }
+        .into(),
+        class: row.error_class.map(|c| c.as_str().to_string()),
+        seconds: row.timings.total_s,
+    };
+    journal.append(&Record::Done {
+        row: Box::new(row),
+        at: crate::now(),
+    })?;
+    (opts.events)(event);
+    Ok(())
+}

@@ -1,0 +1,309 @@
+//! Runs items in an item worker process ([`crate::child`]) with a watchdog: a time-out kills
+//! the process, and any death of the process (signal, abort, allocation failure, stack
+//! overflow) is classified and attributed to the item it was converting. A dead process is
+//! replaced at the next item.
+
+use crate::error::{Result, WorkerError};
+use crate::frame::{self, ReadFrame, Record};
+use sparc3d_schema::{ErrorClass, FrozenItem, JobConfig, Limits, ShardRow};
+use std::io::{BufReader, Read, Write};
+use std::os::unix::process::{CommandExt, ExitStatusExt};
+use std::path::PathBuf;
+use std::process::{Child, ChildStdin, Command, ExitStatus, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{Receiver, RecvTimeoutError};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+/// Bytes of stderr kept per item.
+const TAIL_BYTES: usize = 16 << 10;
+/// Bytes of stderr stored in a failed row.
+const ROW_TAIL_BYTES: usize = 2 << 10;
+
+/// How to start an item worker process: a program and its arguments (the supervisor adds
+/// `--memory-bytes B --parent-pid P`).
+#[derive(Debug, Clone)]
+pub struct ChildCommand {
+    /// The program (usually the running `sparc3d` binary).
+    pub program: PathBuf,
+    /// Arguments selecting the item worker mode.
+    pub args: Vec<String>,
+    /// Extra environment variables.
+    pub env: Vec<(String, String)>,
+}
+
+/// How an item ended.
+#[derive(Debug)]
+pub enum ItemOutcome {
+    /// The worker answered with a row (ok or failed).
+    Finished(Box<ShardRow>),
+    /// The worker process died or was killed by the watchdog.
+    Died {
+        /// Class of the death.
+        class: ErrorClass,
+        /// What happened.
+        message: String,
+        /// The last lines of its stderr.
+        stderr_tail: String,
+    },
+    /// Stopped on request (Ctrl-C); not the item's fault.
+    Stopped,
+}
+
+enum Msg {
+    Row(Box<ShardRow>),
+    Closed,
+}
+
+struct ChildProc {
+    child: Child,
+    stdin: ChildStdin,
+    rx: Receiver<Msg>,
+    tail: Arc<Mutex<Vec<u8>>>,
+    stderr_thread: Option<JoinHandle<()>>,
+}
+
+impl ChildProc {
+    fn kill(&mut self) -> Option<ExitStatus> {
+        let _ = self.child.kill();
+        self.reap()
+    }
+
+    fn reap(&mut self) -> Option<ExitStatus> {
+        let status = self.child.wait().ok();
+        if let Some(h) = self.stderr_thread.take() {
+            let _ = h.join();
+        }
+        status
+    }
+
+    fn tail(&self) -> String {
+        let bytes = self.tail.lock().map(|g| g.clone()).unwrap_or_default();
+        let start = bytes.len().saturating_sub(ROW_TAIL_BYTES);
+        String::from_utf8_lossy(&bytes[start..]).into_owned()
+    }
+}
+
+impl Drop for ChildProc {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Runs items one at a time in a supervised item worker process.
+pub struct ItemRunner {
+    cmd: ChildCommand,
+    config_line: String,
+    limits: Limits,
+    proc: Option<ChildProc>,
+}
+
+fn signal_name(sig: i32) -> &'static str {
+    match sig {
+        libc::SIGKILL => "SIGKILL",
+        libc::SIGSEGV => "SIGSEGV",
+        libc::SIGABRT => "SIGABRT",
+        libc::SIGBUS => "SIGBUS",
+        libc::SIGTERM => "SIGTERM",
+        libc::SIGINT => "SIGINT",
+        libc::SIGFPE => "SIGFPE",
+        libc::SIGILL => "SIGILL",
+        _ => "signal",
+    }
+}
+
+/// Classifies the death of an item worker from its exit status and stderr.
+pub fn classify_death(status: Option<ExitStatus>, stderr: &str) -> (ErrorClass, String) {
+    let how = match status {
+        Some(s) => match (s.signal(), s.code()) {
+            (Some(sig), _) => format!("killed by signal {sig} ({})", signal_name(sig)),
+            (None, Some(code)) => format!("exited with status {code}"),
+            _ => "ended".to_string(),
+        },
+        None => "vanished".to_string(),
+    };
+    if stderr.contains("has overflowed its stack") {
+        (
+            ErrorClass::StackOverflow,
+            format!("stack overflow: item worker {how}"),
+        )
+    } else if stderr.contains("memory allocation of")
+        || stderr.contains("Cannot allocate memory")
+        || stderr.contains("out of memory")
+    {
+        (
+            ErrorClass::OutOfMemory,
+            format!("out of memory under the item memory limit: item worker {how}"),
+        )
+    } else {
+        (ErrorClass::Crashed, format!("item worker {how}"))
+    }
+}
+
+impl ItemRunner {
+    /// A runner for a job's config and limits; the process starts with the first item.
+    pub fn new(cmd: ChildCommand, config: &JobConfig, limits: Limits) -> Result<Self> {
+        let config_line = serde_json::to_string(config)
+            .map_err(|e| WorkerError::Child(format!("encoding the config: {e}")))?;
+        Ok(Self {
+            cmd,
+            config_line,
+            limits,
+            proc: None,
+        })
+    }
+
+    fn spawn(&self) -> Result<ChildProc> {
+        let mut child = Command::new(&self.cmd.program)
+            .args(&self.cmd.args)
+            .arg("--memory-bytes")
+            .arg(self.limits.item_memory_bytes.to_string())
+            .arg("--parent-pid")
+            .arg(std::process::id().to_string())
+            .envs(self.cmd.env.iter().map(|(k, v)| (k, v)))
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .process_group(0)
+            .spawn()
+            .map_err(|e| {
+                WorkerError::Child(format!("starting {}: {e}", self.cmd.program.display()))
+            })?;
+        let (Some(mut stdin), Some(stdout), Some(mut stderr)) =
+            (child.stdin.take(), child.stdout.take(), child.stderr.take())
+        else {
+            return Err(WorkerError::Child("no pipes to the item worker".into()));
+        };
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::Builder::new()
+            .name("item-reader".into())
+            .spawn(move || {
+                let mut r = BufReader::new(stdout);
+                loop {
+                    match frame::read(&mut r) {
+                        Ok(ReadFrame::Record(Record::Done { row, .. }, _)) => {
+                            if tx.send(Msg::Row(row)).is_err() {
+                                return;
+                            }
+                        }
+                        Ok(ReadFrame::End) => {
+                            let _ = tx.send(Msg::Closed);
+                            return;
+                        }
+                        Ok(_) | Err(_) => {
+                            let _ = tx.send(Msg::Closed);
+                            return;
+                        }
+                    }
+                }
+            })
+            .map_err(|e| WorkerError::Child(format!("starting a reader thread: {e}")))?;
+        let tail = Arc::new(Mutex::new(Vec::new()));
+        let t = tail.clone();
+        let stderr_thread = std::thread::Builder::new()
+            .name("item-stderr".into())
+            .spawn(move || {
+                let mut buf = [0u8; 4096];
+                while let Ok(n) = stderr.read(&mut buf) {
+                    if n == 0 {
+                        break;
+                    }
+                    if let Ok(mut g) = t.lock() {
+                        g.extend_from_slice(&buf[..n]);
+                        if g.len() > TAIL_BYTES {
+                            let cut = g.len() - TAIL_BYTES;
+                            g.drain(..cut);
+                        }
+                    }
+                }
+            })
+            .ok();
+        writeln!(stdin, "{}", self.config_line)
+            .map_err(|e| WorkerError::Child(format!("sending the config: {e}")))?;
+        Ok(ChildProc {
+            child,
+            stdin,
+            rx,
+            tail,
+            stderr_thread,
+        })
+    }
+
+    fn died(&mut self, mut proc: ChildProc, timeout: bool) -> ItemOutcome {
+        let status = proc.kill();
+        let tail = proc.tail();
+        if timeout {
+            return ItemOutcome::Died {
+                class: ErrorClass::Timeout,
+                message: format!(
+                    "exceeded the item time limit of {} s",
+                    self.limits.item_timeout_s
+                ),
+                stderr_tail: tail,
+            };
+        }
+        let (class, message) = classify_death(status, &tail);
+        ItemOutcome::Died {
+            class,
+            message,
+            stderr_tail: tail,
+        }
+    }
+
+    /// Runs one item; `stop` is polled so that Ctrl-C interrupts a long item.
+    pub fn run(&mut self, item: &FrozenItem, stop: &AtomicBool) -> Result<ItemOutcome> {
+        let mut proc = match self.proc.take() {
+            Some(p) => p,
+            None => self.spawn()?,
+        };
+        if let Ok(mut g) = proc.tail.lock() {
+            g.clear();
+        }
+        let line = serde_json::to_string(item)
+            .map_err(|e| WorkerError::Child(format!("encoding item {}: {e}", item.index)))?;
+        if writeln!(proc.stdin, "{line}")
+            .and_then(|_| proc.stdin.flush())
+            .is_err()
+        {
+            return Ok(self.died(proc, false));
+        }
+        let start = Instant::now();
+        let limit = Duration::from_secs_f64(self.limits.item_timeout_s.max(0.001));
+        loop {
+            match proc.rx.recv_timeout(Duration::from_millis(50)) {
+                Ok(Msg::Row(mut row)) => {
+                    if row.error_class.is_some() {
+                        let tail = proc.tail();
+                        if !tail.is_empty() {
+                            row.stderr_tail = Some(tail);
+                        }
+                    }
+                    self.proc = Some(proc);
+                    return Ok(ItemOutcome::Finished(row));
+                }
+                Ok(Msg::Closed) | Err(RecvTimeoutError::Disconnected) => {
+                    return Ok(self.died(proc, false));
+                }
+                Err(RecvTimeoutError::Timeout) => {
+                    if stop.load(Ordering::SeqCst) {
+                        proc.kill();
+                        return Ok(ItemOutcome::Stopped);
+                    }
+                    if start.elapsed() > limit {
+                        return Ok(self.died(proc, true));
+                    }
+                }
+            }
+        }
+    }
+}
+
+impl Drop for ItemRunner {
+    fn drop(&mut self) {
+        if let Some(mut p) = self.proc.take() {
+            p.kill();
+        }
+    }
+}

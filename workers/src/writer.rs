@@ -1,0 +1,180 @@
+//! Writes a finished shard: rows from the journal in item order into a Parquet file under a
+//! temporary name, fsync, rename, fsync of the folder, and the completion record last.
+
+use crate::error::{Result, WorkerError};
+use crate::fsutil::{sync_dir, write_atomic};
+use crate::job::Job;
+use crate::journal::Journal;
+use parquet::arrow::ArrowWriter;
+use parquet::basic::{Compression, ZstdLevel};
+use parquet::file::metadata::KeyValue;
+use parquet::file::properties::{EnabledStatistics, WriterProperties};
+use parquet::schema::types::ColumnPath;
+use sha2::{Digest, Sha256};
+use sparc3d_schema::{columns, meta_keys, CompletionRecord, ItemStatus, ShardRow};
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::path::Path;
+
+/// Bytes of tensor blobs per row group (row groups stay well under 256 MB).
+const ROW_GROUP_BYTES: usize = 64 << 20;
+
+/// Parquet writer properties of a shard: blobs uncompressed with no dictionary or statistics
+/// (they are zstd already), the small columns zstd-compressed.
+pub fn writer_properties(job: &Job, shard: u64) -> Result<WriterProperties> {
+    let config = job
+        .file
+        .config
+        .to_canonical_json()
+        .map_err(WorkerError::Schema)?;
+    let kv = vec![
+        KeyValue::new(
+            meta_keys::SCHEMA_VERSION.into(),
+            sparc3d_schema::SCHEMA_VERSION.to_string(),
+        ),
+        KeyValue::new(meta_keys::CONFIG.into(), config),
+        KeyValue::new(meta_keys::FINGERPRINT.into(), job.file.fingerprint.clone()),
+        KeyValue::new(
+            meta_keys::TOOL_VERSION.into(),
+            sparc3d_schema::TOOL_VERSION.to_string(),
+        ),
+        KeyValue::new(meta_keys::SHARD_INDEX.into(), shard.to_string()),
+    ];
+    let level = ZstdLevel::try_new(3).map_err(|source| WorkerError::Parquet {
+        path: job.layout.shard_file(shard),
+        source,
+    })?;
+    let mut b = WriterProperties::builder()
+        .set_compression(Compression::ZSTD(level))
+        .set_key_value_metadata(Some(kv));
+    for stem in columns::TENSORS {
+        let col = ColumnPath::from(stem);
+        b = b
+            .set_column_compression(col.clone(), Compression::UNCOMPRESSED)
+            .set_column_dictionary_enabled(col.clone(), false)
+            .set_column_statistics_enabled(col, EnabledStatistics::None);
+    }
+    Ok(b.build())
+}
+
+fn blob_bytes(row: &ShardRow) -> usize {
+    row.tensors
+        .as_ref()
+        .map(|t| {
+            t.iter()
+                .iter()
+                .filter_map(|(_, t)| t.map(|t| t.blob.len()))
+                .sum()
+        })
+        .unwrap_or(0)
+}
+
+fn file_sha256(path: &Path) -> Result<String> {
+    let mut f = File::open(path).map_err(|e| WorkerError::io("hashing shard", path, e))?;
+    let mut h = Sha256::new();
+    std::io::copy(&mut f, &mut h).map_err(|e| WorkerError::io("hashing shard", path, e))?;
+    Ok(sparc3d_schema::config::hex(&h.finalize()))
+}
+
+/// Writes shard `shard` from its journal (every item must be finished) and returns its
+/// completion record, which is written last.
+pub fn write_shard(
+    job: &Job,
+    shard: u64,
+    journal: &Journal,
+    writer_id: &str,
+    started_at: f64,
+) -> Result<CompletionRecord> {
+    let layout = &job.layout;
+    let tmp = layout.shard_tmp(shard, writer_id);
+    let final_path = layout.shard_file(shard);
+    let pq_err = |source| WorkerError::Parquet {
+        path: tmp.clone(),
+        source,
+    };
+    let file = File::create(&tmp).map_err(|e| WorkerError::io("creating shard", &tmp, e))?;
+    let result = (|| {
+        let mut writer = ArrowWriter::try_new(
+            file,
+            sparc3d_schema::arrow::schema(),
+            Some(writer_properties(job, shard)?),
+        )
+        .map_err(pq_err)?;
+        let mut digest = Sha256::new();
+        let (mut ok, mut failed, mut item_seconds) = (0u64, 0u64, 0.0f64);
+        let mut classes: BTreeMap<String, u64> = BTreeMap::new();
+        let mut pending: Vec<ShardRow> = Vec::new();
+        let mut pending_bytes = 0usize;
+        let flush = |writer: &mut ArrowWriter<File>, rows: &mut Vec<ShardRow>| -> Result<()> {
+            if rows.is_empty() {
+                return Ok(());
+            }
+            let batch = sparc3d_schema::arrow::rows_to_batch(rows)?;
+            writer.write(&batch).map_err(pq_err)?;
+            writer.flush().map_err(pq_err)?;
+            rows.clear();
+            Ok(())
+        };
+        for done in journal.state.done.values() {
+            let row = journal.read_row(done)?;
+            sparc3d_schema::digest::update_row(&mut digest, &row);
+            match row.status {
+                ItemStatus::Ok => ok += 1,
+                _ => failed += 1,
+            }
+            if let Some(c) = row.error_class {
+                *classes.entry(c.as_str().to_string()).or_default() += 1;
+            }
+            item_seconds += row.timings.total_s;
+            pending_bytes += blob_bytes(&row);
+            pending.push(row);
+            if pending_bytes >= ROW_GROUP_BYTES {
+                flush(&mut writer, &mut pending)?;
+                pending_bytes = 0;
+            }
+        }
+        flush(&mut writer, &mut pending)?;
+        let file = writer.into_inner().map_err(pq_err)?;
+        file.sync_all()
+            .map_err(|e| WorkerError::io("syncing shard", &tmp, e))?;
+        drop(file);
+        std::fs::rename(&tmp, &final_path)
+            .map_err(|e| WorkerError::io("renaming shard", &final_path, e))?;
+        sync_dir(&layout.shards_dir())?;
+        let bytes = std::fs::metadata(&final_path)
+            .map_err(|e| WorkerError::io("reading shard size", &final_path, e))?
+            .len();
+        Ok(CompletionRecord {
+            shard,
+            schema_version: sparc3d_schema::SCHEMA_VERSION,
+            fingerprint: job.file.fingerprint.clone(),
+            rows: ok + failed,
+            ok,
+            failed,
+            error_classes: classes,
+            bytes,
+            sha256: file_sha256(&final_path)?,
+            content_digest: sparc3d_schema::config::hex(&digest.finalize()),
+            item_seconds,
+            started_at,
+            finished_at: crate::now(),
+        })
+    })();
+    let record = match result {
+        Ok(r) => r,
+        Err(e) => {
+            let _ = std::fs::remove_file(&tmp);
+            return Err(e);
+        }
+    };
+    let json = serde_json::to_vec_pretty(&record).map_err(|e| WorkerError::BadFile {
+        path: layout.completion(shard),
+        reason: e.to_string(),
+    })?;
+    write_atomic(
+        &layout.completion(shard),
+        &json,
+        "writing completion record",
+    )?;
+    Ok(record)
+}
