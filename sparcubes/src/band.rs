@@ -4,7 +4,7 @@
 //! [`REACH`] voxels of the surface, so only triangles within that reach of a brick are binned
 //! to it, and each brick scans its own triangles — no per-vertex tree query.
 
-use crate::grid::{count, dilate, for_each_bit, rank, split, BrickSet, Dilation, Numbered, BRICK};
+use crate::grid::{count, dilate, for_each_bit, BrickMask, BrickSet, Dilation, Numbered, BRICK};
 use crate::voxelize::{triangle_box_overlap, GridMesh};
 use rayon::prelude::*;
 
@@ -131,6 +131,135 @@ fn bin_triangles(mesh: &GridMesh, verts: &BrickSet) -> (Vec<u32>, Vec<u32>) {
     (starts, tris)
 }
 
+/// Reach of the first pass: every corner of a wall cell is within √3 ≈ 1.732 voxels of the
+/// surface, so most vertices are settled by the triangles within this reach.
+const NEAR_REACH: f64 = 1.75;
+
+/// Per-thread buffers of one brick's scan, indexed by local vertex position (x + 8y + 64z).
+struct BrickScratch {
+    best: Vec<f64>,
+    point: Vec<[f64; 3]>,
+}
+
+impl BrickScratch {
+    fn new() -> Self {
+        Self {
+            best: vec![f64::INFINITY; 512],
+            point: vec![[0.0; 3]; 512],
+        }
+    }
+}
+
+/// Updates the best distance of the vertices in `mask` that lie within `reach` of each
+/// triangle's bounding box. Triangles come in ascending order and only a strictly smaller
+/// distance replaces the best, so ties go to the lowest triangle index.
+#[allow(clippy::too_many_arguments)]
+fn scan_pass(
+    mesh: &GridMesh,
+    planes: &[[f64; 4]],
+    tris: &[u32],
+    mask: &BrickMask,
+    base: [i64; 3],
+    reach: f64,
+    scratch: &mut BrickScratch,
+) {
+    for &t in tris {
+        let tri = mesh.tri(t as usize);
+        let pl = planes[t as usize];
+        let mut lo = [0i64; 3];
+        let mut hi = [0i64; 3];
+        let mut empty = false;
+        for a in 0..3 {
+            let mn = tri[0][a].min(tri[1][a]).min(tri[2][a]) - reach;
+            let mx = tri[0][a].max(tri[1][a]).max(tri[2][a]) + reach;
+            lo[a] = (mn.ceil() as i64).max(base[a]) - base[a];
+            hi[a] = (mx.floor() as i64).min(base[a] + 7) - base[a];
+            empty |= lo[a] > hi[a];
+        }
+        if empty {
+            continue;
+        }
+        for z in lo[2]..=hi[2] {
+            let word = mask[z as usize];
+            if word == 0 {
+                continue;
+            }
+            for y in lo[1]..=hi[1] {
+                let row = (word >> (8 * y)) & 0xFF;
+                if row == 0 {
+                    continue;
+                }
+                for x in lo[0]..=hi[0] {
+                    if (row >> x) & 1 == 0 {
+                        continue;
+                    }
+                    let local = (x + 8 * y + 64 * z) as usize;
+                    let p = [
+                        (base[0] + x) as f64,
+                        (base[1] + y) as f64,
+                        (base[2] + z) as f64,
+                    ];
+                    let plane = pl[0] * p[0] + pl[1] * p[1] + pl[2] * p[2] - pl[3];
+                    let best = scratch.best[local];
+                    if plane * plane >= best {
+                        continue;
+                    }
+                    let q = closest_point_on_triangle(p, &tri);
+                    let d = sub(p, q);
+                    let d2 = dot(d, d);
+                    if d2 < best {
+                        scratch.best[local] = d2;
+                        scratch.point[local] = q;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Distances and closest points of one brick's vertices, in local order: a pass with the
+/// near reach settles every vertex within it; the rest are rescanned with the full reach.
+fn scan_brick(
+    mesh: &GridMesh,
+    planes: &[[f64; 4]],
+    tris: &[u32],
+    mask: &BrickMask,
+    base: [i64; 3],
+    scratch: &mut BrickScratch,
+) -> (Vec<f32>, Vec<[f32; 3]>) {
+    scratch.best.fill(f64::INFINITY);
+    scan_pass(mesh, planes, tris, mask, base, NEAR_REACH, scratch);
+    let mut far = [0u64; 8];
+    for_each_bit(mask, |x, y, z| {
+        let local = (x + 8 * y + 64 * z) as usize;
+        if scratch.best[local] > NEAR_REACH * NEAR_REACH {
+            scratch.best[local] = f64::INFINITY;
+            far[z as usize] |= 1u64 << (x + 8 * y);
+        }
+    });
+    if !crate::grid::is_empty(&far) {
+        scan_pass(mesh, planes, tris, &far, base, REACH, scratch);
+    }
+    let k = count(mask) as usize;
+    let mut udf = Vec::with_capacity(k);
+    let mut cp = Vec::with_capacity(k);
+    for_each_bit(mask, |x, y, z| {
+        let local = (x + 8 * y + 64 * z) as usize;
+        let best = scratch.best[local];
+        if best.is_finite() {
+            let q = scratch.point[local];
+            udf.push(best.sqrt() as f32);
+            cp.push([q[0] as f32, q[1] as f32, q[2] as f32]);
+        } else {
+            // Unreachable by the REACH argument; keep the vertex far and outside.
+            let p = [base[0] + x as i64, base[1] + y as i64, base[2] + z as i64];
+            udf.push(REACH as f32);
+            cp.push([p[0] as f32, p[1] as f32, p[2] as f32]);
+        }
+    });
+    (udf, cp)
+}
+
 /// Computes the band around the wall cells: candidate cells and vertices, and for each vertex
 /// its exact distance to the surface and closest point (ties go to the lowest triangle index,
 /// so the result does not depend on thread count).
@@ -155,72 +284,11 @@ pub fn compute_band(mesh: &GridMesh, walls: &BrickSet, n: u32) -> Band {
         .collect();
     let per_brick: Vec<(Vec<f32>, Vec<[f32; 3]>)> = (0..verts.set.keys.len())
         .into_par_iter()
-        .map(|s| {
-            let mask = &verts.set.masks[s];
+        .map_init(BrickScratch::new, |scratch, s| {
             let b = verts.set.index.coord(verts.set.keys[s] as usize);
             let base = [b[0] as i64 * 8, b[1] as i64 * 8, b[2] as i64 * 8];
-            let k = count(mask) as usize;
-            let mut best = vec![f64::INFINITY; k];
-            let mut best_p = vec![[0f64; 3]; k];
-            for &t in &bins[starts[s] as usize..starts[s + 1] as usize] {
-                let tri = mesh.tri(t as usize);
-                let pl = planes[t as usize];
-                let mut lo = [0i64; 3];
-                let mut hi = [0i64; 3];
-                for a in 0..3 {
-                    let mn = tri[0][a].min(tri[1][a]).min(tri[2][a]) - REACH;
-                    let mx = tri[0][a].max(tri[1][a]).max(tri[2][a]) + REACH;
-                    lo[a] = (mn.ceil() as i64).max(base[a]);
-                    hi[a] = (mx.floor() as i64).min(base[a] + 7);
-                }
-                for z in lo[2]..=hi[2] {
-                    for y in lo[1]..=hi[1] {
-                        for x in lo[0]..=hi[0] {
-                            let (_, w, bit) = split([x as u32, y as u32, z as u32]);
-                            if (mask[w] >> bit) & 1 == 0 {
-                                continue;
-                            }
-                            let i = rank(mask, w, bit) as usize;
-                            let p = [x as f64, y as f64, z as f64];
-                            let plane = pl[0] * p[0] + pl[1] * p[1] + pl[2] * p[2] - pl[3];
-                            if plane * plane >= best[i] {
-                                continue;
-                            }
-                            let q = closest_point_on_triangle(p, &tri);
-                            let d = sub(p, q);
-                            let d2 = dot(d, d);
-                            if d2 < best[i] {
-                                best[i] = d2;
-                                best_p[i] = q;
-                            }
-                        }
-                    }
-                }
-            }
-            let mut udf = Vec::with_capacity(k);
-            let mut cp = Vec::with_capacity(k);
-            let mut i = 0;
-            for_each_bit(mask, |x, y, z| {
-                let p = [
-                    (base[0] + x as i64) as f64,
-                    (base[1] + y as i64) as f64,
-                    (base[2] + z as i64) as f64,
-                ];
-                if best[i].is_finite() {
-                    udf.push(best[i].sqrt() as f32);
-                    cp.push([
-                        best_p[i][0] as f32,
-                        best_p[i][1] as f32,
-                        best_p[i][2] as f32,
-                    ]);
-                } else {
-                    // Unreachable by the REACH argument; keep the vertex far and outside.
-                    udf.push(REACH as f32);
-                    cp.push([p[0] as f32, p[1] as f32, p[2] as f32]);
-                }
-                i += 1;
-            });
-            (udf, cp)
+            let tris = &bins[starts[s] as usize..starts[s + 1] as usize];
+            scan_brick(mesh, &planes, tris, &verts.set.masks[s], base, scratch)
         })
         .collect();
     let mut udf = Vec::with_capacity(verts.len);
