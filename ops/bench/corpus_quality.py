@@ -16,6 +16,7 @@ Only the standard library. Run from the repository root after
 """
 
 import argparse
+import concurrent.futures
 import json
 import os
 import statistics
@@ -36,6 +37,7 @@ def parse_args():
     p.add_argument("--out", default="corpus_quality", help="output prefix: PREFIX.jsonl, PREFIX.summary.json")
     p.add_argument("--bin", default="target/release/sparc3d", help="the sparc3d binary")
     p.add_argument("--timeout", type=float, default=900.0, help="seconds per command")
+    p.add_argument("--jobs", type=int, default=1, help="meshes measured at once")
     p.add_argument("--limit", type=int, default=0, help="only the first K meshes (0: all)")
     p.add_argument("--resume", action="store_true", help="skip meshes already in PREFIX.jsonl")
     p.add_argument("--summarize", metavar="JSONL", help="only summarise an existing results file")
@@ -82,6 +84,7 @@ def find_key(obj, key):
 
 def measure(args, mesh, workdir):
     """Converts and evaluates one mesh in both modes; returns its JSON record."""
+    os.makedirs(workdir, exist_ok=True)
     record = {"mesh": os.path.basename(mesh), "resolution": args.resolution}
     for mode, flags in MODES.items():
         out = os.path.join(workdir, f"{mode}.ply")
@@ -205,20 +208,21 @@ def main():
     if args.resume and os.path.exists(jsonl):
         with open(jsonl) as f:
             done = {r["mesh"]: r for r in map(json.loads, filter(str.strip, f))}
-    records = []
-    with open(jsonl, "a" if args.resume else "w") as out, tempfile.TemporaryDirectory() as workdir:
-        for i, mesh in enumerate(meshes, 1):
-            name = os.path.basename(mesh)
-            if name in done:
-                records.append(done[name])
-                continue
-            record = measure(args, mesh, workdir)
+    records = [done[os.path.basename(m)] for m in meshes if os.path.basename(m) in done]
+    todo = [m for m in meshes if os.path.basename(m) not in done]
+    with open(jsonl, "a" if args.resume else "w") as out, tempfile.TemporaryDirectory() as workdir, \
+            concurrent.futures.ThreadPoolExecutor(max(1, args.jobs)) as pool:
+        futures = {
+            pool.submit(measure, args, m, os.path.join(workdir, str(i))): m for i, m in enumerate(todo)
+        }
+        for i, future in enumerate(concurrent.futures.as_completed(futures), 1):
+            record = future.result()
             records.append(record)
             out.write(json.dumps(record) + "\n")
             out.flush()
             d, n = record["deform"], record["no_deform"]
             cell = lambda e: f"cd×N {e['eval']['cd_voxels']:.3f} anc {e['eval']['anc']:.2f}" if "eval" in e else e.get("error", "?")[:60]
-            print(f"[{i}/{len(meshes)}] {name}: deform {cell(d)} | no deform {cell(n)}", file=sys.stderr, flush=True)
+            print(f"[{i}/{len(todo)}] {record['mesh']}: deform {cell(d)} | no deform {cell(n)}", file=sys.stderr, flush=True)
     summary = summarize(records, args.resolution)
     with open(args.out + ".summary.json", "w") as f:
         json.dump(summary, f, indent=2)

@@ -139,8 +139,10 @@ pub struct QualityReport {
     pub components_kept: usize,
     /// Whether the welded source is closed (every edge shared by exactly two triangles).
     pub source_closed: bool,
-    /// Whether the welded output is closed (every edge shared by exactly two triangles): a
-    /// watertightness check independent of the converter's own.
+    /// Whether the output is closed (every edge shared by exactly two triangles) after welding
+    /// only bit-identical positions — an extracted mesh has vertices closer than the source's
+    /// welding tolerance that are distinct: a watertightness check independent of the
+    /// converter's own.
     pub output_closed: bool,
     /// Mean signed distance from output points to the source, in voxels, positive outside;
     /// `None` when the source is not closed.
@@ -223,10 +225,7 @@ pub fn evaluate(
         components_total: topo.counted,
         components_kept: topo.kept,
         source_closed: closed,
-        output_closed: weld::is_closed(
-            &output.triangles,
-            &weld::weld(&out.positions, WELD_TOLERANCE * diag),
-        ),
+        output_closed: weld::is_closed(&output.triangles, &weld::weld(&out.positions, 0.0)),
         offset_voxels: signs
             .map(|s| voxels * mean(src_to_surface.iter().zip(&s).map(|(d, s)| d * s))),
         output_to_source_voxels: voxels * mean(src_to_surface.iter().copied()),
