@@ -42,23 +42,41 @@ pub fn extract(cubes: &SparseCubes) -> TriMesh {
         keys.extend(k);
         points.extend(p);
     }
-    // Number vertices by key: unique (key, slot) pairs sort the same whatever the order.
-    let mut order: Vec<(u64, u32)> = keys
-        .iter()
-        .enumerate()
-        .map(|(slot, &k)| (k, slot as u32))
-        .collect();
-    order.par_sort_unstable();
-    let mut index = vec![0u32; total];
-    let mut positions = Vec::new();
-    let mut last = None;
-    for &(key, slot) in &order {
-        if last != Some(key) {
-            last = Some(key);
-            positions.push(points[slot as usize]);
+    // Number vertices by key: crossing points in edge-key order (a dense table over the
+    // grid edges of active vertices), then centres in cell order; both orders are fixed by the
+    // data alone.
+    const UNSET: u32 = u32::MAX;
+    let mut id_of_edge = vec![UNSET; 3 * n];
+    let mut centres: Vec<(u64, u32)> = Vec::new();
+    for (slot, &key) in keys.iter().enumerate() {
+        if key & CENTRE_KEY != 0 {
+            if centres.last().is_none_or(|c| c.0 != key) {
+                centres.push((key, slot as u32));
+            }
+        } else if id_of_edge[key as usize] == UNSET {
+            id_of_edge[key as usize] = slot as u32;
         }
-        index[slot as usize] = positions.len() as u32 - 1;
     }
+    debug_assert!(centres.windows(2).all(|w| w[0].0 < w[1].0));
+    let mut positions = Vec::new();
+    for first in id_of_edge.iter_mut().filter(|s| **s != UNSET) {
+        positions.push(points[*first as usize]);
+        *first = positions.len() as u32 - 1;
+    }
+    let first_centre = positions.len() as u32;
+    positions.extend(centres.iter().map(|&(_, slot)| points[slot as usize]));
+    let index: Vec<u32> = keys
+        .par_iter()
+        .map(|&key| {
+            if key & CENTRE_KEY != 0 {
+                // Centre keys rise with the slot, so a binary search finds them.
+                let i = centres.partition_point(|c| c.0 < key);
+                first_centre + i as u32
+            } else {
+                id_of_edge[key as usize]
+            }
+        })
+        .collect();
     let triangles = index.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
     TriMesh::new(positions, triangles)
 }
