@@ -1,6 +1,11 @@
 //! The `sparc3d` command line: parses arguments and hands each subcommand to `commands/`.
 
 mod commands;
+mod manifest_io;
+mod progress;
+mod shard_io;
+mod summary;
+mod units;
 
 use clap::Parser;
 

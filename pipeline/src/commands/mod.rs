@@ -3,7 +3,17 @@
 
 pub mod convert;
 pub mod eval;
+pub mod failures;
 pub mod fill_holes;
+pub mod init;
+pub mod inspect;
+pub mod item_worker;
+pub mod manifest;
+pub mod retry;
+pub mod run;
+pub mod show;
+pub mod status;
+pub mod work;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -24,6 +34,27 @@ enum Command {
     FillHoles(fill_holes::Args),
     /// Measure a mesh against its source: Chamfer, normal consistency, F1, components, offset.
     Eval(eval::Args),
+    /// Build a manifest by scanning a folder for meshes.
+    Manifest(manifest::Args),
+    /// Create a job folder: freeze the manifest, assign shards, fix the config.
+    Init(init::Args),
+    /// Run a job locally with N worker processes, with progress; resumable.
+    Run(run::Args),
+    /// Process shards of a job (one process; for clusters: --shard-index or --array).
+    Work(work::Args),
+    /// Show a job's progress: shards, items, throughput, ETA, errors.
+    Status(status::Args),
+    /// List a job's failed items.
+    Failures(failures::Args),
+    /// Queue a job's failed items (optionally of one class) to be converted again.
+    Retry(retry::Args),
+    /// Describe a shard or a job: rows, bytes per column, percentiles, content digest.
+    Inspect(inspect::Args),
+    /// Decode one item of a job and write its mesh.
+    Show(show::Args),
+    /// Internal: the isolated process converting items for `work`.
+    #[command(hide = true)]
+    ItemWorker(item_worker::Args),
 }
 
 /// Runs the parsed command line and returns the process exit code.
@@ -32,5 +63,15 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Convert(args) => convert::run(args),
         Command::FillHoles(args) => fill_holes::run(args),
         Command::Eval(args) => eval::run(args),
+        Command::Manifest(args) => manifest::run(args),
+        Command::Init(args) => init::run(args),
+        Command::Run(args) => run::run(args),
+        Command::Work(args) => work::run(args),
+        Command::Status(args) => status::run(args),
+        Command::Failures(args) => failures::run(args),
+        Command::Retry(args) => retry::run(args),
+        Command::Inspect(args) => inspect::run(args),
+        Command::Show(args) => show::run(args),
+        Command::ItemWorker(args) => item_worker::run(args),
     }
 }

@@ -1,0 +1,70 @@
+//! `sparc3d failures JOB [--json]`: every failed item with its class and message.
+
+use crate::shard_io::shard_rows;
+use anyhow::Result;
+use serde::Serialize;
+use sparc3d_schema::ItemStatus;
+use sparc3d_workers::Job;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// Arguments of `sparc3d failures`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Job folder.
+    pub job: PathBuf,
+    /// Only this error class.
+    #[arg(long)]
+    pub class: Option<String>,
+    /// Print JSON lines.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Serialize)]
+struct Failure {
+    shard: u64,
+    id: String,
+    uri: String,
+    error_class: String,
+    error_message: String,
+    attempts: u32,
+    stderr_tail: Option<String>,
+}
+
+/// Runs `sparc3d failures`.
+pub fn run(args: Args) -> Result<ExitCode> {
+    let job = Job::open(&args.job)?;
+    let mut n = 0;
+    for shard in 0..job.file.shards {
+        for row in shard_rows(&job, shard)? {
+            if row.status != ItemStatus::Failed {
+                continue;
+            }
+            let class = row.error_class.map(|c| c.as_str()).unwrap_or("unknown");
+            if args.class.as_deref().is_some_and(|c| c != class) {
+                continue;
+            }
+            n += 1;
+            let f = Failure {
+                shard,
+                id: row.id,
+                uri: row.uri,
+                error_class: class.to_string(),
+                error_message: row.error_message.unwrap_or_default(),
+                attempts: row.attempts,
+                stderr_tail: row.stderr_tail,
+            };
+            if args.json {
+                println!("{}", serde_json::to_string(&f)?);
+            } else {
+                let msg = f.error_message.lines().next().unwrap_or("");
+                println!("{}\t{}\t{}\t{}", f.error_class, f.id, f.uri, msg);
+            }
+        }
+    }
+    if !args.json {
+        eprintln!("{n} failed items");
+    }
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,179 @@
+//! `sparc3d init JOB --manifest M [--resolution N] [--shard-size S] [--config job.toml]`:
+//! freezes the manifest into the job folder, gives every item its shard once, and writes the
+//! config with its fingerprint. Re-running with another config is refused, naming the keys.
+
+use crate::manifest_io;
+use anyhow::{bail, Context, Result};
+use rayon::prelude::*;
+use sparc3d_schema::{FrozenItem, JobConfig, JobFile, JobLayout, ManifestRecord};
+use std::collections::HashMap;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// Arguments of `sparc3d init`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Job folder to create.
+    pub job: PathBuf,
+    /// Manifest (.csv, .jsonl or .parquet with a path column).
+    #[arg(long)]
+    pub manifest: PathBuf,
+    /// Grid resolution N (overrides the config file).
+    #[arg(long)]
+    pub resolution: Option<u32>,
+    /// Items per shard (overrides the config file).
+    #[arg(long)]
+    pub shard_size: Option<u32>,
+    /// Config file (TOML) with any of the job config's keys.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+}
+
+/// The job config from defaults, the config file and the flags.
+pub fn build_config(args: &Args) -> Result<JobConfig> {
+    let mut overrides = serde_json::json!({});
+    if let Some(path) = &args.config {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("reading config {}", path.display()))?;
+        let t: toml::Value =
+            toml::from_str(&text).with_context(|| format!("parsing config {}", path.display()))?;
+        overrides = serde_json::to_value(t)?;
+    }
+    if let Some(obj) = overrides.as_object_mut() {
+        if let Some(r) = args.resolution {
+            let params = obj.entry("params").or_insert_with(|| serde_json::json!({}));
+            if let Some(p) = params.as_object_mut() {
+                p.insert("resolution".into(), r.into());
+            }
+        }
+        if let Some(s) = args.shard_size {
+            obj.insert("shard_size".into(), s.into());
+        }
+    }
+    JobConfig::from_overrides(&overrides).context("invalid job config")
+}
+
+fn freeze(records: Vec<manifest_io::RawRecord>, shard_size: u32) -> Result<Vec<FrozenItem>> {
+    let with_ids: Vec<Result<ManifestRecord>> = records
+        .into_par_iter()
+        .map(|r| {
+            let (id, sha) = match (r.id, r.sha256) {
+                (Some(id), sha) => (id, sha),
+                (None, Some(sha)) => (sha.clone(), Some(sha)),
+                (None, None) => {
+                    let sha = manifest_io::file_sha256(std::path::Path::new(&r.uri))
+                        .with_context(|| format!("hashing {} for its id", r.uri))?;
+                    (sha.clone(), Some(sha))
+                }
+            };
+            Ok(ManifestRecord {
+                id,
+                uri: r.uri,
+                sha256: sha,
+                format: r.format,
+            })
+        })
+        .collect();
+    let mut seen: HashMap<String, usize> = HashMap::new();
+    let mut items = Vec::with_capacity(with_ids.len());
+    let mut dups = Vec::new();
+    for (i, rec) in with_ids.into_iter().enumerate() {
+        let rec = rec?;
+        if let Some(first) = seen.get(&rec.id) {
+            dups.push(format!("{} (rows {} and {})", rec.id, first + 1, i + 1));
+            continue;
+        }
+        seen.insert(rec.id.clone(), i);
+        let index = items.len() as u64;
+        items.push(FrozenItem {
+            index,
+            shard: index / shard_size.max(1) as u64,
+            record: rec,
+        });
+    }
+    if !dups.is_empty() {
+        bail!(
+            "the manifest has {} duplicate ids, e.g. {}; ids must be unique",
+            dups.len(),
+            dups.iter().take(5).cloned().collect::<Vec<_>>().join(", ")
+        );
+    }
+    Ok(items)
+}
+
+/// Runs `sparc3d init`.
+pub fn run(args: Args) -> Result<ExitCode> {
+    let config = build_config(&args)?;
+    let layout = JobLayout::new(&args.job);
+    let records = manifest_io::read(&args.manifest)?;
+    if records.is_empty() {
+        bail!("{}: the manifest is empty", args.manifest.display());
+    }
+    let items = freeze(records, config.shard_size)?;
+    let mut text = String::new();
+    for it in &items {
+        text.push_str(&serde_json::to_string(it)?);
+        text.push('\n');
+    }
+    let manifest_sha256 = {
+        use sha2::{Digest, Sha256};
+        sparc3d_schema::config::hex(&Sha256::digest(text.as_bytes()))
+    };
+    if layout.job_file().exists() {
+        let existing = sparc3d_workers::Job::open(&layout.root)?;
+        let keys = existing.file.config.diff_keys(&config)?;
+        if !keys.is_empty() {
+            bail!(
+                "{} is already initialised with a different config; differing keys: {} \
+                 (use a new job folder, or the same config)",
+                layout.root.display(),
+                keys.join(", ")
+            );
+        }
+        if existing.file.manifest_sha256 != manifest_sha256 {
+            bail!(
+                "{} is already initialised with a different manifest ({} items, now {}); \
+                 shard assignment never changes: use a new job folder",
+                layout.root.display(),
+                existing.file.items,
+                items.len()
+            );
+        }
+        eprintln!(
+            "{} is already initialised with this config and manifest; nothing to do",
+            layout.root.display()
+        );
+        return Ok(ExitCode::SUCCESS);
+    }
+    sparc3d_workers::fsutil::create_dir(&layout.shards_dir())?;
+    sparc3d_workers::fsutil::create_dir(&layout.state_dir())?;
+    sparc3d_workers::fsutil::write_atomic(
+        &layout.manifest(),
+        text.as_bytes(),
+        "freezing manifest",
+    )?;
+    let shards = (items.len() as u64).div_ceil(config.shard_size.max(1) as u64);
+    let file = JobFile {
+        schema_version: sparc3d_schema::SCHEMA_VERSION,
+        tool_version: sparc3d_schema::TOOL_VERSION.into(),
+        fingerprint: config.fingerprint()?,
+        config,
+        items: items.len() as u64,
+        shards,
+        manifest_sha256,
+    };
+    // job.json last: its presence is what makes the folder a job.
+    sparc3d_workers::fsutil::write_atomic(
+        &layout.job_file(),
+        &serde_json::to_vec_pretty(&file)?,
+        "writing job file",
+    )?;
+    eprintln!(
+        "initialised {}: {} items in {} shards, fingerprint {}",
+        layout.root.display(),
+        file.items,
+        shards,
+        &file.fingerprint[..12]
+    );
+    Ok(ExitCode::SUCCESS)
+}

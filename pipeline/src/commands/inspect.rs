@@ -1,0 +1,166 @@
+//! `sparc3d inspect SHARD|JOB [--json]`: schema version, rows, bytes per column, percentiles
+//! of voxel counts, faces and timings, and the content digest (which excludes timings).
+
+use crate::shard_io::{for_each_row, read_meta};
+use anyhow::{bail, Result};
+use serde::Serialize;
+use sparc3d_schema::{digest, meta_keys, ItemStatus};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+/// Arguments of `sparc3d inspect`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// A shard file or a job folder.
+    pub target: PathBuf,
+    /// Print JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Debug, Default, Serialize)]
+struct Report {
+    shards: u64,
+    row_groups: usize,
+    schema_versions: Vec<String>,
+    rows: u64,
+    ok: u64,
+    failed: u64,
+    file_bytes: u64,
+    column_bytes: BTreeMap<String, u64>,
+    percentiles: BTreeMap<String, BTreeMap<String, f64>>,
+    content_digest: String,
+}
+
+const STATS: [&str; 6] = [
+    "active_vertices",
+    "active_cells",
+    "input_faces",
+    "output_faces",
+    "time_convert_s",
+    "time_total_s",
+];
+
+fn percentile(sorted: &[f64], p: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    let k = ((sorted.len() - 1) as f64 * p).round() as usize;
+    sorted[k.min(sorted.len() - 1)]
+}
+
+fn shard_files(target: &Path) -> Result<Vec<PathBuf>> {
+    if target.is_file() {
+        return Ok(vec![target.to_path_buf()]);
+    }
+    let job = sparc3d_workers::Job::open(target)?;
+    let mut files = Vec::new();
+    for shard in 0..job.file.shards {
+        if sparc3d_workers::state::completion(&job.layout, shard, job.fingerprint())?.is_some() {
+            files.push(job.layout.shard_file(shard));
+        }
+    }
+    if files.is_empty() {
+        bail!("{}: no finished shard yet", target.display());
+    }
+    Ok(files)
+}
+
+/// Runs `sparc3d inspect`.
+pub fn run(args: Args) -> Result<ExitCode> {
+    let files = shard_files(&args.target)?;
+    let mut r = Report::default();
+    let mut values: BTreeMap<&str, Vec<f64>> = STATS.iter().map(|s| (*s, Vec::new())).collect();
+    let mut digests = Vec::new();
+    for file in &files {
+        let meta = read_meta(file)?;
+        r.shards += 1;
+        let v = meta
+            .kv
+            .get(meta_keys::SCHEMA_VERSION)
+            .cloned()
+            .unwrap_or_else(|| "?".into());
+        if !r.schema_versions.contains(&v) {
+            r.schema_versions.push(v);
+        }
+        r.rows += meta.rows;
+        r.row_groups += meta.row_groups;
+        r.file_bytes += meta.file_bytes;
+        for (c, b) in meta.column_bytes {
+            *r.column_bytes.entry(c).or_default() += b;
+        }
+        let mut h = sha2::Sha256::default();
+        for_each_row(file, |row| {
+            digest::update_row(&mut h, &row);
+            match row.status {
+                ItemStatus::Ok => r.ok += 1,
+                _ => r.failed += 1,
+            }
+            if let Some(k) = &row.counts {
+                let push = |m: &mut BTreeMap<&str, Vec<f64>>, key: &str, x: f64| {
+                    if let Some(v) = m.get_mut(key) {
+                        v.push(x);
+                    }
+                };
+                push(&mut values, "active_vertices", k.active_vertices as f64);
+                push(&mut values, "active_cells", k.active_cells as f64);
+                push(&mut values, "input_faces", k.input_faces as f64);
+                if let Some(f) = k.output_faces {
+                    push(&mut values, "output_faces", f as f64);
+                }
+                push(&mut values, "time_convert_s", row.timings.convert_s);
+            }
+            if let Some(v) = values.get_mut("time_total_s") {
+                v.push(row.timings.total_s);
+            }
+            Ok(())
+        })?;
+        use sha2::Digest;
+        digests.push(sparc3d_schema::config::hex(&h.finalize()));
+    }
+    r.content_digest = if digests.len() == 1 && args.target.is_file() {
+        digests[0].clone()
+    } else {
+        digest::combine(&digests)
+    };
+    for (name, mut v) in values {
+        v.sort_by(f64::total_cmp);
+        let mut m = BTreeMap::new();
+        for (label, p) in [("p50", 0.5), ("p90", 0.9), ("p99", 0.99), ("max", 1.0)] {
+            m.insert(label.to_string(), percentile(&v, p));
+        }
+        m.insert("n".into(), v.len() as f64);
+        r.percentiles.insert(name.to_string(), m);
+    }
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&r)?);
+        return Ok(ExitCode::SUCCESS);
+    }
+    println!("shards:         {}", r.shards);
+    println!("schema version: {}", r.schema_versions.join(", "));
+    println!(
+        "rows:           {} ({} ok, {} failed) in {} row groups",
+        r.rows, r.ok, r.failed, r.row_groups
+    );
+    println!("bytes:          {}", r.file_bytes);
+    println!("content digest: {}", r.content_digest);
+    println!("bytes per column:");
+    let mut cols: Vec<_> = r.column_bytes.iter().collect();
+    cols.sort_by(|a, b| b.1.cmp(a.1));
+    for (c, b) in cols {
+        println!("  {b:>12}  {c}");
+    }
+    println!("percentiles:      p50          p90          p99          max");
+    for (name, m) in &r.percentiles {
+        let g = |k: &str| m.get(k).copied().unwrap_or(f64::NAN);
+        println!(
+            "  {name:<16} {:>12.3} {:>12.3} {:>12.3} {:>12.3}",
+            g("p50"),
+            g("p90"),
+            g("p99"),
+            g("max")
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}

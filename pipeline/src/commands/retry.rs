@@ -1,0 +1,71 @@
+//! `sparc3d retry JOB [--class C]`: queues failed items (of one class, or all) to be converted
+//! again. A finished shard keeps its other rows in a fresh journal and loses its completion
+//! record, so the next `run` or `work` converts only the retried items and rewrites it.
+
+use crate::shard_io::read_rows;
+use anyhow::{bail, Result};
+use sparc3d_schema::{ErrorClass, ItemStatus, ShardRow};
+use sparc3d_workers::state::{shard_state, ShardState};
+use sparc3d_workers::Job;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// Arguments of `sparc3d retry`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Job folder.
+    pub job: PathBuf,
+    /// Only failures of this class (e.g. timeout, out_of_memory, crashed).
+    #[arg(long)]
+    pub class: Option<String>,
+}
+
+/// Runs `sparc3d retry`.
+pub fn run(args: Args) -> Result<ExitCode> {
+    let job = Job::open(&args.job)?;
+    let class = args.class.as_deref().map(ErrorClass::parse).transpose()?;
+    let matches = |r: &ShardRow| {
+        r.status == ItemStatus::Failed && (class.is_none() || r.error_class == class)
+    };
+    let (mut queued, mut shards) = (0usize, 0usize);
+    for shard in 0..job.file.shards {
+        let rows = match shard_state(&job.layout, shard, job.fingerprint())? {
+            ShardState::Done(_) => read_rows(&job.layout.shard_file(shard))?,
+            ShardState::Running(l) => {
+                if crate::shard_io::shard_rows(&job, shard)?
+                    .iter()
+                    .any(matches)
+                {
+                    bail!(
+                        "shard {shard} is being processed by {}; retry when it is finished",
+                        l.owner
+                    );
+                }
+                continue;
+            }
+            ShardState::Pending => crate::shard_io::shard_rows(&job, shard)?,
+        };
+        let n = rows.iter().filter(|r| matches(r)).count();
+        if n == 0 {
+            continue;
+        }
+        let kept: Vec<ShardRow> = rows.into_iter().filter(|r| !matches(r)).collect();
+        // The journal first, then the completion record goes: a crash in between leaves the
+        // shard done, and retry can simply run again.
+        sparc3d_workers::journal::write_with_rows(
+            &job.layout.journal(shard),
+            shard,
+            job.fingerprint(),
+            &kept,
+        )?;
+        let record = job.layout.completion(shard);
+        if record.exists() {
+            std::fs::remove_file(&record)
+                .map_err(|e| sparc3d_workers::WorkerError::io("removing", &record, e))?;
+        }
+        queued += n;
+        shards += 1;
+    }
+    eprintln!("{queued} failed items in {shards} shards queued; `sparc3d run` converts them again");
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,60 @@
+//! `sparc3d show JOB --id X -o mesh.ply`: decodes one item's row and writes its extracted
+//! mesh, exactly as `sparc3d convert` would with the job's parameters.
+
+use crate::shard_io::shard_rows;
+use anyhow::{bail, Context, Result};
+use sparc3d_workers::Job;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// Arguments of `sparc3d show`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Job folder.
+    pub job: PathBuf,
+    /// Item id.
+    #[arg(long)]
+    pub id: String,
+    /// Output mesh (.ply, .obj, .stl, .glb).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Write the mesh in grid coordinates (voxels) instead of the source frame.
+    #[arg(long)]
+    pub grid_frame: bool,
+}
+
+/// Runs `sparc3d show`.
+pub fn run(args: Args) -> Result<ExitCode> {
+    let job = Job::open(&args.job)?;
+    let Some(item) = job.items.iter().find(|i| i.record.id == args.id) else {
+        bail!("no item with id {:?} in {}", args.id, args.job.display());
+    };
+    let rows = shard_rows(&job, item.shard)?;
+    let Some(row) = rows.into_iter().find(|r| r.id == args.id) else {
+        bail!(
+            "item {:?} (shard {}) is not converted yet",
+            args.id,
+            item.shard
+        );
+    };
+    let cubes = row.cubes().with_context(|| {
+        format!(
+            "item {:?}: {}",
+            args.id,
+            row.error_message.clone().unwrap_or_default()
+        )
+    })?;
+    let mut mesh = sparcubes::extract(&cubes);
+    if !args.grid_frame {
+        sparcubes::extract::to_source(&mut mesh, &cubes.normalization, cubes.resolution);
+    }
+    sparcubes::io::save(&mesh, &args.output)
+        .with_context(|| format!("writing {}", args.output.display()))?;
+    eprintln!(
+        "{}: {} faces written to {}",
+        args.id,
+        mesh.triangles.len(),
+        args.output.display()
+    );
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,64 @@
+//! `sparc3d status JOB [--json]`: shards done/running/pending, items ok/failed/pending,
+//! throughput, ETA, the slowest items in flight and the top error classes.
+
+use crate::summary::summarize;
+use crate::units::format_seconds;
+use anyhow::Result;
+use sparc3d_workers::Job;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// Arguments of `sparc3d status`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Job folder.
+    pub job: PathBuf,
+    /// Print JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Runs `sparc3d status`.
+pub fn run(args: Args) -> Result<ExitCode> {
+    let job = Job::open(&args.job)?;
+    let s = summarize(&job)?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&s)?);
+        return Ok(ExitCode::SUCCESS);
+    }
+    println!(
+        "shards: {} done, {} running, {} pending (of {})",
+        s.shards_done, s.shards_running, s.shards_pending, s.shards
+    );
+    println!(
+        "items:  {} ok, {} failed, {} pending (of {})",
+        s.ok, s.failed, s.pending, s.items
+    );
+    match (s.items_per_hour, s.eta_seconds) {
+        (Some(r), Some(eta)) if s.pending > 0 => {
+            println!("rate:   {r:.0} items/hour, ETA {}", format_seconds(eta))
+        }
+        (Some(r), _) => println!("rate:   {r:.0} items/hour"),
+        _ => {}
+    }
+    if !s.in_flight.is_empty() {
+        println!("in flight (slowest first):");
+        for f in s.in_flight.iter().take(5) {
+            println!(
+                "  {:>8}  shard {:>5}  {}",
+                format_seconds(f.seconds),
+                f.shard,
+                f.uri
+            );
+        }
+    }
+    if !s.error_classes.is_empty() {
+        let mut classes: Vec<_> = s.error_classes.iter().collect();
+        classes.sort_by(|a, b| b.1.cmp(a.1).then(a.0.cmp(b.0)));
+        println!("errors:");
+        for (c, n) in classes.iter().take(8) {
+            println!("  {n:>6}  {c}");
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,192 @@
+//! `sparc3d work JOB (--shard-index I | --array [--shards-per-task K] [--offset O])`: processes
+//! shards in this process (one supervised item worker at a time). Idempotent: a finished shard
+//! is skipped after checking its completion record. For Slurm arrays and Kubernetes indexed
+//! jobs, `--array` reads `SLURM_ARRAY_TASK_ID` or `JOB_COMPLETION_INDEX`.
+
+use crate::units::{parse_duration, parse_size};
+use anyhow::{bail, Context, Result};
+use sparc3d_schema::Limits;
+use sparc3d_workers::events::Event;
+use sparc3d_workers::supervisor::ChildCommand;
+use sparc3d_workers::{process_shard, Job, ShardOutcome, WorkOptions};
+use std::io::Write;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+
+/// Per-item limits given on the command line (override the job's for this run).
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct LimitArgs {
+    /// Time limit per item (e.g. 90, 30s, 10m).
+    #[arg(long, value_parser = parse_duration)]
+    pub item_timeout: Option<f64>,
+    /// Memory (address-space) limit per item (e.g. 8G; 0 for none).
+    #[arg(long, value_parser = parse_size)]
+    pub item_memory: Option<u64>,
+    /// Retries of an item whose process crashed.
+    #[arg(long)]
+    pub max_crash_retries: Option<u32>,
+    /// Seconds a shard lease lives without a heartbeat.
+    #[arg(long, default_value_t = 60.0, hide = true)]
+    pub lease_ttl: f64,
+}
+
+impl LimitArgs {
+    /// The job's limits overridden by the flags.
+    pub fn apply(&self, mut l: Limits) -> Limits {
+        if let Some(t) = self.item_timeout {
+            l.item_timeout_s = t;
+        }
+        if let Some(m) = self.item_memory {
+            l.item_memory_bytes = m;
+        }
+        if let Some(r) = self.max_crash_retries {
+            l.max_crash_retries = r;
+        }
+        l
+    }
+
+    /// The flags as command-line arguments, to pass on to `work`.
+    pub fn to_args(&self) -> Vec<String> {
+        let mut a = Vec::new();
+        if let Some(t) = self.item_timeout {
+            a.extend(["--item-timeout".into(), t.to_string()]);
+        }
+        if let Some(m) = self.item_memory {
+            a.extend(["--item-memory".into(), m.to_string()]);
+        }
+        if let Some(r) = self.max_crash_retries {
+            a.extend(["--max-crash-retries".into(), r.to_string()]);
+        }
+        a.extend(["--lease-ttl".into(), self.lease_ttl.to_string()]);
+        a
+    }
+}
+
+/// Arguments of `sparc3d work`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Job folder.
+    pub job: PathBuf,
+    /// Process this shard.
+    #[arg(long, conflicts_with = "array")]
+    pub shard_index: Option<u64>,
+    /// Take the task index from SLURM_ARRAY_TASK_ID or JOB_COMPLETION_INDEX.
+    #[arg(long)]
+    pub array: bool,
+    /// Shards per array task: task T processes shards O + T·K … O + T·K + K − 1.
+    #[arg(long, default_value_t = 1)]
+    pub shards_per_task: u64,
+    /// First shard of task 0.
+    #[arg(long, default_value_t = 0)]
+    pub offset: u64,
+    /// Print progress events as JSON lines on stdout (used by `run`).
+    #[arg(long)]
+    pub events: bool,
+    #[command(flatten)]
+    pub limits: LimitArgs,
+}
+
+/// The task index of an array job from the environment.
+pub fn array_task_index() -> Result<u64> {
+    for var in ["SLURM_ARRAY_TASK_ID", "JOB_COMPLETION_INDEX"] {
+        if let Ok(v) = std::env::var(var) {
+            return v
+                .trim()
+                .parse()
+                .with_context(|| format!("{var}={v:?} is not a task index"));
+        }
+    }
+    bail!("--array needs SLURM_ARRAY_TASK_ID or JOB_COMPLETION_INDEX in the environment")
+}
+
+/// SIGINT/SIGTERM set the returned flag; SIGXFSZ is ignored so that a file-size limit makes
+/// writes fail with an error instead of killing the process.
+pub fn install_signals() -> Result<Arc<AtomicBool>> {
+    let stop = Arc::new(AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register(sig, stop.clone()).context("installing signal handlers")?;
+    }
+    // SAFETY: setting a signal's disposition to SIG_IGN has no preconditions.
+    unsafe {
+        libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+    }
+    Ok(stop)
+}
+
+/// How to start item workers: this binary's hidden `item-worker` command.
+pub fn child_command(env: Vec<(String, String)>) -> Result<ChildCommand> {
+    Ok(ChildCommand {
+        program: std::env::current_exe().context("locating the sparc3d binary")?,
+        args: vec!["item-worker".into()],
+        env,
+    })
+}
+
+/// Runs `sparc3d work`.
+pub fn run(args: Args) -> Result<ExitCode> {
+    let job = Job::open(&args.job)?;
+    let shards: Vec<u64> = match (args.shard_index, args.array) {
+        (Some(i), _) => vec![i],
+        (None, true) => {
+            let t = array_task_index()?;
+            let k = args.shards_per_task.max(1);
+            (args.offset + t * k..args.offset + t * k + k).collect()
+        }
+        (None, false) => bail!("give --shard-index I or --array"),
+    };
+    let stop = install_signals()?;
+    let events = args.events;
+    let mut opts = WorkOptions {
+        child: child_command(Vec::new())?,
+        limits: args.limits.apply(job.file.config.limits),
+        lease_ttl_s: args.limits.lease_ttl,
+        stop: stop.clone(),
+        events: Box::new(move |e: Event| {
+            if events {
+                if let Ok(line) = serde_json::to_string(&e) {
+                    let mut out = std::io::stdout().lock();
+                    let _ = writeln!(out, "{line}");
+                    let _ = out.flush();
+                }
+            }
+        }),
+    };
+    let mut stopped = false;
+    for shard in shards {
+        if shard >= job.file.shards {
+            if !events {
+                eprintln!(
+                    "shard {shard}: beyond the job's {} shards, nothing to do",
+                    job.file.shards
+                );
+            }
+            continue;
+        }
+        let outcome = process_shard(&job, shard, &mut opts)
+            .with_context(|| format!("shard {shard} of {}", args.job.display()))?;
+        if !events {
+            match &outcome {
+                ShardOutcome::Done(r) => eprintln!(
+                    "shard {shard}: written, {} rows ({} ok, {} failed)",
+                    r.rows, r.ok, r.failed
+                ),
+                ShardOutcome::AlreadyDone(r) => {
+                    eprintln!("shard {shard}: already done ({} rows)", r.rows)
+                }
+                ShardOutcome::Busy(owner) => eprintln!("shard {shard}: leased by {owner}, skipped"),
+                ShardOutcome::Stopped => eprintln!("shard {shard}: stopped; run again to resume"),
+            }
+        }
+        if outcome == ShardOutcome::Stopped {
+            stopped = true;
+            break;
+        }
+    }
+    Ok(if stopped {
+        ExitCode::from(130)
+    } else {
+        ExitCode::SUCCESS
+    })
+}

@@ -1,0 +1,107 @@
+//! Reading finished shards and journals back: rows, key-value metadata, column sizes.
+
+use anyhow::{Context, Result};
+use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
+use parquet::file::reader::{FileReader, SerializedFileReader};
+use sparc3d_schema::{JobLayout, ShardRow};
+use sparc3d_workers::Job;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// Calls `f` on every row of a shard file, batch by batch.
+pub fn for_each_row(path: &Path, mut f: impl FnMut(ShardRow) -> Result<()>) -> Result<()> {
+    let file = std::fs::File::open(path).with_context(|| format!("opening {}", path.display()))?;
+    let reader = ParquetRecordBatchReaderBuilder::try_new(file)
+        .with_context(|| format!("reading {}", path.display()))?
+        .with_batch_size(64)
+        .build()
+        .with_context(|| format!("reading {}", path.display()))?;
+    for batch in reader {
+        let batch = batch.with_context(|| format!("reading {}", path.display()))?;
+        for row in sparc3d_schema::arrow::batch_to_rows(&batch)
+            .with_context(|| format!("decoding {}", path.display()))?
+        {
+            f(row)?;
+        }
+    }
+    Ok(())
+}
+
+/// Every row of a shard file.
+pub fn read_rows(path: &Path) -> Result<Vec<ShardRow>> {
+    let mut rows = Vec::new();
+    for_each_row(path, |r| {
+        rows.push(r);
+        Ok(())
+    })?;
+    Ok(rows)
+}
+
+/// Facts from a shard file's footer.
+#[derive(Debug, Clone, Default)]
+pub struct ShardMeta {
+    /// Key-value metadata.
+    pub kv: BTreeMap<String, String>,
+    /// Rows.
+    pub rows: u64,
+    /// Row groups.
+    pub row_groups: usize,
+    /// Stored (compressed) bytes per column, in schema order.
+    pub column_bytes: Vec<(String, u64)>,
+    /// File size.
+    pub file_bytes: u64,
+}
+
+/// Reads a shard file's footer.
+pub fn read_meta(path: &Path) -> Result<ShardMeta> {
+    let file = std::fs::File::open(path).with_context(|| format!("opening {}", path.display()))?;
+    let file_bytes = file.metadata().map(|m| m.len()).unwrap_or(0);
+    let reader =
+        SerializedFileReader::new(file).with_context(|| format!("reading {}", path.display()))?;
+    let md = reader.metadata();
+    let fmd = md.file_metadata();
+    let kv = fmd
+        .key_value_metadata()
+        .map(|kvs| {
+            kvs.iter()
+                .map(|k| (k.key.clone(), k.value.clone().unwrap_or_default()))
+                .collect()
+        })
+        .unwrap_or_default();
+    let mut column_bytes: Vec<(String, u64)> = Vec::new();
+    for rg in md.row_groups() {
+        for (i, c) in rg.columns().iter().enumerate() {
+            let name = c.column_path().string();
+            let bytes = c.compressed_size().max(0) as u64;
+            match column_bytes.get_mut(i) {
+                Some(slot) => slot.1 += bytes,
+                None => column_bytes.push((name, bytes)),
+            }
+        }
+    }
+    Ok(ShardMeta {
+        kv,
+        rows: fmd.num_rows().max(0) as u64,
+        row_groups: md.num_row_groups(),
+        column_bytes,
+        file_bytes,
+    })
+}
+
+/// Rows of a shard whether finished (Parquet) or in progress (journal), in item order.
+pub fn shard_rows(job: &Job, shard: u64) -> Result<Vec<ShardRow>> {
+    let layout: &JobLayout = &job.layout;
+    if sparc3d_workers::state::completion(layout, shard, job.fingerprint())?.is_some() {
+        return read_rows(&layout.shard_file(shard));
+    }
+    let jpath = layout.journal(shard);
+    if !jpath.exists() {
+        return Ok(Vec::new());
+    }
+    let state = sparc3d_workers::journal::replay(&jpath)?;
+    state
+        .done
+        .values()
+        .map(|d| Ok(sparc3d_workers::journal::read_row_at(&jpath, d.offset)?))
+        .collect()
+}

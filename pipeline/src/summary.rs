@@ -1,0 +1,125 @@
+//! A job's progress read from its folder: completion records, leases and journals. Used by
+//! `status` and by `run` (to start its counters where the last run stopped).
+
+use anyhow::Result;
+use serde::Serialize;
+use sparc3d_schema::ItemStatus;
+use sparc3d_workers::state::{shard_state, ShardState};
+use sparc3d_workers::Job;
+use std::collections::BTreeMap;
+
+/// An item being converted right now.
+#[derive(Debug, Clone, Serialize)]
+pub struct InFlight {
+    /// Shard.
+    pub shard: u64,
+    /// Item id.
+    pub id: String,
+    /// Source path.
+    pub uri: String,
+    /// Seconds since it started.
+    pub seconds: f64,
+}
+
+/// Progress of a job.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct JobSummary {
+    /// Shards in the job.
+    pub shards: u64,
+    /// Shards finished.
+    pub shards_done: u64,
+    /// Shards leased by a live worker.
+    pub shards_running: u64,
+    /// Shards neither.
+    pub shards_pending: u64,
+    /// Items in the job.
+    pub items: u64,
+    /// Items finished ok.
+    pub ok: u64,
+    /// Items finished failed.
+    pub failed: u64,
+    /// Items not finished.
+    pub pending: u64,
+    /// Failed items per class.
+    pub error_classes: BTreeMap<String, u64>,
+    /// Items in flight, slowest first.
+    pub in_flight: Vec<InFlight>,
+    /// Items finished per hour since the job's first item started.
+    pub items_per_hour: Option<f64>,
+    /// Estimated seconds to finish at that rate.
+    pub eta_seconds: Option<f64>,
+    /// Sum of finished items' seconds.
+    pub item_seconds: f64,
+}
+
+/// Reads the progress of a job.
+pub fn summarize(job: &Job) -> Result<JobSummary> {
+    let mut s = JobSummary {
+        shards: job.file.shards,
+        items: job.file.items,
+        ..Default::default()
+    };
+    let now = sparc3d_workers::now();
+    let (mut first, mut last) = (f64::INFINITY, 0.0f64);
+    for shard in 0..job.file.shards {
+        let state = shard_state(&job.layout, shard, job.fingerprint())?;
+        match &state {
+            ShardState::Done(r) => {
+                s.shards_done += 1;
+                s.ok += r.ok;
+                s.failed += r.failed;
+                s.item_seconds += r.item_seconds;
+                for (k, v) in &r.error_classes {
+                    *s.error_classes.entry(k.clone()).or_default() += v;
+                }
+                first = first.min(r.started_at);
+                last = last.max(r.finished_at);
+                continue;
+            }
+            ShardState::Running(_) => s.shards_running += 1,
+            ShardState::Pending => s.shards_pending += 1,
+        }
+        let jpath = job.layout.journal(shard);
+        if !jpath.exists() {
+            continue;
+        }
+        let Ok(js) = sparc3d_workers::journal::replay(&jpath) else {
+            continue;
+        };
+        if let Some(c) = js.created_at {
+            first = first.min(c);
+        }
+        for d in js.done.values() {
+            match d.status {
+                ItemStatus::Ok => s.ok += 1,
+                _ => s.failed += 1,
+            }
+            if let Some(c) = d.class {
+                *s.error_classes.entry(c.as_str().to_string()).or_default() += 1;
+            }
+            s.item_seconds += d.total_s;
+            last = last.max(d.at);
+        }
+        if let (ShardState::Running(_), Some((index, at))) = (&state, js.in_flight) {
+            if let Some(item) = job.items.get(index as usize) {
+                s.in_flight.push(InFlight {
+                    shard,
+                    id: item.record.id.clone(),
+                    uri: item.record.uri.clone(),
+                    seconds: (now - at).max(0.0),
+                });
+            }
+        }
+    }
+    s.pending = s.items.saturating_sub(s.ok + s.failed);
+    s.in_flight.sort_by(|a, b| b.seconds.total_cmp(&a.seconds));
+    let finished = (s.ok + s.failed) as f64;
+    if finished > 0.0 && first.is_finite() {
+        let end = if s.shards_running > 0 { now } else { last };
+        let span = (end - first).max(1e-3);
+        let rate = finished / span * 3600.0;
+        s.items_per_hour = Some(rate);
+        s.eta_seconds = Some(s.pending as f64 / rate * 3600.0);
+    }
+    Ok(s)
+}

@@ -1,0 +1,75 @@
+//! Parsing of human units on the command line: durations (`90`, `30s`, `10m`, `2h`) and sizes
+//! (`512M`, `8G`, `0` for none).
+
+/// Parses a duration in seconds: a number with an optional `s`, `m` or `h` suffix.
+pub fn parse_duration(s: &str) -> Result<f64, String> {
+    let t = s.trim();
+    let (num, mult) = match t.chars().last() {
+        Some('s') => (&t[..t.len() - 1], 1.0),
+        Some('m') => (&t[..t.len() - 1], 60.0),
+        Some('h') => (&t[..t.len() - 1], 3600.0),
+        _ => (t, 1.0),
+    };
+    let v: f64 = num
+        .trim()
+        .parse()
+        .map_err(|_| format!("not a duration: {s:?} (examples: 90, 30s, 10m, 2h)"))?;
+    if v.is_nan() || v <= 0.0 || !v.is_finite() {
+        return Err(format!("duration must be positive: {s:?}"));
+    }
+    Ok(v * mult)
+}
+
+/// Parses a size in bytes: a number with an optional `K`, `M`, `G` or `T` suffix (powers of
+/// 1024); `0` means no limit.
+pub fn parse_size(s: &str) -> Result<u64, String> {
+    let t = s.trim().trim_end_matches(['B', 'b']).trim_end_matches('i');
+    let (num, shift) = match t.chars().last().map(|c| c.to_ascii_uppercase()) {
+        Some('K') => (&t[..t.len() - 1], 10),
+        Some('M') => (&t[..t.len() - 1], 20),
+        Some('G') => (&t[..t.len() - 1], 30),
+        Some('T') => (&t[..t.len() - 1], 40),
+        _ => (t, 0),
+    };
+    let v: f64 = num
+        .trim()
+        .parse()
+        .map_err(|_| format!("not a size: {s:?} (examples: 512M, 8G, 0 for none)"))?;
+    if v < 0.0 || !v.is_finite() {
+        return Err(format!("size must not be negative: {s:?}"));
+    }
+    Ok((v * (1u64 << shift) as f64) as u64)
+}
+
+/// Formats seconds as `1h02m`, `3m05s` or `4.2s`.
+pub fn format_seconds(s: f64) -> String {
+    if !s.is_finite() {
+        return "?".into();
+    }
+    let t = s.round() as u64;
+    if t >= 3600 {
+        format!("{}h{:02}m", t / 3600, (t % 3600) / 60)
+    } else if t >= 60 {
+        format!("{}m{:02}s", t / 60, t % 60)
+    } else {
+        format!("{s:.1}s")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn units_parse() {
+        assert_eq!(parse_duration("10m"), Ok(600.0));
+        assert_eq!(parse_duration("90"), Ok(90.0));
+        assert_eq!(parse_duration("1.5h"), Ok(5400.0));
+        assert!(parse_duration("ten").is_err());
+        assert_eq!(parse_size("8G"), Ok(8 << 30));
+        assert_eq!(parse_size("512MiB"), Ok(512 << 20));
+        assert_eq!(parse_size("0"), Ok(0));
+        assert!(parse_size("lots").is_err());
+        assert_eq!(format_seconds(3725.0), "1h02m");
+    }
+}
