@@ -90,7 +90,15 @@ pub fn table() -> &'static Table {
     static TABLE: OnceLock<Table> = OnceLock::new();
     TABLE.get_or_init(|| Table {
         cases: (0..1usize << 14)
-            .map(|key| build_case((key & 0xff) as u8, (key >> 8) as u8))
+            .map(|key| {
+                let (mask, bits) = ((key & 0xff) as u8, (key >> 8) as u8);
+                // Only bits of ambiguous faces are ever looked up.
+                if bits & !ambiguous_faces(mask) == 0 {
+                    build_case(mask, bits)
+                } else {
+                    Case::default()
+                }
+            })
             .collect(),
     })
 }
