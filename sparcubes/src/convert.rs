@@ -5,7 +5,7 @@ use crate::cubes::SparseCubes;
 use crate::deform::compute_field;
 use crate::error::{Error, Result};
 use crate::flood::flood_outside;
-use crate::grid::for_each_bit;
+use crate::grid::{for_each_bit, window_index, NO_ID};
 use crate::mesh::TriMesh;
 use crate::normalize::Normalization;
 use crate::params::Params;
@@ -158,38 +158,38 @@ pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
     let verts = &band.verts;
     let per_brick: Vec<(Vec<[u32; 3]>, Vec<u32>)> = (0..cells_set.keys.len())
         .into_par_iter()
-        .map(|s| {
-            let b = cells_set.index.coord(cells_set.keys[s] as usize);
-            let mut cells = Vec::new();
-            let mut corners = Vec::new();
-            for_each_bit(&cells_set.masks[s], |x, y, z| {
-                let c = [b[0] * 8 + x, b[1] * 8 + y, b[2] * 8 + z];
-                let mut ids = [0u32; 8];
-                let (mut neg, mut pos) = (false, false);
-                for (d, id) in ids.iter_mut().enumerate() {
-                    let v = [
-                        c[0] as i64 + (d & 1) as i64,
-                        c[1] as i64 + ((d >> 1) & 1) as i64,
-                        c[2] as i64 + (d >> 2) as i64,
-                    ];
-                    // Every corner of a candidate cell is a band vertex by construction.
-                    let Some(i) = verts.id(v) else {
-                        return;
-                    };
-                    *id = i;
-                    if field.sdf[i as usize] < 0.0 {
-                        neg = true;
-                    } else {
-                        pos = true;
+        .map_init(
+            || Box::new([NO_ID; 729]),
+            |window, s| {
+                let b = cells_set.index.coord(cells_set.keys[s] as usize);
+                verts.fill_window(b, window);
+                let mut cells = Vec::new();
+                let mut corners = Vec::new();
+                for_each_bit(&cells_set.masks[s], |x, y, z| {
+                    let mut ids = [0u32; 8];
+                    let (mut neg, mut pos) = (false, false);
+                    for (d, id) in ids.iter_mut().enumerate() {
+                        let d = d as u32;
+                        let i = window[window_index(x + (d & 1), y + ((d >> 1) & 1), z + (d >> 2))];
+                        // Every corner of a candidate cell is a band vertex by construction.
+                        if i == NO_ID {
+                            return;
+                        }
+                        *id = i;
+                        if field.sdf[i as usize] < 0.0 {
+                            neg = true;
+                        } else {
+                            pos = true;
+                        }
                     }
-                }
-                if neg && pos {
-                    cells.push(c);
-                    corners.extend_from_slice(&ids);
-                }
-            });
-            (cells, corners)
-        })
+                    if neg && pos {
+                        cells.push([b[0] * 8 + x, b[1] * 8 + y, b[2] * 8 + z]);
+                        corners.extend_from_slice(&ids);
+                    }
+                });
+                (cells, corners)
+            },
+        )
         .collect();
     let mut used = vec![false; verts.len];
     let mut cell_coords = Vec::new();

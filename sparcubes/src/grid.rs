@@ -406,3 +406,55 @@ impl Numbered {
         out
     }
 }
+
+/// Marker for "no member" in a [`Numbered::fill_window`] window.
+pub const NO_ID: u32 = u32::MAX;
+
+/// Index into a 9³ window: local coordinates 0..=8 per axis.
+#[inline]
+pub fn window_index(x: u32, y: u32, z: u32) -> usize {
+    (x + 9 * y + 81 * z) as usize
+}
+
+impl Numbered {
+    /// Fills `out` with the numbers of the members at `8·b + (0..=8)³` (or [`NO_ID`]): a brick
+    /// and the first layer of its +x, +y, +z neighbours, so that every corner of every cell of
+    /// brick `b` is one array read away.
+    pub fn fill_window(&self, b: [u32; 3], out: &mut [u32; 729]) {
+        out.fill(NO_ID);
+        for d in 0..8u32 {
+            let (dx, dy, dz) = (d & 1, (d >> 1) & 1, d >> 2);
+            let nb = [(b[0] + dx) as i64, (b[1] + dy) as i64, (b[2] + dz) as i64];
+            let Some(s) = self.set.index.slot(nb) else {
+                continue;
+            };
+            let m = &self.set.masks[s];
+            // In a neighbour only local coordinate 0 along each shifted axis is in the window.
+            let mut keep = [u64::MAX; 8];
+            for (z, k) in keep.iter_mut().enumerate() {
+                if dz == 1 && z > 0 {
+                    *k = 0;
+                }
+                if dx == 1 {
+                    *k &= X0;
+                }
+                if dy == 1 {
+                    *k &= Y0;
+                }
+            }
+            let mut before = self.offsets[s];
+            for z in 0..8 {
+                let word = m[z];
+                let mut w = word & keep[z];
+                while w != 0 {
+                    let bit = w.trailing_zeros();
+                    let id = before + (word & ((1u64 << bit) - 1)).count_ones();
+                    out[window_index((bit & 7) + 8 * dx, (bit >> 3) + 8 * dy, z as u32 + 8 * dz)] =
+                        id;
+                    w &= w - 1;
+                }
+                before += word.count_ones();
+            }
+        }
+    }
+}
