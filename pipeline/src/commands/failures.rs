@@ -5,6 +5,7 @@ use anyhow::Result;
 use serde::Serialize;
 use sparc3d_schema::ItemStatus;
 use sparc3d_workers::Job;
+use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -36,6 +37,7 @@ struct Failure {
 pub fn run(args: Args) -> Result<ExitCode> {
     let job = Job::open(&args.job)?;
     let mut n = 0;
+    let mut out = std::io::stdout().lock();
     for shard in 0..job.file.shards {
         for row in shard_rows(&job, shard)? {
             if row.status != ItemStatus::Failed {
@@ -55,11 +57,14 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 attempts: row.attempts,
                 stderr_tail: row.stderr_tail,
             };
-            if args.json {
-                println!("{}", serde_json::to_string(&f)?);
+            let line = if args.json {
+                serde_json::to_string(&f)?
             } else {
                 let msg = f.error_message.lines().next().unwrap_or("");
-                println!("{}\t{}\t{}\t{}", f.error_class, f.id, f.uri, msg);
+                format!("{}\t{}\t{}\t{}", f.error_class, f.id, f.uri, msg)
+            };
+            if writeln!(out, "{line}").is_err() {
+                return Ok(ExitCode::SUCCESS); // the reader went away (e.g. `| head`)
             }
         }
     }

@@ -12,6 +12,7 @@ use sparc3d_workers::state::{shard_state, ShardState};
 use sparc3d_workers::Job;
 use std::collections::VecDeque;
 use std::io::{BufRead, BufReader, Read};
+use std::os::unix::process::ExitStatusExt;
 use std::path::PathBuf;
 use std::process::{Child, Command, ExitCode, Stdio};
 use std::sync::atomic::Ordering;
@@ -33,6 +34,9 @@ pub struct Args {
     #[command(flatten)]
     pub limits: LimitArgs,
 }
+
+/// Times a shard's worker may be killed by a signal before the run gives up on it.
+const MAX_WORKER_DEATHS: u32 = 20;
 
 struct Running {
     child: Child,
@@ -140,6 +144,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let mut slots: Vec<Option<Running>> = (0..workers).map(|_| None).collect();
     let mut errors: Vec<String> = Vec::new();
     let mut signalled = false;
+    let mut killed: std::collections::HashMap<u64, u32> = std::collections::HashMap::new();
     loop {
         let stopping = stop.load(Ordering::SeqCst);
         if !stopping && errors.is_empty() {
@@ -189,9 +194,21 @@ pub fn run(args: Args) -> Result<ExitCode> {
                     .lock()
                     .map(|g| g.trim().to_string())
                     .unwrap_or_default();
-                let msg = format!("shard {} failed ({status}): {tail}", r.shard);
-                progress.println(&msg);
-                errors.push(msg);
+                let deaths = killed.entry(r.shard).or_insert(0);
+                if status.signal().is_some() && *deaths < MAX_WORKER_DEATHS {
+                    // Killed from outside (kill -9, OOM killer): the journal keeps its
+                    // finished items; a new worker takes the shard over.
+                    *deaths += 1;
+                    progress.println(&format!(
+                        "shard {}: worker {status}; restarting it",
+                        r.shard
+                    ));
+                    queue.push_back(r.shard);
+                } else {
+                    let msg = format!("shard {} failed ({status}): {tail}", r.shard);
+                    progress.println(&msg);
+                    errors.push(msg);
+                }
             }
             *s = None;
             progress.slot_shard(slot, None);

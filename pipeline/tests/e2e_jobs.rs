@@ -1,0 +1,211 @@
+//! End to end: config drift, bad files as failed rows, write failures, time-outs and retry,
+//! `show` against `convert`, and `work` idempotence.
+
+mod common;
+
+use common::*;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn setup(tmp: &Path, name: &str, extra: &[&str]) -> (PathBuf, PathBuf) {
+    let meshes = corpus(tmp);
+    let manifest = tmp.join("m.csv");
+    if !manifest.exists() {
+        ok(&[
+            "manifest",
+            "build",
+            &meshes.to_string_lossy(),
+            "-o",
+            &manifest.to_string_lossy(),
+        ]);
+    }
+    let job = tmp.join(name);
+    let mut args = vec![
+        "init".to_string(),
+        job.to_string_lossy().into_owned(),
+        "--manifest".into(),
+        manifest.to_string_lossy().into_owned(),
+        "--resolution".into(),
+        "48".into(),
+        "--shard-size".into(),
+        "8".into(),
+    ];
+    args.extend(extra.iter().map(|s| s.to_string()));
+    let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+    ok(&refs);
+    (job, manifest)
+}
+
+#[test]
+fn config_drift_is_refused_naming_the_keys() {
+    let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let (job, manifest) = setup(tmp.path(), "job", &[]);
+    let (j, m) = (job.to_string_lossy(), manifest.to_string_lossy());
+    // Same config: accepted, nothing to do.
+    ok(&[
+        "init",
+        &j,
+        "--manifest",
+        &m,
+        "--resolution",
+        "48",
+        "--shard-size",
+        "8",
+    ]);
+    let out = sparc3d(&[
+        "init",
+        &j,
+        "--manifest",
+        &m,
+        "--resolution",
+        "64",
+        "--shard-size",
+        "5",
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("params.resolution") && err.contains("shard_size"),
+        "{err}"
+    );
+}
+
+#[test]
+fn bad_files_become_failed_rows_and_show_matches_convert() {
+    let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let (job, _) = setup(tmp.path(), "job", &[]);
+    let j = job.to_string_lossy();
+    ok(&["run", &j, "--workers", "2"]);
+    assert_each_item_once(&job);
+    let text = ok(&["failures", &j, "--json"]);
+    let failed: Vec<serde_json::Value> = text
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{e}")))
+        .collect();
+    for (name, class) in BROKEN {
+        let f = failed
+            .iter()
+            .find(|f| f["uri"].as_str().is_some_and(|u| u.ends_with(name)))
+            .unwrap_or_else(|| panic!("{name} did not fail: {text}"));
+        if !class.is_empty() {
+            assert_eq!(f["error_class"], class, "{name}");
+        }
+    }
+    assert_eq!(
+        failed.len(),
+        BROKEN.len(),
+        "only the broken files fail: {text}"
+    );
+    // show == convert for one item.
+    let rows = all_rows(&job);
+    let frozen = std::fs::read_to_string(job.join("manifest.jsonl")).unwrap_or_default();
+    let item: serde_json::Value = frozen
+        .lines()
+        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+        .find(|v| {
+            v["uri"]
+                .as_str()
+                .is_some_and(|u| u.ends_with("sphere_03.obj"))
+        })
+        .unwrap_or_else(|| panic!("sphere_03 not in manifest"));
+    assert!(rows
+        .iter()
+        .any(|r| r.1 == item["id"].as_str().unwrap_or("") && r.2 == "ok"));
+    let shown = tmp.path().join("shown.ply");
+    let converted = tmp.path().join("converted.ply");
+    ok(&[
+        "show",
+        &j,
+        "--id",
+        item["id"].as_str().unwrap_or(""),
+        "-o",
+        &shown.to_string_lossy(),
+    ]);
+    ok(&[
+        "convert",
+        item["uri"].as_str().unwrap_or(""),
+        "-o",
+        &converted.to_string_lossy(),
+        "--resolution",
+        "48",
+    ]);
+    assert_eq!(
+        std::fs::read(&shown).unwrap_or_default(),
+        std::fs::read(&converted).unwrap_or_default(),
+        "show and convert differ"
+    );
+    // work on a finished shard is a no-op.
+    let before = std::fs::read(job.join("shards/part-00000.complete.json")).unwrap_or_default();
+    ok(&["work", &j, "--shard-index", "0"]);
+    assert_eq!(
+        before,
+        std::fs::read(job.join("shards/part-00000.complete.json")).unwrap_or_default()
+    );
+}
+
+#[test]
+fn write_failure_is_reported_and_the_job_resumes() {
+    let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let (job, _) = setup(tmp.path(), "job", &[]);
+    let j = job.to_string_lossy().into_owned();
+    // 24 KiB per file: the journal or the shard outgrows it.
+    let out = Command::new("bash")
+        .args([
+            "-c",
+            &format!("ulimit -f 24; exec \"$0\" work \"$1\" --shard-index 0"),
+            &bin().to_string_lossy(),
+            &j,
+        ])
+        .output()
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert!(
+        !out.status.success(),
+        "work should fail under a file size limit"
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("file size limit") || err.contains("File too large"),
+        "{err}"
+    );
+    assert!(!job.join("shards/part-00000.complete.json").exists());
+    ok(&["run", &j, "--workers", "2"]);
+    assert_each_item_once(&job);
+    assert_eq!(status(&job)["pending"], 0);
+}
+
+#[test]
+fn unwritable_output_folder_is_a_clear_error() {
+    let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let (job, _) = setup(tmp.path(), "job", &[]);
+    let j = job.to_string_lossy().into_owned();
+    let state = job.join("state");
+    std::fs::remove_dir_all(&state).unwrap_or_else(|e| panic!("{e}"));
+    std::fs::write(&state, "not a folder").unwrap_or_else(|e| panic!("{e}"));
+    let out = sparc3d(&["work", &j, "--shard-index", "0"]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("state"), "{err}");
+    std::fs::remove_file(&state).unwrap_or_else(|e| panic!("{e}"));
+    ok(&["run", &j, "--workers", "2"]);
+    assert_each_item_once(&job);
+}
+
+#[test]
+fn timeouts_are_failed_rows_and_retry_converts_them_again() {
+    let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let (job, _) = setup(tmp.path(), "job", &[]);
+    let j = job.to_string_lossy().into_owned();
+    ok(&["run", &j, "--workers", "2", "--item-timeout", "0.001"]);
+    assert_each_item_once(&job);
+    let s = status(&job);
+    // Items that answer before the watchdog's first look are kept; the others time out.
+    let timeouts = s["error_classes"]["timeout"].as_u64().unwrap_or(0);
+    assert!(timeouts > 0, "{s}");
+    ok(&["retry", &j, "--class", "timeout"]);
+    assert_eq!(status(&job)["pending"].as_u64(), Some(timeouts));
+    ok(&["run", &j, "--workers", "2"]);
+    assert_each_item_once(&job);
+    let s = status(&job);
+    assert!(s["error_classes"].get("timeout").is_none(), "{s}");
+    assert_eq!(s["failed"].as_u64(), Some(BROKEN.len() as u64), "{s}");
+}
