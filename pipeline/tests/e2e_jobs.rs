@@ -152,7 +152,7 @@ fn write_failure_is_reported_and_the_job_resumes() {
     let out = Command::new("bash")
         .args([
             "-c",
-            &format!("ulimit -f 24; exec \"$0\" work \"$1\" --shard-index 0"),
+            "ulimit -f 24; exec \"$0\" work \"$1\" --shard-index 0",
             &bin().to_string_lossy(),
             &j,
         ])
