@@ -5,3 +5,16 @@ cd "$(dirname "$0")"
 cargo fmt --all --check
 cargo clippy --all-targets -- -D warnings
 cargo test --workspace 2>&1
+# The shard format as Python reads it (docs/FORMAT.md): needs pyarrow, numpy and pytest
+# (`pip install -r tests/python/requirements.txt`); CI sets SPARC3D_REQUIRE_PYTHON=1.
+PY="${PYTHON:-python3}"
+if [ -x .venv/bin/python ] && [ -z "${PYTHON:-}" ]; then PY=.venv/bin/python; fi
+if "$PY" -c "import pyarrow, numpy, pytest" 2>/dev/null; then
+  cargo build -p sparc3d
+  "$PY" -m pytest -q tests/python
+elif [ "${SPARC3D_REQUIRE_PYTHON:-0}" = "1" ]; then
+  echo "tests/python needs pyarrow, numpy and pytest" >&2
+  exit 1
+else
+  echo "skipping tests/python (pip install -r tests/python/requirements.txt to run it)" >&2
+fi

@@ -21,6 +21,9 @@ pub struct Args {
     /// Write the mesh in grid coordinates (voxels) instead of the source frame.
     #[arg(long)]
     pub grid_frame: bool,
+    /// Also write the decoded tensors (coords, sdf, deformation, cells) as JSON to this file.
+    #[arg(long)]
+    pub tensors_json: Option<PathBuf>,
 }
 
 /// Runs `sparc3d show`.
@@ -44,6 +47,20 @@ pub fn run(args: Args) -> Result<ExitCode> {
             row.error_message.clone().unwrap_or_default()
         )
     })?;
+    if let Some(path) = &args.tensors_json {
+        let v = serde_json::json!({
+            "id": row.id,
+            "resolution": cubes.resolution,
+            "center": cubes.normalization.center,
+            "scale": cubes.normalization.scale,
+            "coords": cubes.coords,
+            "sdf": cubes.sdf,
+            "deformation": cubes.deformation,
+            "cells": cubes.cells,
+        });
+        std::fs::write(path, serde_json::to_vec(&v)?)
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
     let mut mesh = sparcubes::extract(&cubes);
     if !args.grid_frame {
         sparcubes::extract::to_source(&mut mesh, &cubes.normalization, cubes.resolution);
