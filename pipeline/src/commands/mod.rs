@@ -1,6 +1,8 @@
 //! One module per subcommand; [`run`] dispatches. Each module has an `Args` struct (clap) and
 //! a `run(args) -> anyhow::Result<ExitCode>`.
 
+pub mod bench;
+pub mod bench_one;
 pub mod convert;
 pub mod eval;
 pub mod failures;
@@ -52,6 +54,11 @@ enum Command {
     Inspect(inspect::Args),
     /// Decode one item of a job and write its mesh.
     Show(show::Args),
+    /// Benchmark conversion over a folder or manifest: time per stage, peak memory, size.
+    Bench(bench::Args),
+    /// Internal: converts one mesh for `bench` and prints one JSON row.
+    #[command(hide = true)]
+    BenchOne(bench_one::Args),
     /// Internal: the isolated process converting items for `work`.
     #[command(hide = true)]
     ItemWorker(item_worker::Args),
@@ -72,6 +79,8 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Retry(args) => retry::run(args),
         Command::Inspect(args) => inspect::run(args),
         Command::Show(args) => show::run(args),
+        Command::Bench(args) => bench::run(args),
+        Command::BenchOne(args) => bench_one::run(args),
         Command::ItemWorker(args) => item_worker::run(args),
     }
 }

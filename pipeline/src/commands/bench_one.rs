@@ -1,0 +1,174 @@
+//! `sparc3d bench-one MESH --resolution N` (hidden): converts one mesh at one resolution and
+//! prints one JSON line ([`BenchRow`]) with the seconds of every stage (load, the conversion
+//! stages, extraction, encoding), the counts, the compressed size of the tensors and the peak
+//! RSS of this process. `sparc3d bench` runs it once per mesh in a subprocess, so that the
+//! peak RSS is per mesh and a crash of one mesh is one failed row.
+
+use super::convert::peak_rss_bytes;
+use anyhow::Context;
+use serde::{Deserialize, Serialize};
+use sparc3d_schema::RowTensors;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Instant;
+
+/// Arguments of `sparc3d bench-one`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Input mesh (OBJ, PLY, STL, OFF, glTF, GLB).
+    pub input: PathBuf,
+    /// Grid resolution N (cells per axis).
+    #[arg(long, default_value_t = 512)]
+    pub resolution: u32,
+    /// Turn off the deformation of active vertices.
+    #[arg(long)]
+    pub no_deform: bool,
+    /// zstd level of the encoded tensors (the job default is 3).
+    #[arg(long, default_value_t = 3)]
+    pub zstd_level: i32,
+}
+
+/// Compressed bytes of each stored tensor (zstd frames as `sparc3d-schema` encodes them).
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct TensorBytes {
+    /// Active vertex coordinates, `n × 3` `<u2`.
+    pub coords: u64,
+    /// Signed distance per vertex, `n` `<f4`.
+    pub sdf: u64,
+    /// Displacement per vertex, `n × 3` `<f4`.
+    pub deformation: u64,
+    /// Active cells, `m × 3` `<u2`.
+    pub cells: u64,
+}
+
+impl TensorBytes {
+    /// Sum over the four tensors.
+    pub fn total(&self) -> u64 {
+        self.coords + self.sdf + self.deformation + self.cells
+    }
+}
+
+/// One benchmark measurement: one mesh at one resolution. The converting process fills the
+/// timings and counts; the benchmark driver adds what it sees from outside (wall time of the
+/// process, CPU seconds, peak RSS from the kernel, exit status, failure).
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct BenchRow {
+    /// The mesh file.
+    pub path: String,
+    /// Grid resolution N.
+    pub resolution: u32,
+    /// Whether the mesh was converted, extracted and encoded.
+    pub ok: bool,
+    /// Why not, when `ok` is false (which stage, or how the process ended).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+    /// Seconds per stage in order: `load`, the conversion stages, `extract`, `encode`.
+    #[serde(default)]
+    pub stages: Vec<(String, f64)>,
+    /// Sum of `stages` (seconds inside the process, without its start-up).
+    #[serde(default)]
+    pub total_seconds: f64,
+    /// Input triangles.
+    #[serde(default)]
+    pub input_faces: u64,
+    /// Input vertices.
+    #[serde(default)]
+    pub input_vertices: u64,
+    /// Active grid vertices stored.
+    #[serde(default)]
+    pub active_vertices: u64,
+    /// Active cells stored.
+    #[serde(default)]
+    pub active_cells: u64,
+    /// Triangles of the extracted mesh.
+    #[serde(default)]
+    pub output_faces: u64,
+    /// Compressed bytes per tensor.
+    #[serde(default)]
+    pub tensor_bytes: TensorBytes,
+    /// Compressed bytes of the four tensors per active vertex.
+    #[serde(default)]
+    pub bytes_per_active_vertex: f64,
+    /// Peak RSS as the process saw it at its end (`VmHWM`), bytes.
+    #[serde(default)]
+    pub peak_rss_bytes: Option<u64>,
+    /// Wall seconds of the whole subprocess as the driver measured it (start-up included).
+    #[serde(default)]
+    pub process_seconds: f64,
+    /// User CPU seconds of the subprocess (all threads).
+    #[serde(default)]
+    pub cpu_user_seconds: f64,
+    /// System CPU seconds of the subprocess (all threads).
+    #[serde(default)]
+    pub cpu_sys_seconds: f64,
+    /// Peak RSS of the subprocess from the kernel (`ru_maxrss`), bytes; known even when the
+    /// process was killed.
+    #[serde(default)]
+    pub max_rss_bytes: Option<u64>,
+}
+
+/// Runs `sparc3d bench-one`: prints one JSON line, exits 0 when the mesh converted. A mesh
+/// that fails to load or convert is still a row (`ok: false`, exit 0); only failures of the
+/// command itself are errors.
+pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    let mut row = BenchRow {
+        path: args.input.display().to_string(),
+        resolution: args.resolution,
+        ..Default::default()
+    };
+    if let Err(e) = measure(&args, &mut row) {
+        row.ok = false;
+        row.error = Some(format!("{e:#}"));
+    }
+    row.total_seconds = row.stages.iter().map(|(_, s)| s).sum();
+    row.peak_rss_bytes = peak_rss_bytes();
+    let line = serde_json::to_string(&row).context("serialising the benchmark row")?;
+    println!("{line}");
+    Ok(ExitCode::SUCCESS)
+}
+
+fn measure(args: &Args, row: &mut BenchRow) -> anyhow::Result<()> {
+    let name = args.input.display();
+    let t = Instant::now();
+    let loaded = sparcubes::io::load(&args.input).with_context(|| format!("load {name}"))?;
+    row.stages.push(("load".into(), t.elapsed().as_secs_f64()));
+    row.input_faces = loaded.mesh.triangles.len() as u64;
+    row.input_vertices = loaded.mesh.positions.len() as u64;
+
+    let mut params = sparcubes::Params::with_resolution(args.resolution);
+    params.deform = !args.no_deform;
+    let conversion = sparcubes::convert(&loaded.mesh, &params)
+        .with_context(|| format!("convert {name} at {}", args.resolution))?;
+    drop(loaded);
+    let s = &conversion.stats;
+    row.stages
+        .extend(s.stage_seconds.iter().map(|(k, v)| ((*k).to_string(), *v)));
+    row.active_vertices = s.active_vertices;
+    row.active_cells = s.active_cells;
+
+    let t = Instant::now();
+    let mesh = sparcubes::extract(&conversion.cubes);
+    row.stages
+        .push(("extract".into(), t.elapsed().as_secs_f64()));
+    row.output_faces = mesh.triangles.len() as u64;
+    drop(mesh);
+
+    let t = Instant::now();
+    let tensors = RowTensors::from_cubes(&conversion.cubes, args.zstd_level)
+        .with_context(|| format!("encode {name}"))?;
+    row.stages
+        .push(("encode".into(), t.elapsed().as_secs_f64()));
+    row.tensor_bytes = TensorBytes {
+        coords: tensors.coords.blob.len() as u64,
+        sdf: tensors.sdf.blob.len() as u64,
+        deformation: tensors.deformation.blob.len() as u64,
+        cells: tensors.cells.blob.len() as u64,
+    };
+    row.bytes_per_active_vertex = if row.active_vertices > 0 {
+        row.tensor_bytes.total() as f64 / row.active_vertices as f64
+    } else {
+        0.0
+    };
+    row.ok = true;
+    Ok(())
+}
