@@ -7,7 +7,7 @@
 //!   triangle with the grid lines of each axis. They decide the side of vertices that only
 //!   touch wall cells, and which crossings separate inside from outside.
 
-use crate::grid::{pack, BrickIndex, BrickSet};
+use crate::grid::{split, BrickIndex, BrickMask, BrickSet, BRICK};
 use rayon::prelude::*;
 
 /// The input mesh in grid coordinates (voxels), double precision.
@@ -94,17 +94,20 @@ pub fn triangle_box_overlap(tri: &[[f64; 3]; 3], center: [f64; 3], half: f64) ->
     true
 }
 
-/// Calls `f(cell)` for every cell in `0..n` per axis whose closed box the triangle touches.
+/// An inclusive range of integer coordinates per axis, `(lo, hi)`.
+pub type Clip = ([i64; 3], [i64; 3]);
+
+/// Calls `f(cell)` for every cell within `clip` whose closed box the triangle touches.
 /// Work is proportional to the triangle's projected area on its dominant plane, not to its
 /// bounding box volume.
-pub fn for_each_touched_cell(tri: &[[f64; 3]; 3], n: u32, mut f: impl FnMut([u32; 3])) {
+pub fn for_each_touched_cell(tri: &[[f64; 3]; 3], clip: Clip, mut f: impl FnMut([u32; 3])) {
     let mut lo = [0i64; 3];
     let mut hi = [0i64; 3];
     for a in 0..3 {
         let mn = tri[0][a].min(tri[1][a]).min(tri[2][a]);
         let mx = tri[0][a].max(tri[1][a]).max(tri[2][a]);
-        lo[a] = (mn.ceil() as i64 - 1).max(0);
-        hi[a] = (mx.floor() as i64).min(n as i64 - 1);
+        lo[a] = (mn.ceil() as i64 - 1).max(clip.0[a]);
+        hi[a] = (mx.floor() as i64).min(clip.1[a]);
         if lo[a] > hi[a] {
             return;
         }
@@ -168,10 +171,15 @@ pub fn for_each_touched_cell(tri: &[[f64; 3]; 3], n: u32, mut f: impl FnMut([u32
     }
 }
 
-/// Calls `f(vertex, axis)` for every grid edge (from `vertex` towards +axis, vertices in
-/// `0..=n`) that the closed triangle crosses or touches. An edge lying in the triangle's plane
-/// is not reported (the other axes block around it).
-pub fn for_each_crossed_edge(tri: &[[f64; 3]; 3], n: u32, mut f: impl FnMut([u32; 3], usize)) {
+/// Calls `f(vertex, axis)` for every grid edge (from `vertex` towards +axis, `vertex` within
+/// `clip`, edges ending at most at `n`) that the closed triangle crosses or touches. An edge
+/// lying in the triangle's plane is not reported (the other axes block around it).
+pub fn for_each_crossed_edge(
+    tri: &[[f64; 3]; 3],
+    n: u32,
+    clip: Clip,
+    mut f: impl FnMut([u32; 3], usize),
+) {
     let nrm = cross(sub(tri[1], tri[0]), sub(tri[2], tri[0]));
     let d = dot(nrm, tri[0]);
     for a in 0..3 {
@@ -184,10 +192,10 @@ pub fn for_each_crossed_edge(tri: &[[f64; 3]; 3], n: u32, mut f: impl FnMut([u32
             [tri[1][b], tri[1][c]],
             [tri[2][b], tri[2][c]],
         ];
-        let bmin = p[0][0].min(p[1][0]).min(p[2][0]).ceil().max(0.0) as i64;
-        let bmax = (p[0][0].max(p[1][0]).max(p[2][0]).floor() as i64).min(n as i64);
-        let cmin = p[0][1].min(p[1][1]).min(p[2][1]).ceil().max(0.0) as i64;
-        let cmax = (p[0][1].max(p[1][1]).max(p[2][1]).floor() as i64).min(n as i64);
+        let bmin = (p[0][0].min(p[1][0]).min(p[2][0]).ceil() as i64).max(clip.0[b]);
+        let bmax = (p[0][0].max(p[1][0]).max(p[2][0]).floor() as i64).min(clip.1[b]);
+        let cmin = (p[0][1].min(p[1][1]).min(p[2][1]).ceil() as i64).max(clip.0[c]);
+        let cmax = (p[0][1].max(p[1][1]).max(p[2][1]).floor() as i64).min(clip.1[c]);
         let edge = |i: usize, j: usize, q: [f64; 2]| {
             (p[j][0] - p[i][0]) * (q[1] - p[i][1]) - (p[j][1] - p[i][1]) * (q[0] - p[i][0])
         };
@@ -208,10 +216,13 @@ pub fn for_each_crossed_edge(tri: &[[f64; 3]; 3], n: u32, mut f: impl FnMut([u32
                 let mut v = [0u32; 3];
                 v[b] = jb as u32;
                 v[c] = jc as u32;
-                v[a] = base as u32;
-                f(v, a);
-                if t == t.floor() && base == t as i64 && base > 0 {
-                    v[a] = base as u32 - 1;
+                let lowest = if t == t.floor() && base == t as i64 && base > 0 {
+                    base - 1
+                } else {
+                    base
+                };
+                for va in lowest.max(clip.0[a])..=base.min(clip.1[a]) {
+                    v[a] = va as u32;
                     f(v, a);
                 }
             }
@@ -219,45 +230,98 @@ pub fn for_each_crossed_edge(tri: &[[f64; 3]; 3], n: u32, mut f: impl FnMut([u32
     }
 }
 
-/// Rasterises every triangle of `mesh` at resolution `n`, in parallel; the result does not
-/// depend on the thread count (sets are sorted and deduplicated).
+/// The bricks whose closed box `[8b, 8b + 8]³` the triangle touches: every cell it touches and
+/// every edge it crosses (by the edge's lower vertex) lies in one of them.
+fn touched_bricks(tri: &[[f64; 3]; 3], index: &BrickIndex, mut f: impl FnMut(usize)) {
+    let mut lo = [0i64; 3];
+    let mut hi = [0i64; 3];
+    for a in 0..3 {
+        let mn = tri[0][a].min(tri[1][a]).min(tri[2][a]);
+        let mx = tri[0][a].max(tri[1][a]).max(tri[2][a]);
+        lo[a] = ((mn / BRICK as f64).floor() as i64 - 1).max(0);
+        hi[a] = ((mx / BRICK as f64).floor() as i64).min(index.dims[a] as i64 - 1);
+    }
+    let half = BRICK as f64 / 2.0;
+    for bz in lo[2]..=hi[2] {
+        for by in lo[1]..=hi[1] {
+            for bx in lo[0]..=hi[0] {
+                let center = [
+                    bx as f64 * 8.0 + half,
+                    by as f64 * 8.0 + half,
+                    bz as f64 * 8.0 + half,
+                ];
+                if triangle_box_overlap(tri, center, half) {
+                    f(index.key([bx as u32, by as u32, bz as u32]));
+                }
+            }
+        }
+    }
+}
+
+/// Rasterises every triangle of `mesh` at resolution `n`. Triangles are first binned to the
+/// 8³ bricks they touch; each brick then rasterises its own triangles into local masks, in
+/// parallel, so no per-cell list is ever built or sorted. The result does not depend on the
+/// thread count.
 pub fn voxelize(mesh: &GridMesh, n: u32) -> Voxelization {
     let index = BrickIndex::for_resolution(n);
-    let (mut walls, mut edges) = (0..mesh.tris.len())
+    let mut pairs: Vec<u64> = (0..mesh.tris.len())
         .into_par_iter()
         .with_min_len(256)
-        .fold(
-            || (Vec::new(), [Vec::new(), Vec::new(), Vec::new()]),
-            |(mut w, mut e): (Vec<u64>, [Vec<u64>; 3]), t| {
-                let tri = mesh.tri(t);
-                for_each_touched_cell(&tri, n, |c| w.push(pack(&index, c)));
-                for_each_crossed_edge(&tri, n, |v, axis| e[axis].push(pack(&index, v)));
-                (w, e)
-            },
-        )
-        .reduce(
-            || (Vec::new(), [Vec::new(), Vec::new(), Vec::new()]),
-            |(mut w1, mut e1), (w2, e2)| {
-                w1.extend(w2);
-                for (a, b) in e1.iter_mut().zip(e2) {
-                    a.extend(b);
-                }
-                (w1, e1)
-            },
-        );
-    walls.par_sort_unstable();
-    walls.dedup();
-    for e in edges.iter_mut() {
-        e.par_sort_unstable();
-        e.dedup();
+        .fold(Vec::new, |mut out: Vec<u64>, t| {
+            touched_bricks(&mesh.tri(t), &index, |key| {
+                out.push(((key as u64) << 32) | t as u64)
+            });
+            out
+        })
+        .reduce(Vec::new, |mut a, b| {
+            a.extend(b);
+            a
+        });
+    pairs.par_sort_unstable();
+    let mut runs: Vec<(usize, usize)> = Vec::new();
+    for (i, p) in pairs.iter().enumerate() {
+        match runs.last_mut() {
+            Some(r) if pairs[r.0] >> 32 == p >> 32 => r.1 = i + 1,
+            _ => runs.push((i, i + 1)),
+        }
     }
+    let last_cell = n as i64 - 1;
+    let masks: Vec<(u32, [BrickMask; 4])> = runs
+        .par_iter()
+        .map(|&(start, end)| {
+            let key = (pairs[start] >> 32) as u32;
+            let b = index.coord(key as usize);
+            let base = [b[0] as i64 * 8, b[1] as i64 * 8, b[2] as i64 * 8];
+            let top = [base[0] + 7, base[1] + 7, base[2] + 7];
+            let cells: Clip = (
+                base,
+                [
+                    top[0].min(last_cell),
+                    top[1].min(last_cell),
+                    top[2].min(last_cell),
+                ],
+            );
+            let verts: Clip = (base, top);
+            let mut m = [[0u64; 8]; 4];
+            for p in &pairs[start..end] {
+                let tri = mesh.tri((p & 0xFFFF_FFFF) as usize);
+                for_each_touched_cell(&tri, cells, |c| {
+                    let (_, w, bit) = split(c);
+                    m[0][w] |= 1u64 << bit;
+                });
+                for_each_crossed_edge(&tri, n, verts, |v, axis| {
+                    let (_, w, bit) = split(v);
+                    m[1 + axis][w] |= 1u64 << bit;
+                });
+            }
+            (key, m)
+        })
+        .collect();
+    let set =
+        |k: usize| BrickSet::from_masks(n, masks.iter().map(|(key, m)| (*key, m[k])).collect());
     Voxelization {
-        walls: BrickSet::from_sorted_packed(n, &walls),
-        blocked: [
-            BrickSet::from_sorted_packed(n, &edges[0]),
-            BrickSet::from_sorted_packed(n, &edges[1]),
-            BrickSet::from_sorted_packed(n, &edges[2]),
-        ],
+        walls: set(0),
+        blocked: [set(1), set(2), set(3)],
     }
 }
 
@@ -287,7 +351,7 @@ mod tests {
         ];
         for tri in &tris {
             let mut fast = Vec::new();
-            for_each_touched_cell(tri, 16, |c| fast.push(c));
+            for_each_touched_cell(tri, ([0; 3], [15; 3]), |c| fast.push(c));
             fast.sort();
             let mut slow = Vec::new();
             for z in 0..16u32 {
@@ -309,7 +373,7 @@ mod tests {
     fn crossed_edges_match_segment_tests() {
         let tri = [[1.3, 2.2, 3.7], [9.1, 4.4, 2.2], [4.5, 11.2, 8.9]];
         let mut got = Vec::new();
-        for_each_crossed_edge(&tri, 16, |v, a| got.push((v, a)));
+        for_each_crossed_edge(&tri, 16, ([0; 3], [16; 3]), |v, a| got.push((v, a)));
         got.sort();
         got.dedup();
         // Every reported edge's segment meets the triangle's plane inside the triangle, and the
