@@ -22,13 +22,23 @@ pub struct Field {
     pub deformation: Vec<[f32; 3]>,
 }
 
+/// Smallest stored |φ|, voxels. A φ of exactly 0 at a vertex would put the crossing points of
+/// all its edges at the vertex itself: distinct output vertices at one position, a pinch.
+pub const MIN_ABS_SDF: f64 = 1e-4;
+
 #[inline]
-fn signed(udf: f64, side: Side, thin: bool, t: f64) -> f64 {
-    match (side == Side::Inside, thin) {
+fn signed(udf: f64, side: Side, thin: bool, t: f64) -> f32 {
+    let phi = match (side == Side::Inside, thin) {
         (false, false) => udf,
         (true, false) => -udf,
         (false, true) => udf - t,
         (true, true) => t - udf,
+    };
+    // φ = 0 counts as outside, as in extraction.
+    if phi < 0.0 {
+        phi.min(-MIN_ABS_SDF) as f32
+    } else {
+        phi.max(MIN_ABS_SDF) as f32
     }
 }
 
@@ -49,7 +59,7 @@ pub fn compute_field(band: &Band, signs: &Signs, params: &Params) -> Field {
             let (side, thin) = (signs.side[i], signs.thin[i]);
             let level = if thin { t } else { 0.0 };
             if eta == 0.0 || d < 1e-6 {
-                return (signed(d, side, thin, t) as f32, [0.0; 3]);
+                return (signed(d, side, thin, t), [0.0; 3]);
             }
             let c = coords[i];
             let p = band.closest[i];
@@ -63,7 +73,7 @@ pub fn compute_field(band: &Band, signs: &Signs, params: &Params) -> Field {
                 (-step * u[1]) as f32,
                 (-step * u[2]) as f32,
             ];
-            (signed(moved, side, thin, t) as f32, delta)
+            (signed(moved, side, thin, t), delta)
         })
         .unzip();
     Field { sdf, deformation }
