@@ -1,5 +1,6 @@
 //! The `sparc3d` command line: parses arguments and hands each subcommand to `commands/`.
 
+mod cluster;
 mod commands;
 mod manifest_io;
 mod progress;
@@ -9,7 +10,18 @@ mod units;
 
 use clap::Parser;
 
+/// Lets a closed pipe (`sparc3d inspect JOB | head`) end the process quietly, as it does for
+/// other command-line tools, instead of a panic in `println!`.
+fn restore_default_sigpipe() {
+    #[cfg(unix)]
+    // SAFETY: resetting a signal disposition to its default before any thread starts.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
 fn main() -> std::process::ExitCode {
+    restore_default_sigpipe();
     let cli = commands::Cli::parse();
     match commands::run(cli) {
         Ok(code) => code,
