@@ -8,14 +8,15 @@
 //! * Every crossed grid edge is evidence about the surface it crosses: ends on different sides
 //!   → a closed part; ends on the same side → an open sheet (or a part thinner than a voxel,
 //!   or a sheet inside a closed part). Evidence is summed over the 3×3×3 cells around each
-//!   vertex's closest surface point; where "same side" wins, the vertex belongs to a thin shell:
+//!   vertex's closest surface point; unless "different sides" wins (a sum of 0, no crossed
+//!   edge nearby, counts as thin), the vertex belongs to a thin shell:
 //!   φ = UDF − t outside (φ = t − UDF inside, a thin cavity), so the zero level set is a closed
 //!   shell 2t thick around the sheet. Elsewhere φ = ±UDF, whose zero level set is the surface
 //!   itself: closed parts are not dilated.
 
 use crate::band::Band;
 use crate::flood::{CellSide, Flood};
-use crate::grid::{for_each_bit, BrickSet, Numbered};
+use crate::grid::{for_each_bit, split, test, BrickMask, BrickSet};
 use crate::voxelize::Voxelization;
 use rayon::prelude::*;
 
@@ -141,10 +142,11 @@ fn resolve_enclosed(band: &Band, vox: &Voxelization, side: &mut [Side]) {
     }
 }
 
-/// Evidence per wall cell: +1 for each crossed edge of the cell whose ends are on the same
-/// side, −1 for each whose ends differ.
-fn edge_evidence(band: &Band, vox: &Voxelization, walls: &Numbered, side: &[Side]) -> Vec<i32> {
-    let mut evidence = vec![0i32; walls.len];
+/// Evidence per wall cell, dense per wall brick (local index x + 8y + 64z): +1 for each crossed
+/// edge of the cell whose ends are on the same side, −1 for each whose ends differ.
+fn edge_evidence(band: &Band, vox: &Voxelization, side: &[Side]) -> Vec<[i8; 512]> {
+    let walls = &vox.walls;
+    let mut evidence = vec![[0i8; 512]; walls.keys.len()];
     for (axis, set) in vox.blocked.iter().enumerate() {
         let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
         for s in 0..set.keys.len() {
@@ -154,7 +156,7 @@ fn edge_evidence(band: &Band, vox: &Voxelization, walls: &Numbered, side: &[Side
                 let (Some(i), Some(j)) = (band.verts.id(v), band.verts.id(u)) else {
                     continue;
                 };
-                let vote = if side[i as usize] == side[j as usize] {
+                let vote: i8 = if side[i as usize] == side[j as usize] {
                     1
                 } else {
                     -1
@@ -163,8 +165,14 @@ fn edge_evidence(band: &Band, vox: &Voxelization, walls: &Numbered, side: &[Side
                     let mut cell = v;
                     cell[b] -= d & 1;
                     cell[c] -= d >> 1;
-                    if let Some(k) = walls.id(cell) {
-                        evidence[k as usize] += vote;
+                    if cell.iter().any(|&x| x < 0) {
+                        continue;
+                    }
+                    let (bk, w, bit) = split([cell[0] as u32, cell[1] as u32, cell[2] as u32]);
+                    if let Some(slot) = walls.index.slot([bk[0] as i64, bk[1] as i64, bk[2] as i64])
+                    {
+                        let local = w * 64 + bit as usize;
+                        evidence[slot][local] = evidence[slot][local].saturating_add(vote);
                     }
                 }
             }
@@ -173,72 +181,105 @@ fn edge_evidence(band: &Band, vox: &Voxelization, walls: &Numbered, side: &[Side
     evidence
 }
 
-/// Sum of evidence over the 3×3×3 cells around each wall cell; computed only near cells with
-/// positive evidence (elsewhere the sum cannot be positive and is left at 0).
-fn smoothed_evidence(walls: &Numbered, evidence: &[i32]) -> Vec<i32> {
-    let set = &walls.set;
-    let positive: Vec<bool> = (0..set.keys.len())
-        .map(|s| {
-            let start = walls.offsets[s] as usize;
-            let len = crate::grid::count(&set.masks[s]) as usize;
-            evidence[start..start + len].iter().any(|&e| e > 0)
-        })
-        .collect();
-    let per_brick: Vec<Vec<i32>> = (0..set.keys.len())
+/// Wall cells that belong to a thin part: the evidence summed over the 3×3×3 cells around the
+/// cell is not negative. A sum of 0 — no crossed edge nearby, as for a sliver of a sheet
+/// narrower than a voxel — is thin too: only a surface that separates inside from outside can
+/// keep φ = ±UDF. Per brick, a 10³ window of evidence (the brick and a one-cell halo) is box
+/// filtered separably.
+fn thin_cells(walls: &BrickSet, evidence: &[[i8; 512]]) -> Vec<BrickMask> {
+    (0..walls.keys.len())
         .into_par_iter()
         .map(|s| {
-            let b = set.index.coord(set.keys[s] as usize);
-            let near_positive = (0..27).any(|d| {
+            let b = walls.index.coord(walls.keys[s] as usize);
+            let mut win = [0i16; 1000];
+            let at = |x: usize, y: usize, z: usize| x + 10 * y + 100 * z;
+            for d in 0..27i64 {
+                let off = [d % 3 - 1, (d / 3) % 3 - 1, d / 9 - 1];
                 let nb = [
-                    b[0] as i64 + d % 3 - 1,
-                    b[1] as i64 + (d / 3) % 3 - 1,
-                    b[2] as i64 + d / 9 - 1,
+                    b[0] as i64 + off[0],
+                    b[1] as i64 + off[1],
+                    b[2] as i64 + off[2],
                 ];
-                set.index.slot(nb).is_some_and(|t| positive[t])
-            });
-            let cells = brick_coords(set, s);
-            if !near_positive {
-                return vec![0; cells.len()];
-            }
-            cells
-                .iter()
-                .map(|c| {
-                    let mut sum = 0;
-                    for d in 0..27i64 {
-                        let q = [c[0] + d % 3 - 1, c[1] + (d / 3) % 3 - 1, c[2] + d / 9 - 1];
-                        if let Some(k) = walls.id(q) {
-                            sum += evidence[k as usize];
+                let Some(t) = walls.index.slot(nb) else {
+                    continue;
+                };
+                // Local range of the neighbour that falls into the window.
+                let range = |o: i64| match o {
+                    -1 => 7..8,
+                    0 => 0..8,
+                    _ => 0..1,
+                };
+                for z in range(off[2]) {
+                    for y in range(off[1]) {
+                        for x in range(off[0]) {
+                            let wx = (x as i64 + 8 * off[0] + 1) as usize;
+                            let wy = (y as i64 + 8 * off[1] + 1) as usize;
+                            let wz = (z as i64 + 8 * off[2] + 1) as usize;
+                            win[at(wx, wy, wz)] = evidence[t][x + 8 * y + 64 * z] as i16;
                         }
                     }
-                    sum
-                })
-                .collect()
+                }
+            }
+            for axis in 0..3 {
+                let prev = win;
+                for z in 0..10 {
+                    for y in 0..10 {
+                        for x in 0..10 {
+                            let p = [x, y, z];
+                            let mut sum = prev[at(x, y, z)];
+                            if p[axis] > 0 {
+                                let mut q = p;
+                                q[axis] -= 1;
+                                sum += prev[at(q[0], q[1], q[2])];
+                            }
+                            if p[axis] < 9 {
+                                let mut q = p;
+                                q[axis] += 1;
+                                sum += prev[at(q[0], q[1], q[2])];
+                            }
+                            win[at(x, y, z)] = sum;
+                        }
+                    }
+                }
+            }
+            let mut thin = [0u64; 8];
+            for_each_bit(&walls.masks[s], |x, y, z| {
+                if win[at(x as usize + 1, y as usize + 1, z as usize + 1)] >= 0 {
+                    thin[z as usize] |= 1u64 << (x + 8 * y);
+                }
+            });
+            thin
         })
-        .collect();
-    per_brick.into_iter().flatten().collect()
+        .collect()
 }
 
 /// Decides the side of every band vertex and which vertices belong to thin shells.
 pub fn compute_signs(band: &Band, vox: &Voxelization, flood: &Flood) -> Signs {
     let mut side = sides_from_cells(band, &vox.walls, flood);
     resolve_enclosed(band, vox, &mut side);
-    let walls = Numbered::new(vox.walls.clone());
-    let evidence = edge_evidence(band, vox, &walls, &side);
-    let smooth = smoothed_evidence(&walls, &evidence);
+    let evidence = edge_evidence(band, vox, &side);
+    let thin_mask = thin_cells(&vox.walls, &evidence);
+    let walls = &vox.walls;
     let thin = band
         .closest
         .par_iter()
         .map(|p| {
             // The cell holding the closest point touches the surface; a point on a cell
             // face (or rounded to f32 next to one) may name either neighbour, so try both.
-            let cell = (0..8).find_map(|d| {
-                let c: [i64; 3] = std::array::from_fn(|a| {
-                    let e = if (d >> a) & 1 == 0 { -1e-3 } else { 1e-3 };
-                    (p[a] + e).floor() as i64
-                });
-                walls.id(c)
-            });
-            cell.is_some_and(|k| smooth[k as usize] > 0)
+            (0..8)
+                .find_map(|d| {
+                    let c: [i64; 3] = std::array::from_fn(|a| {
+                        let e = if (d >> a) & 1 == 0 { -1e-3 } else { 1e-3 };
+                        (p[a] + e).floor() as i64
+                    });
+                    if c.iter().any(|&x| x < 0) {
+                        return None;
+                    }
+                    let (b, w, bit) = split([c[0] as u32, c[1] as u32, c[2] as u32]);
+                    let slot = walls.index.slot([b[0] as i64, b[1] as i64, b[2] as i64])?;
+                    test(&walls.masks[slot], w, bit).then(|| test(&thin_mask[slot], w, bit))
+                })
+                .unwrap_or(false)
         })
         .collect();
     Signs { side, thin }
