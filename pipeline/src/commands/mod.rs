@@ -15,6 +15,7 @@ pub mod retry;
 pub mod run;
 pub mod show;
 pub mod status;
+pub mod submit;
 pub mod work;
 
 use clap::{Parser, Subcommand};
@@ -46,6 +47,8 @@ enum Command {
     Work(work::Args),
     /// Show a job's progress: shards, items, throughput, ETA, errors.
     Status(status::Args),
+    /// Submit a job's unfinished shards to a cluster scheduler (Slurm array jobs).
+    Submit(submit::Args),
     /// List a job's failed items.
     Failures(failures::Args),
     /// Queue a job's failed items (optionally of one class) to be converted again.
@@ -75,6 +78,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Run(args) => run::run(args),
         Command::Work(args) => work::run(args),
         Command::Status(args) => status::run(args),
+        Command::Submit(args) => submit::run(args),
         Command::Failures(args) => failures::run(args),
         Command::Retry(args) => retry::run(args),
         Command::Inspect(args) => inspect::run(args),

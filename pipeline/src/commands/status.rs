@@ -60,5 +60,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
             println!("  {n:>6}  {c}");
         }
     }
+    // Cluster runs: Slurm arrays submitted by `sparc3d submit slurm` (nothing if none).
+    crate::cluster::slurm::print_status(&args.job);
     Ok(ExitCode::SUCCESS)
 }
