@@ -272,6 +272,18 @@ fn bench_mesh(exe: &Path, path: &Path, resolution: u32, args: &Args) -> BenchRow
     if let Some(t) = args.threads {
         cmd.env("RAYON_NUM_THREADS", t.to_string());
     }
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::unix::process::CommandExt;
+        // SAFETY: the closure only calls prctl, which is async-signal-safe, between fork and
+        // exec. The conversion dies with the benchmark instead of running on as an orphan.
+        unsafe {
+            cmd.pre_exec(|| {
+                libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL);
+                Ok(())
+            });
+        }
+    }
     let start = Instant::now();
     let mut child = match cmd.spawn() {
         Ok(c) => c,
