@@ -4,7 +4,7 @@
 //! [`REACH`] voxels of the surface, so only triangles within that reach of a brick are binned
 //! to it, and each brick scans its own triangles — no per-vertex tree query.
 
-use crate::grid::{count, dilate, for_each_bit, BrickMask, BrickSet, Dilation, Numbered, BRICK};
+use crate::grid::{dilate, for_each_bit, BrickMask, BrickSet, Dilation, Numbered, BRICK};
 use crate::voxelize::{triangle_box_overlap, GridMesh};
 use rayon::prelude::*;
 
@@ -19,10 +19,17 @@ pub struct Band {
     pub cells: BrickSet,
     /// Candidate vertices (corners of candidate cells), numbered.
     pub verts: Numbered,
-    /// Unsigned distance per vertex, voxels.
-    pub udf: Vec<f32>,
-    /// Closest surface point per vertex, grid coordinates.
-    pub closest: Vec<[f32; 3]>,
+    /// Closest surface point and unsigned distance per vertex.
+    pub nearest: Vec<Nearest>,
+}
+
+/// A vertex's closest surface point (grid coordinates) and its distance (voxels).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Nearest {
+    /// Closest point on the surface.
+    pub point: [f32; 3],
+    /// Unsigned distance to it.
+    pub udf: f32,
 }
 
 #[inline]
@@ -226,7 +233,8 @@ fn scan_brick(
     mask: &BrickMask,
     base: [i64; 3],
     scratch: &mut BrickScratch,
-) -> (Vec<f32>, Vec<[f32; 3]>) {
+    out: &mut [Nearest],
+) {
     scratch.best.fill(f64::INFINITY);
     scan_pass(mesh, planes, tris, mask, base, NEAR_REACH, scratch);
     let mut far = [0u64; 8];
@@ -240,24 +248,26 @@ fn scan_brick(
     if !crate::grid::is_empty(&far) {
         scan_pass(mesh, planes, tris, &far, base, REACH, scratch);
     }
-    let k = count(mask) as usize;
-    let mut udf = Vec::with_capacity(k);
-    let mut cp = Vec::with_capacity(k);
+    let mut i = 0;
     for_each_bit(mask, |x, y, z| {
         let local = (x + 8 * y + 64 * z) as usize;
         let best = scratch.best[local];
-        if best.is_finite() {
+        out[i] = if best.is_finite() {
             let q = scratch.point[local];
-            udf.push(best.sqrt() as f32);
-            cp.push([q[0] as f32, q[1] as f32, q[2] as f32]);
+            Nearest {
+                point: [q[0] as f32, q[1] as f32, q[2] as f32],
+                udf: best.sqrt() as f32,
+            }
         } else {
             // Unreachable by the REACH argument; keep the vertex far and outside.
             let p = [base[0] + x as i64, base[1] + y as i64, base[2] + z as i64];
-            udf.push(REACH as f32);
-            cp.push([p[0] as f32, p[1] as f32, p[2] as f32]);
-        }
+            Nearest {
+                point: [p[0] as f32, p[1] as f32, p[2] as f32],
+                udf: REACH as f32,
+            }
+        };
+        i += 1;
     });
-    (udf, cp)
 }
 
 /// Computes the band around the wall cells: candidate cells and vertices, and for each vertex
@@ -282,25 +292,16 @@ pub fn compute_band(mesh: &GridMesh, walls: &BrickSet, n: u32) -> Band {
             [nrm[0], nrm[1], nrm[2], dot(nrm, a)]
         })
         .collect();
-    let per_brick: Vec<(Vec<f32>, Vec<[f32; 3]>)> = (0..verts.set.keys.len())
-        .into_par_iter()
-        .map_init(BrickScratch::new, |scratch, s| {
-            let b = verts.set.index.coord(verts.set.keys[s] as usize);
-            let base = [b[0] as i64 * 8, b[1] as i64 * 8, b[2] as i64 * 8];
-            let tris = &bins[starts[s] as usize..starts[s + 1] as usize];
-            scan_brick(mesh, &planes, tris, &verts.set.masks[s], base, scratch)
-        })
-        .collect();
-    let mut udf = Vec::with_capacity(verts.len);
-    let mut closest = Vec::with_capacity(verts.len);
-    for (u, c) in per_brick {
-        udf.extend(u);
-        closest.extend(c);
-    }
+    let mut nearest = vec![Nearest::default(); verts.len];
+    verts.par_fill(&mut nearest, BrickScratch::new, |scratch, b, mask, out| {
+        let s = verts.set.index.slots[verts.set.index.key(b)] as usize;
+        let base = [b[0] as i64 * 8, b[1] as i64 * 8, b[2] as i64 * 8];
+        let tris = &bins[starts[s] as usize..starts[s + 1] as usize];
+        scan_brick(mesh, &planes, tris, mask, base, scratch, out);
+    });
     Band {
         cells,
         verts,
-        udf,
-        closest,
+        nearest,
     }
 }

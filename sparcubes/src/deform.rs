@@ -8,10 +8,10 @@
 //! no cell inverts, and it never crosses the zero level set, so signs (and the topology of the
 //! extracted mesh) are the same with and without deformation.
 
-use crate::band::Band;
+use crate::band::{Band, Nearest};
+use crate::grid::for_each_bit;
 use crate::params::Params;
 use crate::sign::{Side, Signs};
-use rayon::prelude::*;
 
 /// Signed distance and displacement per band vertex.
 #[derive(Debug, Clone)]
@@ -44,7 +44,6 @@ fn signed(udf: f64, side: Side, thin: bool, t: f64) -> f32 {
 
 /// Computes φ and δ for every band vertex.
 pub fn compute_field(band: &Band, signs: &Signs, params: &Params) -> Field {
-    let coords = band.verts.coords();
     let t = params.shell_half_thickness as f64;
     let eta = if params.deform {
         params.deform_step as f64
@@ -52,29 +51,59 @@ pub fn compute_field(band: &Band, signs: &Signs, params: &Params) -> Field {
         0.0
     };
     let max = params.deform_max as f64;
-    let (sdf, deformation): (Vec<f32>, Vec<[f32; 3]>) = (0..coords.len())
-        .into_par_iter()
-        .map(|i| {
-            let d = band.udf[i] as f64;
-            let (side, thin) = (signs.side[i], signs.thin[i]);
-            let level = if thin { t } else { 0.0 };
-            if eta == 0.0 || d < 1e-6 {
-                return (signed(d, side, thin, t), [0.0; 3]);
-            }
-            let c = coords[i];
-            let p = band.closest[i];
-            // Unit vector from the surface towards the vertex.
-            let u: [f64; 3] = std::array::from_fn(|a| (c[a] as f64 - p[a] as f64) / d);
-            let umax = u.iter().fold(0.0f64, |m, x| m.max(x.abs())).max(1e-12);
-            let step = (eta * (d - level)).clamp(-max / umax, max / umax);
-            let moved = d - step;
-            let delta = [
-                (-step * u[0]) as f32,
-                (-step * u[1]) as f32,
-                (-step * u[2]) as f32,
-            ];
-            (signed(moved, side, thin, t), delta)
-        })
-        .unzip();
+    let n = band.verts.len;
+    let mut sdf = vec![0f32; n];
+    let mut deformation = vec![[0f32; 3]; n];
+    let vertex = |i: usize, c: [u32; 3]| -> (f32, [f32; 3]) {
+        let Nearest { point: p, udf } = band.nearest[i];
+        let d = udf as f64;
+        let (side, thin) = (signs.side[i], signs.thin[i]);
+        let level = if thin { t } else { 0.0 };
+        if eta == 0.0 || d < 1e-6 {
+            return (signed(d, side, thin, t), [0.0; 3]);
+        }
+        // Unit vector from the surface towards the vertex.
+        let u: [f64; 3] = std::array::from_fn(|a| (c[a] as f64 - p[a] as f64) / d);
+        let umax = u.iter().fold(0.0f64, |m, x| m.max(x.abs())).max(1e-12);
+        let step = (eta * (d - level)).clamp(-max / umax, max / umax);
+        let delta = [
+            (-step * u[0]) as f32,
+            (-step * u[1]) as f32,
+            (-step * u[2]) as f32,
+        ];
+        (signed(d - step, side, thin, t), delta)
+    };
+    // Vertex numbers run brick by brick in local bit order; each brick's first number is its
+    // offset.
+    let first = |b: [u32; 3]| {
+        let s = band.verts.set.index.slots[band.verts.set.index.key(b)] as usize;
+        band.verts.offsets[s] as usize
+    };
+    band.verts.par_fill(
+        &mut sdf,
+        || (),
+        |_, b, mask, out| {
+            let mut i = 0;
+            let start = first(b);
+            for_each_bit(mask, |x, y, z| {
+                out[i] = vertex(start + i, [b[0] * 8 + x, b[1] * 8 + y, b[2] * 8 + z]).0;
+                i += 1;
+            });
+        },
+    );
+    if eta > 0.0 {
+        band.verts.par_fill(
+            &mut deformation,
+            || (),
+            |_, b, mask, out| {
+                let mut i = 0;
+                let start = first(b);
+                for_each_bit(mask, |x, y, z| {
+                    out[i] = vertex(start + i, [b[0] * 8 + x, b[1] * 8 + y, b[2] * 8 + z]).1;
+                    i += 1;
+                });
+            },
+        );
+    }
     Field { sdf, deformation }
 }

@@ -458,3 +458,64 @@ impl Numbered {
         }
     }
 }
+
+impl Numbered {
+    /// Runs `f(scratch, brick coordinate, mask, out)` for every brick in parallel, where `out`
+    /// is the brick's own slice of a flat per-member array (members in local bit order) and
+    /// `scratch` a per-thread value made by `init`. Writes land in place: no per-brick vectors
+    /// to collect and concatenate.
+    pub fn par_fill<T: Send, S>(
+        &self,
+        data: &mut [T],
+        init: impl Fn() -> S + Sync + Send,
+        f: impl Fn(&mut S, [u32; 3], &BrickMask, &mut [T]) + Sync + Send,
+    ) {
+        use rayon::prelude::*;
+        let mut parts: Vec<(usize, &mut [T])> = Vec::with_capacity(self.set.keys.len());
+        let mut rest = data;
+        for (s, m) in self.set.masks.iter().enumerate() {
+            let (head, tail) = rest.split_at_mut(count(m) as usize);
+            parts.push((s, head));
+            rest = tail;
+        }
+        parts
+            .into_par_iter()
+            .for_each_init(init, |scratch, (s, out)| {
+                let b = self.set.index.coord(self.set.keys[s] as usize);
+                f(scratch, b, &self.set.masks[s], out)
+            });
+    }
+
+    /// Coordinates of the members with the given numbers (ascending), without materialising
+    /// every member's coordinates.
+    pub fn coords_of(&self, ids: &[u32]) -> Vec<[u32; 3]> {
+        let mut out = Vec::with_capacity(ids.len());
+        let mut s = 0;
+        for &id in ids {
+            while s + 1 < self.offsets.len() && self.offsets[s + 1] <= id {
+                s += 1;
+            }
+            let b = self.set.index.coord(self.set.keys[s] as usize);
+            let mut left = id - self.offsets[s];
+            let m = &self.set.masks[s];
+            for (z, &word) in m.iter().enumerate() {
+                let c = word.count_ones();
+                if left < c {
+                    let mut w = word;
+                    for _ in 0..left {
+                        w &= w - 1;
+                    }
+                    let bit = w.trailing_zeros();
+                    out.push([
+                        b[0] * 8 + (bit & 7),
+                        b[1] * 8 + (bit >> 3),
+                        b[2] * 8 + z as u32,
+                    ]);
+                    break;
+                }
+                left -= c;
+            }
+        }
+        out
+    }
+}

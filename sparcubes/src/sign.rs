@@ -58,32 +58,40 @@ fn brick_coords(set: &BrickSet, s: usize) -> Vec<[i64; 3]> {
 
 /// Side of each vertex from the cells it touches; `Unknown` where all eight are wall cells.
 fn sides_from_cells(band: &Band, walls: &BrickSet, flood: &Flood) -> Vec<Side> {
-    let set = &band.verts.set;
-    let per_brick: Vec<Vec<Side>> = (0..set.keys.len())
-        .into_par_iter()
-        .map(|s| {
-            brick_coords(set, s)
-                .into_iter()
-                .map(|v| {
-                    let mut inside = false;
-                    for d in 0..8i64 {
-                        let c = [v[0] - (d & 1), v[1] - ((d >> 1) & 1), v[2] - (d >> 2)];
-                        match flood.cell(walls, c) {
-                            CellSide::Outside => return Side::Outside,
-                            CellSide::Inside => inside = true,
-                            CellSide::Wall => {}
+    let mut side = vec![Side::Unknown; band.verts.len];
+    band.verts.par_fill(
+        &mut side,
+        || (),
+        |_, b, mask, out| {
+            let mut i = 0;
+            for_each_bit(mask, |x, y, z| {
+                let v = [
+                    (b[0] * 8 + x) as i64,
+                    (b[1] * 8 + y) as i64,
+                    (b[2] * 8 + z) as i64,
+                ];
+                let mut inside = false;
+                let mut result = Side::Unknown;
+                for d in 0..8i64 {
+                    let c = [v[0] - (d & 1), v[1] - ((d >> 1) & 1), v[2] - (d >> 2)];
+                    match flood.cell(walls, c) {
+                        CellSide::Outside => {
+                            result = Side::Outside;
+                            break;
                         }
+                        CellSide::Inside => inside = true,
+                        CellSide::Wall => {}
                     }
-                    if inside {
-                        Side::Inside
-                    } else {
-                        Side::Unknown
-                    }
-                })
-                .collect()
-        })
-        .collect();
-    per_brick.into_iter().flatten().collect()
+                }
+                if result == Side::Unknown && inside {
+                    result = Side::Inside;
+                }
+                out[i] = result;
+                i += 1;
+            });
+        },
+    );
+    side
 }
 
 /// Whether the grid edge between `v` and `v + e_axis` is crossed by the surface.
@@ -92,48 +100,72 @@ fn blocked(vox: &Voxelization, v: [i64; 3], axis: usize) -> bool {
     vox.blocked[axis].contains(v)
 }
 
-/// Resolves `Unknown` vertices through unblocked edges, in synchronous rounds so the result
-/// does not depend on order; what stays unknown (fully enclosed by triangles) is outside.
+/// Neighbours of vertex `c` through grid edges no triangle crosses: (number, coordinate).
+fn open_neighbours<'a>(
+    band: &'a Band,
+    vox: &'a Voxelization,
+    c: [u32; 3],
+) -> impl Iterator<Item = (u32, [u32; 3])> + 'a {
+    let v = [c[0] as i64, c[1] as i64, c[2] as i64];
+    (0..6).filter_map(move |k| {
+        let (axis, dir) = (k / 2, if k % 2 == 0 { -1i64 } else { 1 });
+        let step = STEPS[axis];
+        let u = [
+            v[0] + dir * step[0],
+            v[1] + dir * step[1],
+            v[2] + dir * step[2],
+        ];
+        let lower = if dir > 0 { v } else { u };
+        if blocked(vox, lower, axis) {
+            return None;
+        }
+        let j = band.verts.id(u)?;
+        Some((j, [u[0] as u32, u[1] as u32, u[2] as u32]))
+    })
+}
+
+/// Resolves `Unknown` vertices through unblocked edges, level by level: a vertex decided in
+/// level k sees only vertices decided before it, and one that sees both sides sides with
+/// inside. Each level only looks at the undecided neighbours of the previous level, so the
+/// work is linear in the vertices reached; the levels make the result independent of order.
+/// What stays unknown (fully enclosed by triangles) is outside.
 fn resolve_enclosed(band: &Band, vox: &Voxelization, side: &mut [Side]) {
-    let coords = band.verts.coords();
-    let mut pending: Vec<usize> = (0..side.len())
-        .filter(|&i| side[i] == Side::Unknown)
+    let ids: Vec<u32> = (0..side.len() as u32)
+        .filter(|&i| side[i as usize] == Side::Unknown)
         .collect();
-    while !pending.is_empty() {
-        let decided: Vec<(usize, Side)> = pending
+    let mut candidates: Vec<(u32, [u32; 3])> = ids
+        .iter()
+        .copied()
+        .zip(band.verts.coords_of(&ids))
+        .collect();
+    loop {
+        let decided: Vec<(u32, [u32; 3], Side)> = candidates
             .par_iter()
-            .filter_map(|&i| {
-                let c = coords[i];
-                let v = [c[0] as i64, c[1] as i64, c[2] as i64];
+            .filter_map(|&(i, c)| {
                 let mut seen_out = false;
-                for (axis, step) in STEPS.iter().enumerate() {
-                    for dir in [-1i64, 1] {
-                        let u = [
-                            v[0] + dir * step[0],
-                            v[1] + dir * step[1],
-                            v[2] + dir * step[2],
-                        ];
-                        let lower = if dir > 0 { v } else { u };
-                        if blocked(vox, lower, axis) {
-                            continue;
-                        }
-                        match band.verts.id(u).map(|j| side[j as usize]) {
-                            Some(Side::Inside) => return Some((i, Side::Inside)),
-                            Some(Side::Outside) => seen_out = true,
-                            _ => {}
-                        }
+                for (j, _) in open_neighbours(band, vox, c) {
+                    match side[j as usize] {
+                        Side::Inside => return Some((i, c, Side::Inside)),
+                        Side::Outside => seen_out = true,
+                        Side::Unknown => {}
                     }
                 }
-                seen_out.then_some((i, Side::Outside))
+                seen_out.then_some((i, c, Side::Outside))
             })
             .collect();
         if decided.is_empty() {
             break;
         }
-        for &(i, s) in &decided {
-            side[i] = s;
+        for &(i, _, s) in &decided {
+            side[i as usize] = s;
         }
-        pending.retain(|&i| side[i] == Side::Unknown);
+        candidates = decided
+            .iter()
+            .flat_map(|&(_, c, _)| open_neighbours(band, vox, c))
+            .filter(|&(j, _)| side[j as usize] == Side::Unknown)
+            .collect();
+        candidates.sort_unstable_by_key(|&(j, _)| j);
+        candidates.dedup_by_key(|&mut (j, _)| j);
     }
     for s in side.iter_mut() {
         if *s == Side::Unknown {
@@ -261,9 +293,10 @@ pub fn compute_signs(band: &Band, vox: &Voxelization, flood: &Flood) -> Signs {
     let thin_mask = thin_cells(&vox.walls, &evidence);
     let walls = &vox.walls;
     let thin = band
-        .closest
+        .nearest
         .par_iter()
-        .map(|p| {
+        .map(|near| {
+            let p = near.point;
             // The cell holding the closest point touches the surface; a point on a cell
             // face (or rounded to f32 next to one) may name either neighbour, so try both.
             (0..8)
