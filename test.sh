@@ -18,3 +18,7 @@ elif [ "${SPARC3D_REQUIRE_PYTHON:-0}" = "1" ]; then
 else
   echo "skipping tests/python (pip install -r tests/python/requirements.txt to run it)" >&2
 fi
+# Cluster runs on a real Slurm (root, apt; about 2 minutes): .ci/run sets SPARC3D_SLURM_TEST=1.
+if [[ ${SPARC3D_SLURM_TEST:-0} == 1 ]]; then
+  tests/cluster/slurm_e2e.sh
+fi
