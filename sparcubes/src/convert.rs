@@ -5,7 +5,7 @@ use crate::cubes::SparseCubes;
 use crate::deform::compute_field;
 use crate::error::{Error, Result};
 use crate::flood::flood_outside;
-use crate::grid::{for_each_bit, window_index, NO_ID};
+use crate::grid::{dilate, for_each_bit, window_index, BrickMask, BrickSet, Dilation, NO_ID};
 use crate::mesh::TriMesh;
 use crate::normalize::Normalization;
 use crate::params::Params;
@@ -91,11 +91,6 @@ fn to_grid(mesh: &TriMesh, norm: &Normalization, n: u32) -> (GridMesh, u64) {
     (grid, degenerate)
 }
 
-#[inline]
-fn sort_key(c: [u32; 3]) -> u64 {
-    ((c[0] as u64) << 32) | ((c[1] as u64) << 16) | c[2] as u64
-}
-
 /// Converts a sanitised mesh into sparse cubes (DESIGN.md §3, steps 1–5).
 pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
     params.validate()?;
@@ -156,26 +151,22 @@ pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
     // corners; the band guarantees no sign change on its border, so the result is closed.
     let cells_set = &band.cells;
     let verts = &band.verts;
-    let per_brick: Vec<(Vec<[u32; 3]>, Vec<u32>)> = (0..cells_set.keys.len())
+    let kept: Vec<(u32, BrickMask)> = (0..cells_set.keys.len())
         .into_par_iter()
         .map_init(
             || Box::new([NO_ID; 729]),
             |window, s| {
                 let b = cells_set.index.coord(cells_set.keys[s] as usize);
                 verts.fill_window(b, window);
-                let mut cells = Vec::new();
-                let mut corners = Vec::new();
+                let mut keep = [0u64; 8];
                 for_each_bit(&cells_set.masks[s], |x, y, z| {
-                    let mut ids = [0u32; 8];
                     let (mut neg, mut pos) = (false, false);
-                    for (d, id) in ids.iter_mut().enumerate() {
-                        let d = d as u32;
+                    for d in 0..8u32 {
                         let i = window[window_index(x + (d & 1), y + ((d >> 1) & 1), z + (d >> 2))];
                         // Every corner of a candidate cell is a band vertex by construction.
                         if i == NO_ID {
                             return;
                         }
-                        *id = i;
                         if field.sdf[i as usize] < 0.0 {
                             neg = true;
                         } else {
@@ -183,50 +174,42 @@ pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
                         }
                     }
                     if neg && pos {
-                        cells.push([b[0] * 8 + x, b[1] * 8 + y, b[2] * 8 + z]);
-                        corners.extend_from_slice(&ids);
+                        keep[z as usize] |= 1u64 << (x + 8 * y);
                     }
                 });
-                (cells, corners)
+                (cells_set.keys[s], keep)
             },
         )
         .collect();
-    let mut used = vec![false; verts.len];
-    let mut cell_coords = Vec::new();
-    for (cells, corners) in per_brick {
-        cell_coords.extend(cells);
-        for i in corners {
-            used[i as usize] = true;
-        }
-    }
-    cell_coords.par_sort_unstable_by_key(|&c| sort_key(c));
-    let all_coords = verts.coords();
-    let mut order: Vec<(u64, u32)> = (0..verts.len)
-        .filter(|&i| used[i])
-        .map(|i| (sort_key(all_coords[i]), i as u32))
+    let kept = BrickSet::from_masks(n, kept);
+    // The stored vertices are exactly the corners of the kept cells.
+    let used = dilate(&kept, n, Dilation::Corners);
+    let vertex_coords = used.sorted_members();
+    let ids: Vec<u32> = vertex_coords
+        .par_iter()
+        .map(|c| {
+            verts
+                .id([c[0] as i64, c[1] as i64, c[2] as i64])
+                .unwrap_or(NO_ID)
+        })
         .collect();
-    order.par_sort_unstable();
-    let narrow = |c: [u32; 3]| [c[0] as u16, c[1] as u16, c[2] as u16];
+    if ids.contains(&NO_ID) {
+        return Err(Error::InvalidParams(
+            "internal: a corner of an active cell is outside the band".into(),
+        ));
+    }
+    let narrow = |c: &[u32; 3]| [c[0] as u16, c[1] as u16, c[2] as u16];
     let cubes = SparseCubes {
         resolution: n,
         normalization: norm,
-        coords: order
-            .iter()
-            .map(|&(_, i)| narrow(all_coords[i as usize]))
-            .collect(),
-        sdf: order.iter().map(|&(_, i)| field.sdf[i as usize]).collect(),
-        deformation: order
-            .iter()
-            .map(|&(_, i)| field.deformation[i as usize])
-            .collect(),
-        cells: cell_coords.into_iter().map(narrow).collect(),
+        coords: vertex_coords.iter().map(narrow).collect(),
+        sdf: ids.iter().map(|&i| field.sdf[i as usize]).collect(),
+        deformation: ids.iter().map(|&i| field.deformation[i as usize]).collect(),
+        cells: kept.sorted_members().iter().map(narrow).collect(),
     };
+    st.stats.shell_vertices = ids.iter().filter(|&&i| signs.thin[i as usize]).count() as u64;
     st.stats.active_vertices = cubes.coords.len() as u64;
     st.stats.active_cells = cubes.cells.len() as u64;
-    st.stats.shell_vertices = order
-        .iter()
-        .filter(|&&(_, i)| signs.thin[i as usize])
-        .count() as u64;
     st.done("assemble");
     Ok(Conversion {
         cubes,

@@ -519,3 +519,58 @@ impl Numbered {
         out
     }
 }
+
+impl BrickSet {
+    /// Every member's coordinates in lexicographic (x, y, z) order, generated slab by slab
+    /// (bricks sharing a brick x coordinate) in parallel, without a global sort.
+    pub fn sorted_members(&self) -> Vec<[u32; 3]> {
+        use rayon::prelude::*;
+        let mut bricks: Vec<([u32; 3], usize)> = self
+            .keys
+            .iter()
+            .enumerate()
+            .map(|(s, &k)| (self.index.coord(k as usize), s))
+            .collect();
+        bricks.sort_unstable();
+        let mut slabs: Vec<&[([u32; 3], usize)]> = Vec::new();
+        let mut rest = &bricks[..];
+        while let Some(first) = rest.first() {
+            let len = rest.iter().take_while(|b| b.0[0] == first.0[0]).count();
+            let (slab, tail) = rest.split_at(len);
+            slabs.push(slab);
+            rest = tail;
+        }
+        let parts: Vec<Vec<[u32; 3]>> = slabs
+            .par_iter()
+            .map(|slab| {
+                // Rows: runs of bricks sharing (bx, by), ascending bz.
+                let mut rows: Vec<&[([u32; 3], usize)]> = Vec::new();
+                let mut rest = *slab;
+                while let Some(first) = rest.first() {
+                    let len = rest.iter().take_while(|b| b.0[1] == first.0[1]).count();
+                    let (row, tail) = rest.split_at(len);
+                    rows.push(row);
+                    rest = tail;
+                }
+                let mut out = Vec::new();
+                for lx in 0..8u32 {
+                    for row in &rows {
+                        for ly in 0..8u32 {
+                            let bit = lx + 8 * ly;
+                            for &(b, s) in row.iter() {
+                                let m = &self.masks[s];
+                                for lz in 0..8u32 {
+                                    if (m[lz as usize] >> bit) & 1 == 1 {
+                                        out.push([b[0] * 8 + lx, b[1] * 8 + ly, b[2] * 8 + lz]);
+                                    }
+                                }
+                            }
+                        }
+                    }
+                }
+                out
+            })
+            .collect();
+        parts.concat()
+    }
+}
