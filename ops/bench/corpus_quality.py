@@ -26,7 +26,7 @@ import tempfile
 import time
 
 MESH_EXTENSIONS = {".obj", ".ply", ".stl", ".off", ".gltf", ".glb"}
-MODES = {"deform": [], "no_deform": ["--no-deform"]}
+MODES = {"deform": ["--deform"], "no_deform": ["--no-deform"]}
 
 
 def parse_args():
