@@ -42,6 +42,8 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
         Ok(l) => l,
         Err(e) => return fail(e.class().into(), e.to_string(), timings),
     };
+    let input_components =
+        sparcubes::topology::check(&sparcubes::topology::weld(&loaded.mesh)).components;
     timings.load_s = t.elapsed().as_secs_f64();
 
     let t = Instant::now();
@@ -94,7 +96,7 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
         counts: Some(RowCounts {
             input_faces: loaded.mesh.triangles.len() as u64,
             input_vertices: loaded.mesh.positions.len() as u64,
-            input_components: None,
+            input_components: Some(input_components),
             active_vertices: conversion.cubes.coords.len() as u64,
             active_cells: conversion.cubes.cells.len() as u64,
             output_faces: mesh.as_ref().map(|m| m.triangles.len() as u64),

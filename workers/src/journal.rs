@@ -203,10 +203,16 @@ impl Journal {
             reason: format!("encoding a record: {e}"),
         })?;
         let offset = self.state.valid_len;
-        let written = self
-            .file
-            .write_all(&bytes)
-            .and_then(|_| self.file.sync_data());
+        // Results are fsynced; a start mark only needs to survive the death of this process
+        // (the kernel keeps it), so it skips the fsync that would double the cost per item.
+        let durable = !matches!(record, Record::Start { .. });
+        let written = self.file.write_all(&bytes).and_then(|_| {
+            if durable {
+                self.file.sync_data()
+            } else {
+                Ok(())
+            }
+        });
         if let Err(e) = written {
             // Leave no half record behind: the next open would drop it anyway.
             let _ = self.file.set_len(offset);

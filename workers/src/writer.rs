@@ -14,7 +14,6 @@ use sha2::{Digest, Sha256};
 use sparc3d_schema::{columns, meta_keys, CompletionRecord, ItemStatus, ShardRow};
 use std::collections::BTreeMap;
 use std::fs::File;
-use std::path::Path;
 
 /// Bytes of tensor blobs per row group (row groups stay well under 256 MB).
 const ROW_GROUP_BYTES: usize = 64 << 20;
@@ -69,11 +68,22 @@ fn blob_bytes(row: &ShardRow) -> usize {
         .unwrap_or(0)
 }
 
-fn file_sha256(path: &Path) -> Result<String> {
-    let mut f = File::open(path).map_err(|e| WorkerError::io("hashing shard", path, e))?;
-    let mut h = Sha256::new();
-    std::io::copy(&mut f, &mut h).map_err(|e| WorkerError::io("hashing shard", path, e))?;
-    Ok(sparc3d_schema::config::hex(&h.finalize()))
+/// A file writer that hashes what it writes, so the shard is not read back for its sha256.
+struct HashingFile {
+    file: File,
+    hash: Sha256,
+}
+
+impl std::io::Write for HashingFile {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let n = self.file.write(buf)?;
+        self.hash.update(&buf[..n]);
+        Ok(n)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.file.flush()
+    }
 }
 
 /// Writes shard `shard` from its journal (every item must be finished) and returns its
@@ -95,7 +105,10 @@ pub fn write_shard(
     let file = File::create(&tmp).map_err(|e| WorkerError::io("creating shard", &tmp, e))?;
     let result = (|| {
         let mut writer = ArrowWriter::try_new(
-            file,
+            HashingFile {
+                file,
+                hash: Sha256::new(),
+            },
             sparc3d_schema::arrow::schema(),
             Some(writer_properties(job, shard)?),
         )
@@ -105,16 +118,17 @@ pub fn write_shard(
         let mut classes: BTreeMap<String, u64> = BTreeMap::new();
         let mut pending: Vec<ShardRow> = Vec::new();
         let mut pending_bytes = 0usize;
-        let flush = |writer: &mut ArrowWriter<File>, rows: &mut Vec<ShardRow>| -> Result<()> {
-            if rows.is_empty() {
-                return Ok(());
-            }
-            let batch = sparc3d_schema::arrow::rows_to_batch(rows)?;
-            writer.write(&batch).map_err(pq_err)?;
-            writer.flush().map_err(pq_err)?;
-            rows.clear();
-            Ok(())
-        };
+        let flush =
+            |writer: &mut ArrowWriter<HashingFile>, rows: &mut Vec<ShardRow>| -> Result<()> {
+                if rows.is_empty() {
+                    return Ok(());
+                }
+                let batch = sparc3d_schema::arrow::rows_to_batch(rows)?;
+                writer.write(&batch).map_err(pq_err)?;
+                writer.flush().map_err(pq_err)?;
+                rows.clear();
+                Ok(())
+            };
         for done in journal.state.done.values() {
             let row = journal.read_row(done)?;
             sparc3d_schema::digest::update_row(&mut digest, &row);
@@ -134,7 +148,8 @@ pub fn write_shard(
             }
         }
         flush(&mut writer, &mut pending)?;
-        let file = writer.into_inner().map_err(pq_err)?;
+        let HashingFile { file, hash } = writer.into_inner().map_err(pq_err)?;
+        let file_sha256 = sparc3d_schema::config::hex(&hash.finalize());
         file.sync_all()
             .map_err(|e| WorkerError::io("syncing shard", &tmp, e))?;
         drop(file);
@@ -153,7 +168,7 @@ pub fn write_shard(
             failed,
             error_classes: classes,
             bytes,
-            sha256: file_sha256(&final_path)?,
+            sha256: file_sha256,
             content_digest: sparc3d_schema::config::hex(&digest.finalize()),
             item_seconds,
             started_at,

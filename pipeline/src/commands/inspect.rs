@@ -30,6 +30,7 @@ struct Report {
     file_bytes: u64,
     column_bytes: BTreeMap<String, u64>,
     percentiles: BTreeMap<String, BTreeMap<String, f64>>,
+    time_sums: BTreeMap<String, f64>,
     content_digest: String,
 }
 
@@ -111,6 +112,16 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 }
                 push(&mut values, "time_convert_s", row.timings.convert_s);
             }
+            let t = &row.timings;
+            for (k, x) in [
+                ("time_load_s", t.load_s),
+                ("time_convert_s", t.convert_s),
+                ("time_extract_s", t.extract_s),
+                ("time_encode_s", t.encode_s),
+                ("time_total_s", t.total_s),
+            ] {
+                *r.time_sums.entry(k.to_string()).or_default() += x;
+            }
             if let Some(v) = values.get_mut("time_total_s") {
                 v.push(row.timings.total_s);
             }
@@ -145,6 +156,10 @@ pub fn run(args: Args) -> Result<ExitCode> {
     );
     println!("bytes:          {}", r.file_bytes);
     println!("content digest: {}", r.content_digest);
+    println!("seconds summed over items:");
+    for (k, v) in &r.time_sums {
+        println!("  {v:>12.3}  {k}");
+    }
     println!("bytes per column:");
     let mut cols: Vec<_> = r.column_bytes.iter().collect();
     cols.sort_by(|a, b| b.1.cmp(a.1));
