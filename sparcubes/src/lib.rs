@@ -36,6 +36,7 @@ pub mod metrics;
 pub mod mesh;
 pub mod normalize;
 pub mod params;
+pub mod render;
 pub mod sanitize;
 pub mod shapes;
 pub mod sign;
