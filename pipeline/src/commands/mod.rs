@@ -11,6 +11,8 @@ pub mod init;
 pub mod inspect;
 pub mod item_worker;
 pub mod manifest;
+pub mod preview;
+pub mod report;
 pub mod retry;
 pub mod run;
 pub mod show;
@@ -57,6 +59,10 @@ enum Command {
     Inspect(inspect::Args),
     /// Decode one item of a job and write its mesh.
     Show(show::Args),
+    /// Render a mesh (or a job's item) and its converted output side by side to a PNG.
+    Preview(preview::Args),
+    /// Write one static HTML page about a job: status, histograms, previews, failures.
+    Report(report::Args),
     /// Benchmark conversion over a folder or manifest: time per stage, peak memory, size.
     Bench(bench::Args),
     /// Internal: converts one mesh for `bench` and prints one JSON row.
@@ -83,6 +89,8 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Retry(args) => retry::run(args),
         Command::Inspect(args) => inspect::run(args),
         Command::Show(args) => show::run(args),
+        Command::Preview(args) => preview::run(args),
+        Command::Report(args) => report::run(args),
         Command::Bench(args) => bench::run(args),
         Command::BenchOne(args) => bench_one::run(args),
         Command::ItemWorker(args) => item_worker::run(args),
