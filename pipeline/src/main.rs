@@ -4,6 +4,7 @@ mod cluster;
 mod commands;
 mod manifest_io;
 mod progress;
+mod sample;
 mod shard_io;
 mod summary;
 mod units;

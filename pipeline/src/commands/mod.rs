@@ -18,6 +18,7 @@ pub mod run;
 pub mod show;
 pub mod status;
 pub mod submit;
+pub mod validate;
 pub mod work;
 
 use clap::{Parser, Subcommand};
@@ -59,6 +60,8 @@ enum Command {
     Inspect(inspect::Args),
     /// Decode one item of a job and write its mesh.
     Show(show::Args),
+    /// Check a reproducible sample of a job's outputs with pymeshlab; writes a report.
+    Validate(validate::Args),
     /// Render a mesh (or a job's item) and its converted output side by side to a PNG.
     Preview(preview::Args),
     /// Write one static HTML page about a job: status, histograms, previews, failures.
@@ -89,6 +92,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Retry(args) => retry::run(args),
         Command::Inspect(args) => inspect::run(args),
         Command::Show(args) => show::run(args),
+        Command::Validate(args) => validate::run(args),
         Command::Preview(args) => preview::run(args),
         Command::Report(args) => report::run(args),
         Command::Bench(args) => bench::run(args),

@@ -33,6 +33,10 @@ pub struct Args {
     pub log_interval: f64,
     #[command(flatten)]
     pub limits: LimitArgs,
+    /// When every shard is done, check this sample of the ok items with pymeshlab (`1%` or a
+    /// count), as `sparc3d validate JOB --sample SAMPLE` does.
+    #[arg(long, value_name = "SAMPLE")]
+    pub validate_sample: Option<crate::sample::SampleSize>,
 }
 
 /// Times a shard's worker may be killed by a signal before the run gives up on it.
@@ -245,6 +249,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
             errors.len()
         );
         return Ok(ExitCode::FAILURE);
+    }
+    if let Some(sample) = args.validate_sample {
+        return super::validate::after_run(&args.job, sample);
     }
     Ok(ExitCode::SUCCESS)
 }
