@@ -1,22 +1,45 @@
 //! `sparc3d eval SOURCE OUTPUT`: quality of an extracted mesh against its source
 //! (Chamfer distance, normal consistency, F1, components kept, offset; DESIGN.md §6).
+//!
+//! `sparc3d eval JOB --sample N`: the same for a reproducible sample of a job's `ok` items
+//! (the sampler of `sparc3d validate`): each row is decoded, its mesh extracted in the source
+//! frame and measured against the source file of its `uri`; per-item rows, then medians.
 
-use anyhow::Context;
+use crate::commands::validate::median;
+use crate::sample::{self, SampleSize};
+use anyhow::{bail, Context};
+use serde_json::{json, Value};
+use sparc3d_schema::ShardRow;
+use sparc3d_workers::Job;
 use sparcubes::metrics::{evaluate, EvalOptions, QualityReport};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
+/// Resolution that voxel units refer to when none is given and there is no job to take it from.
+const DEFAULT_RESOLUTION: u32 = 512;
+
+/// Items evaluated from a job when `--sample` is not given.
+const DEFAULT_JOB_SAMPLE: SampleSize = SampleSize::Count(10);
+
 /// Arguments of `sparc3d eval`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The source mesh (OBJ, PLY, STL, OFF, glTF, GLB).
+    /// The source mesh (OBJ, PLY, STL, OFF, glTF, GLB), or a job folder (then OUTPUT is left
+    /// out and a sample of the job's items is measured against their sources).
     pub source: PathBuf,
     /// The mesh to measure against it, in the same frame (e.g. the output of `convert`).
-    pub output: PathBuf,
+    pub output: Option<PathBuf>,
     /// Grid resolution N that voxel units refer to (a voxel is 1/N of the source's longest
-    /// side).
-    #[arg(long, default_value_t = 512)]
-    pub resolution: u32,
+    /// side). Default: 512, or each item's resolution for a job.
+    #[arg(long)]
+    pub resolution: Option<u32>,
+    /// For a job: how many `ok` items to measure, a count (`20`) or a percentage (`2%`);
+    /// default 10.
+    #[arg(long)]
+    pub sample: Option<SampleSize>,
+    /// For a job: seed of the item sample (the same items as `sparc3d validate --seed`).
+    #[arg(long, default_value_t = 0)]
+    pub sample_seed: u64,
     /// Points sampled on each mesh.
     #[arg(long, default_value_t = EvalOptions::default().samples)]
     pub samples: usize,
@@ -30,17 +53,39 @@ pub struct Args {
 
 /// Runs `sparc3d eval`.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    if args.source.join("job.json").is_file() {
+        if let Some(out) = &args.output {
+            bail!(
+                "{} is a job folder: leave out OUTPUT ({}) and use --sample",
+                args.source.display(),
+                out.display()
+            );
+        }
+        return run_job(&args);
+    }
+    let Some(output_path) = &args.output else {
+        bail!(
+            "missing OUTPUT: `sparc3d eval SOURCE OUTPUT`, or `sparc3d eval JOB --sample N` \
+             for a job folder"
+        );
+    };
+    if args.sample.is_some() {
+        bail!(
+            "--sample is for a job folder, and {} is not one",
+            args.source.display()
+        );
+    }
     let source = load(&args.source)?;
-    let output = load(&args.output)?;
+    let output = load(output_path)?;
     let options = EvalOptions {
         samples: args.samples,
         seed: args.seed,
-        resolution: args.resolution,
+        resolution: args.resolution.unwrap_or(DEFAULT_RESOLUTION),
     };
     let report = evaluate(&source, &output, &options).with_context(|| {
         format!(
             "evaluating {} against {}",
-            args.output.display(),
+            output_path.display(),
             args.source.display()
         )
     })?;
@@ -50,6 +95,155 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         print!("{}", table(&report));
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Decodes a row, extracts its mesh in the source frame and measures it against the source.
+fn eval_row(row: &ShardRow, args: &Args) -> anyhow::Result<QualityReport> {
+    let cubes = row
+        .cubes()
+        .with_context(|| format!("item {:?}: decoding its row", row.id))?;
+    let output = sparcubes::extract::extract_to_source(&cubes);
+    let source = load(Path::new(&row.uri)).with_context(|| format!("item {:?}", row.id))?;
+    let options = EvalOptions {
+        samples: args.samples,
+        seed: args.seed,
+        resolution: args.resolution.unwrap_or(row.resolution),
+    };
+    evaluate(&source, &output, &options)
+        .with_context(|| format!("item {:?}: evaluating against {}", row.id, row.uri))
+}
+
+/// `sparc3d eval JOB --sample N`.
+fn run_job(args: &Args) -> anyhow::Result<ExitCode> {
+    let job = Job::open(&args.source)?;
+    let size = args.sample.unwrap_or(DEFAULT_JOB_SAMPLE);
+    let drawn = sample::draw(&job, size, args.sample_seed)?;
+    eprintln!(
+        "evaluating {} of {} ok items of {} (sample {size}, seed {})",
+        drawn.items.len(),
+        drawn.population,
+        args.source.display(),
+        args.sample_seed
+    );
+    let mut items: Vec<Value> = Vec::new();
+    let mut reports: Vec<QualityReport> = Vec::new();
+    let mut errors = 0usize;
+    if !args.json {
+        println!(
+            "{:>6}  {:<16}  {:>8}  {:>9}  {:>6}  {:>7}  {:>7}  {:>7}  {:>9}  {:>8}",
+            "item",
+            "id",
+            "faces",
+            "cd (vox)",
+            "anc",
+            "F1@.002",
+            "F1@.005",
+            "F1@.01",
+            "kept",
+            "offset"
+        );
+    }
+    sample::for_each_sampled_row(&job, &drawn, |row| {
+        let base = json!({"item_index": row.item_index, "id": row.id, "uri": row.uri});
+        match eval_row(&row, args) {
+            Ok(r) => {
+                if !args.json {
+                    println!("{}", item_line(row.item_index, &row.id, &r));
+                }
+                let mut v = base;
+                v["report"] = serde_json::to_value(&r)?;
+                items.push(v);
+                reports.push(r);
+            }
+            Err(e) => {
+                errors += 1;
+                eprintln!("error: {e:#}");
+                let mut v = base;
+                v["error"] = json!(format!("{e:#}"));
+                items.push(v);
+            }
+        }
+        Ok(())
+    })?;
+    let medians = medians(&reports);
+    if args.json {
+        let v = json!({
+            "job": args.source,
+            "population": drawn.population,
+            "sample": size.to_string(),
+            "sample_seed": args.sample_seed,
+            "evaluated": reports.len(),
+            "errors": errors,
+            "items": items,
+            "median": medians,
+        });
+        println!("{}", serde_json::to_string(&v)?);
+    } else {
+        let f = |k: &str, d: usize| {
+            medians[k]
+                .as_f64()
+                .map_or("n/a".to_string(), |x| format!("{x:.d$}"))
+        };
+        println!(
+            "{:>6}  {:<16}  {:>8}  {:>9}  {:>6}  {:>7}  {:>7}  {:>7}  {:>9}  {:>8}",
+            "median",
+            format!("({} items)", reports.len()),
+            f("output_faces", 0),
+            f("cd_voxels", 3),
+            f("anc", 2),
+            f("f1_0.002", 2),
+            f("f1_0.005", 2),
+            f("f1_0.01", 2),
+            f("components_kept_fraction", 3),
+            f("offset_voxels", 3),
+        );
+    }
+    Ok(if errors > 0 {
+        ExitCode::FAILURE
+    } else {
+        ExitCode::SUCCESS
+    })
+}
+
+/// One table line of a job item's report.
+fn item_line(item_index: u64, id: &str, r: &QualityReport) -> String {
+    let short: String = id.chars().take(16).collect();
+    let f1 = |i: usize| r.f1.get(i).map_or("n/a".into(), |f| format!("{:.2}", f.f1));
+    format!(
+        "{item_index:>6}  {short:<16}  {:>8}  {:>9.3}  {:>6.2}  {:>7}  {:>7}  {:>7}  {:>9}  {:>8}",
+        r.output_faces,
+        r.cd_voxels,
+        r.anc,
+        f1(0),
+        f1(1),
+        f1(2),
+        format!("{}/{}", r.components_kept, r.components_total),
+        r.offset_voxels.map_or("n/a".into(), |o| format!("{o:+.3}")),
+    )
+}
+
+/// Medians over the evaluated items of the main numbers.
+fn medians(reports: &[QualityReport]) -> Value {
+    let m = |f: &dyn Fn(&QualityReport) -> Option<f64>| {
+        median(&reports.iter().filter_map(f).collect::<Vec<_>>())
+    };
+    let mut v = json!({
+        "output_faces": m(&|r| Some(r.output_faces as f64)),
+        "cd": m(&|r| Some(r.cd)),
+        "cd_voxels": m(&|r| Some(r.cd_voxels)),
+        "cd_surface": m(&|r| Some(r.cd_surface)),
+        "anc": m(&|r| Some(r.anc)),
+        "components_kept_fraction": m(&|r| {
+            (r.components_total > 0)
+                .then(|| r.components_kept as f64 / r.components_total as f64)
+        }),
+        "offset_voxels": m(&|r| r.offset_voxels),
+        "output_to_source_voxels": m(&|r| Some(r.output_to_source_voxels)),
+    });
+    for (i, t) in sparcubes::metrics::F1_THRESHOLDS.iter().enumerate() {
+        v[format!("f1_{t}")] = json!(m(&|r| r.f1.get(i).map(|f| f.f1)));
+    }
+    v
 }
 
 /// Loads a mesh, naming the file in the error.
