@@ -23,7 +23,7 @@ F1@0.005, components kept, offset on closed sources, watertight output, time.
 
     python3 -m venv /tmp/m2s && /tmp/m2s/bin/pip install mesh2sdf scikit-image trimesh
     cargo build --release -p sparc3d
-    /tmp/m2s/bin/python ops/bench/compare_mesh2sdf.py /tmp/corpus/dev --size 256 \\
+    /tmp/m2s/bin/python ops/bench/compare_mesh2sdf.py DEV_CORPUS --size 256 \\
         --out /tmp/m2s_dev --timeout 300
     python3 ops/bench/compare_mesh2sdf.py --summarize /tmp/m2s_dev.jsonl
 
