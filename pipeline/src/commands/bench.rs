@@ -131,29 +131,11 @@ struct Report<'a> {
     summary: &'a [ResolutionSummary],
 }
 
-fn scan(dir: &Path, out: &mut Vec<PathBuf>) -> Result<()> {
-    let mut entries: Vec<_> = std::fs::read_dir(dir)
-        .with_context(|| format!("reading folder {}", dir.display()))?
-        .filter_map(|e| e.ok())
-        .collect();
-    entries.sort_by_key(|e| e.file_name());
-    for e in entries {
-        let path = e.path();
-        let Ok(kind) = e.file_type() else { continue };
-        if kind.is_dir() {
-            scan(&path, out)?;
-        } else if sparcubes::io::Format::from_extension(&path).is_some() {
-            out.push(path);
-        }
-    }
-    Ok(())
-}
-
 /// The meshes named by `input`: a folder's supported files, a manifest's paths, or one mesh.
 fn collect_inputs(input: &Path) -> Result<Vec<PathBuf>> {
     let mut files = Vec::new();
     if input.is_dir() {
-        scan(input, &mut files)?;
+        super::manifest::scan(input, &mut files)?;
     } else if sparcubes::io::Format::from_extension(input).is_some() {
         files.push(input.to_path_buf());
     } else if input.is_file() {

@@ -32,7 +32,8 @@ pub struct BuildArgs {
     pub output: PathBuf,
 }
 
-fn scan(dir: &Path, out: &mut Vec<PathBuf>) -> Result<()> {
+/// Collects the supported mesh files below `dir`, recursively, in name order.
+pub(crate) fn scan(dir: &Path, out: &mut Vec<PathBuf>) -> Result<()> {
     let mut entries: Vec<_> = std::fs::read_dir(dir)
         .with_context(|| format!("reading folder {}", dir.display()))?
         .filter_map(|e| e.ok())
