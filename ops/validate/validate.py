@@ -13,7 +13,9 @@ Protocol: one JSON object per line on stdin, one answer per line on stdout, in o
 - manifold:    0 non-two-manifold edges and 0 non-two-manifold vertices
 - oriented:    0 edges whose two faces traverse it in the same direction
 - volume:      the enclosed volume exists (closed mesh) and is positive (outward normals)
-- components:  at least 1 and at most as many connected components as the source
+- components:  at least 1 (a surface came out); more than the source is expected where
+               sheets inside closed parts become thin cavities, and a dropped part shows in
+               the source-to-output Hausdorff distance
 - hausdorff:   Hausdorff distance (both ways, pymeshlab's filter) within the limit in voxels
 
 `python3 validate.py --probe` prints the versions and exits 0 when pymeshlab imports.
@@ -108,7 +110,7 @@ def check_one(req):
         "volume": volume is not None and volume > 0,
     }
     if source_components is not None:
-        checks["components"] = 1 <= measures["components"] <= max(source_components, 1)
+        checks["components"] = measures["components"] >= 1
         limit = req.get("max_hausdorff_voxels")
         hv = measures["hausdorff_voxels"]
         checks["hausdorff"] = limit is None or (hv is not None and hv <= float(limit))
