@@ -124,7 +124,14 @@ fn kill_9_at_random_moments_then_resume_gives_the_same_content() {
     let mut run = spawn_run(&b, "3");
     loop {
         assert!(Instant::now() < deadline, "job did not finish in time");
-        std::thread::sleep(Duration::from_millis(80 + rng.next(300)));
+        // Kill quickly until the five required kills happened (conversion is fast and the
+        // job must not finish first), then at a calmer pace.
+        let pause = if kills < 5 {
+            20 + rng.next(100)
+        } else {
+            80 + rng.next(300)
+        };
+        std::thread::sleep(Duration::from_millis(pause));
         let finished = matches!(run.try_wait(), Ok(Some(_)));
         if finished {
             if status(&b)["pending"].as_u64() == Some(0) {
