@@ -120,7 +120,10 @@ assert sub["tasks"] == want, (sub, want)
 EOF
 wait_gone "$JID2"
 "$S" status "$WORK/job" | sed 's/^/  status: /' >&2
-"$S" status "$WORK/job" | grep -q "^slurm:  2 array(s) submitted; 0 task(s) pending, 0 running" ||
+# Capture first: `grep -q` stops reading at the match, and the rest of the output would then
+# hit a closed pipe (SIGPIPE), which pipefail reports as a failure.
+STATUS_TEXT=$("$S" status "$WORK/job")
+grep -q "^slurm:  2 array(s) submitted; 0 task(s) pending, 0 running" <<<"$STATUS_TEXT" ||
   fail "status does not show the two arrays"
 [[ $(complete_shards) -eq $SHARDS ]] || fail "$(complete_shards) of $SHARDS shards complete after resubmission"
 JID3=$("$S" submit slurm "$WORK/job" 2>/dev/null)
