@@ -53,18 +53,25 @@ impl TriMesh {
         [p(a), p(b), p(c)]
     }
 
+    /// Cross product of triangle `t`'s edges: along its normal (counter-clockwise winding),
+    /// with length twice its area.
+    #[inline]
+    pub fn face_normal(&self, t: usize) -> [f64; 3] {
+        let [a, b, c] = self.triangle(t);
+        let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+        let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+        [
+            u[1] * v[2] - u[2] * v[1],
+            u[2] * v[0] - u[0] * v[2],
+            u[0] * v[1] - u[1] * v[0],
+        ]
+    }
+
     /// Total surface area.
     pub fn area(&self) -> f64 {
         (0..self.triangles.len())
             .map(|t| {
-                let [a, b, c] = self.triangle(t);
-                let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-                let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-                let n = [
-                    u[1] * v[2] - u[2] * v[1],
-                    u[2] * v[0] - u[0] * v[2],
-                    u[0] * v[1] - u[1] * v[0],
-                ];
+                let n = self.face_normal(t);
                 0.5 * (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt()
             })
             .sum()

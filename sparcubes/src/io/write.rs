@@ -143,14 +143,7 @@ fn write_stl(mesh: &TriMesh, w: &mut impl Write) -> std::io::Result<()> {
     })?;
     w.write_all(&count.to_le_bytes())?;
     for t in 0..mesh.triangles.len() {
-        let [a, b, c] = mesh.triangle(t);
-        let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-        let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-        let n = [
-            u[1] * v[2] - u[2] * v[1],
-            u[2] * v[0] - u[0] * v[2],
-            u[0] * v[1] - u[1] * v[0],
-        ];
+        let n = mesh.face_normal(t);
         let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
         let n = if len > 0.0 {
             n.map(|x| (x / len) as f32)
