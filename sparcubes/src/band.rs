@@ -5,6 +5,7 @@
 //! to it, and each brick scans its own triangles — no per-vertex tree query.
 
 use crate::grid::{dilate, for_each_bit, BrickMask, BrickSet, Dilation, Numbered, BRICK};
+use crate::vec3::{dot, sub};
 use crate::voxelize::{triangle_box_overlap, GridMesh};
 use rayon::prelude::*;
 
@@ -32,14 +33,6 @@ pub struct Nearest {
     pub udf: f32,
 }
 
-#[inline]
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-#[inline]
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
 #[inline]
 fn madd(a: [f64; 3], s: f64, d: [f64; 3]) -> [f64; 3] {
     [a[0] + s * d[0], a[1] + s * d[1], a[2] + s * d[2]]

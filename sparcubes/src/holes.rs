@@ -16,6 +16,7 @@
 //! ([`crate::topology::weld`]).
 
 use crate::mesh::TriMesh;
+use crate::vec3::{cross, dot, sub};
 use std::collections::{HashMap, HashSet};
 use std::f64::consts::PI;
 
@@ -103,22 +104,6 @@ fn valid_triangles(mesh: &TriMesh) -> impl Iterator<Item = &[u32; 3]> {
     mesh.triangles.iter().filter(move |t| {
         t[0] != t[1] && t[1] != t[2] && t[0] != t[2] && t.iter().all(|&v| (v as usize) < n)
     })
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn cross(u: [f64; 3], v: [f64; 3]) -> [f64; 3] {
-    [
-        u[1] * v[2] - u[2] * v[1],
-        u[2] * v[0] - u[0] * v[2],
-        u[0] * v[1] - u[1] * v[0],
-    ]
-}
-
-fn dot(u: [f64; 3], v: [f64; 3]) -> f64 {
-    u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
 }
 
 /// Fills every boundary loop of `mesh` by ear cutting (see the module doc). Positions are

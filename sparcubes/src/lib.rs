@@ -41,6 +41,7 @@ pub mod sanitize;
 pub mod shapes;
 pub mod sign;
 pub mod topology;
+pub mod vec3;
 pub mod voxelize;
 
 pub use convert::{convert, Conversion, ConvertStats};

@@ -23,6 +23,7 @@
 //! perpendicular to axis `f / 2` on side `f % 2`, with corners [`FACE_CORNERS`]`[f]` in
 //! cyclic order. A corner is inside when its value is negative (zero counts as outside).
 
+use crate::vec3::{cross, sub};
 use std::sync::OnceLock;
 
 /// The 12 cube edges as `(lower corner, upper corner, axis)`; edge `e` has axis `e / 4`.
@@ -167,18 +168,6 @@ fn edge_faces(e: u8) -> u8 {
         }
     }
     bits
-}
-
-fn cross(u: [f64; 3], v: [f64; 3]) -> [f64; 3] {
-    [
-        u[1] * v[2] - u[2] * v[1],
-        u[2] * v[0] - u[0] * v[2],
-        u[0] * v[1] - u[1] * v[0],
-    ]
-}
-
-fn sub(u: [f64; 3], v: [f64; 3]) -> [f64; 3] {
-    [u[0] - v[0], u[1] - v[1], u[2] - v[2]]
 }
 
 /// Shape quality of a triangle: 1 for equilateral, 0 for degenerate.

@@ -8,6 +8,7 @@
 //!   touch wall cells, and which crossings separate inside from outside.
 
 use crate::grid::{split, BrickIndex, BrickMask, BrickSet, BRICK};
+use crate::vec3::{cross, dot, sub};
 use rayon::prelude::*;
 
 /// The input mesh in grid coordinates (voxels), double precision.
@@ -39,23 +40,6 @@ pub struct Voxelization {
     pub walls: BrickSet,
     /// Per axis: vertices whose edge towards +axis is crossed or touched by the surface.
     pub blocked: [BrickSet; 3],
-}
-
-#[inline]
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-#[inline]
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-#[inline]
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
 /// Whether a triangle touches the closed axis-aligned box `center ± half` (separating axis
