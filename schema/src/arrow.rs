@@ -71,7 +71,8 @@ const TIME_COLUMNS: [&str; 5] = [
     c::TIME_TOTAL,
 ];
 
-fn count_values(k: &RowCounts) -> [Option<u64>; 8] {
+/// The counts of a row in column order (the optional ones as `None` when unknown).
+pub(crate) fn count_values(k: &RowCounts) -> [Option<u64>; 8] {
     [
         Some(k.input_faces),
         Some(k.input_vertices),

@@ -44,17 +44,7 @@ pub fn update_row(h: &mut Sha256, row: &ShardRow) {
     match &row.counts {
         Some(k) => {
             h.update([1]);
-            let vals = [
-                Some(k.input_faces),
-                Some(k.input_vertices),
-                k.input_components,
-                Some(k.active_vertices),
-                Some(k.active_cells),
-                k.output_faces,
-                Some(k.shell_vertices),
-                Some(k.wall_cells),
-            ];
-            for v in vals {
+            for v in crate::arrow::count_values(k) {
                 opt(h, v.map(|x| x.to_le_bytes()).as_ref().map(|b| &b[..]));
             }
         }
