@@ -1,24 +1,28 @@
-//! Stage 4: the active band and its exact unsigned distance. Candidate cells are the wall
-//! cells grown by one cell in every direction (the shell around an open sheet lies within one
-//! cell of the sheet); candidate vertices are their corners. Every candidate vertex is within
-//! [`REACH`] voxels of the surface, so only triangles within that reach of a brick are binned
-//! to it, and each brick scans its own triangles — no per-vertex tree query.
+//! Stage 4: exact unsigned distance and closest point on the grid vertices near the surface.
+//!
+//! The distances are computed for the corners of a set of cells in two calls: first the
+//! corners of the wall cells (the core band, every vertex within √3 of the surface), then,
+//! once signs are known, the corners of the few cells next to the walls that a thin shell
+//! reaches ([`crate::ring`]). Only triangles within the reach of a brick are binned to it, and
+//! each brick scans its own triangles — no per-vertex tree query.
 
 use crate::grid::{dilate, for_each_bit, BrickMask, BrickSet, Dilation, Numbered, BRICK};
 use crate::vec3::{dot, sub};
 use crate::voxelize::{triangle_box_overlap, GridMesh};
 use rayon::prelude::*;
 
-/// Farthest a candidate vertex can be from the surface: a corner of a cell next to a wall
-/// cell is within the 2×2×2-cell box around a surface point, whose diagonal is 2√3 ≈ 3.46.
+/// Farthest a corner of a cell next to a wall cell can be from the surface: it is within the
+/// 2×2×2-cell box around a surface point, whose diagonal is 2√3 ≈ 3.46.
 pub const REACH: f64 = 3.5;
 
-/// The active band: candidate cells and vertices with distance and closest point.
+/// Farthest a corner of a wall cell can be from the surface: the cell touches the surface,
+/// and its diagonal is √3 ≈ 1.732.
+pub const CORE_REACH: f64 = 1.75;
+
+/// Vertices with their distance and closest point: the corners of a set of cells.
 #[derive(Debug, Clone)]
 pub struct Band {
-    /// Candidate cells: wall cells and their 26 neighbours.
-    pub cells: BrickSet,
-    /// Candidate vertices (corners of candidate cells), numbered.
+    /// The vertices, numbered.
     pub verts: Numbered,
     /// Closest surface point and unsigned distance per vertex.
     pub nearest: Vec<Nearest>,
@@ -79,8 +83,8 @@ pub fn closest_point_on_triangle(p: [f64; 3], t: &[[f64; 3]; 3]) -> [f64; 3] {
     madd(madd(a, vb * denom, ab), vc * denom, ac)
 }
 
-/// For each brick of `verts`, the triangles within [`REACH`] of it, ascending (CSR layout).
-fn bin_triangles(mesh: &GridMesh, verts: &BrickSet) -> (Vec<u32>, Vec<u32>) {
+/// For each brick of `verts`, the triangles within `reach` of it, ascending (CSR layout).
+fn bin_triangles(mesh: &GridMesh, verts: &BrickSet, reach: f64) -> (Vec<u32>, Vec<u32>) {
     let index = &verts.index;
     let mut pairs: Vec<u64> = (0..mesh.tris.len())
         .into_par_iter()
@@ -90,8 +94,8 @@ fn bin_triangles(mesh: &GridMesh, verts: &BrickSet) -> (Vec<u32>, Vec<u32>) {
             let mut lo = [0i64; 3];
             let mut hi = [0i64; 3];
             for a in 0..3 {
-                let mn = tri[0][a].min(tri[1][a]).min(tri[2][a]) - REACH;
-                let mx = tri[0][a].max(tri[1][a]).max(tri[2][a]) + REACH;
+                let mn = tri[0][a].min(tri[1][a]).min(tri[2][a]) - reach;
+                let mx = tri[0][a].max(tri[1][a]).max(tri[2][a]) + reach;
                 lo[a] = ((mn / BRICK as f64).floor() as i64).max(0);
                 hi[a] = ((mx / BRICK as f64).floor() as i64).min(index.dims[a] as i64 - 1);
             }
@@ -106,7 +110,7 @@ fn bin_triangles(mesh: &GridMesh, verts: &BrickSet) -> (Vec<u32>, Vec<u32>) {
                             by as f64 * 8.0 + 3.5,
                             bz as f64 * 8.0 + 3.5,
                         ];
-                        if triangle_box_overlap(&tri, center, 3.5 + REACH) {
+                        if triangle_box_overlap(&tri, center, 3.5 + reach) {
                             out.push(((slot as u64) << 32) | t as u64);
                         }
                     }
@@ -130,10 +134,6 @@ fn bin_triangles(mesh: &GridMesh, verts: &BrickSet) -> (Vec<u32>, Vec<u32>) {
     let tris = pairs.iter().map(|&p| p as u32).collect();
     (starts, tris)
 }
-
-/// Reach of the first pass: every corner of a wall cell is within √3 ≈ 1.732 voxels of the
-/// surface, so most vertices are settled by the triangles within this reach.
-const NEAR_REACH: f64 = 1.75;
 
 /// Per-thread buffers of one brick's scan, indexed by local vertex position (x + 8y + 64z).
 struct BrickScratch {
@@ -217,29 +217,35 @@ fn scan_pass(
     }
 }
 
-/// Distances and closest points of one brick's vertices, in local order: a pass with the
-/// near reach settles every vertex within it; the rest are rescanned with the full reach.
+/// Distances and closest points of one brick's vertices, in local order: a pass with
+/// [`CORE_REACH`] settles every vertex within it (all corners of wall cells); if `reach` is
+/// larger, the rest are rescanned with it.
+#[allow(clippy::too_many_arguments)]
 fn scan_brick(
     mesh: &GridMesh,
     planes: &[[f64; 4]],
     tris: &[u32],
     mask: &BrickMask,
     base: [i64; 3],
+    reach: f64,
     scratch: &mut BrickScratch,
     out: &mut [Nearest],
 ) {
     scratch.best.fill(f64::INFINITY);
-    scan_pass(mesh, planes, tris, mask, base, NEAR_REACH, scratch);
-    let mut far = [0u64; 8];
-    for_each_bit(mask, |x, y, z| {
-        let local = (x + 8 * y + 64 * z) as usize;
-        if scratch.best[local] > NEAR_REACH * NEAR_REACH {
-            scratch.best[local] = f64::INFINITY;
-            far[z as usize] |= 1u64 << (x + 8 * y);
+    let near = CORE_REACH.min(reach);
+    scan_pass(mesh, planes, tris, mask, base, near, scratch);
+    if reach > near {
+        let mut far = [0u64; 8];
+        for_each_bit(mask, |x, y, z| {
+            let local = (x + 8 * y + 64 * z) as usize;
+            if scratch.best[local] > near * near {
+                scratch.best[local] = f64::INFINITY;
+                far[z as usize] |= 1u64 << (x + 8 * y);
+            }
+        });
+        if !crate::grid::is_empty(&far) {
+            scan_pass(mesh, planes, tris, &far, base, reach, scratch);
         }
-    });
-    if !crate::grid::is_empty(&far) {
-        scan_pass(mesh, planes, tris, &far, base, REACH, scratch);
     }
     let mut i = 0;
     for_each_bit(mask, |x, y, z| {
@@ -252,24 +258,25 @@ fn scan_brick(
                 udf: best.sqrt() as f32,
             }
         } else {
-            // Unreachable by the REACH argument; keep the vertex far and outside.
+            // Unreachable by the reach argument; keep the vertex far.
             let p = [base[0] + x as i64, base[1] + y as i64, base[2] + z as i64];
             Nearest {
                 point: [p[0] as f32, p[1] as f32, p[2] as f32],
-                udf: REACH as f32,
+                udf: reach as f32,
             }
         };
         i += 1;
     });
 }
 
-/// Computes the band around the wall cells: candidate cells and vertices, and for each vertex
-/// its exact distance to the surface and closest point (ties go to the lowest triangle index,
-/// so the result does not depend on thread count).
-pub fn compute_band(mesh: &GridMesh, walls: &BrickSet, n: u32) -> Band {
-    let cells = dilate(walls, n, Dilation::Box);
-    let verts = Numbered::new(dilate(&cells, n, Dilation::Corners));
-    let (starts, bins) = bin_triangles(mesh, &verts.set);
+/// Computes the corners of `cells` with, for each, its exact distance to the surface and its
+/// closest point. `reach` bounds how far any corner can be from the surface ([`CORE_REACH`]
+/// for wall cells, [`REACH`] for their neighbours). Ties go to the lowest triangle index and
+/// a vertex's result depends only on the triangles within its reach, so a vertex gets the
+/// same result in any band that holds it, whatever the thread count.
+pub fn compute_band(mesh: &GridMesh, cells: &BrickSet, n: u32, reach: f64) -> Band {
+    let verts = Numbered::new(dilate(cells, n, Dilation::Corners));
+    let (starts, bins) = bin_triangles(mesh, &verts.set, reach);
     let planes: Vec<[f64; 4]> = (0..mesh.tris.len())
         .map(|t| {
             let [a, b, c] = mesh.tri(t);
@@ -290,11 +297,7 @@ pub fn compute_band(mesh: &GridMesh, walls: &BrickSet, n: u32) -> Band {
         let s = verts.set.index.slots[verts.set.index.key(b)] as usize;
         let base = [b[0] as i64 * 8, b[1] as i64 * 8, b[2] as i64 * 8];
         let tris = &bins[starts[s] as usize..starts[s + 1] as usize];
-        scan_brick(mesh, &planes, tris, mask, base, scratch, out);
+        scan_brick(mesh, &planes, tris, mask, base, reach, scratch, out);
     });
-    Band {
-        cells,
-        verts,
-        nearest,
-    }
+    Band { verts, nearest }
 }

@@ -1,15 +1,16 @@
 //! The conversion driver: the stages of DESIGN.md §3, top to bottom, each a free function.
 
-use crate::band::compute_band;
+use crate::band::{compute_band, Band, CORE_REACH, REACH};
 use crate::cubes::SparseCubes;
-use crate::deform::compute_field;
+use crate::deform::{compute_field, Field};
 use crate::error::{Error, Result};
 use crate::flood::flood_outside;
 use crate::grid::{dilate, for_each_bit, window_index, BrickMask, BrickSet, Dilation, NO_ID};
 use crate::mesh::TriMesh;
 use crate::normalize::Normalization;
 use crate::params::Params;
-use crate::sign::compute_signs;
+use crate::ring::ring_cells;
+use crate::sign::{compute_signs, ring_signs};
 use crate::voxelize::{voxelize, GridMesh};
 use rayon::prelude::*;
 use std::time::Instant;
@@ -27,8 +28,11 @@ pub struct ConvertStats {
     pub degenerate_faces: u64,
     /// Cells touched by the surface.
     pub wall_cells: u64,
-    /// Band vertices whose distance was computed.
+    /// Band vertices whose distance was computed (corners of the wall cells, plus the corners
+    /// of the ring cells a thin shell reaches; a vertex in both counts twice).
     pub band_vertices: u64,
+    /// Surface-free cells next to the walls that got a band of their own ([`crate::ring`]).
+    pub ring_cells: u64,
     /// Active vertices stored.
     pub active_vertices: u64,
     /// Active cells stored.
@@ -91,6 +95,68 @@ fn to_grid(mesh: &TriMesh, norm: &Normalization, n: u32) -> (GridMesh, u64) {
     (grid, degenerate)
 }
 
+/// Tag of a ring-band vertex number in the assembly's id list (core numbers are below it).
+const RING_TAG: u32 = 1 << 31;
+
+/// The cells of `cells` with a sign change among their corners, per brick (sorted keys).
+/// Every corner of every cell is a vertex of `band`.
+fn sign_changes(cells: &BrickSet, band: &Band, sdf: &[f32]) -> Vec<(u32, BrickMask)> {
+    let verts = &band.verts;
+    (0..cells.keys.len())
+        .into_par_iter()
+        .map_init(
+            || Box::new([NO_ID; 729]),
+            |window, s| {
+                let b = cells.index.coord(cells.keys[s] as usize);
+                verts.fill_window(b, window);
+                let mut keep = [0u64; 8];
+                for_each_bit(&cells.masks[s], |x, y, z| {
+                    let (mut neg, mut pos) = (false, false);
+                    for d in 0..8u32 {
+                        let i = window[window_index(x + (d & 1), y + ((d >> 1) & 1), z + (d >> 2))];
+                        if i == NO_ID {
+                            return;
+                        }
+                        if sdf[i as usize] < 0.0 {
+                            neg = true;
+                        } else {
+                            pos = true;
+                        }
+                    }
+                    if neg && pos {
+                        keep[z as usize] |= 1u64 << (x + 8 * y);
+                    }
+                });
+                (cells.keys[s], keep)
+            },
+        )
+        .collect()
+}
+
+/// Merges two key-sorted lists of brick masks, OR-ing the masks of a key in both.
+fn merge_masks(a: Vec<(u32, BrickMask)>, b: Vec<(u32, BrickMask)>) -> Vec<(u32, BrickMask)> {
+    let mut out = Vec::with_capacity(a.len() + b.len());
+    let mut b = b.into_iter().peekable();
+    for (key, mut mask) in a {
+        while let Some(&(k, m)) = b.peek() {
+            if k > key {
+                break;
+            }
+            if k == key {
+                for w in 0..8 {
+                    mask[w] |= m[w];
+                }
+            } else {
+                out.push((k, m));
+            }
+            b.next();
+        }
+        out.push((key, mask));
+    }
+    out.extend(b);
+    out
+}
+
 /// Converts a sanitised mesh into sparse cubes (DESIGN.md §3, steps 1–5).
 pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
     params.validate()?;
@@ -139,57 +205,46 @@ pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
     st.done("voxelize");
     let flood = flood_outside(&vox.walls);
     st.done("flood");
-    let band = compute_band(&grid, &vox.walls, n);
-    st.stats.band_vertices = band.verts.len as u64;
+    let band = compute_band(&grid, &vox.walls, n, CORE_REACH);
     st.done("band");
     let signs = compute_signs(&band, &vox, &flood);
     st.done("sign");
     let field = compute_field(&band, &signs, params);
     st.done("deform");
+    let rings = ring_cells(&band, &signs, &field.sdf, &vox.walls, &flood, n);
+    let ring = compute_band(&grid, &rings, n, REACH);
+    let ring_signs = ring_signs(&ring, &vox.walls, &flood, &signs);
+    let ring_field = compute_field(&ring, &ring_signs, params);
+    st.stats.ring_cells = rings.len();
+    st.stats.band_vertices = (band.verts.len + ring.verts.len) as u64;
+    st.done("ring");
 
-    // Keep the candidate cells with a sign change (φ < 0 is inside, φ ≥ 0 outside) and their
-    // corners; the band guarantees no sign change on its border, so the result is closed.
-    let cells_set = &band.cells;
-    let verts = &band.verts;
-    let kept: Vec<(u32, BrickMask)> = (0..cells_set.keys.len())
-        .into_par_iter()
-        .map_init(
-            || Box::new([NO_ID; 729]),
-            |window, s| {
-                let b = cells_set.index.coord(cells_set.keys[s] as usize);
-                verts.fill_window(b, window);
-                let mut keep = [0u64; 8];
-                for_each_bit(&cells_set.masks[s], |x, y, z| {
-                    let (mut neg, mut pos) = (false, false);
-                    for d in 0..8u32 {
-                        let i = window[window_index(x + (d & 1), y + ((d >> 1) & 1), z + (d >> 2))];
-                        // Every corner of a candidate cell is a band vertex by construction.
-                        if i == NO_ID {
-                            return;
-                        }
-                        if field.sdf[i as usize] < 0.0 {
-                            neg = true;
-                        } else {
-                            pos = true;
-                        }
-                    }
-                    if neg && pos {
-                        keep[z as usize] |= 1u64 << (x + 8 * y);
-                    }
-                });
-                (cells_set.keys[s], keep)
-            },
-        )
-        .collect();
+    // Keep the candidate cells (wall cells and ring cells, disjoint) with a sign change (φ < 0
+    // is inside, φ ≥ 0 outside) and their corners; no cell outside them has one (see
+    // `crate::ring`), so the result is closed.
+    let kept = merge_masks(
+        sign_changes(&vox.walls, &band, &field.sdf),
+        sign_changes(&rings, &ring, &ring_field.sdf),
+    );
     let kept = BrickSet::from_masks(n, kept);
-    // The stored vertices are exactly the corners of the kept cells.
+    // The stored vertices are exactly the corners of the kept cells: corners of kept wall
+    // cells are in the core band, corners of kept ring cells in the ring's (a vertex in both
+    // has the same values in both).
     let used = dilate(&kept, n, Dilation::Corners);
     let vertex_coords = used.sorted_members();
+    if band.verts.len >= RING_TAG as usize || ring.verts.len >= RING_TAG as usize {
+        return Err(Error::InvalidParams(format!(
+            "band of {} vertices is too large to number",
+            band.verts.len.max(ring.verts.len)
+        )));
+    }
     let ids: Vec<u32> = vertex_coords
         .par_iter()
         .map(|c| {
-            verts
-                .id([c[0] as i64, c[1] as i64, c[2] as i64])
+            let c = [c[0] as i64, c[1] as i64, c[2] as i64];
+            band.verts
+                .id(c)
+                .or_else(|| ring.verts.id(c).map(|i| i | RING_TAG))
                 .unwrap_or(NO_ID)
         })
         .collect();
@@ -198,16 +253,44 @@ pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
             "internal: a corner of an active cell is outside the band".into(),
         ));
     }
+    let source = |i: u32| -> (&Field, &[bool], usize) {
+        if i & RING_TAG == 0 {
+            (&field, &signs.thin, i as usize)
+        } else {
+            (&ring_field, &ring_signs.thin, (i & !RING_TAG) as usize)
+        }
+    };
     let narrow = |c: &[u32; 3]| [c[0] as u16, c[1] as u16, c[2] as u16];
     let cubes = SparseCubes {
         resolution: n,
         normalization: norm,
         coords: vertex_coords.iter().map(narrow).collect(),
-        sdf: ids.iter().map(|&i| field.sdf[i as usize]).collect(),
-        deformation: ids.iter().map(|&i| field.deformation[i as usize]).collect(),
+        sdf: ids
+            .par_iter()
+            .map(|&i| {
+                let (f, _, j) = source(i);
+                f.sdf[j]
+            })
+            .collect(),
+        deformation: if params.deform {
+            ids.par_iter()
+                .map(|&i| {
+                    let (f, _, j) = source(i);
+                    f.deformation_at(j)
+                })
+                .collect()
+        } else {
+            vec![[0.0; 3]; ids.len()]
+        },
         cells: kept.sorted_members().iter().map(narrow).collect(),
     };
-    st.stats.shell_vertices = ids.iter().filter(|&&i| signs.thin[i as usize]).count() as u64;
+    st.stats.shell_vertices = ids
+        .par_iter()
+        .filter(|&&i| {
+            let (_, thin, j) = source(i);
+            thin[j]
+        })
+        .count() as u64;
     st.stats.active_vertices = cubes.coords.len() as u64;
     st.stats.active_cells = cubes.cells.len() as u64;
     st.done("assemble");

@@ -18,8 +18,16 @@ use crate::sign::{Side, Signs};
 pub struct Field {
     /// φ at the (displaced) vertex, voxels; negative inside.
     pub sdf: Vec<f32>,
-    /// Displacement, voxels.
+    /// Displacement, voxels; empty when deformation is off (every displacement is zero).
     pub deformation: Vec<[f32; 3]>,
+}
+
+impl Field {
+    /// Displacement of vertex `i` (zero when deformation is off).
+    #[inline]
+    pub fn deformation_at(&self, i: usize) -> [f32; 3] {
+        self.deformation.get(i).copied().unwrap_or([0.0; 3])
+    }
 }
 
 /// Smallest stored |φ|, voxels. A φ of exactly 0 at a vertex would put the crossing points of
@@ -53,7 +61,7 @@ pub fn compute_field(band: &Band, signs: &Signs, params: &Params) -> Field {
     let max = params.deform_max as f64;
     let n = band.verts.len;
     let mut sdf = vec![0f32; n];
-    let mut deformation = vec![[0f32; 3]; n];
+    let mut deformation = Vec::new();
     let vertex = |i: usize, c: [u32; 3]| -> (f32, [f32; 3]) {
         let Nearest { point: p, udf } = band.nearest[i];
         let d = udf as f64;
@@ -92,6 +100,7 @@ pub fn compute_field(band: &Band, signs: &Signs, params: &Params) -> Field {
         },
     );
     if eta > 0.0 {
+        deformation = vec![[0f32; 3]; n];
         band.verts.par_fill(
             &mut deformation,
             || (),

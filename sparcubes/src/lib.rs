@@ -12,7 +12,8 @@
 //! 3. [`flood`] — outside cells by a hierarchical flood fill (bricks, then cells),
 //! 4. [`band`] — exact unsigned distance and closest point on the vertices near the surface,
 //! 5. [`sign`] — inside/outside per vertex, thin-shell treatment of open parts,
-//! 6. [`deform`] — bounded displacement of each vertex towards the surface,
+//! 6. [`deform`] — φ and the bounded displacement of each vertex towards the surface; [`ring`]
+//!    — the surface-free cells next to the walls a thin shell reaches, with their own band,
 //! 7. [`extract`] — marching cubes over the active cells → closed manifold mesh.
 //!
 //! The crate knows nothing of jobs or file formats beyond loading and saving meshes ([`io`]).
@@ -37,6 +38,7 @@ pub mod metrics;
 pub mod normalize;
 pub mod params;
 pub mod render;
+pub mod ring;
 pub mod sanitize;
 pub mod shapes;
 pub mod sign;

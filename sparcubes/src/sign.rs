@@ -32,14 +32,25 @@ pub enum Side {
     Inside = 2,
 }
 
-/// Per-vertex sign information (parallel to the band's vertices).
+/// Per-vertex sign information (parallel to a band's vertices).
 #[derive(Debug, Clone)]
 pub struct Signs {
     /// Side of each vertex.
     pub side: Vec<Side>,
     /// Whether the vertex belongs to a thin shell around an open part.
     pub thin: Vec<bool>,
+    /// Which kinds of surface-free cells each vertex touches ([`TOUCHES_OUTSIDE`],
+    /// [`TOUCHES_INSIDE`]); 0 for a vertex whose eight cells are all wall cells.
+    pub touches: Vec<u8>,
+    /// Per wall brick (parallel to the walls' bricks): the wall cells that belong to a thin
+    /// part.
+    pub thin_cells: Vec<BrickMask>,
 }
+
+/// Bit of [`Signs::touches`]: the vertex is a corner of a surface-free outside cell.
+pub const TOUCHES_OUTSIDE: u8 = 1;
+/// Bit of [`Signs::touches`]: the vertex is a corner of a surface-free inside cell.
+pub const TOUCHES_INSIDE: u8 = 2;
 
 const STEPS: [[i64; 3]; 3] = [[1, 0, 0], [0, 1, 0], [0, 0, 1]];
 
@@ -56,11 +67,11 @@ fn brick_coords(set: &BrickSet, s: usize) -> Vec<[i64; 3]> {
     out
 }
 
-/// Side of each vertex from the cells it touches; `Unknown` where all eight are wall cells.
-fn sides_from_cells(band: &Band, walls: &BrickSet, flood: &Flood) -> Vec<Side> {
-    let mut side = vec![Side::Unknown; band.verts.len];
+/// Which surface-free cells each vertex touches, as [`Signs::touches`] bits.
+fn touched_sides(band: &Band, walls: &BrickSet, flood: &Flood) -> Vec<u8> {
+    let mut touches = vec![0u8; band.verts.len];
     band.verts.par_fill(
-        &mut side,
+        &mut touches,
         || (),
         |_, b, mask, out| {
             let mut i = 0;
@@ -70,28 +81,33 @@ fn sides_from_cells(band: &Band, walls: &BrickSet, flood: &Flood) -> Vec<Side> {
                     (b[1] * 8 + y) as i64,
                     (b[2] * 8 + z) as i64,
                 ];
-                let mut inside = false;
-                let mut result = Side::Unknown;
+                let mut bits = 0;
                 for d in 0..8i64 {
                     let c = [v[0] - (d & 1), v[1] - ((d >> 1) & 1), v[2] - (d >> 2)];
-                    match flood.cell(walls, c) {
-                        CellSide::Outside => {
-                            result = Side::Outside;
-                            break;
-                        }
-                        CellSide::Inside => inside = true,
-                        CellSide::Wall => {}
-                    }
+                    bits |= match flood.cell(walls, c) {
+                        CellSide::Outside => TOUCHES_OUTSIDE,
+                        CellSide::Inside => TOUCHES_INSIDE,
+                        CellSide::Wall => 0,
+                    };
                 }
-                if result == Side::Unknown && inside {
-                    result = Side::Inside;
-                }
-                out[i] = result;
+                out[i] = bits;
                 i += 1;
             });
         },
     );
-    side
+    touches
+}
+
+/// Side of a vertex from the cells it touches: outside if any is outside, else inside if
+/// any is inside; `Unknown` where all eight are wall cells.
+fn side_from_touches(touches: u8) -> Side {
+    if touches & TOUCHES_OUTSIDE != 0 {
+        Side::Outside
+    } else if touches & TOUCHES_INSIDE != 0 {
+        Side::Inside
+    } else {
+        Side::Unknown
+    }
 }
 
 /// Whether the grid edge between `v` and `v + e_axis` is crossed by the surface.
@@ -285,35 +301,71 @@ fn thin_cells(walls: &BrickSet, evidence: &[[i8; 512]]) -> Vec<BrickMask> {
         .collect()
 }
 
-/// Decides the side of every band vertex and which vertices belong to thin shells.
+/// Whether the surface point `p` lies in a thin wall cell. The cell holding the closest
+/// point touches the surface; a point on a cell face (or rounded to f32 next to one) may name
+/// either neighbour, so both are tried.
+fn thin_at(walls: &BrickSet, thin_cells: &[BrickMask], p: [f32; 3]) -> bool {
+    (0..8)
+        .find_map(|d| {
+            let c: [i64; 3] = std::array::from_fn(|a| {
+                let e = if (d >> a) & 1 == 0 { -1e-3 } else { 1e-3 };
+                (p[a] + e).floor() as i64
+            });
+            if c.iter().any(|&x| x < 0) {
+                return None;
+            }
+            let (b, w, bit) = split([c[0] as u32, c[1] as u32, c[2] as u32]);
+            let slot = walls.index.slot([b[0] as i64, b[1] as i64, b[2] as i64])?;
+            test(&walls.masks[slot], w, bit).then(|| test(&thin_cells[slot], w, bit))
+        })
+        .unwrap_or(false)
+}
+
+/// Decides the side of every vertex of the core band (the corners of the wall cells) and
+/// which of them belong to thin shells.
 pub fn compute_signs(band: &Band, vox: &Voxelization, flood: &Flood) -> Signs {
-    let mut side = sides_from_cells(band, &vox.walls, flood);
+    let touches = touched_sides(band, &vox.walls, flood);
+    let mut side: Vec<Side> = touches.iter().map(|&t| side_from_touches(t)).collect();
     resolve_enclosed(band, vox, &mut side);
     let evidence = edge_evidence(band, vox, &side);
-    let thin_mask = thin_cells(&vox.walls, &evidence);
+    let thin_cells = thin_cells(&vox.walls, &evidence);
     let walls = &vox.walls;
     let thin = band
         .nearest
         .par_iter()
-        .map(|near| {
-            let p = near.point;
-            // The cell holding the closest point touches the surface; a point on a cell
-            // face (or rounded to f32 next to one) may name either neighbour, so try both.
-            (0..8)
-                .find_map(|d| {
-                    let c: [i64; 3] = std::array::from_fn(|a| {
-                        let e = if (d >> a) & 1 == 0 { -1e-3 } else { 1e-3 };
-                        (p[a] + e).floor() as i64
-                    });
-                    if c.iter().any(|&x| x < 0) {
-                        return None;
-                    }
-                    let (b, w, bit) = split([c[0] as u32, c[1] as u32, c[2] as u32]);
-                    let slot = walls.index.slot([b[0] as i64, b[1] as i64, b[2] as i64])?;
-                    test(&walls.masks[slot], w, bit).then(|| test(&thin_mask[slot], w, bit))
-                })
-                .unwrap_or(false)
+        .map(|near| thin_at(walls, &thin_cells, near.point))
+        .collect();
+    Signs {
+        side,
+        thin,
+        touches,
+        thin_cells,
+    }
+}
+
+/// Signs of the vertices of a band around surface-free cells next to the walls (the
+/// [`crate::ring`]), with the thin wall cells the core band found. Every such vertex touches
+/// a surface-free cell, so its side is known from the flood; a vertex shared with the core
+/// band gets the same side and thin flag there and here.
+pub fn ring_signs(band: &Band, walls: &BrickSet, flood: &Flood, core: &Signs) -> Signs {
+    let touches = touched_sides(band, walls, flood);
+    let side = touches
+        .iter()
+        .map(|&t| match side_from_touches(t) {
+            // Not reached: every corner of a surface-free cell touches it.
+            Side::Unknown => Side::Outside,
+            s => s,
         })
         .collect();
-    Signs { side, thin }
+    let thin = band
+        .nearest
+        .par_iter()
+        .map(|near| thin_at(walls, &core.thin_cells, near.point))
+        .collect();
+    Signs {
+        side,
+        thin,
+        touches,
+        thin_cells: Vec::new(),
+    }
 }

@@ -213,3 +213,27 @@ fn sliver_sheet_crossed_by_no_grid_edge_is_kept() {
         );
     }
 }
+
+#[test]
+fn band_grows_past_the_walls_only_for_shells() {
+    // Closed parts: the zero level set stays in the wall cells, so no ring cell and a band of
+    // about the stored vertices (the corners of the wall cells).
+    for (name, mesh) in [
+        ("sphere", shapes::sphere([0.0; 3], 1.0, 24)),
+        ("torus", shapes::torus([0.0; 3], 1.0, 0.35, 24)),
+    ] {
+        let s = convert(&mesh, &Params::with_resolution(64))
+            .expect("convert")
+            .stats;
+        assert_eq!(s.ring_cells, 0, "{name}: {s:?}");
+        assert!(
+            (s.band_vertices as f64) < 1.5 * s.active_vertices as f64,
+            "{name}: {s:?}"
+        );
+    }
+    // An open sheet: the shell at t from the sheet reaches the cells next to the walls.
+    let quad = shapes::quad(-1.0, -1.0, 1.0, 1.0, 0.1);
+    let c = convert(&quad, &Params::with_resolution(64)).expect("convert");
+    assert!(c.stats.ring_cells > 0, "{:?}", c.stats);
+    assert_closed_manifold("quad", &extract(&c.cubes));
+}
