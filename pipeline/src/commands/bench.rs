@@ -42,7 +42,11 @@ pub struct Args {
     /// Skip the warm-up conversion.
     #[arg(long)]
     pub no_warmup: bool,
-    /// Turn off the deformation of active vertices.
+    /// Move active vertices towards the surface, as `convert --deform` does. Off by default,
+    /// as in `convert` and in jobs, so the benchmark measures the default conversion.
+    #[arg(long, conflicts_with = "no_deform")]
+    pub deform: bool,
+    /// Keep the grid undeformed (the default).
     #[arg(long)]
     pub no_deform: bool,
     /// zstd level of the encoded tensors.
@@ -248,8 +252,8 @@ fn bench_mesh(exe: &Path, path: &Path, resolution: u32, args: &Args) -> BenchRow
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped());
-    if args.no_deform {
-        cmd.arg("--no-deform");
+    if args.deform {
+        cmd.arg("--deform");
     }
     if let Some(t) = args.threads {
         cmd.env("RAYON_NUM_THREADS", t.to_string());
