@@ -4,21 +4,23 @@
 //! decider (which only reads the face's own values, so both cells sharing a face agree), and
 //! emits the triangles of [`crate::mc_table`]. Crossing points are keyed by their grid edge
 //! (`lower vertex index × 3 + axis`) and computed from that edge's two vertices only, so the
-//! cells sharing an edge share one vertex and the mesh is indexed and watertight. Cells are
-//! processed in parallel chunks; vertices are numbered by key, so the output is the same
-//! bytes whatever the thread count.
+//! cells sharing an edge share one vertex and the mesh is indexed and watertight.
+//!
+//! Two passes over fixed chunks of cells, in parallel: the first counts each chunk's
+//! triangles and centre vertices and marks the crossed edges in a bitmap; the second writes
+//! the triangles straight into the output, numbering a crossing point by the rank of its edge
+//! in the bitmap and centres after them in cell order. No per-triangle key list is built or
+//! sorted, and the output is the same bytes whatever the thread count.
 
 use crate::cubes::SparseCubes;
-use crate::mc_table::{self, CENTRE, EDGES, FACE_CORNERS};
+use crate::mc_table::{self, Case, Table, CENTRE, EDGES, FACE_CORNERS};
 use crate::mesh::TriMesh;
 use crate::normalize::Normalization;
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 
 /// Cells per parallel work item (fixed, so the work split never depends on the thread count).
 const CHUNK: usize = 4096;
-
-/// Keys of centre vertices have this bit set; the rest is `cell index << 3 | centre`.
-const CENTRE_KEY: u64 = 1 << 63;
 
 /// Extracts the closed, 2-manifold, outward-oriented mesh of `cubes`, in grid coordinates
 /// (voxels). Use [`crate::Normalization::grid_to_source`] (or [`extract_to_source`]) to map
@@ -28,56 +30,106 @@ const CENTRE_KEY: u64 = 1 << 63;
 /// as outside); a cell whose corners are not all in `coords` is skipped.
 pub fn extract(cubes: &SparseCubes) -> TriMesh {
     let n = cubes.coords.len().min(cubes.sdf.len());
-    let chunks: Vec<(Vec<u64>, Vec<[f32; 3]>)> = cubes
-        .cells
-        .par_chunks(CHUNK)
-        .enumerate()
-        .map(|(ci, cells)| extract_chunk(cubes, n, ci * CHUNK, cells))
-        .collect();
+    let table = mc_table::table();
+    let chunks: Vec<&[[u16; 3]]> = cubes.cells.chunks(CHUNK).collect();
 
-    let total: usize = chunks.iter().map(|c| c.0.len()).sum();
-    let mut keys = Vec::with_capacity(total);
-    let mut points = Vec::with_capacity(total);
-    for (k, p) in chunks {
-        keys.extend(k);
-        points.extend(p);
-    }
-    // Number vertices by key: crossing points in edge-key order (a dense table over the
-    // grid edges of active vertices), then centres in cell order; both orders are fixed by the
-    // data alone.
-    const UNSET: u32 = u32::MAX;
-    let mut id_of_edge = vec![UNSET; 3 * n];
-    let mut centres: Vec<(u64, u32)> = Vec::new();
-    for (slot, &key) in keys.iter().enumerate() {
-        if key & CENTRE_KEY != 0 {
-            if centres.last().is_none_or(|c| c.0 != key) {
-                centres.push((key, slot as u32));
-            }
-        } else if id_of_edge[key as usize] == UNSET {
-            id_of_edge[key as usize] = slot as u32;
-        }
-    }
-    debug_assert!(centres.windows(2).all(|w| w[0].0 < w[1].0));
-    let mut positions = Vec::new();
-    for first in id_of_edge.iter_mut().filter(|s| **s != UNSET) {
-        positions.push(points[*first as usize]);
-        *first = positions.len() as u32 - 1;
-    }
-    let first_centre = positions.len() as u32;
-    positions.extend(centres.iter().map(|&(_, slot)| points[slot as usize]));
-    let index: Vec<u32> = keys
+    // Pass 1: triangles and centres per chunk; crossed edges used by a triangle.
+    let used: Vec<AtomicU64> = (0..(3 * n).div_ceil(64))
+        .map(|_| AtomicU64::new(0))
+        .collect();
+    let counts: Vec<(usize, usize)> = chunks
         .par_iter()
-        .map(|&key| {
-            if key & CENTRE_KEY != 0 {
-                // Centre keys rise with the slot, so a binary search finds them.
-                let i = centres.partition_point(|c| c.0 < key);
-                first_centre + i as u32
-            } else {
-                id_of_edge[key as usize]
-            }
+        .map(|cells| {
+            let (mut triangles, mut centres) = (0, 0);
+            for_each_case(cubes, n, table, cells, |_, idx, case| {
+                triangles += case.triangles.len();
+                centres += centres_used(case).count_ones() as usize;
+                for tri in &case.triangles {
+                    for &v in tri.iter().filter(|&&v| v < CENTRE) {
+                        let key = edge_key(idx, v);
+                        let (word, bit) = (&used[key / 64], 1u64 << (key % 64));
+                        if word.load(Ordering::Relaxed) & bit == 0 {
+                            word.fetch_or(bit, Ordering::Relaxed);
+                        }
+                    }
+                }
+            });
+            (triangles, centres)
         })
         .collect();
-    let triangles = index.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
+    let used: Vec<u64> = used.into_iter().map(AtomicU64::into_inner).collect();
+    // Rank of each bitmap word: crossing points are numbered in edge-key order.
+    let mut rank = Vec::with_capacity(used.len());
+    let mut edge_points = 0u32;
+    for w in &used {
+        rank.push(edge_points);
+        edge_points += w.count_ones();
+    }
+
+    // Pass 2: each chunk writes its triangles and centres into its own slices; crossing
+    // points shared between chunks are stored through atomics (every writer stores the same
+    // value, computed from the edge's two vertices only).
+    let total_triangles: usize = counts.iter().map(|c| c.0).sum();
+    let total_centres: usize = counts.iter().map(|c| c.1).sum();
+    let mut triangles = vec![[0u32; 3]; total_triangles];
+    let mut centre_points = vec![[0f32; 3]; total_centres];
+    let shared: Vec<[AtomicU32; 3]> = (0..edge_points)
+        .map(|_| [AtomicU32::new(0), AtomicU32::new(0), AtomicU32::new(0)])
+        .collect();
+    let mut work = Vec::with_capacity(chunks.len());
+    let (mut tri_rest, mut centre_rest) = (&mut triangles[..], &mut centre_points[..]);
+    let mut first_centre = edge_points;
+    for (cells, &(t, c)) in chunks.iter().zip(&counts) {
+        let (tris, tail) = tri_rest.split_at_mut(t);
+        tri_rest = tail;
+        let (centres, tail) = centre_rest.split_at_mut(c);
+        centre_rest = tail;
+        work.push((*cells, tris, centres, first_centre));
+        first_centre += c as u32;
+    }
+    work.into_par_iter()
+        .for_each(|(cells, tris, centres, first_centre)| {
+            let (mut t, mut c) = (0, 0);
+            for_each_case(cubes, n, table, cells, |_, idx, case| {
+                // Centre k of this cell, numbered among the cell's used centres.
+                let mask = centres_used(case);
+                for k in 0..case.centres.len() {
+                    if mask >> k & 1 == 1 {
+                        let p = centre_point(cubes, idx, &case.centres[k]);
+                        centres[c + (mask & ((1 << k) - 1)).count_ones() as usize] = to_f32(p);
+                    }
+                }
+                for tri in &case.triangles {
+                    let mut ids = [0u32; 3];
+                    for (id, &v) in ids.iter_mut().zip(tri) {
+                        *id = if v < CENTRE {
+                            let key = edge_key(idx, v);
+                            let (w, bit) = (key / 64, key % 64);
+                            let i = rank[w] + (used[w] & ((1u64 << bit) - 1)).count_ones();
+                            let p = to_f32(edge_point(cubes, idx, v));
+                            for a in 0..3 {
+                                shared[i as usize][a].store(p[a].to_bits(), Ordering::Relaxed);
+                            }
+                            i
+                        } else {
+                            let k = v - CENTRE;
+                            first_centre
+                                + (c + (mask & ((1 << k) - 1)).count_ones() as usize) as u32
+                        };
+                    }
+                    tris[t] = ids;
+                    t += 1;
+                }
+                c += mask.count_ones() as usize;
+            });
+        });
+    let mut positions: Vec<[f32; 3]> = Vec::with_capacity(edge_points as usize + total_centres);
+    positions.extend(
+        shared
+            .into_iter()
+            .map(|p| p.map(|a| f32::from_bits(a.into_inner()))),
+    );
+    positions.extend(centre_points);
     TriMesh::new(positions, triangles)
 }
 
@@ -113,27 +165,17 @@ fn gallop(coords: &[[u16; 3]], from: usize, target: [u16; 3]) -> usize {
     lo + coords[lo..hi].partition_point(|c| *c < target)
 }
 
-/// Triangles of one chunk of cells, as vertex keys and positions (3 per triangle).
-fn extract_chunk(
+/// Calls `f(cell number in chunk, corner indices, case)` for every cell of `cells` whose eight
+/// corners are active vertices and have a sign change, in order.
+fn for_each_case(
     cubes: &SparseCubes,
     n: usize,
-    first_cell: usize,
+    table: &Table,
     cells: &[[u16; 3]],
-) -> (Vec<u64>, Vec<[f32; 3]>) {
-    let table = mc_table::table();
+    mut f: impl FnMut(usize, &[usize; 8], &Case),
+) {
     let coords = &cubes.coords[..n];
     let sdf = &cubes.sdf[..n];
-    let pos = |i: usize| -> [f64; 3] {
-        let c = coords[i];
-        let d = cubes.deformation.get(i).copied().unwrap_or([0.0; 3]);
-        [
-            c[0] as f64 + d[0] as f64,
-            c[1] as f64 + d[1] as f64,
-            c[2] as f64 + d[2] as f64,
-        ]
-    };
-    let mut keys = Vec::new();
-    let mut points = Vec::new();
     // One monotone cursor per corner column (dx, dy): the targets rise with the cells.
     let mut cursor = [0usize; 4];
     for (ci, &cell) in cells.iter().enumerate() {
@@ -172,54 +214,82 @@ fn extract_chunk(
         }
         let mut bits = 0u8;
         let ambiguous = mc_table::ambiguous_faces(mask);
-        for (f, fc) in FACE_CORNERS.iter().enumerate() {
-            if ambiguous >> f & 1 == 1 && mc_table::inside_joined(fc.map(|c| sdf[idx[c as usize]]))
+        for (face, fc) in FACE_CORNERS.iter().enumerate() {
+            if ambiguous >> face & 1 == 1
+                && mc_table::inside_joined(fc.map(|c| sdf[idx[c as usize]]))
             {
-                bits |= 1 << f;
+                bits |= 1 << face;
             }
         }
-        let case = table.case(mask, bits);
-        let edge_point = |e: u8| -> (u64, [f64; 3]) {
-            let (a, b, axis) = EDGES[e as usize];
-            let (ia, ib) = (idx[a as usize], idx[b as usize]);
-            let (sa, sb) = (sdf[ia] as f64, sdf[ib] as f64);
-            let mut w = sa / (sa - sb);
-            if !w.is_finite() {
-                w = 0.5;
-            }
-            let w = w.clamp(0.0, 1.0);
-            let (pa, pb) = (pos(ia), pos(ib));
-            let p = [
-                pa[0] + w * (pb[0] - pa[0]),
-                pa[1] + w * (pb[1] - pa[1]),
-                pa[2] + w * (pb[2] - pa[2]),
-            ];
-            (ia as u64 * 3 + axis as u64, p)
-        };
-        let centre = |k: u8| -> (u64, [f64; 3]) {
-            let edges = &case.centres[k as usize];
-            let mut s = [0.0; 3];
-            for &e in edges {
-                let p = edge_point(e).1;
-                s = [s[0] + p[0], s[1] + p[1], s[2] + p[2]];
-            }
-            let m = edges.len() as f64;
-            let key = CENTRE_KEY | ((first_cell + ci) as u64) << 3 | k as u64;
-            (key, [s[0] / m, s[1] / m, s[2] / m])
-        };
-        for tri in &case.triangles {
-            for &v in tri {
-                let (key, p) = if v < CENTRE {
-                    edge_point(v)
-                } else {
-                    centre(v - CENTRE)
-                };
-                keys.push(key);
-                points.push([p[0] as f32, p[1] as f32, p[2] as f32]);
-            }
+        f(ci, &idx, table.case(mask, bits));
+    }
+}
+
+/// The centre vertices a case's triangles use, as a bit set over centre numbers.
+#[inline]
+fn centres_used(case: &Case) -> u32 {
+    let mut mask = 0u32;
+    for tri in &case.triangles {
+        for &v in tri.iter().filter(|&&v| v >= CENTRE) {
+            mask |= 1 << (v - CENTRE);
         }
     }
-    (keys, points)
+    mask
+}
+
+/// Key of cube edge `e` of a cell with corners `idx`: its lower vertex index × 3 + axis.
+#[inline]
+fn edge_key(idx: &[usize; 8], e: u8) -> usize {
+    let (a, _, axis) = EDGES[e as usize];
+    idx[a as usize] * 3 + axis as usize
+}
+
+/// Position of vertex `i` (grid coordinates plus deformation).
+#[inline]
+fn position(cubes: &SparseCubes, i: usize) -> [f64; 3] {
+    let c = cubes.coords[i];
+    let d = cubes.deformation.get(i).copied().unwrap_or([0.0; 3]);
+    [
+        c[0] as f64 + d[0] as f64,
+        c[1] as f64 + d[1] as f64,
+        c[2] as f64 + d[2] as f64,
+    ]
+}
+
+/// Crossing point of the zero level set on cube edge `e` (linear interpolation of φ between
+/// the edge's two vertices, which alone decide it).
+#[inline]
+fn edge_point(cubes: &SparseCubes, idx: &[usize; 8], e: u8) -> [f64; 3] {
+    let (a, b, _) = EDGES[e as usize];
+    let (ia, ib) = (idx[a as usize], idx[b as usize]);
+    let (sa, sb) = (cubes.sdf[ia] as f64, cubes.sdf[ib] as f64);
+    let mut w = sa / (sa - sb);
+    if !w.is_finite() {
+        w = 0.5;
+    }
+    let w = w.clamp(0.0, 1.0);
+    let (pa, pb) = (position(cubes, ia), position(cubes, ib));
+    [
+        pa[0] + w * (pb[0] - pa[0]),
+        pa[1] + w * (pb[1] - pa[1]),
+        pa[2] + w * (pb[2] - pa[2]),
+    ]
+}
+
+/// A centre vertex: the mean of the crossing points of `edges`.
+fn centre_point(cubes: &SparseCubes, idx: &[usize; 8], edges: &[u8]) -> [f64; 3] {
+    let mut s = [0.0; 3];
+    for &e in edges {
+        let p = edge_point(cubes, idx, e);
+        s = [s[0] + p[0], s[1] + p[1], s[2] + p[2]];
+    }
+    let m = edges.len() as f64;
+    [s[0] / m, s[1] / m, s[2] / m]
+}
+
+#[inline]
+fn to_f32(p: [f64; 3]) -> [f32; 3] {
+    [p[0] as f32, p[1] as f32, p[2] as f32]
 }
 
 /// Builds sparse cubes by sampling `field` (sdf in voxels, deformation in voxels) on every grid
