@@ -6,7 +6,7 @@
 //! reaches ([`crate::ring`]). Only triangles within the reach of a brick are binned to it, and
 //! each brick scans its own triangles — no per-vertex tree query.
 
-use crate::grid::{dilate, for_each_bit, BrickMask, BrickSet, Dilation, Numbered, BRICK};
+use crate::grid::{for_each_bit, BrickMask, BrickSet, Numbered, BRICK};
 use crate::vec3::{dot, sub};
 use crate::voxelize::{triangle_box_overlap, GridMesh};
 use rayon::prelude::*;
@@ -19,7 +19,7 @@ pub const REACH: f64 = 3.5;
 /// and its diagonal is √3 ≈ 1.732.
 pub const CORE_REACH: f64 = 1.75;
 
-/// Vertices with their distance and closest point: the corners of a set of cells.
+/// Vertices with their distance and closest point.
 #[derive(Debug, Clone)]
 pub struct Band {
     /// The vertices, numbered.
@@ -269,13 +269,13 @@ fn scan_brick(
     });
 }
 
-/// Computes the corners of `cells` with, for each, its exact distance to the surface and its
-/// closest point. `reach` bounds how far any corner can be from the surface ([`CORE_REACH`]
-/// for wall cells, [`REACH`] for their neighbours). Ties go to the lowest triangle index and
-/// a vertex's result depends only on the triangles within its reach, so a vertex gets the
-/// same result in any band that holds it, whatever the thread count.
-pub fn compute_band(mesh: &GridMesh, cells: &BrickSet, n: u32, reach: f64) -> Band {
-    let verts = Numbered::new(dilate(cells, n, Dilation::Corners));
+/// Computes, for every vertex of `verts`, its exact distance to the surface and its closest
+/// point. `reach` bounds how far any of them can be from the surface ([`CORE_REACH`] for the
+/// corners of wall cells, [`REACH`] for the corners of their neighbours). Ties go to the
+/// lowest triangle index and a vertex's result depends only on the triangles within its
+/// reach, so it does not depend on the thread count.
+pub fn compute_band(mesh: &GridMesh, verts: BrickSet, reach: f64) -> Band {
+    let verts = Numbered::new(verts);
     let (starts, bins) = bin_triangles(mesh, &verts.set, reach);
     let planes: Vec<[f64; 4]> = (0..mesh.tris.len())
         .map(|t| {

@@ -5,7 +5,10 @@ use crate::cubes::SparseCubes;
 use crate::deform::{compute_field, Field};
 use crate::error::{Error, Result};
 use crate::flood::flood_outside;
-use crate::grid::{dilate, for_each_bit, window_index, BrickMask, BrickSet, Dilation, NO_ID};
+use crate::grid::{
+    difference, dilate, for_each_bit, merge_masks, window_index, BrickMask, BrickSet, Dilation,
+    NO_ID,
+};
 use crate::mesh::TriMesh;
 use crate::normalize::Normalization;
 use crate::params::Params;
@@ -98,26 +101,40 @@ fn to_grid(mesh: &TriMesh, norm: &Normalization, n: u32) -> (GridMesh, u64) {
 /// Tag of a ring-band vertex number in the assembly's id list (core numbers are below it).
 const RING_TAG: u32 = 1 << 31;
 
+/// Vertices with their φ: a band and its `sdf` (parallel to the band's vertices).
+type Values<'a> = (&'a Band, &'a [f32]);
+
 /// The cells of `cells` with a sign change among their corners, per brick (sorted keys).
-/// Every corner of every cell is a vertex of `band`.
-fn sign_changes(cells: &BrickSet, band: &Band, sdf: &[f32]) -> Vec<(u32, BrickMask)> {
-    let verts = &band.verts;
+/// Every corner of every cell is a vertex of `core` or of `ring`.
+fn sign_changes(cells: &BrickSet, core: Values, ring: Option<Values>) -> Vec<(u32, BrickMask)> {
     (0..cells.keys.len())
         .into_par_iter()
         .map_init(
-            || Box::new([NO_ID; 729]),
-            |window, s| {
+            || (Box::new([NO_ID; 729]), Box::new([NO_ID; 729])),
+            |(core_ids, ring_ids), s| {
                 let b = cells.index.coord(cells.keys[s] as usize);
-                verts.fill_window(b, window);
+                core.0.verts.fill_window(b, core_ids);
+                if let Some(ring) = ring {
+                    ring.0.verts.fill_window(b, ring_ids);
+                }
+                let phi = |w: usize| -> Option<f32> {
+                    match (core_ids[w], ring) {
+                        (NO_ID, Some(ring)) if ring_ids[w] != NO_ID => {
+                            Some(ring.1[ring_ids[w] as usize])
+                        }
+                        (NO_ID, _) => None,
+                        (i, _) => Some(core.1[i as usize]),
+                    }
+                };
                 let mut keep = [0u64; 8];
                 for_each_bit(&cells.masks[s], |x, y, z| {
                     let (mut neg, mut pos) = (false, false);
                     for d in 0..8u32 {
-                        let i = window[window_index(x + (d & 1), y + ((d >> 1) & 1), z + (d >> 2))];
-                        if i == NO_ID {
+                        let w = window_index(x + (d & 1), y + ((d >> 1) & 1), z + (d >> 2));
+                        let Some(v) = phi(w) else {
                             return;
-                        }
-                        if sdf[i as usize] < 0.0 {
+                        };
+                        if v < 0.0 {
                             neg = true;
                         } else {
                             pos = true;
@@ -131,30 +148,6 @@ fn sign_changes(cells: &BrickSet, band: &Band, sdf: &[f32]) -> Vec<(u32, BrickMa
             },
         )
         .collect()
-}
-
-/// Merges two key-sorted lists of brick masks, OR-ing the masks of a key in both.
-fn merge_masks(a: Vec<(u32, BrickMask)>, b: Vec<(u32, BrickMask)>) -> Vec<(u32, BrickMask)> {
-    let mut out = Vec::with_capacity(a.len() + b.len());
-    let mut b = b.into_iter().peekable();
-    for (key, mut mask) in a {
-        while let Some(&(k, m)) = b.peek() {
-            if k > key {
-                break;
-            }
-            if k == key {
-                for w in 0..8 {
-                    mask[w] |= m[w];
-                }
-            } else {
-                out.push((k, m));
-            }
-            b.next();
-        }
-        out.push((key, mask));
-    }
-    out.extend(b);
-    out
 }
 
 /// Converts a sanitised mesh into sparse cubes (DESIGN.md §3, steps 1–5).
@@ -205,39 +198,41 @@ pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
     st.done("voxelize");
     let flood = flood_outside(&vox.walls);
     st.done("flood");
-    let band = compute_band(&grid, &vox.walls, n, CORE_REACH);
+    let band = compute_band(&grid, dilate(&vox.walls, n, Dilation::Corners), CORE_REACH);
     st.done("band");
     let signs = compute_signs(&band, &vox, &flood);
     st.done("sign");
     let field = compute_field(&band, &signs, params);
     st.done("deform");
     let rings = ring_cells(&band, &signs, &field.sdf, &vox.walls, &flood, n);
-    let ring = compute_band(&grid, &rings, n, REACH);
+    // The ring's own vertices: corners of ring cells that are not in the core band.
+    let ring_verts = difference(&dilate(&rings, n, Dilation::Corners), &band.verts.set, n);
+    let ring = compute_band(&grid, ring_verts, REACH);
     let ring_signs = ring_signs(&ring, &vox.walls, &flood, &signs);
     let ring_field = compute_field(&ring, &ring_signs, params);
     st.stats.ring_cells = rings.len();
     st.stats.band_vertices = (band.verts.len + ring.verts.len) as u64;
-    st.done("ring");
-
-    // Keep the candidate cells (wall cells and ring cells, disjoint) with a sign change (φ < 0
-    // is inside, φ ≥ 0 outside) and their corners; no cell outside them has one (see
-    // `crate::ring`), so the result is closed.
-    let kept = merge_masks(
-        sign_changes(&vox.walls, &band, &field.sdf),
-        sign_changes(&rings, &ring, &ring_field.sdf),
-    );
-    let kept = BrickSet::from_masks(n, kept);
-    // The stored vertices are exactly the corners of the kept cells: corners of kept wall
-    // cells are in the core band, corners of kept ring cells in the ring's (a vertex in both
-    // has the same values in both).
-    let used = dilate(&kept, n, Dilation::Corners);
-    let vertex_coords = used.sorted_members();
     if band.verts.len >= RING_TAG as usize || ring.verts.len >= RING_TAG as usize {
         return Err(Error::InvalidParams(format!(
             "band of {} vertices is too large to number",
             band.verts.len.max(ring.verts.len)
         )));
     }
+    st.done("ring");
+
+    // Keep the candidate cells (wall cells and ring cells, disjoint) with a sign change (φ < 0
+    // is inside, φ ≥ 0 outside) and their corners; no cell outside them has one (see
+    // `crate::ring`), so the result is closed.
+    let core = (&band, &field.sdf[..]);
+    let kept = merge_masks(
+        sign_changes(&vox.walls, core, None),
+        sign_changes(&rings, core, Some((&ring, &ring_field.sdf[..]))),
+    );
+    let kept = BrickSet::from_masks(n, kept);
+    // The stored vertices are exactly the corners of the kept cells, each in the core band or
+    // the ring's.
+    let used = dilate(&kept, n, Dilation::Corners);
+    let vertex_coords = used.sorted_members();
     let ids: Vec<u32> = vertex_coords
         .par_iter()
         .map(|c| {
@@ -260,11 +255,10 @@ pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
             (&ring_field, &ring_signs.thin, (i & !RING_TAG) as usize)
         }
     };
-    let narrow = |c: &[u32; 3]| [c[0] as u16, c[1] as u16, c[2] as u16];
     let cubes = SparseCubes {
         resolution: n,
         normalization: norm,
-        coords: vertex_coords.iter().map(narrow).collect(),
+        coords: vertex_coords,
         sdf: ids
             .par_iter()
             .map(|&i| {
@@ -282,7 +276,7 @@ pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
         } else {
             vec![[0.0; 3]; ids.len()]
         },
-        cells: kept.sorted_members().iter().map(narrow).collect(),
+        cells: kept.sorted_members(),
     };
     st.stats.shell_vertices = ids
         .par_iter()

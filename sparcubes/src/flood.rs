@@ -163,6 +163,27 @@ pub enum CellSide {
 }
 
 impl Flood {
+    /// The outside cells of the brick with key `key` (`walls` indexes the bricks).
+    #[inline]
+    pub fn outside_cells(&self, walls: &BrickSet, key: usize) -> BrickMask {
+        match walls.index.slots[key] {
+            NO_BRICK if self.empty_outside[key] => FULL,
+            NO_BRICK => [0; 8],
+            s => self.wall_outside[s as usize],
+        }
+    }
+
+    /// The inside cells (neither wall nor outside) of the brick with key `key`.
+    #[inline]
+    pub fn inside_cells(&self, walls: &BrickSet, key: usize) -> BrickMask {
+        let outside = self.outside_cells(walls, key);
+        let wall = match walls.index.slots[key] {
+            NO_BRICK => [0; 8],
+            s => walls.masks[s as usize],
+        };
+        std::array::from_fn(|z| !(outside[z] | wall[z]))
+    }
+
     /// The side of cell `c`; cells outside the brick space are outside.
     #[inline]
     pub fn cell(&self, walls: &BrickSet, c: [i64; 3]) -> CellSide {

@@ -236,6 +236,45 @@ pub fn face_carry(m: &BrickMask, axis: usize, high: bool) -> BrickMask {
     out
 }
 
+/// The members of `a` that are not in `b`, in `a`'s bricks (emptied bricks are dropped).
+pub fn difference(a: &BrickSet, b: &BrickSet, n: u32) -> BrickSet {
+    let keyed = a
+        .keys
+        .iter()
+        .zip(&a.masks)
+        .map(|(&k, m)| match b.index.slots[k as usize] {
+            NO_BRICK => (k, *m),
+            s => {
+                let other = &b.masks[s as usize];
+                (k, std::array::from_fn(|z| m[z] & !other[z]))
+            }
+        })
+        .collect();
+    BrickSet::from_masks(n, keyed)
+}
+
+/// Merges two key-sorted lists of brick masks, OR-ing the masks of a key in both.
+pub fn merge_masks(a: Vec<(u32, BrickMask)>, b: Vec<(u32, BrickMask)>) -> Vec<(u32, BrickMask)> {
+    let mut out = Vec::with_capacity(a.len() + b.len());
+    let mut b = b.into_iter().peekable();
+    for (key, mut mask) in a {
+        while let Some(&(k, m)) = b.peek() {
+            if k > key {
+                break;
+            }
+            if k == key {
+                or_assign(&mut mask, &m);
+            } else {
+                out.push((k, m));
+            }
+            b.next();
+        }
+        out.push((key, mask));
+    }
+    out.extend(b);
+    out
+}
+
 /// Bitwise OR in place.
 #[inline]
 pub fn or_assign(a: &mut BrickMask, b: &BrickMask) {
@@ -258,6 +297,60 @@ mod tests {
         assert_eq!(rank(&m, 3, 5), 3);
         assert_eq!(rank(&m, 3, 6), 4);
         assert_eq!(count(&m), 4);
+    }
+
+    /// A scattered set of cells or vertices within `0..40` per axis, crossing brick borders.
+    fn scattered() -> (Vec<[u32; 3]>, BrickSet) {
+        let mut coords: Vec<[u32; 3]> = (0..400u32)
+            .map(|i| {
+                [
+                    (i * 7919) % 37 + 1,
+                    (i * 104_729) % 33 + 2,
+                    (i * 1_299_709) % 35 + 1,
+                ]
+            })
+            .collect();
+        coords.sort_unstable();
+        coords.dedup();
+        let index = BrickIndex::for_resolution(40);
+        let mut packed: Vec<u64> = coords.iter().map(|&c| pack(&index, c)).collect();
+        packed.sort_unstable();
+        (coords, BrickSet::from_sorted_packed(40, &packed))
+    }
+
+    #[test]
+    fn sorted_members_lists_every_member_in_order() {
+        let (coords, set) = scattered();
+        let got: Vec<[u32; 3]> = set
+            .sorted_members()
+            .iter()
+            .map(|c| c.map(|v| v as u32))
+            .collect();
+        assert_eq!(got, coords);
+    }
+
+    #[test]
+    fn dilations_match_brute_force() {
+        let (coords, set) = scattered();
+        for (how, offsets) in [(Dilation::Corners, [0i64, 1]), (Dilation::Cells, [-1, 0])] {
+            let mut want = Vec::new();
+            for c in &coords {
+                for d in 0..8 {
+                    let o = [offsets[d & 1], offsets[(d >> 1) & 1], offsets[d >> 2]];
+                    let v: [i64; 3] = std::array::from_fn(|a| c[a] as i64 + o[a]);
+                    if v.iter().all(|&x| x >= 0) {
+                        want.push(v.map(|x| x as u16));
+                    }
+                }
+            }
+            want.sort_unstable();
+            want.dedup();
+            assert_eq!(dilate(&set, 40, how).sorted_members(), want, "{how:?}");
+        }
+        let grown = dilate(&set, 40, Dilation::Corners);
+        let rest = difference(&grown, &set, 40);
+        assert_eq!(rest.len(), grown.len() - set.len());
+        assert!(coords.iter().all(|&c| !rest.contains(c.map(|v| v as i64))));
     }
 
     #[test]
@@ -283,16 +376,20 @@ pub enum Dilation {
     Box,
     /// By one towards +x, +y and +z: the corners of a set of cells.
     Corners,
+    /// By one towards −x, −y and −z: the cells a set of vertices are corners of.
+    Cells,
 }
 
 /// Grows a set by one (see [`Dilation`]), separably per axis; coordinates that would fall
 /// outside the brick space are dropped.
 pub fn dilate(set: &BrickSet, n: u32, how: Dilation) -> BrickSet {
+    use rayon::prelude::*;
     let index = &set.index;
     let dims = index.dims;
     let reach: &[i64] = match how {
         Dilation::Box => &[-1, 0, 1],
         Dilation::Corners => &[0, 1],
+        Dilation::Cells => &[-1, 0],
     };
     let mut keys: Vec<u32> = Vec::with_capacity(set.keys.len() * 3);
     for &k in &set.keys {
@@ -321,28 +418,29 @@ pub fn dilate(set: &BrickSet, n: u32, how: Dilation) -> BrickSet {
             s => set.masks[s as usize],
         })
         .collect();
+    let (plus, minus) = (how != Dilation::Cells, how != Dilation::Corners);
     for axis in 0..3 {
         let before = masks.clone();
-        for (i, &k) in keys.iter().enumerate() {
-            let b = grown.coord(k as usize);
+        masks.par_iter_mut().enumerate().for_each(|(i, out)| {
+            let b = grown.coord(keys[i] as usize);
             let m = &before[i];
-            let mut out = *m;
-            or_assign(&mut out, &shift(m, axis, true));
             let mut lower = [b[0] as i64, b[1] as i64, b[2] as i64];
             lower[axis] -= 1;
-            if let Some(s) = grown.slot(lower) {
-                or_assign(&mut out, &face_carry(&before[s], axis, true));
-            }
-            if how == Dilation::Box {
-                or_assign(&mut out, &shift(m, axis, false));
-                let mut upper = [b[0] as i64, b[1] as i64, b[2] as i64];
-                upper[axis] += 1;
-                if let Some(s) = grown.slot(upper) {
-                    or_assign(&mut out, &face_carry(&before[s], axis, false));
+            let mut upper = [b[0] as i64, b[1] as i64, b[2] as i64];
+            upper[axis] += 1;
+            if plus {
+                or_assign(out, &shift(m, axis, true));
+                if let Some(s) = grown.slot(lower) {
+                    or_assign(out, &face_carry(&before[s], axis, true));
                 }
             }
-            masks[i] = out;
-        }
+            if minus {
+                or_assign(out, &shift(m, axis, false));
+                if let Some(s) = grown.slot(upper) {
+                    or_assign(out, &face_carry(&before[s], axis, false));
+                }
+            }
+        });
     }
     BrickSet {
         index: grown,
@@ -521,9 +619,12 @@ impl Numbered {
 }
 
 impl BrickSet {
-    /// Every member's coordinates in lexicographic (x, y, z) order, generated slab by slab
-    /// (bricks sharing a brick x coordinate) in parallel, without a global sort.
-    pub fn sorted_members(&self) -> Vec<[u32; 3]> {
+    /// Every member's coordinates in lexicographic (x, y, z) order, as `u16` (coordinates are
+    /// at most [`crate::params::MAX_RESOLUTION`]). Generated slab by slab (bricks sharing a
+    /// brick x coordinate) in parallel straight into the output, without a global sort: each
+    /// brick's mask is first transposed into 64 column bytes (one per local (x, y), a bit per
+    /// local z), so the walk visits members, not all 512 positions.
+    pub fn sorted_members(&self) -> Vec<[u16; 3]> {
         use rayon::prelude::*;
         let mut bricks: Vec<([u32; 3], usize)> = self
             .keys
@@ -540,37 +641,68 @@ impl BrickSet {
             slabs.push(slab);
             rest = tail;
         }
-        let parts: Vec<Vec<[u32; 3]>> = slabs
-            .par_iter()
+        let sizes: Vec<usize> = slabs
+            .iter()
             .map(|slab| {
-                // Rows: runs of bricks sharing (bx, by), ascending bz.
-                let mut rows: Vec<&[([u32; 3], usize)]> = Vec::new();
-                let mut rest = *slab;
-                while let Some(first) = rest.first() {
-                    let len = rest.iter().take_while(|b| b.0[1] == first.0[1]).count();
-                    let (row, tail) = rest.split_at(len);
-                    rows.push(row);
-                    rest = tail;
-                }
-                let mut out = Vec::new();
-                for lx in 0..8u32 {
-                    for row in &rows {
-                        for ly in 0..8u32 {
-                            let bit = lx + 8 * ly;
-                            for &(b, s) in row.iter() {
-                                let m = &self.masks[s];
-                                for lz in 0..8u32 {
-                                    if (m[lz as usize] >> bit) & 1 == 1 {
-                                        out.push([b[0] * 8 + lx, b[1] * 8 + ly, b[2] * 8 + lz]);
-                                    }
-                                }
+                slab.iter()
+                    .map(|&(_, s)| count(&self.masks[s]) as usize)
+                    .sum()
+            })
+            .collect();
+        let mut out = vec![[0u16; 3]; sizes.iter().sum()];
+        let mut parts = Vec::with_capacity(slabs.len());
+        let mut tail = &mut out[..];
+        for (slab, &size) in slabs.iter().zip(&sizes) {
+            let (head, rest) = tail.split_at_mut(size);
+            parts.push((*slab, head));
+            tail = rest;
+        }
+        parts.into_par_iter().for_each(|(slab, out)| {
+            let columns: Vec<[u8; 64]> = slab
+                .iter()
+                .map(|&(_, s)| {
+                    let mut col = [0u8; 64];
+                    for (z, &word) in self.masks[s].iter().enumerate() {
+                        let mut w = word;
+                        while w != 0 {
+                            col[w.trailing_zeros() as usize] |= 1 << z;
+                            w &= w - 1;
+                        }
+                    }
+                    col
+                })
+                .collect();
+            // Rows: runs of bricks sharing (bx, by), ascending bz (positions in `slab`).
+            let mut rows: Vec<std::ops::Range<usize>> = Vec::new();
+            let mut start = 0;
+            while start < slab.len() {
+                let by = slab[start].0[1];
+                let len = slab[start..].iter().take_while(|b| b.0[1] == by).count();
+                rows.push(start..start + len);
+                start += len;
+            }
+            let mut i = 0;
+            for lx in 0..8u32 {
+                for row in &rows {
+                    for ly in 0..8u32 {
+                        for p in row.clone() {
+                            let b = slab[p].0;
+                            let mut col = columns[p][(lx + 8 * ly) as usize];
+                            while col != 0 {
+                                let lz = col.trailing_zeros();
+                                out[i] = [
+                                    (b[0] * 8 + lx) as u16,
+                                    (b[1] * 8 + ly) as u16,
+                                    (b[2] * 8 + lz) as u16,
+                                ];
+                                i += 1;
+                                col &= col - 1;
                             }
                         }
                     }
                 }
-                out
-            })
-            .collect();
-        parts.concat()
+            }
+        });
+        out
     }
 }

@@ -6,19 +6,21 @@
 //! surface — farther than the shell half-thickness t < 1 — and its φ has the sign of its side,
 //! which is the cell's. A corner of a wall cell can disagree where a thin shell reaches past
 //! the wall cells (φ = UDF − t < 0 on an outside vertex, or t − UDF ≥ 0 in a thin cavity) or
-//! where an inside cell meets an outside cell at a corner or an edge. Only those cells get a
-//! band of their own (with [`crate::band::REACH`]); around closed parts the band stays the
-//! corners of the wall cells, and the kept cells are exactly those of a band grown around
-//! every wall cell.
+//! where an inside cell meets an outside cell at a corner or an edge. Only those cells'
+//! corners outside the core band get distances too (with [`crate::band::REACH`]); around
+//! closed parts the band stays the corners of the wall cells, and the kept cells are exactly
+//! those of a band grown around every wall cell.
 
 use crate::band::Band;
-use crate::flood::{CellSide, Flood};
-use crate::grid::{for_each_bit, pack, BrickSet};
+use crate::flood::Flood;
+use crate::grid::{dilate, for_each_bit, merge_masks, BrickMask, BrickSet, Dilation};
 use crate::sign::{Signs, TOUCHES_INSIDE, TOUCHES_OUTSIDE};
 use rayon::prelude::*;
 
 /// The surface-free cells with a corner in `core` whose φ (`sdf`, parallel to the core band's
-/// vertices) disagrees with the cell's side.
+/// vertices) disagrees with the cell's side. Whole bricks at a time: the disagreeing vertices
+/// (inside ones touching an outside cell, outside ones touching an inside cell) are grown to
+/// the cells they are corners of, and masked with the outside (inside) cells.
 pub fn ring_cells(
     core: &Band,
     signs: &Signs,
@@ -28,51 +30,50 @@ pub fn ring_cells(
     n: u32,
 ) -> BrickSet {
     let verts = &core.verts;
-    let index = &walls.index;
-    let mut packed: Vec<u64> = (0..verts.set.keys.len())
+    let disagreeing: Vec<(BrickMask, BrickMask)> = (0..verts.set.keys.len())
         .into_par_iter()
-        .fold(Vec::new, |mut out: Vec<u64>, s| {
-            let b = verts.set.index.coord(verts.set.keys[s] as usize);
+        .map(|s| {
+            let (mut inside, mut outside) = ([0u64; 8], [0u64; 8]);
             let mut i = verts.offsets[s] as usize;
             for_each_bit(&verts.set.masks[s], |x, y, z| {
-                let inside = sdf[i] < 0.0;
-                let touches = signs.touches[i];
+                let bit = 1u64 << (x + 8 * y);
+                if sdf[i] < 0.0 {
+                    if signs.touches[i] & TOUCHES_OUTSIDE != 0 {
+                        inside[z as usize] |= bit;
+                    }
+                } else if signs.touches[i] & TOUCHES_INSIDE != 0 {
+                    outside[z as usize] |= bit;
+                }
                 i += 1;
-                let disagrees = if inside {
-                    touches & TOUCHES_OUTSIDE != 0
-                } else {
-                    touches & TOUCHES_INSIDE != 0
-                };
-                if !disagrees {
-                    return;
-                }
-                let v = [
-                    (b[0] * 8 + x) as i64,
-                    (b[1] * 8 + y) as i64,
-                    (b[2] * 8 + z) as i64,
-                ];
-                for d in 0..8i64 {
-                    let c = [v[0] - (d & 1), v[1] - ((d >> 1) & 1), v[2] - (d >> 2)];
-                    if c.iter().any(|&a| a < 0 || a >= n as i64) {
-                        continue;
-                    }
-                    let other = match flood.cell(walls, c) {
-                        CellSide::Outside => inside,
-                        CellSide::Inside => !inside,
-                        CellSide::Wall => false,
-                    };
-                    if other {
-                        out.push(pack(index, [c[0] as u32, c[1] as u32, c[2] as u32]));
-                    }
-                }
             });
-            out
+            (inside, outside)
         })
-        .reduce(Vec::new, |mut a, b| {
-            a.extend(b);
-            a
-        });
-    packed.par_sort_unstable();
-    packed.dedup();
-    BrickSet::from_sorted_packed(n, &packed)
+        .collect();
+    let keyed = |pick: fn(&(BrickMask, BrickMask)) -> BrickMask| {
+        let list = verts
+            .set
+            .keys
+            .iter()
+            .zip(&disagreeing)
+            .map(|(&k, d)| (k, pick(d)))
+            .collect();
+        BrickSet::from_masks(n, list)
+    };
+    // Cells of disagreeing vertices, masked with the cells of the other side. Core vertices
+    // lie at least the margin inside the grid, so every such cell is a grid cell.
+    let cells_of = |set: BrickSet, side: &(dyn Fn(usize) -> BrickMask + Sync)| {
+        let grown = dilate(&set, n, Dilation::Cells);
+        grown
+            .keys
+            .par_iter()
+            .zip(&grown.masks)
+            .map(|(&k, m)| {
+                let other = side(k as usize);
+                (k, std::array::from_fn(|z| m[z] & other[z]))
+            })
+            .collect::<Vec<(u32, BrickMask)>>()
+    };
+    let from_inside = cells_of(keyed(|d| d.0), &|k| flood.outside_cells(walls, k));
+    let from_outside = cells_of(keyed(|d| d.1), &|k| flood.inside_cells(walls, k));
+    BrickSet::from_masks(n, merge_masks(from_inside, from_outside))
 }

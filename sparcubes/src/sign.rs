@@ -343,10 +343,9 @@ pub fn compute_signs(band: &Band, vox: &Voxelization, flood: &Flood) -> Signs {
     }
 }
 
-/// Signs of the vertices of a band around surface-free cells next to the walls (the
-/// [`crate::ring`]), with the thin wall cells the core band found. Every such vertex touches
-/// a surface-free cell, so its side is known from the flood; a vertex shared with the core
-/// band gets the same side and thin flag there and here.
+/// Signs of the ring's own vertices (corners of the [`crate::ring`] cells that are not
+/// corners of wall cells), with the thin wall cells the core band found. Every such vertex
+/// touches only surface-free cells, so its side is known from the flood.
 pub fn ring_signs(band: &Band, walls: &BrickSet, flood: &Flood, core: &Signs) -> Signs {
     let touches = touched_sides(band, walls, flood);
     let side = touches
