@@ -62,13 +62,28 @@ pub struct RowTensors {
 }
 
 impl RowTensors {
-    /// Encodes the sparse cubes at the given zstd level.
+    /// Encodes the sparse cubes at the given zstd level, the tensors in parallel (each one
+    /// frame, so the bytes do not depend on the thread count).
     pub fn from_cubes(cubes: &SparseCubes, level: i32) -> Result<Self> {
+        let ((coords, cells), (sdf, deformation)) = rayon::join(
+            || {
+                rayon::join(
+                    || EncodedTensor::from_u16x3(&cubes.coords, level),
+                    || EncodedTensor::from_u16x3(&cubes.cells, level),
+                )
+            },
+            || {
+                rayon::join(
+                    || EncodedTensor::from_f32(&cubes.sdf, level),
+                    || EncodedTensor::from_f32x3(&cubes.deformation, level),
+                )
+            },
+        );
         Ok(Self {
-            coords: EncodedTensor::from_u16x3(&cubes.coords, level)?,
-            sdf: EncodedTensor::from_f32(&cubes.sdf, level)?,
-            deformation: EncodedTensor::from_f32x3(&cubes.deformation, level)?,
-            cells: EncodedTensor::from_u16x3(&cubes.cells, level)?,
+            coords: coords?,
+            sdf: sdf?,
+            deformation: deformation?,
+            cells: cells?,
             mesh_vertices: None,
             mesh_faces: None,
         })

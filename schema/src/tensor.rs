@@ -65,10 +65,26 @@ fn compress(raw: &[u8], level: i32) -> Result<Vec<u8>> {
     zstd::bulk::compress(raw, level).map_err(SchemaError::Zstd)
 }
 
+/// The little-endian bytes of a slice of numbers whose scalars are `width` bytes wide: the
+/// slice itself on little-endian hosts (no copy), a byte-swapped copy elsewhere.
+fn le_bytes<T: bytemuck::Pod>(v: &[T], width: usize) -> std::borrow::Cow<'_, [u8]> {
+    let bytes: &[u8] = bytemuck::cast_slice(v);
+    if cfg!(target_endian = "little") {
+        std::borrow::Cow::Borrowed(bytes)
+    } else {
+        std::borrow::Cow::Owned(
+            bytes
+                .chunks_exact(width)
+                .flat_map(|c| c.iter().rev().copied())
+                .collect(),
+        )
+    }
+}
+
 impl EncodedTensor {
     /// Encodes `n × 3` unsigned 16-bit integers.
     pub fn from_u16x3(v: &[[u16; 3]], level: i32) -> Result<Self> {
-        let raw: Vec<u8> = v.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
+        let raw = le_bytes(v, 2);
         Ok(Self {
             dtype: DType::U16,
             shape: vec![v.len() as u64, 3],
@@ -78,7 +94,7 @@ impl EncodedTensor {
 
     /// Encodes `n × 3` unsigned 32-bit integers.
     pub fn from_u32x3(v: &[[u32; 3]], level: i32) -> Result<Self> {
-        let raw: Vec<u8> = v.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
+        let raw = le_bytes(v, 4);
         Ok(Self {
             dtype: DType::U32,
             shape: vec![v.len() as u64, 3],
@@ -88,7 +104,7 @@ impl EncodedTensor {
 
     /// Encodes `n × 3` floats.
     pub fn from_f32x3(v: &[[f32; 3]], level: i32) -> Result<Self> {
-        let raw: Vec<u8> = v.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
+        let raw = le_bytes(v, 4);
         Ok(Self {
             dtype: DType::F32,
             shape: vec![v.len() as u64, 3],
@@ -98,7 +114,7 @@ impl EncodedTensor {
 
     /// Encodes `n` floats.
     pub fn from_f32(v: &[f32], level: i32) -> Result<Self> {
-        let raw: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+        let raw = le_bytes(v, 4);
         Ok(Self {
             dtype: DType::F32,
             shape: vec![v.len() as u64],
