@@ -1,6 +1,12 @@
 //! The journal of a shard in progress: finished items are appended and fsynced as they
 //! finish, and the item about to start is recorded before it starts, so a crash is attributed
 //! to it and a kill loses at most the item in flight.
+//!
+//! A result is written to the file before the next item starts (a killed worker process
+//! loses nothing the kernel has); its fsync runs in a background thread while the next item
+//! converts (group commit: appends made during a flush are covered by the next one), so the
+//! disk flush is off the per-item path. A failed background fsync is reported at the next
+//! append, and [`Journal::sync`] waits for every flush.
 
 use crate::error::{Result, WorkerError};
 use crate::frame::{self, ReadFrame, Record};
@@ -9,6 +15,8 @@ use std::collections::{BTreeMap, HashMap};
 use std::fs::{File, OpenOptions};
 use std::io::{BufReader, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, Condvar, Mutex};
+use std::thread::JoinHandle;
 
 /// What the journal says about a finished item (its row stays on disk).
 #[derive(Debug, Clone, PartialEq)]
@@ -141,8 +149,112 @@ pub fn replay(path: &Path) -> Result<JournalState> {
 pub struct Journal {
     path: PathBuf,
     file: File,
+    syncer: Syncer,
     /// What the journal holds.
     pub state: JournalState,
+}
+
+/// Progress of the background fsyncs of one file.
+#[derive(Debug, Default)]
+struct SyncState {
+    /// Flushes asked for so far.
+    requested: u64,
+    /// Flushes done (a flush started after request k covers every request up to k).
+    synced: u64,
+    /// The first failed flush, until reported.
+    error: Option<std::io::Error>,
+    /// Set when the journal closes: finish the pending flush, then stop.
+    closing: bool,
+}
+
+/// A thread that fsyncs a file whenever asked, coalescing requests made during a flush.
+#[derive(Debug)]
+struct Syncer {
+    shared: Arc<(Mutex<SyncState>, Condvar)>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl Syncer {
+    fn start(file: File) -> Self {
+        let shared = Arc::new((Mutex::new(SyncState::default()), Condvar::new()));
+        let worker = Arc::clone(&shared);
+        let thread = std::thread::spawn(move || {
+            let (lock, cvar) = &*worker;
+            let Ok(mut st) = lock.lock() else { return };
+            loop {
+                while st.synced == st.requested && !st.closing {
+                    st = match cvar.wait(st) {
+                        Ok(st) => st,
+                        Err(_) => return,
+                    };
+                }
+                if st.synced == st.requested {
+                    return;
+                }
+                let target = st.requested;
+                drop(st);
+                let result = file.sync_data();
+                st = match lock.lock() {
+                    Ok(st) => st,
+                    Err(_) => return,
+                };
+                st.synced = target;
+                if let Err(e) = result {
+                    st.error.get_or_insert(e);
+                }
+                cvar.notify_all();
+            }
+        });
+        Self {
+            shared,
+            thread: Some(thread),
+        }
+    }
+
+    /// Asks for a flush of everything written so far; returns at once.
+    fn request(&self) {
+        let (lock, cvar) = &*self.shared;
+        if let Ok(mut st) = lock.lock() {
+            st.requested += 1;
+            cvar.notify_all();
+        }
+    }
+
+    /// The error of a failed flush, if one failed since the last call.
+    fn take_error(&self) -> Option<std::io::Error> {
+        let (lock, _) = &*self.shared;
+        match lock.lock() {
+            Ok(mut st) => st.error.take(),
+            Err(_) => Some(std::io::Error::other("journal sync thread panicked")),
+        }
+    }
+
+    /// Flushes everything written so far and waits for it.
+    fn flush(&self) -> std::io::Result<()> {
+        let (lock, cvar) = &*self.shared;
+        let poisoned = || std::io::Error::other("journal sync thread panicked");
+        let mut st = lock.lock().map_err(|_| poisoned())?;
+        st.requested += 1;
+        let target = st.requested;
+        cvar.notify_all();
+        while st.synced < target {
+            st = cvar.wait(st).map_err(|_| poisoned())?;
+        }
+        st.error.take().map_or(Ok(()), Err)
+    }
+}
+
+impl Drop for Syncer {
+    fn drop(&mut self) {
+        let (lock, cvar) = &*self.shared;
+        if let Ok(mut st) = lock.lock() {
+            st.closing = true;
+            cvar.notify_all();
+        }
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
 }
 
 impl Journal {
@@ -177,9 +289,13 @@ impl Journal {
         }
         file.seek(SeekFrom::Start(state.valid_len))
             .map_err(|e| WorkerError::io("opening journal", path, e))?;
+        let sync_handle = file
+            .try_clone()
+            .map_err(|e| WorkerError::io("opening journal", path, e))?;
         let mut journal = Self {
             path: path.to_path_buf(),
             file,
+            syncer: Syncer::start(sync_handle),
             state,
         };
         journal.state.torn = false;
@@ -189,6 +305,7 @@ impl Journal {
                 fingerprint: fingerprint.to_string(),
                 created_at: crate::now(),
             })?;
+            journal.sync()?;
             if let Some(dir) = path.parent() {
                 crate::fsutil::sync_dir(dir)?;
             }
@@ -196,32 +313,38 @@ impl Journal {
         Ok(journal)
     }
 
-    /// Appends a record and fsyncs it.
+    /// Appends a record and has it fsynced in the background; reports an earlier background
+    /// fsync that failed.
     pub fn append(&mut self, record: &Record) -> Result<()> {
+        if let Some(e) = self.syncer.take_error() {
+            return Err(WorkerError::io("syncing journal", &self.path, e));
+        }
         let bytes = frame::encode(record).map_err(|e| WorkerError::BadFile {
             path: self.path.clone(),
             reason: format!("encoding a record: {e}"),
         })?;
         let offset = self.state.valid_len;
-        // Results are fsynced; a start mark only needs to survive the death of this process
-        // (the kernel keeps it), so it skips the fsync that would double the cost per item.
-        let durable = !matches!(record, Record::Start { .. });
-        let written = self.file.write_all(&bytes).and_then(|_| {
-            if durable {
-                self.file.sync_data()
-            } else {
-                Ok(())
-            }
-        });
-        if let Err(e) = written {
+        if let Err(e) = self.file.write_all(&bytes) {
             // Leave no half record behind: the next open would drop it anyway.
             let _ = self.file.set_len(offset);
             let _ = self.file.seek(SeekFrom::Start(offset));
             return Err(WorkerError::io("appending to journal", &self.path, e));
         }
+        // Results are fsynced; a start mark only needs to survive the death of this process
+        // (the kernel keeps it), so it asks for no flush.
+        if !matches!(record, Record::Start { .. }) {
+            self.syncer.request();
+        }
         self.state.apply(record, offset);
         self.state.valid_len += bytes.len() as u64;
         Ok(())
+    }
+
+    /// Waits until everything appended so far is on disk.
+    pub fn sync(&mut self) -> Result<()> {
+        self.syncer
+            .flush()
+            .map_err(|e| WorkerError::io("syncing journal", &self.path, e))
     }
 
     /// Reads back the row of a finished item.

@@ -195,6 +195,9 @@ fn run_leased(
         }
     }
     drop(runner);
+    (opts.events)(Event::ShardWriting { shard });
+    // Every result on disk (and any failed background flush reported) before the shard.
+    journal.sync()?;
     let record = crate::writer::write_shard(job, shard, &journal, owner, started_at)?;
     let journal_path = journal.path().to_path_buf();
     drop(journal);
