@@ -40,6 +40,12 @@ pub enum Event {
         /// Seconds the item took.
         seconds: f64,
     },
+    /// Every item of a shard is finished; the worker now writes the shard file (and starts
+    /// no other item), so an orchestrator may start the next shard beside it.
+    ShardWriting {
+        /// Shard index.
+        shard: u64,
+    },
     /// A shard was written and its completion record made.
     ShardFinished {
         /// Shard index.

@@ -162,8 +162,13 @@ impl Lease {
                 let tick = Duration::from_millis(50).min(period);
                 let mut waited = Duration::ZERO;
                 while !s.load(Ordering::SeqCst) {
-                    std::thread::sleep(tick);
-                    waited += tick;
+                    // Woken early by `stop_heartbeat`, so releasing a lease does not wait.
+                    let t0 = std::time::Instant::now();
+                    std::thread::park_timeout(tick);
+                    if s.load(Ordering::SeqCst) {
+                        return;
+                    }
+                    waited += t0.elapsed();
                     if waited < period {
                         continue;
                     }
@@ -213,6 +218,7 @@ impl Lease {
     fn stop_heartbeat(&mut self) {
         self.stop.store(true, Ordering::SeqCst);
         if let Some(h) = self.heartbeat.take() {
+            h.thread().unpark();
             let _ = h.join();
         }
     }

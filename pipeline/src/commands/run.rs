@@ -146,6 +146,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
     ));
     let (tx, rx) = mpsc::channel::<(usize, Event)>();
     let mut slots: Vec<Option<Running>> = (0..workers).map(|_| None).collect();
+    // Workers whose items are all done and that are writing their shard: their slot already
+    // runs the next shard, so writing overlaps converting.
+    let mut writing: Vec<Running> = Vec::new();
     let mut errors: Vec<String> = Vec::new();
     let mut signalled = false;
     let mut killed: std::collections::HashMap<u64, u32> = std::collections::HashMap::new();
@@ -171,11 +174,13 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 }
             }
         }
-        if slots.iter().all(Option::is_none) && (queue.is_empty() || stopping || !errors.is_empty())
+        if slots.iter().all(Option::is_none)
+            && writing.is_empty()
+            && (queue.is_empty() || stopping || !errors.is_empty())
         {
             break;
         }
-        let mut next = rx.recv_timeout(Duration::from_millis(100)).ok();
+        let mut next = rx.recv_timeout(Duration::from_millis(20)).ok();
         while let Some((slot, e)) = next {
             match e {
                 Event::ItemStarted { uri, .. } => progress.item_started(slot, &uri),
@@ -183,15 +188,33 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 Event::ShardSkipped { shard, reason } => {
                     progress.println(&format!("shard {shard}: {reason}"))
                 }
+                Event::ShardWriting { shard } => {
+                    if let Some(r) = slots[slot].take_if(|r| r.shard == shard) {
+                        writing.push(r);
+                        progress.slot_shard(slot, None);
+                    }
+                }
                 _ => {}
             }
             next = rx.try_recv().ok();
         }
+        // Writers that exited, then slot workers that exited.
+        let mut exited: Vec<(Option<usize>, Running, std::process::ExitStatus)> = Vec::new();
+        let mut i = 0;
+        while i < writing.len() {
+            match writing[i].child.try_wait() {
+                Ok(Some(status)) => exited.push((None, writing.swap_remove(i), status)),
+                _ => i += 1,
+            }
+        }
         for (slot, s) in slots.iter_mut().enumerate() {
-            let Some(r) = s else { continue };
-            let Ok(Some(status)) = r.child.try_wait() else {
-                continue;
-            };
+            if let Some(status) = s.as_mut().and_then(|r| r.child.try_wait().ok().flatten()) {
+                if let Some(r) = s.take() {
+                    exited.push((Some(slot), r, status));
+                }
+            }
+        }
+        for (slot, r, status) in exited {
             if !status.success() && !stop.load(Ordering::SeqCst) {
                 let tail = r
                     .stderr
@@ -214,8 +237,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
                     errors.push(msg);
                 }
             }
-            *s = None;
-            progress.slot_shard(slot, None);
+            if let Some(slot) = slot {
+                progress.slot_shard(slot, None);
+            }
         }
         progress.tick();
     }
