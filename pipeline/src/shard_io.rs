@@ -11,8 +11,27 @@ use std::path::Path;
 /// Calls `f` on every row of a shard file, batch by batch.
 pub fn for_each_row(path: &Path, mut f: impl FnMut(ShardRow) -> Result<()>) -> Result<()> {
     let file = std::fs::File::open(path).with_context(|| format!("opening {}", path.display()))?;
-    let reader = ParquetRecordBatchReaderBuilder::try_new(file)
-        .with_context(|| format!("reading {}", path.display()))?
+    let builder = ParquetRecordBatchReaderBuilder::try_new(file)
+        .with_context(|| format!("reading {}", path.display()))?;
+    let version = builder
+        .metadata()
+        .file_metadata()
+        .key_value_metadata()
+        .and_then(|kvs| {
+            kvs.iter()
+                .find(|k| k.key == sparc3d_schema::meta_keys::SCHEMA_VERSION)
+                .and_then(|k| k.value.clone())
+        });
+    let expected = sparc3d_schema::SCHEMA_VERSION.to_string();
+    if version.as_deref() != Some(expected.as_str()) {
+        anyhow::bail!(
+            "{}: shard schema version {}, this sparc3d reads version {expected} \
+             (docs/FORMAT.md); convert the job again with this version",
+            path.display(),
+            version.as_deref().unwrap_or("missing")
+        );
+    }
+    let reader = builder
         .with_batch_size(64)
         .build()
         .with_context(|| format!("reading {}", path.display()))?;

@@ -193,8 +193,22 @@ fn unwritable_output_folder_is_a_clear_error() {
 #[test]
 fn timeouts_are_failed_rows_and_retry_converts_them_again() {
     let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
-    let (job, _) = setup(tmp.path(), "job", &[]);
+    let (_, manifest) = setup(tmp.path(), "job", &[]);
+    // A resolution at which items take longer than the watchdog's 50 ms look, which keeps a
+    // row that arrives before it.
+    let job = tmp.path().join("slow");
     let j = job.to_string_lossy().into_owned();
+    let m = manifest.to_string_lossy().into_owned();
+    ok(&[
+        "init",
+        &j,
+        "--manifest",
+        &m,
+        "--resolution",
+        "320",
+        "--shard-size",
+        "8",
+    ]);
     ok(&["run", &j, "--workers", "2", "--item-timeout", "0.001"]);
     assert_each_item_once(&job);
     let s = status(&job);

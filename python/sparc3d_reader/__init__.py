@@ -77,14 +77,20 @@ def shard_paths(paths: Union[PathLike, Iterable[PathLike]], complete_only: bool 
     return out
 
 
+#: The shard schema version this reader decodes (docs/FORMAT.md).
+SCHEMA_VERSION = 2
+
+
 def decode_tensor(row: Dict[str, Any], name: str) -> Optional[np.ndarray]:
-    """Decodes one tensor column of a row as docs/FORMAT.md describes (None when absent)."""
+    """Decodes one tensor column of a row as docs/FORMAT.md describes (None when absent): the
+    zstd frame holds the elements' little-endian bytes in byte planes, column by column."""
     if row.get(name) is None:
         return None
     dtype, shape = np.dtype(row[name + "_dtype"]), row[name + "_shape"]
-    size = int(np.prod(shape)) * dtype.itemsize
-    raw = pa.decompress(row[name], decompressed_size=size, codec="zstd")
-    return np.frombuffer(raw, dtype=dtype).reshape(shape)
+    n, k = int(shape[0]), int(np.prod(shape[1:]))
+    raw = pa.decompress(row[name], decompressed_size=n * k * dtype.itemsize, codec="zstd")
+    planes = np.frombuffer(raw, np.uint8).reshape(k, dtype.itemsize, n)
+    return planes.transpose(2, 0, 1).copy().view(dtype).reshape(shape)
 
 
 def row_to_item(row: Dict[str, Any]) -> Dict[str, Any]:
@@ -110,6 +116,11 @@ def row_to_item(row: Dict[str, Any]) -> Dict[str, Any]:
 
 def _rows(path: pathlib.Path, batch_size: int) -> Iterator[Dict[str, Any]]:
     f = pq.ParquetFile(path)
+    meta = f.metadata.metadata or {}
+    version = meta.get(b"sparc3d.schema_version", b"missing").decode()
+    if version != str(SCHEMA_VERSION):
+        raise ValueError(f"{path}: shard schema version {version}, this reader decodes "
+                         f"version {SCHEMA_VERSION} (docs/FORMAT.md)")
     for batch in f.iter_batches(batch_size=batch_size, columns=_READ_COLUMNS):
         yield from batch.to_pylist()
 

@@ -26,8 +26,9 @@ pub use manifest::{FrozenItem, ManifestRecord};
 pub use row::{RowCounts, RowTensors, RowTimings, ShardRow};
 pub use tensor::{DType, EncodedTensor};
 
-/// Version of the shard format; bumped on any change to columns or encodings.
-pub const SCHEMA_VERSION: u32 = 1;
+/// Version of the shard format; bumped on any change to columns or encodings. Version 2 stores
+/// tensor bytes in byte planes (version 1: row-major).
+pub const SCHEMA_VERSION: u32 = 2;
 
 /// Version of the tool that wrote a file (the workspace version).
 pub const TOOL_VERSION: &str = env!("CARGO_PKG_VERSION");
