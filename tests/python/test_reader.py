@@ -133,3 +133,20 @@ def test_torch_dataset_and_loader(job):
     assert batch["coords"].dtype == torch.int32 and batch["coords"].shape[1] == 4
     assert batch["feats"].dtype == torch.float32
     assert int(batch["offsets"][-1]) == batch["coords"].shape[0]
+
+
+def test_other_schema_versions_are_refused(job, tmp_path):
+    """A shard whose footer names another schema version (v1 stored row-major bytes) is refused
+    by the reader and by the CLI, naming both versions, instead of decoding garbage."""
+    import pyarrow.parquet as pq
+
+    src = reader.shard_paths(job)[0]
+    table = pq.read_table(src)
+    meta = dict(pq.ParquetFile(src).metadata.metadata)
+    meta[b"sparc3d.schema_version"] = b"1"
+    old = tmp_path / "part-00000.parquet"
+    pq.write_table(table.replace_schema_metadata(meta), old)
+    with pytest.raises(ValueError, match="schema version 1.*version 2"):
+        list(reader.iter_items([old], complete_only=False))
+    r = subprocess.run([sparc3d_bin(), "inspect", str(old)], capture_output=True, text=True)
+    assert r.returncode != 0 and "schema version 1" in r.stderr, r.stderr
