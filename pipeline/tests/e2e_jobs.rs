@@ -8,6 +8,11 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn setup(tmp: &Path, name: &str, extra: &[&str]) -> (PathBuf, PathBuf) {
+    setup_at(tmp, name, "48", extra)
+}
+
+/// A job over the test corpus at `resolution` (the manifest is built once per folder).
+fn setup_at(tmp: &Path, name: &str, resolution: &str, extra: &[&str]) -> (PathBuf, PathBuf) {
     let meshes = corpus(tmp);
     let manifest = tmp.join("m.csv");
     if !manifest.exists() {
@@ -26,7 +31,7 @@ fn setup(tmp: &Path, name: &str, extra: &[&str]) -> (PathBuf, PathBuf) {
         "--manifest".into(),
         manifest.to_string_lossy().into_owned(),
         "--resolution".into(),
-        "48".into(),
+        resolution.into(),
         "--shard-size".into(),
         "8".into(),
     ];
@@ -193,22 +198,10 @@ fn unwritable_output_folder_is_a_clear_error() {
 #[test]
 fn timeouts_are_failed_rows_and_retry_converts_them_again() {
     let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
-    let (_, manifest) = setup(tmp.path(), "job", &[]);
     // A resolution at which items take longer than the watchdog's 50 ms look, which keeps a
     // row that arrives before it.
-    let job = tmp.path().join("slow");
+    let (job, _) = setup_at(tmp.path(), "job", "320", &[]);
     let j = job.to_string_lossy().into_owned();
-    let m = manifest.to_string_lossy().into_owned();
-    ok(&[
-        "init",
-        &j,
-        "--manifest",
-        &m,
-        "--resolution",
-        "320",
-        "--shard-size",
-        "8",
-    ]);
     ok(&["run", &j, "--workers", "2", "--item-timeout", "0.001"]);
     assert_each_item_once(&job);
     let s = status(&job);
