@@ -2,31 +2,10 @@
 //! indexed Job's `JOB_COMPLETION_INDEX` (or Slurm's `SLURM_ARRAY_TASK_ID`), and
 //! `submit slurm --dry-run` plans arrays for the unfinished shards only.
 
+mod common;
+
+use common::{ok_env as ok, sparc3d_env as sparc3d};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn sparc3d(args: &[&str], env: &[(&str, &str)]) -> Output {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_sparc3d"));
-    c.args(args)
-        .env_remove("SLURM_ARRAY_TASK_ID")
-        .env_remove("JOB_COMPLETION_INDEX");
-    for (k, v) in env {
-        c.env(k, v);
-    }
-    c.output()
-        .unwrap_or_else(|e| panic!("running sparc3d {args:?}: {e}"))
-}
-
-fn ok(args: &[&str], env: &[(&str, &str)]) -> String {
-    let out = sparc3d(args, env);
-    assert!(
-        out.status.success(),
-        "sparc3d {args:?} failed: {}\n{}",
-        out.status,
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
 
 fn s(p: &Path) -> &str {
     p.to_str().expect("test paths are UTF-8")

@@ -12,15 +12,31 @@ pub fn bin() -> PathBuf {
 
 /// Runs the binary with arguments; returns its output.
 pub fn sparc3d(args: &[&str]) -> Output {
-    Command::new(bin())
-        .args(args)
-        .output()
+    sparc3d_env(args, &[])
+}
+
+/// Runs the binary with arguments and extra environment variables, without the cluster task
+/// index variables of the calling shell; returns its output.
+pub fn sparc3d_env(args: &[&str], env: &[(&str, &str)]) -> Output {
+    let mut c = Command::new(bin());
+    c.args(args)
+        .env_remove("SLURM_ARRAY_TASK_ID")
+        .env_remove("JOB_COMPLETION_INDEX");
+    for (k, v) in env {
+        c.env(k, v);
+    }
+    c.output()
         .unwrap_or_else(|e| panic!("running sparc3d {args:?}: {e}"))
 }
 
 /// Runs the binary and panics with its stderr when it fails.
 pub fn ok(args: &[&str]) -> String {
-    let out = sparc3d(args);
+    ok_env(args, &[])
+}
+
+/// [`ok`] with extra environment variables.
+pub fn ok_env(args: &[&str], env: &[(&str, &str)]) -> String {
+    let out = sparc3d_env(args, env);
     assert!(
         out.status.success(),
         "sparc3d {args:?} failed: {}\n{}",
