@@ -42,13 +42,8 @@ pub struct Args {
     /// Skip the warm-up conversion.
     #[arg(long)]
     pub no_warmup: bool,
-    /// Move active vertices towards the surface, as `convert --deform` does. Off by default,
-    /// as in `convert` and in jobs, so the benchmark measures the default conversion.
-    #[arg(long, conflicts_with = "no_deform")]
-    pub deform: bool,
-    /// Keep the grid undeformed (the default).
-    #[arg(long)]
-    pub no_deform: bool,
+    #[command(flatten)]
+    pub deform: super::deform_args::DeformArgs,
     /// zstd level of the encoded tensors.
     #[arg(long, default_value_t = 3)]
     pub zstd_level: i32,
@@ -252,7 +247,7 @@ fn bench_mesh(exe: &Path, path: &Path, resolution: u32, args: &Args) -> BenchRow
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped());
-    if args.deform {
+    if args.deform.enabled() {
         cmd.arg("--deform");
     }
     if let Some(t) = args.threads {

@@ -20,13 +20,8 @@ pub struct Args {
     /// Grid resolution N (cells per axis).
     #[arg(long, default_value_t = 512)]
     pub resolution: u32,
-    /// Move active vertices towards the surface, as `convert --deform` does. Off by default,
-    /// as in `convert` and in jobs, so the benchmark measures the default conversion.
-    #[arg(long, conflicts_with = "no_deform")]
-    pub deform: bool,
-    /// Keep the grid undeformed (the default).
-    #[arg(long)]
-    pub no_deform: bool,
+    #[command(flatten)]
+    pub deform: super::deform_args::DeformArgs,
     /// zstd level of the encoded tensors (the job default is 3).
     #[arg(long, default_value_t = 3)]
     pub zstd_level: i32,
@@ -140,7 +135,7 @@ fn measure(args: &Args, row: &mut BenchRow) -> anyhow::Result<()> {
     row.input_vertices = loaded.mesh.positions.len() as u64;
 
     let mut params = sparcubes::Params::with_resolution(args.resolution);
-    params.deform = args.deform && !args.no_deform;
+    params.deform = args.deform.enabled();
     let conversion = sparcubes::convert(&loaded.mesh, &params)
         .with_context(|| format!("convert {name} at {}", args.resolution))?;
     drop(loaded);

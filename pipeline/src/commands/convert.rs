@@ -19,13 +19,8 @@ pub struct Args {
     /// Grid resolution N (cells per axis, up to 4096).
     #[arg(long, default_value_t = 512)]
     pub resolution: u32,
-    /// Move active vertices towards the surface (paper step 3). Off by default: it did not
-    /// improve quality on the dev corpus (docs/QUALITY.md).
-    #[arg(long, conflicts_with = "no_deform")]
-    pub deform: bool,
-    /// Keep the grid undeformed (the default).
-    #[arg(long)]
-    pub no_deform: bool,
+    #[command(flatten)]
+    pub deform: super::deform_args::DeformArgs,
     /// Write the output in grid coordinates (voxels) instead of the source frame.
     #[arg(long)]
     pub grid_frame: bool,
@@ -49,7 +44,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         .with_context(|| format!("loading {}", args.input.display()))?;
     let load_seconds = start.elapsed().as_secs_f64();
     let mut params = sparcubes::Params::with_resolution(args.resolution);
-    params.deform = args.deform && !args.no_deform;
+    params.deform = args.deform.enabled();
     let conversion = sparcubes::convert(&loaded.mesh, &params)
         .with_context(|| format!("converting {}", args.input.display()))?;
     let t = Instant::now();

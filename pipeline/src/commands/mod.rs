@@ -4,6 +4,7 @@
 pub mod bench;
 pub mod bench_one;
 pub mod convert;
+pub mod deform_args;
 pub mod eval;
 pub mod failures;
 pub mod fill_holes;
