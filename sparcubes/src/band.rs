@@ -7,7 +7,7 @@
 //! each brick scans its own triangles — no per-vertex tree query.
 
 use crate::grid::{for_each_bit, BrickMask, BrickSet, Numbered, BRICK};
-use crate::vec3::{dot, sub};
+use crate::vec3::{cross, dot, sub};
 use crate::voxelize::{triangle_box_overlap, GridMesh};
 use rayon::prelude::*;
 
@@ -270,34 +270,36 @@ fn scan_brick(
 }
 
 /// Computes, for every vertex of `verts`, its exact distance to the surface and its closest
-/// point. `reach` bounds how far any of them can be from the surface ([`CORE_REACH`] for the
+/// point (`planes` from [`triangle_planes`]). `reach` bounds how far any of them can be from the surface ([`CORE_REACH`] for the
 /// corners of wall cells, [`REACH`] for the corners of their neighbours). Ties go to the
 /// lowest triangle index and a vertex's result depends only on the triangles within its
 /// reach, so it does not depend on the thread count.
-pub fn compute_band(mesh: &GridMesh, verts: BrickSet, reach: f64) -> Band {
+pub fn compute_band(mesh: &GridMesh, planes: &[[f64; 4]], verts: BrickSet, reach: f64) -> Band {
     let verts = Numbered::new(verts);
     let (starts, bins) = bin_triangles(mesh, &verts.set, reach);
-    let planes: Vec<[f64; 4]> = (0..mesh.tris.len())
+    let mut nearest = vec![Nearest::default(); verts.len];
+    verts.par_fill(
+        &mut nearest,
+        BrickScratch::new,
+        |scratch, s, b, mask, out| {
+            let base = [b[0] as i64 * 8, b[1] as i64 * 8, b[2] as i64 * 8];
+            let tris = &bins[starts[s] as usize..starts[s + 1] as usize];
+            scan_brick(mesh, planes, tris, mask, base, reach, scratch, out);
+        },
+    );
+    Band { verts, nearest }
+}
+
+/// Each triangle's unit normal `n` and offset `n·a`, the plane [`compute_band`] uses to skip
+/// triangles farther than a vertex's best distance. Computed once per mesh for every band.
+pub fn triangle_planes(mesh: &GridMesh) -> Vec<[f64; 4]> {
+    (0..mesh.tris.len())
         .map(|t| {
             let [a, b, c] = mesh.tri(t);
-            let u = sub(b, a);
-            let v = sub(c, a);
-            let nrm = [
-                u[1] * v[2] - u[2] * v[1],
-                u[2] * v[0] - u[0] * v[2],
-                u[0] * v[1] - u[1] * v[0],
-            ];
+            let nrm = cross(sub(b, a), sub(c, a));
             let len = dot(nrm, nrm).sqrt();
             let nrm = [nrm[0] / len, nrm[1] / len, nrm[2] / len];
             [nrm[0], nrm[1], nrm[2], dot(nrm, a)]
         })
-        .collect();
-    let mut nearest = vec![Nearest::default(); verts.len];
-    verts.par_fill(&mut nearest, BrickScratch::new, |scratch, b, mask, out| {
-        let s = verts.set.index.slots[verts.set.index.key(b)] as usize;
-        let base = [b[0] as i64 * 8, b[1] as i64 * 8, b[2] as i64 * 8];
-        let tris = &bins[starts[s] as usize..starts[s + 1] as usize];
-        scan_brick(mesh, &planes, tris, mask, base, reach, scratch, out);
-    });
-    Band { verts, nearest }
+        .collect()
 }

@@ -1,6 +1,6 @@
 //! The conversion driver: the stages of DESIGN.md §3, top to bottom, each a free function.
 
-use crate::band::{compute_band, Band, CORE_REACH, REACH};
+use crate::band::{compute_band, triangle_planes, Band, CORE_REACH, REACH};
 use crate::cubes::SparseCubes;
 use crate::deform::{compute_field, Field};
 use crate::error::{Error, Result};
@@ -198,17 +198,20 @@ pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
     st.done("voxelize");
     let flood = flood_outside(&vox.walls);
     st.done("flood");
-    let band = compute_band(&grid, dilate(&vox.walls, n, Dilation::Corners), CORE_REACH);
+    let planes = triangle_planes(&grid);
+    let core_verts = dilate(&vox.walls, n, Dilation::Corners);
+    let band = compute_band(&grid, &planes, core_verts, CORE_REACH);
     st.done("band");
-    let signs = compute_signs(&band, &vox, &flood);
+    let core_signs = compute_signs(&band, &vox, &flood);
+    let signs = &core_signs.signs;
     st.done("sign");
-    let field = compute_field(&band, &signs, params);
+    let field = compute_field(&band, signs, params);
     st.done("deform");
-    let rings = ring_cells(&band, &signs, &field.sdf, &vox.walls, &flood, n);
+    let rings = ring_cells(&band, &core_signs, &field.sdf, &vox.walls, &flood, n);
     // The ring's own vertices: corners of ring cells that are not in the core band.
     let ring_verts = difference(&dilate(&rings, n, Dilation::Corners), &band.verts.set, n);
-    let ring = compute_band(&grid, ring_verts, REACH);
-    let ring_signs = ring_signs(&ring, &vox.walls, &flood, &signs);
+    let ring = compute_band(&grid, &planes, ring_verts, REACH);
+    let ring_signs = ring_signs(&ring, &vox.walls, &flood, &core_signs);
     let ring_field = compute_field(&ring, &ring_signs, params);
     st.stats.ring_cells = rings.len();
     st.stats.band_vertices = (band.verts.len + ring.verts.len) as u64;

@@ -9,7 +9,6 @@
 //! extracted mesh) are the same with and without deformation.
 
 use crate::band::{Band, Nearest};
-use crate::grid::for_each_bit;
 use crate::params::Params;
 use crate::sign::{Side, Signs};
 
@@ -81,38 +80,11 @@ pub fn compute_field(band: &Band, signs: &Signs, params: &Params) -> Field {
         ];
         (signed(d - step, side, thin, t), delta)
     };
-    // Vertex numbers run brick by brick in local bit order; each brick's first number is its
-    // offset.
-    let first = |b: [u32; 3]| {
-        let s = band.verts.set.index.slots[band.verts.set.index.key(b)] as usize;
-        band.verts.offsets[s] as usize
-    };
-    band.verts.par_fill(
-        &mut sdf,
-        || (),
-        |_, b, mask, out| {
-            let mut i = 0;
-            let start = first(b);
-            for_each_bit(mask, |x, y, z| {
-                out[i] = vertex(start + i, [b[0] * 8 + x, b[1] * 8 + y, b[2] * 8 + z]).0;
-                i += 1;
-            });
-        },
-    );
+    band.verts.par_fill_each(&mut sdf, |i, c| vertex(i, c).0);
     if eta > 0.0 {
         deformation = vec![[0f32; 3]; n];
-        band.verts.par_fill(
-            &mut deformation,
-            || (),
-            |_, b, mask, out| {
-                let mut i = 0;
-                let start = first(b);
-                for_each_bit(mask, |x, y, z| {
-                    out[i] = vertex(start + i, [b[0] * 8 + x, b[1] * 8 + y, b[2] * 8 + z]).1;
-                    i += 1;
-                });
-            },
-        );
+        band.verts
+            .par_fill_each(&mut deformation, |i, c| vertex(i, c).1);
     }
     Field { sdf, deformation }
 }

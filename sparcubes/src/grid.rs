@@ -558,7 +558,8 @@ impl Numbered {
 }
 
 impl Numbered {
-    /// Runs `f(scratch, brick coordinate, mask, out)` for every brick in parallel, where `out`
+    /// Runs `f(scratch, slot, brick coordinate, mask, out)` for every brick in parallel, where
+    /// `slot` is the brick's position in the set (its first member is `offsets[slot]`), `out`
     /// is the brick's own slice of a flat per-member array (members in local bit order) and
     /// `scratch` a per-thread value made by `init`. Writes land in place: no per-brick vectors
     /// to collect and concatenate.
@@ -566,7 +567,7 @@ impl Numbered {
         &self,
         data: &mut [T],
         init: impl Fn() -> S + Sync + Send,
-        f: impl Fn(&mut S, [u32; 3], &BrickMask, &mut [T]) + Sync + Send,
+        f: impl Fn(&mut S, usize, [u32; 3], &BrickMask, &mut [T]) + Sync + Send,
     ) {
         use rayon::prelude::*;
         let mut parts: Vec<(usize, &mut [T])> = Vec::with_capacity(self.set.keys.len());
@@ -580,8 +581,28 @@ impl Numbered {
             .into_par_iter()
             .for_each_init(init, |scratch, (s, out)| {
                 let b = self.set.index.coord(self.set.keys[s] as usize);
-                f(scratch, b, &self.set.masks[s], out)
+                f(scratch, s, b, &self.set.masks[s], out)
             });
+    }
+
+    /// Sets `data[id] = f(id, coordinate)` for every member, in parallel over bricks.
+    pub fn par_fill_each<T: Send>(
+        &self,
+        data: &mut [T],
+        f: impl Fn(usize, [u32; 3]) -> T + Sync + Send,
+    ) {
+        self.par_fill(
+            data,
+            || (),
+            |_, s, b, mask, out| {
+                let first = self.offsets[s] as usize;
+                let mut i = 0;
+                for_each_bit(mask, |x, y, z| {
+                    out[i] = f(first + i, [b[0] * 8 + x, b[1] * 8 + y, b[2] * 8 + z]);
+                    i += 1;
+                });
+            },
+        );
     }
 
     /// Coordinates of the members with the given numbers (ascending), without materialising

@@ -14,7 +14,7 @@
 use crate::band::Band;
 use crate::flood::Flood;
 use crate::grid::{dilate, for_each_bit, merge_masks, BrickMask, BrickSet, Dilation};
-use crate::sign::{Signs, TOUCHES_INSIDE, TOUCHES_OUTSIDE};
+use crate::sign::{CoreSigns, TOUCHES_INSIDE, TOUCHES_OUTSIDE};
 use rayon::prelude::*;
 
 /// The surface-free cells with a corner in `core` whose φ (`sdf`, parallel to the core band's
@@ -23,7 +23,7 @@ use rayon::prelude::*;
 /// the cells they are corners of, and masked with the outside (inside) cells.
 pub fn ring_cells(
     core: &Band,
-    signs: &Signs,
+    signs: &CoreSigns,
     sdf: &[f32],
     walls: &BrickSet,
     flood: &Flood,

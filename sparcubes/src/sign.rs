@@ -39,6 +39,14 @@ pub struct Signs {
     pub side: Vec<Side>,
     /// Whether the vertex belongs to a thin shell around an open part.
     pub thin: Vec<bool>,
+}
+
+/// The core band's signs and what the ring stage ([`crate::ring`], [`ring_signs`]) needs
+/// besides them.
+#[derive(Debug, Clone)]
+pub struct CoreSigns {
+    /// Side and thin flag per core vertex.
+    pub signs: Signs,
     /// Which kinds of surface-free cells each vertex touches ([`TOUCHES_OUTSIDE`],
     /// [`TOUCHES_INSIDE`]); 0 for a vertex whose eight cells are all wall cells.
     pub touches: Vec<u8>,
@@ -47,9 +55,9 @@ pub struct Signs {
     pub thin_cells: Vec<BrickMask>,
 }
 
-/// Bit of [`Signs::touches`]: the vertex is a corner of a surface-free outside cell.
+/// Bit of [`CoreSigns::touches`]: the vertex is a corner of a surface-free outside cell.
 pub const TOUCHES_OUTSIDE: u8 = 1;
-/// Bit of [`Signs::touches`]: the vertex is a corner of a surface-free inside cell.
+/// Bit of [`CoreSigns::touches`]: the vertex is a corner of a surface-free inside cell.
 pub const TOUCHES_INSIDE: u8 = 2;
 
 const STEPS: [[i64; 3]; 3] = [[1, 0, 0], [0, 1, 0], [0, 0, 1]];
@@ -67,34 +75,22 @@ fn brick_coords(set: &BrickSet, s: usize) -> Vec<[i64; 3]> {
     out
 }
 
-/// Which surface-free cells each vertex touches, as [`Signs::touches`] bits.
+/// Which surface-free cells each vertex touches, as [`CoreSigns::touches`] bits.
 fn touched_sides(band: &Band, walls: &BrickSet, flood: &Flood) -> Vec<u8> {
     let mut touches = vec![0u8; band.verts.len];
-    band.verts.par_fill(
-        &mut touches,
-        || (),
-        |_, b, mask, out| {
-            let mut i = 0;
-            for_each_bit(mask, |x, y, z| {
-                let v = [
-                    (b[0] * 8 + x) as i64,
-                    (b[1] * 8 + y) as i64,
-                    (b[2] * 8 + z) as i64,
-                ];
-                let mut bits = 0;
-                for d in 0..8i64 {
-                    let c = [v[0] - (d & 1), v[1] - ((d >> 1) & 1), v[2] - (d >> 2)];
-                    bits |= match flood.cell(walls, c) {
-                        CellSide::Outside => TOUCHES_OUTSIDE,
-                        CellSide::Inside => TOUCHES_INSIDE,
-                        CellSide::Wall => 0,
-                    };
-                }
-                out[i] = bits;
-                i += 1;
-            });
-        },
-    );
+    band.verts.par_fill_each(&mut touches, |_, c| {
+        let v = [c[0] as i64, c[1] as i64, c[2] as i64];
+        let mut bits = 0;
+        for d in 0..8i64 {
+            let cell = [v[0] - (d & 1), v[1] - ((d >> 1) & 1), v[2] - (d >> 2)];
+            bits |= match flood.cell(walls, cell) {
+                CellSide::Outside => TOUCHES_OUTSIDE,
+                CellSide::Inside => TOUCHES_INSIDE,
+                CellSide::Wall => 0,
+            };
+        }
+        bits
+    });
     touches
 }
 
@@ -323,48 +319,42 @@ fn thin_at(walls: &BrickSet, thin_cells: &[BrickMask], p: [f32; 3]) -> bool {
 
 /// Decides the side of every vertex of the core band (the corners of the wall cells) and
 /// which of them belong to thin shells.
-pub fn compute_signs(band: &Band, vox: &Voxelization, flood: &Flood) -> Signs {
+pub fn compute_signs(band: &Band, vox: &Voxelization, flood: &Flood) -> CoreSigns {
     let touches = touched_sides(band, &vox.walls, flood);
     let mut side: Vec<Side> = touches.iter().map(|&t| side_from_touches(t)).collect();
     resolve_enclosed(band, vox, &mut side);
     let evidence = edge_evidence(band, vox, &side);
     let thin_cells = thin_cells(&vox.walls, &evidence);
-    let walls = &vox.walls;
-    let thin = band
-        .nearest
-        .par_iter()
-        .map(|near| thin_at(walls, &thin_cells, near.point))
-        .collect();
-    Signs {
-        side,
-        thin,
+    let thin = thin_flags(band, &vox.walls, &thin_cells);
+    CoreSigns {
+        signs: Signs { side, thin },
         touches,
         thin_cells,
     }
 }
 
+/// Whether each band vertex's closest surface point lies in a thin wall cell.
+fn thin_flags(band: &Band, walls: &BrickSet, thin_cells: &[BrickMask]) -> Vec<bool> {
+    band.nearest
+        .par_iter()
+        .map(|near| thin_at(walls, thin_cells, near.point))
+        .collect()
+}
+
 /// Signs of the ring's own vertices (corners of the [`crate::ring`] cells that are not
 /// corners of wall cells), with the thin wall cells the core band found. Every such vertex
 /// touches only surface-free cells, so its side is known from the flood.
-pub fn ring_signs(band: &Band, walls: &BrickSet, flood: &Flood, core: &Signs) -> Signs {
-    let touches = touched_sides(band, walls, flood);
-    let side = touches
-        .iter()
-        .map(|&t| match side_from_touches(t) {
+pub fn ring_signs(band: &Band, walls: &BrickSet, flood: &Flood, core: &CoreSigns) -> Signs {
+    let side = touched_sides(band, walls, flood)
+        .into_iter()
+        .map(|t| match side_from_touches(t) {
             // Not reached: every corner of a surface-free cell touches it.
             Side::Unknown => Side::Outside,
             s => s,
         })
         .collect();
-    let thin = band
-        .nearest
-        .par_iter()
-        .map(|near| thin_at(walls, &core.thin_cells, near.point))
-        .collect();
     Signs {
         side,
-        thin,
-        touches,
-        thin_cells: Vec::new(),
+        thin: thin_flags(band, walls, &core.thin_cells),
     }
 }
