@@ -41,7 +41,7 @@ pub fn extract(cubes: &SparseCubes) -> TriMesh {
         .par_iter()
         .map(|cells| {
             let (mut triangles, mut centres) = (0, 0);
-            for_each_case(cubes, n, table, cells, |_, idx, case| {
+            for_each_case(cubes, n, table, cells, |idx, case| {
                 triangles += case.triangles.len();
                 centres += centres_used(case).count_ones() as usize;
                 for tri in &case.triangles {
@@ -90,7 +90,7 @@ pub fn extract(cubes: &SparseCubes) -> TriMesh {
     work.into_par_iter()
         .for_each(|(cells, tris, centres, first_centre)| {
             let (mut t, mut c) = (0, 0);
-            for_each_case(cubes, n, table, cells, |_, idx, case| {
+            for_each_case(cubes, n, table, cells, |idx, case| {
                 // Centre k of this cell, numbered among the cell's used centres.
                 let mask = centres_used(case);
                 for k in 0..case.centres.len() {
@@ -165,20 +165,20 @@ fn gallop(coords: &[[u16; 3]], from: usize, target: [u16; 3]) -> usize {
     lo + coords[lo..hi].partition_point(|c| *c < target)
 }
 
-/// Calls `f(cell number in chunk, corner indices, case)` for every cell of `cells` whose eight
-/// corners are active vertices and have a sign change, in order.
+/// Calls `f(corner indices, case)` for every cell of `cells` whose eight corners are active
+/// vertices and have a sign change, in order.
 fn for_each_case(
     cubes: &SparseCubes,
     n: usize,
     table: &Table,
     cells: &[[u16; 3]],
-    mut f: impl FnMut(usize, &[usize; 8], &Case),
+    mut f: impl FnMut(&[usize; 8], &Case),
 ) {
     let coords = &cubes.coords[..n];
     let sdf = &cubes.sdf[..n];
     // One monotone cursor per corner column (dx, dy): the targets rise with the cells.
     let mut cursor = [0usize; 4];
-    for (ci, &cell) in cells.iter().enumerate() {
+    for &cell in cells {
         let mut idx = [0usize; 8];
         let mut ok = true;
         for (col, cur) in cursor.iter_mut().enumerate() {
@@ -221,7 +221,7 @@ fn for_each_case(
                 bits |= 1 << face;
             }
         }
-        f(ci, &idx, table.case(mask, bits));
+        f(&idx, table.case(mask, bits));
     }
 }
 
