@@ -109,8 +109,7 @@ pub fn preview_row(row: &ShardRow, options: &CompareOptions) -> Result<Image> {
             row.error_message.clone().unwrap_or_default()
         )
     })?;
-    let mut output = sparcubes::extract(&cubes);
-    sparcubes::extract::to_source(&mut output, &cubes.normalization, cubes.resolution);
+    let output = sparcubes::extract::extract_to_source(&cubes);
     let source = load(Path::new(&row.uri))
         .with_context(|| format!("loading the source of item {:?}", row.id))?;
     Ok(compare(&[&source, &output], options))
