@@ -17,9 +17,7 @@ slack (0.05 points) covers proportions near 0 or 1. The Rust side uses its fixed
 seed and this side fixed seeds, so the outcome is deterministic."""
 
 import json
-import os
 import pathlib
-import subprocess
 
 import numpy as np
 import pytest
@@ -27,23 +25,11 @@ import pytest
 trimesh = pytest.importorskip("trimesh")
 cKDTree = pytest.importorskip("scipy.spatial").cKDTree
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
+from sparc3d_cli import ROOT, run
 N = 100_000
 RESOLUTION = 64
 THRESHOLDS = [0.002, 0.005, 0.01]
 Z = 5.0 * 2.0
-
-
-def sparc3d_bin():
-    if os.environ.get("SPARC3D_BIN"):
-        return os.environ["SPARC3D_BIN"]
-    target = os.environ.get("CARGO_TARGET_DIR", str(ROOT / "target"))
-    return str(pathlib.Path(target) / "debug" / "sparc3d")
-
-
-def run(*args):
-    return subprocess.run([sparc3d_bin(), *map(str, args)], check=True, capture_output=True,
-                          text=True).stdout
 
 
 def load(path, tmp):
@@ -105,7 +91,7 @@ def test_eval_matches_trimesh_scipy(name, tmp_path):
     src = ROOT / "examples" / name
     out = tmp_path / "out.ply"
     run("convert", src, "-o", out, "--resolution", RESOLUTION)
-    rust = json.loads(run("eval", src, out, "--resolution", RESOLUTION, "--samples", N, "--json"))
+    rust = json.loads(run("eval", src, out, "--resolution", RESOLUTION, "--samples", N, "--json").stdout)
     py = python_metrics(load(src, tmp_path), load(out, tmp_path))
 
     assert rust["options"]["samples"] == N

@@ -3,22 +3,12 @@ exactly as printed there, and checks the tensors against the CLI's own decode
 (`sparc3d show --tensors-json`)."""
 
 import json
-import os
-import pathlib
 import re
-import subprocess
 
 import numpy as np
 import pyarrow.parquet as pq
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
-
-
-def sparc3d_bin():
-    if os.environ.get("SPARC3D_BIN"):
-        return os.environ["SPARC3D_BIN"]
-    target = os.environ.get("CARGO_TARGET_DIR", str(ROOT / "target"))
-    return str(pathlib.Path(target) / "debug" / "sparc3d")
+from sparc3d_cli import ROOT, run
 
 
 def snippet():
@@ -26,10 +16,6 @@ def snippet():
     m = re.search(r"<!-- snippet:read-shard.*?-->\s*```python\n(.*?)```", text, re.S)
     assert m, "docs/FORMAT.md has no read-shard snippet"
     return m.group(1)
-
-
-def run(*args):
-    subprocess.run([sparc3d_bin(), *args], check=True, capture_output=True)
 
 
 def test_snippet_reads_what_the_cli_decodes(tmp_path):

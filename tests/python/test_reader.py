@@ -3,16 +3,14 @@ tensors equal the CLI's own decode (`sparc3d show --tensors-json`) exactly, and 
 function builds the batched sparse layout."""
 
 import json
-import os
 import pathlib
 import shutil
-import subprocess
 import sys
 
 import numpy as np
 import pytest
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
+from sparc3d_cli import ROOT, run
 try:
     import sparc3d_reader as reader
 except ImportError:  # not installed (`pip install ./python`): use the checkout
@@ -20,17 +18,6 @@ except ImportError:  # not installed (`pip install ./python`): use the checkout
     import sparc3d_reader as reader
 
 MESHES = ["sphere.obj", "cube.off", "cube_binary.ply", "wuson.stl", "box_textured.glb"]
-
-
-def sparc3d_bin():
-    if os.environ.get("SPARC3D_BIN"):
-        return os.environ["SPARC3D_BIN"]
-    target = os.environ.get("CARGO_TARGET_DIR", str(ROOT / "target"))
-    return str(pathlib.Path(target) / "debug" / "sparc3d")
-
-
-def run(*args):
-    return subprocess.run([sparc3d_bin(), *map(str, args)], check=True, capture_output=True, text=True)
 
 
 @pytest.fixture(scope="module")
@@ -148,5 +135,5 @@ def test_other_schema_versions_are_refused(job, tmp_path):
     pq.write_table(table.replace_schema_metadata(meta), old)
     with pytest.raises(ValueError, match="schema version 1.*version 2"):
         list(reader.iter_items([old], complete_only=False))
-    r = subprocess.run([sparc3d_bin(), "inspect", str(old)], capture_output=True, text=True)
+    r = run("inspect", old, check=False)
     assert r.returncode != 0 and "schema version 1" in r.stderr, r.stderr

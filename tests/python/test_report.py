@@ -14,7 +14,6 @@ catch one, and a page with a script error that it catches that.
 """
 
 import os
-import pathlib
 import re
 import shutil
 import subprocess
@@ -22,15 +21,8 @@ import tempfile
 
 import pytest
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
+from sparc3d_cli import ROOT, run
 ARTEFACTS = ROOT / "target" / "test-artefacts"
-
-
-def sparc3d_bin():
-    if os.environ.get("SPARC3D_BIN"):
-        return os.environ["SPARC3D_BIN"]
-    target = os.environ.get("CARGO_TARGET_DIR", str(ROOT / "target"))
-    return str(pathlib.Path(target) / "debug" / "sparc3d")
 
 
 def chromium():
@@ -41,12 +33,6 @@ def chromium():
     if os.environ.get("SPARC3D_REQUIRE_CHROMIUM") == "1":
         pytest.fail("SPARC3D_REQUIRE_CHROMIUM=1 but no chromium on PATH (apt-get install -y chromium)")
     pytest.skip("chromium not installed (apt-get install -y chromium); CI sets SPARC3D_REQUIRE_CHROMIUM=1")
-
-
-def run(*args):
-    r = subprocess.run([sparc3d_bin(), *args], capture_output=True, text=True)
-    assert r.returncode == 0, "sparc3d %s failed:\n%s" % (" ".join(args), r.stderr)
-    return r
 
 
 def browse(page, *extra):

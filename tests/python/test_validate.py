@@ -3,27 +3,18 @@ sampler of `validate` and `eval JOB --sample`."""
 
 import json
 import os
-import pathlib
 import shutil
 import subprocess
 import sys
 
-import numpy as np
 import pytest
 
 pymeshlab = pytest.importorskip("pymeshlab")
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
+from sparc3d_cli import ROOT, run as run_cli
 VALIDATE_PY = ROOT / "ops" / "validate" / "validate.py"
 MESHES = ["sphere.obj", "cube.off", "cube_binary.ply", "wuson.stl", "box_textured.glb"]
 CHECKS = {"watertight", "manifold", "oriented", "volume", "components", "hausdorff"}
-
-
-def sparc3d_bin():
-    if os.environ.get("SPARC3D_BIN"):
-        return os.environ["SPARC3D_BIN"]
-    target = os.environ.get("CARGO_TARGET_DIR", str(ROOT / "target"))
-    return str(pathlib.Path(target) / "debug" / "sparc3d")
 
 
 def env(**extra):
@@ -33,8 +24,7 @@ def env(**extra):
 
 
 def run(*args, check=True, **extra):
-    return subprocess.run([sparc3d_bin(), *map(str, args)], check=check, capture_output=True,
-                          text=True, env=env(**extra))
+    return run_cli(*args, check=check, env=env(**extra))
 
 
 def make_job(tmp, name, shard_size, workers):
