@@ -85,10 +85,16 @@ fn init(job: &Path, manifest: &Path) {
     ]);
 }
 
-/// A fresh job over the fixture's manifest, run to the end.
-fn finished_job(tmp: &Path) -> PathBuf {
+/// A fresh job over the fixture's manifest, not run yet.
+fn new_job(tmp: &Path) -> PathBuf {
     let job = tmp.join("job");
     init(&job, &fixture().manifest);
+    job
+}
+
+/// A fresh job over the fixture's manifest, run to the end.
+fn finished_job(tmp: &Path) -> PathBuf {
+    let job = new_job(tmp);
     ok(&["run", s(&job), "--workers", "2"]);
     job
 }
@@ -295,8 +301,7 @@ fn torn_record_and_truncated_shard_do_not_block_the_job() {
 #[test]
 fn garbage_and_empty_leases_do_not_stall_the_run() {
     let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
-    let job = tmp.path().join("job");
-    init(&job, &fixture().manifest);
+    let job = new_job(tmp.path());
     let state = job.join("state");
     std::fs::write(state.join("part-00000.lease"), b"\x00garbage{")
         .unwrap_or_else(|e| panic!("{e}"));
@@ -323,8 +328,7 @@ fn running(pid: u32) -> bool {
 #[test]
 fn kill_9_of_run_and_an_immediate_restart_finish_the_job() {
     let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
-    let job = tmp.path().join("job");
-    init(&job, &fixture().manifest);
+    let job = new_job(tmp.path());
     let j = s(&job);
     let mut first = Command::new(bin())
         .args(["run", j, "--workers", "2"])
@@ -374,8 +378,7 @@ fn kill_9_of_run_and_an_immediate_restart_finish_the_job() {
 #[test]
 fn sigterm_exits_143_and_the_job_resumes() {
     let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
-    let job = tmp.path().join("job");
-    init(&job, &fixture().manifest);
+    let job = new_job(tmp.path());
     let j = s(&job);
     for cmd in [
         vec!["run", j, "--workers", "1"],
@@ -418,8 +421,7 @@ fn sigterm_exits_143_and_the_job_resumes() {
 #[test]
 fn write_failures_are_explained_and_the_run_exits_non_zero() {
     let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
-    let job = tmp.path().join("job");
-    init(&job, &fixture().manifest);
+    let job = new_job(tmp.path());
     let j = s(&job);
     let out = Command::new("bash")
         .args([
@@ -451,8 +453,7 @@ fn write_failures_are_explained_and_the_run_exits_non_zero() {
 #[test]
 fn too_small_item_memory_names_the_limit() {
     let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
-    let job = tmp.path().join("job");
-    init(&job, &fixture().manifest);
+    let job = new_job(tmp.path());
     ok(&["run", s(&job), "--workers", "2", "--item-memory", "20M"]);
     let text = ok(&["failures", s(&job), "--json"]);
     let mut n = 0;

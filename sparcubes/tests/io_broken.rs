@@ -309,14 +309,19 @@ fn fifos_and_devices_are_refused_at_once() {
     without_hanging("special files", fifos_and_devices_are_refused);
 }
 
-fn fifos_and_devices_are_refused() {
-    let dir = tempfile::tempdir().expect("tempdir");
-    let fifo = dir.path().join("x.obj");
+/// Makes a FIFO at `path` and returns the path.
+fn mkfifo(path: &Path) -> PathBuf {
     let made = std::process::Command::new("mkfifo")
-        .arg(&fifo)
+        .arg(path)
         .status()
         .expect("mkfifo");
     assert!(made.success());
+    path.to_path_buf()
+}
+
+fn fifos_and_devices_are_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let fifo = mkfifo(&dir.path().join("x.obj"));
     let e = expect_err(&fifo, ErrorClass::IoError);
     assert!(e.to_string().contains("FIFO"), "{e}");
     for (name, target) in [("zero.stl", "/dev/zero"), ("random.obj", "/dev/urandom")] {
@@ -326,12 +331,7 @@ fn fifos_and_devices_are_refused() {
         assert!(e.to_string().contains("character device"), "{e}");
     }
     // A glTF buffer that is a FIFO inside the folder is refused too, not waited for.
-    let pipe = dir.path().join("pipe.bin");
-    let made = std::process::Command::new("mkfifo")
-        .arg(&pipe)
-        .status()
-        .expect("mkfifo");
-    assert!(made.success());
+    mkfifo(&dir.path().join("pipe.bin"));
     let g = write(
         dir.path(),
         "pipe.gltf",

@@ -39,6 +39,18 @@ struct ShardReport {
     items: Option<u64>,
 }
 
+impl ShardReport {
+    fn new(shard: u64) -> Self {
+        Self {
+            shard,
+            state: "good",
+            reason: None,
+            moved_to: None,
+            items: None,
+        }
+    }
+}
+
 #[derive(Debug, Serialize)]
 struct Report {
     shards: u64,
@@ -99,11 +111,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 r.finished += 1;
                 r.busy += 1;
                 r.problems.push(ShardReport {
-                    shard,
                     state: "busy",
                     reason: Some(format!("{reason}; leased by {owner}, left alone")),
-                    moved_to: None,
-                    items: None,
+                    ..ShardReport::new(shard)
                 });
             }
         }
