@@ -37,6 +37,7 @@ pub mod mesh;
 pub mod metrics;
 pub mod normalize;
 pub mod params;
+pub mod regions;
 pub mod render;
 pub mod ring;
 pub mod sanitize;
@@ -45,6 +46,7 @@ pub mod sign;
 pub mod topology;
 pub mod vec3;
 pub mod voxelize;
+pub mod winding;
 
 pub use convert::{convert, Conversion, ConvertStats};
 pub use cubes::SparseCubes;

@@ -17,6 +17,7 @@
 use crate::band::Band;
 use crate::flood::{CellSide, Flood};
 use crate::grid::{for_each_bit, split, test, BrickMask, BrickSet};
+use crate::regions::Regions;
 use crate::voxelize::Voxelization;
 use rayon::prelude::*;
 
@@ -113,7 +114,7 @@ fn blocked(vox: &Voxelization, v: [i64; 3], axis: usize) -> bool {
 }
 
 /// Neighbours of vertex `c` through grid edges no triangle crosses: (number, coordinate).
-fn open_neighbours<'a>(
+pub fn open_neighbours<'a>(
     band: &'a Band,
     vox: &'a Voxelization,
     c: [u32; 3],
@@ -140,7 +141,8 @@ fn open_neighbours<'a>(
 /// level k sees only vertices decided before it, and one that sees both sides sides with
 /// inside. Each level only looks at the undecided neighbours of the previous level, so the
 /// work is linear in the vertices reached; the levels make the result independent of order.
-/// What stays unknown (fully enclosed by triangles) is outside.
+/// What stays unknown is sealed in by triangles on every side (inside a closed part thinner
+/// than a cell, or a pocket between sheets): [`crate::regions::decide_sealed`] decides it.
 fn resolve_enclosed(band: &Band, vox: &Voxelization, side: &mut [Side]) {
     let ids: Vec<u32> = (0..side.len() as u32)
         .filter(|&i| side[i as usize] == Side::Unknown)
@@ -179,16 +181,20 @@ fn resolve_enclosed(band: &Band, vox: &Voxelization, side: &mut [Side]) {
         candidates.sort_unstable_by_key(|&(j, _)| j);
         candidates.dedup_by_key(|&mut (j, _)| j);
     }
-    for s in side.iter_mut() {
-        if *s == Side::Unknown {
-            *s = Side::Outside;
-        }
-    }
 }
 
 /// Evidence per wall cell, dense per wall brick (local index x + 8y + 64z): +1 for each crossed
-/// edge of the cell whose ends are on the same side, −1 for each whose ends differ.
-fn edge_evidence(band: &Band, vox: &Voxelization, side: &[Side]) -> Vec<[i8; 512]> {
+/// edge of the cell whose ends are on the same side, −1 for each whose ends differ — or lie in
+/// two enclosed regions nested one in the other ([`Regions::nested`]): a closed surface
+/// between two solid regions (a solid inside a solid) bounds no material, so it is neither a
+/// sheet nor kept. Two solids apart by less than a cell (an air gap no grid vertex falls
+/// into) have the same winding number and vote +1: the gap stays a thin sheet, as before.
+fn edge_evidence(
+    band: &Band,
+    vox: &Voxelization,
+    side: &[Side],
+    regions: &Regions,
+) -> Vec<[i8; 512]> {
     let walls = &vox.walls;
     let mut evidence = vec![[0i8; 512]; walls.keys.len()];
     for (axis, set) in vox.blocked.iter().enumerate() {
@@ -200,11 +206,12 @@ fn edge_evidence(band: &Band, vox: &Voxelization, side: &[Side]) -> Vec<[i8; 512
                 let (Some(i), Some(j)) = (band.verts.id(v), band.verts.id(u)) else {
                     continue;
                 };
-                let vote: i8 = if side[i as usize] == side[j as usize] {
-                    1
-                } else {
-                    -1
-                };
+                let (si, sj) = (side[i as usize], side[j as usize]);
+                let separate = si != sj
+                    || (si == Side::Inside
+                        && regions.verdicts.len() > 1
+                        && regions.nested(band, vox, v, u));
+                let vote: i8 = if separate { -1 } else { 1 };
                 for d in 0..4i64 {
                     let mut cell = v;
                     cell[b] -= d & 1;
@@ -317,13 +324,26 @@ fn thin_at(walls: &BrickSet, thin_cells: &[BrickMask], p: [f32; 3]) -> bool {
         .unwrap_or(false)
 }
 
-/// Decides the side of every vertex of the core band (the corners of the wall cells) and
-/// which of them belong to thin shells.
-pub fn compute_signs(band: &Band, vox: &Voxelization, flood: &Flood) -> CoreSigns {
+/// The sides of the core band's vertices (the corners of the wall cells) as the flood and
+/// the unblocked edges give them, with the cells each touches ([`CoreSigns::touches`]).
+/// Vertices sealed in by triangles on every side stay `Unknown`.
+pub fn vertex_sides(band: &Band, vox: &Voxelization, flood: &Flood) -> (Vec<u8>, Vec<Side>) {
     let touches = touched_sides(band, &vox.walls, flood);
     let mut side: Vec<Side> = touches.iter().map(|&t| side_from_touches(t)).collect();
     resolve_enclosed(band, vox, &mut side);
-    let evidence = edge_evidence(band, vox, &side);
+    (touches, side)
+}
+
+/// Decides which core vertices belong to thin shells, once every side is known (see
+/// [`vertex_sides`] and [`crate::regions::decide_sealed`]).
+pub fn compute_signs(
+    band: &Band,
+    vox: &Voxelization,
+    touches: Vec<u8>,
+    side: Vec<Side>,
+    regions: &Regions,
+) -> CoreSigns {
+    let evidence = edge_evidence(band, vox, &side, regions);
     let thin_cells = thin_cells(&vox.walls, &evidence);
     let thin = thin_flags(band, &vox.walls, &thin_cells);
     CoreSigns {

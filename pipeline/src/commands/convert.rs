@@ -84,6 +84,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         "active_vertices": s.active_vertices,
         "active_cells": s.active_cells,
         "shell_vertices": s.shell_vertices,
+        "enclosed_regions": s.enclosed_regions,
+        "air_regions": s.air_regions,
+        "ambiguous_regions": s.ambiguous_regions,
+        "thin_parts": s.thin_parts,
+        "shelled_thin_parts": s.shelled_thin_parts,
         "output_faces": mesh.triangles.len(),
         "output_vertices": mesh.positions.len(),
         "output_components": topo.components,
@@ -129,6 +134,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         println!(
             "  active       {} vertices, {} cells ({} in thin shells)",
             s.active_vertices, s.active_cells, s.shell_vertices
+        );
+        println!(
+            "  inside test  {} enclosed regions ({} air, {} ambiguous kept solid); thin closed parts: {} kept, {} as shells",
+            s.enclosed_regions, s.air_regions, s.ambiguous_regions, s.thin_parts, s.shelled_thin_parts
         );
         println!(
             "  watertight   {}, manifold {}",

@@ -1,0 +1,785 @@
+//! Stage 3b: the enclosed regions, each decided solid or air by the source's winding number.
+//!
+//! The flood ([`crate::flood`]) reaches every surface-free cell joined to the grid's border;
+//! the rest form *enclosed regions*: connected sets (through cell faces) of surface-free cells
+//! the flood cannot reach. Reachability alone would call them all solid, but whether a region
+//! is material or air is a property of the source: the inside of a cube's cavity, or the space
+//! between a double-walled hull and the parts it holds, is enclosed and empty. So every region
+//! is decided by the generalised winding number |w| of the source ([`crate::winding`]), sampled
+//! at a few of its cells (the median of [`SAMPLES`]): solid for |w| ≥ [`SOLID_FROM`], air for
+//! |w| ≤ [`AIR_UP_TO`]. A region in between is *ambiguous* (an inconsistently oriented soup,
+//! overlapping open sheets) and keeps what reachability says: solid, the behaviour without the
+//! test. |w| rather than w, so a mesh oriented inwards throughout reads as it does outwards.
+//!
+//! Air regions are then treated as outside: [`mark_air`] adds their cells to the flood's
+//! outside, so a surface between the outside (or air) and a solid region keeps its exact
+//! position, and the parts inside a hollow hull come out as closed surfaces of their own.
+//!
+//! Regions are found brick by brick without a per-cell pass over the grid: inside a brick with
+//! wall cells, its surface-free cells not reached by the flood are split into connected parts
+//! by bit-parallel growth; a brick without wall cells is one part; parts touching across brick
+//! faces are joined with a union–find whose roots are the smallest part numbers, so regions
+//! and their numbering do not depend on thread count.
+
+use crate::band::Band;
+use crate::flood::{grow_within, Flood, FULL};
+use crate::grid::{
+    count, dilate, face_carry, for_each_bit, is_empty, BrickMask, BrickSet, Dilation, NO_BRICK,
+};
+use crate::sign::{open_neighbours, Side};
+use crate::voxelize::Voxelization;
+use crate::winding::{LazyWindingTree, WindingTree};
+use rayon::prelude::*;
+
+/// Winding numbers sampled per region (or per sealed group of vertices); the median decides.
+pub const SAMPLES: usize = 3;
+
+/// |w| at or below which a region is air.
+pub const AIR_UP_TO: f64 = 0.25;
+
+/// |w| at or above which a region is solid.
+pub const SOLID_FROM: f64 = 0.75;
+
+/// What the winding number says of a region.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Verdict {
+    /// |w| ≥ [`SOLID_FROM`]: material.
+    Solid,
+    /// |w| ≤ [`AIR_UP_TO`]: empty space.
+    Air,
+    /// In between: the caller keeps the answer the grid alone gives.
+    Ambiguous,
+}
+
+/// The verdict for a (median) winding number.
+pub fn verdict(w: f64) -> Verdict {
+    let w = w.abs();
+    if w >= SOLID_FROM {
+        Verdict::Solid
+    } else if w <= AIR_UP_TO {
+        Verdict::Air
+    } else {
+        Verdict::Ambiguous
+    }
+}
+
+/// The median of |w| at the given points (empty: 0); `stack` is the queries' scratch space.
+pub fn median_winding(tree: &WindingTree, points: &[[f64; 3]], stack: &mut Vec<u32>) -> f64 {
+    let mut w: Vec<f64> = points
+        .iter()
+        .map(|&p| tree.winding_number_with(p, stack).abs())
+        .collect();
+    median(&mut w)
+}
+
+fn median(values: &mut [f64]) -> f64 {
+    if values.is_empty() {
+        return 0.0;
+    }
+    values.sort_by(f64::total_cmp);
+    let m = values.len() / 2;
+    if values.len() % 2 == 1 {
+        values[m]
+    } else {
+        0.5 * (values[m - 1] + values[m])
+    }
+}
+
+/// Smallest difference of |w| between two regions for one to be nested in the other: half
+/// the step of one closed surface.
+pub const NESTED_STEP: f64 = 0.5;
+
+/// Steps through unblocked grid edges [`Regions::region_at`] takes to find an enclosed cell.
+pub const REGION_SEARCH: usize = 2;
+
+/// Region marker for "no region".
+pub const NO_REGION: u32 = u32::MAX;
+
+/// The enclosed regions with their winding numbers and verdicts.
+#[derive(Debug, Clone, Default)]
+pub struct Regions {
+    /// Per wall brick (parallel to the walls' bricks), its first part in `parts`; one more
+    /// entry at the end.
+    part_starts: Vec<u32>,
+    /// Connected parts of the enclosed cells of wall bricks: (cells, region).
+    parts: Vec<(BrickMask, u32)>,
+    /// Bricks without wall cells that the flood does not reach: (brick key, region), by key.
+    empty: Vec<(u32, u32)>,
+    /// Per region: the median |w| of its samples.
+    pub winding: Vec<f64>,
+    /// Per region: what that says.
+    pub verdicts: Vec<Verdict>,
+}
+
+/// Counts of a classification, for the conversion's summary.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct RegionCounts {
+    /// Enclosed regions.
+    pub regions: u64,
+    /// Of those, air.
+    pub air: u64,
+    /// Of those, ambiguous (kept solid).
+    pub ambiguous: u64,
+}
+
+impl Regions {
+    /// The region of cell `c` if it is an enclosed cell.
+    pub fn region_of(&self, walls: &BrickSet, c: [i64; 3]) -> Option<u32> {
+        if c.iter().any(|&v| v < 0) {
+            return None;
+        }
+        let (b, w, bit) = crate::grid::split([c[0] as u32, c[1] as u32, c[2] as u32]);
+        let index = &walls.index;
+        if (0..3).any(|a| b[a] >= index.dims[a]) {
+            return None;
+        }
+        let key = index.key(b);
+        match index.slots[key] {
+            NO_BRICK => self
+                .empty
+                .binary_search_by_key(&(key as u32), |e| e.0)
+                .ok()
+                .map(|i| self.empty[i].1),
+            s => {
+                let s = s as usize;
+                let range = self.part_starts[s] as usize..self.part_starts[s + 1] as usize;
+                self.parts[range]
+                    .iter()
+                    .find(|(m, _)| (m[w] >> bit) & 1 == 1)
+                    .map(|p| p.1)
+            }
+        }
+    }
+
+    /// The enclosed region vertex `c` lies in: that of a surface-free enclosed cell it is a
+    /// corner of (the smallest number if several), else the nearest one found through grid
+    /// edges no triangle crosses within [`REGION_SEARCH`] steps (a vertex whose cells all
+    /// touch the surface); `None` if there is none.
+    pub fn region_at(&self, band: &Band, vox: &Voxelization, c: [i64; 3]) -> Option<u32> {
+        let mut seen = vec![c];
+        let mut frontier = vec![c];
+        for _ in 0..=REGION_SEARCH {
+            let found = frontier
+                .iter()
+                .flat_map(|v| {
+                    (0..8i64).map(move |d| [v[0] - (d & 1), v[1] - ((d >> 1) & 1), v[2] - (d >> 2)])
+                })
+                .filter_map(|cell| self.region_of(&vox.walls, cell))
+                .min();
+            if found.is_some() {
+                return found;
+            }
+            let mut next = Vec::new();
+            for v in &frontier {
+                if v.iter().any(|&x| x < 0) {
+                    continue;
+                }
+                for (_, u) in open_neighbours(band, vox, v.map(|x| x as u32)) {
+                    let u = u.map(|x| x as i64);
+                    if !seen.contains(&u) {
+                        seen.push(u);
+                        next.push(u);
+                    }
+                }
+            }
+            frontier = next;
+        }
+        None
+    }
+
+    /// Whether the grid edge from `v` to `u` (both inside) joins two enclosed regions nested
+    /// one in the other: different regions whose winding numbers differ by at least
+    /// [`NESTED_STEP`]. A surface between them wraps one solid inside another and bounds no
+    /// material. Two solids that only touch or sit less than a cell apart have equal winding
+    /// numbers (an even number of surfaces between them) and are not nested.
+    pub fn nested(&self, band: &Band, vox: &Voxelization, v: [i64; 3], u: [i64; 3]) -> bool {
+        match (self.region_at(band, vox, v), self.region_at(band, vox, u)) {
+            (Some(a), Some(b)) if a != b => {
+                (self.winding[a as usize] - self.winding[b as usize]).abs() >= NESTED_STEP
+            }
+            _ => false,
+        }
+    }
+
+    /// Whether region `r` is air.
+    #[inline]
+    pub fn is_air(&self, r: u32) -> bool {
+        self.verdicts[r as usize] == Verdict::Air
+    }
+
+    /// How many regions, air regions and ambiguous ones.
+    pub fn counts(&self) -> RegionCounts {
+        let of = |v: Verdict| self.verdicts.iter().filter(|&&x| x == v).count() as u64;
+        RegionCounts {
+            regions: self.verdicts.len() as u64,
+            air: of(Verdict::Air),
+            ambiguous: of(Verdict::Ambiguous),
+        }
+    }
+}
+
+/// Splits the enclosed cells of every wall brick into connected parts (within the brick).
+fn wall_parts(walls: &BrickSet, flood: &Flood) -> (Vec<u32>, Vec<BrickMask>) {
+    let per_brick: Vec<Vec<BrickMask>> = (0..walls.keys.len())
+        .into_par_iter()
+        .map(|s| {
+            let wall = &walls.masks[s];
+            let outside = &flood.wall_outside[s];
+            let mut left: BrickMask = std::array::from_fn(|z| !(wall[z] | outside[z]));
+            let mut parts = Vec::new();
+            while let Some(z) = left.iter().position(|&w| w != 0) {
+                let mut part = [0u64; 8];
+                part[z] = left[z] & left[z].wrapping_neg();
+                let blocked: BrickMask = std::array::from_fn(|k| !left[k]);
+                grow_within(&mut part, &blocked);
+                for k in 0..8 {
+                    left[k] &= !part[k];
+                }
+                parts.push(part);
+            }
+            parts
+        })
+        .collect();
+    let mut starts = Vec::with_capacity(per_brick.len() + 1);
+    let mut parts = Vec::new();
+    for p in per_brick {
+        starts.push(parts.len() as u32);
+        parts.extend(p);
+    }
+    starts.push(parts.len() as u32);
+    (starts, parts)
+}
+
+/// Union–find over part numbers; the root of a set is its smallest member.
+struct Sets(Vec<u32>);
+
+impl Sets {
+    fn find(&mut self, mut x: u32) -> u32 {
+        while self.0[x as usize] != x {
+            let up = self.0[self.0[x as usize] as usize];
+            self.0[x as usize] = up;
+            x = up;
+        }
+        x
+    }
+
+    fn union(&mut self, a: u32, b: u32) {
+        let (ra, rb) = (self.find(a), self.find(b));
+        if ra != rb {
+            let (lo, hi) = (ra.min(rb), ra.max(rb));
+            self.0[hi as usize] = lo;
+        }
+    }
+}
+
+/// Finds the enclosed regions of `flood` (over `walls`) and decides each with `tree`.
+pub fn classify_regions(walls: &BrickSet, flood: &Flood, tree: &LazyWindingTree) -> Regions {
+    let index = &walls.index;
+    let (part_starts, masks) = wall_parts(walls, flood);
+    let empty_keys: Vec<u32> = (0..index.slots.len() as u32)
+        .filter(|&k| index.slots[k as usize] == NO_BRICK && !flood.empty_outside[k as usize])
+        .collect();
+    let wall_count = masks.len() as u32;
+    let total = wall_count as usize + empty_keys.len();
+    if total == 0 {
+        return Regions {
+            part_starts,
+            ..Regions::default()
+        };
+    }
+    // Part numbers: wall parts first (by brick slot, then part), then empty bricks by key.
+    let part_of_empty = |key: u32| -> Option<u32> {
+        empty_keys
+            .binary_search(&key)
+            .ok()
+            .map(|i| wall_count + i as u32)
+    };
+    let mut sets = Sets((0..total as u32).collect());
+    let mask_of = |p: u32| -> BrickMask {
+        if p < wall_count {
+            masks[p as usize]
+        } else {
+            FULL
+        }
+    };
+    let key_of = |p: u32| -> u32 {
+        if p < wall_count {
+            let s = part_starts.partition_point(|&st| st <= p) - 1;
+            walls.keys[s]
+        } else {
+            empty_keys[(p - wall_count) as usize]
+        }
+    };
+    // Join parts across the +x, +y, +z face of their brick (each face pair once).
+    for p in 0..total as u32 {
+        let key = key_of(p);
+        let b = index.coord(key as usize);
+        let mask = mask_of(p);
+        for axis in 0..3 {
+            if b[axis] + 1 >= index.dims[axis] {
+                continue;
+            }
+            let carry = face_carry(&mask, axis, true);
+            if is_empty(&carry) {
+                continue;
+            }
+            let mut nb = b;
+            nb[axis] += 1;
+            let nkey = index.key(nb) as u32;
+            match index.slots[nkey as usize] {
+                NO_BRICK => {
+                    if let Some(q) = part_of_empty(nkey) {
+                        sets.union(p, q);
+                    }
+                }
+                s => {
+                    let s = s as usize;
+                    for q in part_starts[s]..part_starts[s + 1] {
+                        let m = &masks[q as usize];
+                        if (0..8).any(|z| carry[z] & m[z] != 0) {
+                            sets.union(p, q);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    // Regions numbered by their smallest part.
+    let mut region_of_part = vec![NO_REGION; total];
+    let mut regions = 0u32;
+    for p in 0..total as u32 {
+        let root = sets.find(p);
+        if root == p {
+            region_of_part[p as usize] = regions;
+            regions += 1;
+        } else {
+            region_of_part[p as usize] = region_of_part[root as usize];
+        }
+    }
+    let points = sample_points(
+        regions as usize,
+        &region_of_part,
+        wall_count,
+        &mask_of,
+        &key_of,
+        index,
+    );
+    let tree = tree.get();
+    let winding: Vec<f64> = points
+        .par_iter()
+        .map_init(
+            || Vec::with_capacity(64),
+            |stack, pts| median_winding(tree, pts, stack),
+        )
+        .collect();
+    let verdicts = winding.iter().map(|&w| verdict(w)).collect();
+    Regions {
+        parts: masks
+            .into_iter()
+            .zip(&region_of_part)
+            .map(|(m, &r)| (m, r))
+            .collect(),
+        empty: empty_keys
+            .iter()
+            .enumerate()
+            .map(|(i, &k)| (k, region_of_part[wall_count as usize + i]))
+            .collect(),
+        part_starts,
+        winding,
+        verdicts,
+    }
+}
+
+/// Up to [`SAMPLES`] points per region: cell centres spread evenly over the region's cells in
+/// part order, taken from its bricks without wall cells when it has any (they lie farther
+/// from the surface).
+fn sample_points(
+    regions: usize,
+    region_of_part: &[u32],
+    wall_count: u32,
+    mask_of: &dyn Fn(u32) -> BrickMask,
+    key_of: &dyn Fn(u32) -> u32,
+    index: &crate::grid::BrickIndex,
+) -> Vec<Vec<[f64; 3]>> {
+    // Per region: (cells in its empty bricks, cells in its wall parts).
+    let mut cells = vec![(0u64, 0u64); regions];
+    for (p, &r) in region_of_part.iter().enumerate() {
+        let n = count(&mask_of(p as u32)) as u64;
+        if (p as u32) < wall_count {
+            cells[r as usize].1 += n;
+        } else {
+            cells[r as usize].0 += n;
+        }
+    }
+    // The ranks (within the chosen kind of part) each region samples, ascending.
+    let wanted: Vec<Vec<u64>> = cells
+        .iter()
+        .map(|&(empty, wall)| {
+            let total = if empty > 0 { empty } else { wall };
+            let k = (SAMPLES as u64).min(total);
+            let mut ranks: Vec<u64> = (0..k).map(|i| (2 * i + 1) * total / (2 * k)).collect();
+            ranks.dedup();
+            ranks
+        })
+        .collect();
+    let mut seen = vec![0u64; regions];
+    let mut next = vec![0usize; regions];
+    let mut points = vec![Vec::with_capacity(SAMPLES); regions];
+    for (p, &r) in region_of_part.iter().enumerate() {
+        let r = r as usize;
+        let is_empty_part = p as u32 >= wall_count;
+        if is_empty_part != (cells[r].0 > 0) || next[r] >= wanted[r].len() {
+            continue;
+        }
+        let mask = mask_of(p as u32);
+        let n = count(&mask) as u64;
+        let b = index.coord(key_of(p as u32) as usize);
+        while next[r] < wanted[r].len() && wanted[r][next[r]] < seen[r] + n {
+            let local = nth_bit(&mask, (wanted[r][next[r]] - seen[r]) as u32);
+            let (x, y, z) = (local & 7, (local >> 3) & 7, local >> 6);
+            points[r].push([
+                (b[0] * 8 + x) as f64 + 0.5,
+                (b[1] * 8 + y) as f64 + 0.5,
+                (b[2] * 8 + z) as f64 + 0.5,
+            ]);
+            next[r] += 1;
+        }
+        seen[r] += n;
+    }
+    points
+}
+
+/// Local index (x + 8y + 64z) of the `n`-th set bit of a mask (which has more than `n`).
+fn nth_bit(m: &BrickMask, mut n: u32) -> u32 {
+    for (z, &word) in m.iter().enumerate() {
+        let c = word.count_ones();
+        if n < c {
+            let mut w = word;
+            for _ in 0..n {
+                w &= w - 1;
+            }
+            return 64 * z as u32 + w.trailing_zeros();
+        }
+        n -= c;
+    }
+    0
+}
+
+/// What [`decide_sealed`] found.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct SealedCounts {
+    /// Groups of sealed vertices (joined through grid edges no triangle crosses).
+    pub groups: u64,
+    /// Groups whose winding number was ambiguous (left outside).
+    pub ambiguous: u64,
+    /// Thin closed parts kept at their thickness: sealed vertices found inside, joined with
+    /// their 26 neighbours.
+    pub thin_parts: u64,
+    /// Thin closed parts left to the thin shell because the grid cannot hold them: somewhere
+    /// a grid edge crosses them with both ends outside.
+    pub shelled_parts: u64,
+}
+
+/// Decides the vertices that are still `Unknown` after [`crate::sign::vertex_sides`]: those
+/// sealed in by triangles on every side, with no surface-free cell to take a side from — the
+/// inside of a closed part thinner than about two cells, or a pocket between sheets. They are
+/// grouped through grid edges no triangle crosses (a group has one side), and each group is
+/// inside if the winding number at its [`SAMPLES`] vertices farthest from the surface (median)
+/// says solid; otherwise outside, as the grid alone would have it (air or ambiguous).
+///
+/// A part found inside keeps its own surface (φ = ±UDF) only where the grid can hold it: a
+/// part thinner than a cell has places no grid vertex falls into, where a grid edge crosses
+/// it with both ends outside, and the exact field would leave a hole there. So the found
+/// vertices are joined into parts (26 neighbours), and a part with such an edge next to one of
+/// its vertices goes back to outside: it becomes a thin shell, as without the test. A part at
+/// least a cell thick has a vertex in every grid edge's span across it, so it keeps its
+/// surface.
+pub fn decide_sealed(
+    band: &Band,
+    vox: &Voxelization,
+    side: &mut [Side],
+    tree: &LazyWindingTree,
+    n: u32,
+) -> SealedCounts {
+    let unknown: Vec<u32> = (0..side.len() as u32)
+        .filter(|&i| side[i as usize] == Side::Unknown)
+        .collect();
+    if unknown.is_empty() {
+        return SealedCounts::default();
+    }
+    let coords = band.verts.coords_of(&unknown);
+    let (group_of, members, starts) = sealed_groups(band, vox, &unknown, &coords);
+    let groups = starts.len() - 1;
+    let tree = tree.get();
+    let verdicts: Vec<Verdict> = (0..groups)
+        .into_par_iter()
+        .map_init(
+            || Vec::with_capacity(64),
+            |stack, g| {
+                let mut group: Vec<u32> =
+                    members[starts[g] as usize..starts[g + 1] as usize].to_vec();
+                // Farthest from the surface first; ties by vertex number.
+                let udf = |q: u32| band.nearest[unknown[q as usize] as usize].udf;
+                group.sort_by(|&a, &b| udf(b).total_cmp(&udf(a)).then(a.cmp(&b)));
+                let points: Vec<[f64; 3]> = group
+                    .iter()
+                    .take(SAMPLES)
+                    .map(|&q| coords[q as usize].map(|v| v as f64))
+                    .collect();
+                verdict(median_winding(tree, &points, stack))
+            },
+        )
+        .collect();
+    let found: Vec<bool> = group_of
+        .iter()
+        .map(|&g| verdicts[g as usize] == Verdict::Solid)
+        .collect();
+    let (part_of, parts) = thin_parts(band, &unknown, &coords, &found);
+    let too_thin = parts_with_gaps(
+        band, vox, side, &unknown, &coords, &found, &part_of, parts, n,
+    );
+    for (q, &id) in unknown.iter().enumerate() {
+        side[id as usize] = if found[q] && !too_thin[part_of[q] as usize] {
+            Side::Inside
+        } else {
+            Side::Outside
+        };
+    }
+    let shelled = too_thin.iter().filter(|&&t| t).count() as u64;
+    SealedCounts {
+        groups: groups as u64,
+        ambiguous: verdicts
+            .iter()
+            .filter(|&&v| v == Verdict::Ambiguous)
+            .count() as u64,
+        thin_parts: parts as u64 - shelled,
+        shelled_parts: shelled,
+    }
+}
+
+/// Groups of the sealed vertices (positions in `unknown`) through grid edges no triangle
+/// crosses, by breadth-first search in number order: each position's group, and the groups'
+/// members as CSR (members, starts).
+fn sealed_groups(
+    band: &Band,
+    vox: &Voxelization,
+    unknown: &[u32],
+    coords: &[[u32; 3]],
+) -> (Vec<u32>, Vec<u32>, Vec<u32>) {
+    let mut group_of = vec![u32::MAX; unknown.len()];
+    let mut members: Vec<u32> = Vec::with_capacity(unknown.len());
+    let mut starts = vec![0u32];
+    for first in 0..unknown.len() {
+        if group_of[first] != u32::MAX {
+            continue;
+        }
+        let g = starts.len() as u32 - 1;
+        group_of[first] = g;
+        let mut next = members.len();
+        members.push(first as u32);
+        while next < members.len() {
+            let at = members[next] as usize;
+            next += 1;
+            for (j, _) in open_neighbours(band, vox, coords[at]) {
+                if let Ok(q) = unknown.binary_search(&j) {
+                    if group_of[q] == u32::MAX {
+                        group_of[q] = g;
+                        members.push(q as u32);
+                    }
+                }
+            }
+        }
+        starts.push(members.len() as u32);
+    }
+    (group_of, members, starts)
+}
+
+/// The 26 neighbour offsets that come after (0, 0, 0) in (x, y, z) order: each neighbouring
+/// pair is visited once.
+fn forward_neighbours() -> impl Iterator<Item = [i64; 3]> {
+    (0..27i64)
+        .map(|d| [d % 3 - 1, (d / 3) % 3 - 1, d / 9 - 1])
+        .filter(|off| *off > [0, 0, 0])
+}
+
+/// Connected components, through the 26 neighbours, of the `found` sealed vertices: each
+/// found position's part (numbered by smallest position), and the number of parts.
+fn thin_parts(
+    band: &Band,
+    unknown: &[u32],
+    coords: &[[u32; 3]],
+    found: &[bool],
+) -> (Vec<u32>, usize) {
+    let mut sets = Sets((0..unknown.len() as u32).collect());
+    for q in 0..unknown.len() {
+        if !found[q] {
+            continue;
+        }
+        let c = coords[q].map(|v| v as i64);
+        for off in forward_neighbours() {
+            let u = [c[0] + off[0], c[1] + off[1], c[2] + off[2]];
+            let Some(j) = band.verts.id(u) else {
+                continue;
+            };
+            if let Ok(r) = unknown.binary_search(&j) {
+                if found[r] {
+                    sets.union(q as u32, r as u32);
+                }
+            }
+        }
+    }
+    let mut part_of = vec![u32::MAX; unknown.len()];
+    let mut parts = 0u32;
+    for q in 0..unknown.len() {
+        if !found[q] {
+            continue;
+        }
+        let root = sets.find(q as u32) as usize;
+        if root == q {
+            part_of[q] = parts;
+            parts += 1;
+        } else {
+            part_of[q] = part_of[root];
+        }
+    }
+    (part_of, parts as usize)
+}
+
+/// Whether the grid edge from `v` to `u`, both outside and crossed by the surface, passes
+/// through something thinner than the edge — its ends see their closest surface points on
+/// opposite sides (directions more than 120° apart) — rather than clipping a corner or a rim
+/// (directions about 90° apart or less). An end closer than 10⁻³ voxel to the surface has no
+/// reliable direction and does not count.
+fn crosses_a_sheet(band: &Band, v: [i64; 3], u: [i64; 3]) -> bool {
+    let away = |c: [i64; 3]| -> Option<[f64; 3]> {
+        let near = band.nearest[band.verts.id(c)? as usize];
+        (near.udf > 1e-3).then(|| std::array::from_fn(|a| c[a] as f64 - near.point[a] as f64))
+    };
+    match (away(v), away(u)) {
+        (Some(a), Some(b)) => {
+            let (la, lb) = (crate::vec3::dot(a, a).sqrt(), crate::vec3::dot(b, b).sqrt());
+            crate::vec3::dot(a, b) < -0.5 * la * lb
+        }
+        _ => false,
+    }
+}
+
+/// Which thin parts a grid edge crosses through something thinner than itself with both ends
+/// outside ([`crosses_a_sheet`]) next to one of their vertices (`side` holds every other
+/// vertex's side; the sealed ones are still `Unknown`).
+#[allow(clippy::too_many_arguments)]
+fn parts_with_gaps(
+    band: &Band,
+    vox: &Voxelization,
+    side: &[Side],
+    unknown: &[u32],
+    coords: &[[u32; 3]],
+    found: &[bool],
+    part_of: &[u32],
+    parts: usize,
+    n: u32,
+) -> Vec<bool> {
+    let mut too_thin = vec![false; parts];
+    if parts == 0 {
+        return too_thin;
+    }
+    // The found vertices and their 26 neighbours, to test edges against cheaply.
+    let index = crate::grid::BrickIndex::for_resolution(n);
+    let mut packed: Vec<u64> = coords
+        .iter()
+        .zip(found)
+        .filter(|(_, &f)| f)
+        .map(|(&c, _)| crate::grid::pack(&index, c))
+        .collect();
+    packed.sort_unstable();
+    let near = dilate(&BrickSet::from_sorted_packed(n, &packed), n, Dilation::Box);
+    let outside = |c: [i64; 3]| -> bool {
+        band.verts.id(c).is_some_and(|i| match side[i as usize] {
+            Side::Outside => true,
+            Side::Unknown => unknown.binary_search(&i).is_ok_and(|q| !found[q]),
+            Side::Inside => false,
+        })
+    };
+    for (axis, set) in vox.blocked.iter().enumerate() {
+        for (s, mask) in set.masks.iter().enumerate() {
+            let b = set.index.coord(set.keys[s] as usize);
+            for_each_bit(mask, |x, y, z| {
+                let v = [
+                    (b[0] * 8 + x) as i64,
+                    (b[1] * 8 + y) as i64,
+                    (b[2] * 8 + z) as i64,
+                ];
+                let mut u = v;
+                u[axis] += 1;
+                if !(near.contains(v) || near.contains(u)) || !outside(v) || !outside(u) {
+                    return;
+                }
+                if !crosses_a_sheet(band, v, u) {
+                    return;
+                }
+                for end in [v, u] {
+                    for d in 0..27i64 {
+                        let w = [
+                            end[0] + d % 3 - 1,
+                            end[1] + (d / 3) % 3 - 1,
+                            end[2] + d / 9 - 1,
+                        ];
+                        let Some(j) = band.verts.id(w) else {
+                            continue;
+                        };
+                        if let Ok(q) = unknown.binary_search(&j) {
+                            if found[q] {
+                                too_thin[part_of[q] as usize] = true;
+                            }
+                        }
+                    }
+                }
+            });
+        }
+    }
+    too_thin
+}
+
+/// Adds the cells of every air region to the flood's outside.
+pub fn mark_air(flood: &mut Flood, walls: &BrickSet, regions: &Regions) {
+    for s in 0..walls.keys.len() {
+        let range = regions.part_starts[s] as usize..regions.part_starts[s + 1] as usize;
+        for (m, r) in &regions.parts[range] {
+            if regions.is_air(*r) {
+                for z in 0..8 {
+                    flood.wall_outside[s][z] |= m[z];
+                }
+            }
+        }
+    }
+    for &(key, r) in &regions.empty {
+        if regions.is_air(r) {
+            flood.empty_outside[key as usize] = true;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn verdicts_follow_the_thresholds() {
+        assert_eq!(verdict(0.02), Verdict::Air);
+        assert_eq!(verdict(-0.98), Verdict::Solid);
+        assert_eq!(verdict(2.0), Verdict::Solid);
+        assert_eq!(verdict(0.5), Verdict::Ambiguous);
+        assert_eq!(verdict(AIR_UP_TO), Verdict::Air);
+        assert_eq!(verdict(SOLID_FROM), Verdict::Solid);
+    }
+
+    #[test]
+    fn nth_bit_walks_words() {
+        let mut m = [0u64; 8];
+        m[0] = 0b1010;
+        m[2] = 1 << 7;
+        assert_eq!(nth_bit(&m, 0), 1);
+        assert_eq!(nth_bit(&m, 1), 3);
+        assert_eq!(nth_bit(&m, 2), 128 + 7);
+    }
+}
