@@ -10,7 +10,8 @@
 # on failure. About 1-3 minutes on 2 cores after the build.
 #
 # Environment: SPARC3D_BIN (default: build with cargo), SLURM_E2E_DIR (scratch folder,
-# default a fresh /tmp/sparc3d-slurm-e2e.XXXX), SLURM_E2E_RESOLUTION (default 64).
+# default a fresh /tmp/sparc3d-slurm-e2e.XXXX), SLURM_E2E_RESOLUTION (default 64),
+# SLURM_CI_CTLD_PORT / SLURM_CI_SLURMD_PORT (default: two free ports).
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 T0=$(date +%s)
@@ -22,6 +23,12 @@ mkdir -p "$WORK"
 chmod 755 "$WORK"
 # a private Slurm for this run: its config, keys, sockets, logs and pid files live here
 export SLURM_CI_DIR=$WORK/slurm
+# and ports of its own, free now, so that two runs on one machine do not collide
+read -r port1 port2 < <(python3 -c 'import socket
+s = [socket.socket() for _ in range(2)]
+for x in s: x.bind(("127.0.0.1", 0))
+print(*(x.getsockname()[1] for x in s))')
+export SLURM_CI_CTLD_PORT=${SLURM_CI_CTLD_PORT:-$port1} SLURM_CI_SLURMD_PORT=${SLURM_CI_SLURMD_PORT:-$port2}
 RES=${SLURM_E2E_RESOLUTION:-64}
 
 cleanup() {
