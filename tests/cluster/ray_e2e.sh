@@ -44,15 +44,9 @@ cleanup() {
 trap cleanup EXIT
 trap 'exit 130' INT TERM
 
-# the binary, copied so that a rebuild during the test cannot change it under Ray
-if [[ -z ${SPARC3D_BIN:-} ]]; then
-  log "building sparc3d"
-  (cd "$ROOT" && cargo build -q -p sparc3d)
-  SPARC3D_BIN=${CARGO_TARGET_DIR:-$ROOT/target}/debug/sparc3d
-fi
-mkdir -p "$WORK/bin"
-cp "$SPARC3D_BIN" "$WORK/bin/sparc3d"
-S=$WORK/bin/sparc3d
+# shellcheck source=tests/cluster/lib.sh
+source "$ROOT/tests/cluster/lib.sh"
+copy_binary
 
 # A sparc3d that fails shard 3 once and shard 5 always; anything else goes to the real one.
 cat >"$WORK/bin/flaky-sparc3d" <<EOF
@@ -68,17 +62,8 @@ exec "$S" "\$@"
 EOF
 chmod +x "$WORK/bin/flaky-sparc3d"
 
-"$S" manifest build "$ROOT/tests/data/cluster" -o "$WORK/manifest.jsonl" >/dev/null
-ITEMS=$(grep -c . "$WORK/manifest.jsonl")
-[[ $ITEMS -ge 20 ]] || fail "manifest has $ITEMS items, expected at least 20"
-for j in ref job; do
-  "$S" init "$WORK/$j" --manifest "$WORK/manifest.jsonl" --resolution "$RES" --shard-size 2 >/dev/null
-done
-SHARDS=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["shards"])' "$WORK/job/job.json")
+reference_and_job
 [[ $SHARDS -gt 5 ]] || fail "$SHARDS shards: the test injects failures into shards 3 and 5"
-log "$ITEMS meshes in $SHARDS shards at resolution $RES"
-log "local reference run"
-"$S" run "$WORK/ref" --workers 2 >/dev/null 2>"$WORK/ref-run.log" || { cat "$WORK/ref-run.log"; fail "local run"; }
 complete() { [[ -f $WORK/job/shards/part-$(printf %05d "$1").complete.json ]]; }
 free_port() { python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])'; }
 
@@ -109,21 +94,5 @@ python3 "$ROOT/ops/ray/sparc3d_ray.py" "$WORK/job" --sparc3d "$S" >"$WORK/driver
 grep -q ": 0 unfinished shards" "$WORK/driver-3.log" || fail "a finished job still had unfinished shards"
 
 # 4. every item once, same content as the local run
-for ((i = 0; i < SHARDS; i++)); do
-  p=$(printf 'part-%05d.parquet' "$i")
-  a=$("$S" inspect "$WORK/ref/shards/$p" --json | python3 -c 'import json,sys; print(json.load(sys.stdin)["content_digest"])')
-  b=$("$S" inspect "$WORK/job/shards/$p" --json | python3 -c 'import json,sys; print(json.load(sys.stdin)["content_digest"])')
-  [[ -n $a && $a == "$b" ]] || fail "shard $i: content digest $b, local run $a"
-done
-python3 - "$S" "$WORK" "$ITEMS" <<'EOF' || fail "job-level comparison"
-import json, subprocess, sys
-s, work, items = sys.argv[1], sys.argv[2], int(sys.argv[3])
-r = {j: json.loads(subprocess.check_output([s, "inspect", f"{work}/{j}", "--json"])) for j in ("ref", "job")}
-assert r["job"]["rows"] == items, f'{r["job"]["rows"]} rows for {items} items'
-assert r["job"]["content_digest"] == r["ref"]["content_digest"], "job digests differ"
-assert (r["job"]["ok"], r["job"]["failed"]) == (r["ref"]["ok"], r["ref"]["failed"])
-print(f'[ray-e2e] {items} rows ({r["job"]["ok"]} ok, {r["job"]["failed"]} failed), digest {r["job"]["content_digest"][:16]}', file=sys.stderr)
-EOF
-leftover=$(find "$WORK/job/shards" -name '.*tmp*' | wc -l)
-[[ $leftover -eq 0 ]] || fail "$leftover temporary shard files left"
+same_as_reference ray-e2e
 log "OK: retried task, failed shard reported, resumed; $SHARDS shards equal to the local run"
