@@ -59,7 +59,7 @@ pub fn format_seconds(s: f64) -> String {
 /// Formats bytes as the largest whole unit that `parse_size` reads back: `8G`, `512M`, `0`.
 pub fn format_size(bytes: u64) -> String {
     for (suffix, shift) in [("T", 40), ("G", 30), ("M", 20), ("K", 10)] {
-        if bytes >= 1 << shift && bytes % (1 << shift) == 0 {
+        if bytes >= 1 << shift && bytes.is_multiple_of(1 << shift) {
             return format!("{}{suffix}", bytes >> shift);
         }
     }
