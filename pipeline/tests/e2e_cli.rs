@@ -248,15 +248,8 @@ fn an_ambiguous_id_prefix_lists_the_matches() {
     )
     .unwrap_or_else(|e| panic!("{e}"));
     let job = tmp.path().join("job");
-    ok(&[
-        "init",
-        s(&job),
-        "--manifest",
-        s(&manifest),
-        "--resolution",
-        "32",
-    ]);
-    ok(&["run", s(&job), "--workers", "1"]);
+    let out = run_dir(&manifest, &job, &["--workers", "1"]);
+    assert!(out.status.success(), "{}", stderr(&out));
     let out = sparc3d(&[
         "show",
         s(&job),
