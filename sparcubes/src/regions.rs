@@ -24,7 +24,8 @@
 use crate::band::Band;
 use crate::flood::{grow_within, Flood, FULL};
 use crate::grid::{
-    count, dilate, face_carry, for_each_bit, is_empty, BrickMask, BrickSet, Dilation, NO_BRICK,
+    count, dilate, face_carry, for_each_bit, is_empty, nth_bit, BrickMask, BrickSet, Dilation,
+    NO_BRICK,
 };
 use crate::sign::{open_neighbours, Side};
 use crate::voxelize::Voxelization;
@@ -188,14 +189,16 @@ impl Regions {
     }
 
     /// Whether the grid edge from `v` to `u` (both inside) joins two enclosed regions nested
-    /// one in the other: different regions whose winding numbers differ by at least
-    /// [`NESTED_STEP`]. A surface between them wraps one solid inside another and bounds no
+    /// one in the other: different solid regions (an ambiguous one keeps what the grid alone
+    /// says) whose winding numbers differ by at least [`NESTED_STEP`]. A surface between them wraps one solid inside another and bounds no
     /// material. Two solids that only touch or sit less than a cell apart have equal winding
     /// numbers (an even number of surfaces between them) and are not nested.
     pub fn nested(&self, band: &Band, vox: &Voxelization, v: [i64; 3], u: [i64; 3]) -> bool {
         match (self.region_at(band, vox, v), self.region_at(band, vox, u)) {
             (Some(a), Some(b)) if a != b => {
-                (self.winding[a as usize] - self.winding[b as usize]).abs() >= NESTED_STEP
+                self.verdicts[a as usize] == Verdict::Solid
+                    && self.verdicts[b as usize] == Verdict::Solid
+                    && (self.winding[a as usize] - self.winding[b as usize]).abs() >= NESTED_STEP
             }
             _ => false,
         }
@@ -447,22 +450,6 @@ fn sample_points(
         seen[r] += n;
     }
     points
-}
-
-/// Local index (x + 8y + 64z) of the `n`-th set bit of a mask (which has more than `n`).
-fn nth_bit(m: &BrickMask, mut n: u32) -> u32 {
-    for (z, &word) in m.iter().enumerate() {
-        let c = word.count_ones();
-        if n < c {
-            let mut w = word;
-            for _ in 0..n {
-                w &= w - 1;
-            }
-            return 64 * z as u32 + w.trailing_zeros();
-        }
-        n -= c;
-    }
-    0
 }
 
 /// What [`decide_sealed`] found.
