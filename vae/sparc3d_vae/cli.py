@@ -146,7 +146,12 @@ def _run(args: argparse.Namespace) -> int:
         rows = infer.decode(args.ckpt, args.latents, None if args.all else args.id, args.out,
                             args.device, not args.no_fill_holes, args.sparc3d)
         for r in rows:
-            print(f"{r['id']}: {r['faces']} faces, watertight {r['watertight']} → {r['output']}")
+            if "error" in r:
+                print(f"error: {r['error']}", file=sys.stderr)
+            else:
+                print(f"{r['id']}: {r['faces']} faces, watertight {r['watertight']} → {r['output']}")
+        if any("error" in r for r in rows):
+            return 1
     elif args.command == "reconstruct":
         r = infer.reconstruct(args.ckpt, args.data, args.id, args.output, args.device,
                               not args.no_fill_holes, args.sparc3d, args.tensors)

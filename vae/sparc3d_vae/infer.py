@@ -180,7 +180,8 @@ def _check_latents(rows: List[Dict[str, Any]], loaded: Loaded, source: str) -> N
 
 def decode(ckpt: Path, latents: Path, ids: Optional[List[str]], out: Path, device: str,
            fill_holes: bool, sparc3d: Optional[str]) -> List[Dict[str, Any]]:
-    """Decodes latents (of `ids`, or all) to meshes `out/<id>.ply` through `sparc3d extract`."""
+    """Decodes latents (of `ids`, or all) to meshes `out/<id>.ply` through `sparc3d extract`;
+    an item that fails gets an `error` in its summary and the others go on."""
     binary = find_sparc3d(sparc3d)
     loaded = Loaded(ckpt, device)
     try:
@@ -207,9 +208,12 @@ def decode(ckpt: Path, latents: Path, ids: Optional[List[str]], out: Path, devic
             write_cubes(file, [cubes_row(r["id"], m, c) for r, m, c in zip(chunk, meta, cubes)])
             for r, c in zip(chunk, cubes):
                 mesh = out / f"{safe_name(r['id'])}.ply"
-                if len(c.cells) == 0:
-                    raise UsageError(f"item {r['id']!r}: the decoder kept no cell with a surface")
-                results.append({"id": r["id"], **extract(binary, file, r["id"], mesh, fill_holes)})
+                try:
+                    if len(c.cells) == 0:
+                        raise UsageError(f"item {r['id']!r}: the decoder kept no cell with a surface")
+                    results.append({"id": r["id"], **extract(binary, file, r["id"], mesh, fill_holes)})
+                except UsageError as e:  # one bad item does not stop the others
+                    results.append({"id": r["id"], "error": str(e)})
     return results
 
 
@@ -217,7 +221,8 @@ def reconstruct_items(loaded: Loaded, samples: Sequence[Sample], binary: str,
                       meshes: Sequence[Path], fill_holes: bool,
                       keep_tensors: Optional[Path] = None) -> List[Dict[str, Any]]:
     """Encode (the mean) → decode → extract, for samples; one extract summary each, with the
-    latent size added."""
+    latent size added. An item whose decoding holds no surface, or whose extraction fails, gets
+    an `error` instead of a mesh; the others go on."""
     results = []
     with tempfile.TemporaryDirectory() as tmp:
         for gi, group in enumerate(loaded.batches(samples)):
@@ -227,9 +232,13 @@ def reconstruct_items(loaded: Loaded, samples: Sequence[Sample], binary: str,
             write_cubes(file, [cubes_row(s.id, s.meta, c) for s, c in zip(group, cubes)])
             for s, lat, c in zip(group, lats, cubes):
                 mesh = meshes[len(results)]
-                if len(c.cells) == 0:
-                    raise UsageError(f"item {s.id!r}: the decoder kept no cell with a surface")
-                summary = extract(binary, file, s.id, mesh, fill_holes)
+                summary: Dict[str, Any] = {"id": s.id, "watertight_before": False, "watertight": False}
+                try:
+                    if len(c.cells) == 0:
+                        raise UsageError(f"item {s.id!r}: the decoder kept no cell with a surface")
+                    summary.update(extract(binary, file, s.id, mesh, fill_holes))
+                except UsageError as e:
+                    summary["error"] = str(e)
                 summary.update({"latent_voxels": int(len(lat["coords"])),
                                 "latent_floats": int(lat["mean"].size),
                                 "decoded_cells": int(len(c.cells)), "true_cells": int(len(s.cells))})
@@ -244,7 +253,10 @@ def reconstruct(ckpt: Path, data: Sequence[str], item_id: str, out: Path, device
     loaded = Loaded(ckpt, device)
     samples = _load_samples(data, loaded)
     s = samples[samples.index_of(item_id)]
-    return reconstruct_items(loaded, [s], binary, [Path(out)], fill_holes, keep_tensors)[0]
+    result = reconstruct_items(loaded, [s], binary, [Path(out)], fill_holes, keep_tensors)[0]
+    if "error" in result:
+        raise UsageError(result["error"])
+    return result
 
 
 def sample_key(seed: int, item_id: str) -> int:
@@ -284,18 +296,22 @@ def evaluate(ckpt: Path, data: Sequence[str], sample: int, seed: int, out: Path,
     recon = reconstruct_items(loaded, items, binary, meshes, fill_holes=True)
     rows = []
     for s, mesh, r in zip(items, meshes, recon):
+        res = int(s.meta["resolution"])
+        row = {"id": s.id, "uri": s.meta["uri"], "resolution": res,
+               "watertight_before_fill": r["watertight_before"], "watertight": r["watertight"],
+               "holes": r.get("holes", 0), "faces": r.get("faces", 0),
+               "latent_voxels": r["latent_voxels"], "latent_floats": r["latent_floats"],
+               "true_cells": r["true_cells"], "decoded_cells": r["decoded_cells"]}
+        rows.append(row)
+        if "error" in r:
+            row["error"] = r["error"]
+            print(f"{s.id}: {r['error']}", file=sys.stderr)
+            continue
         i = samples.index_of(s.id)
         shard = samples.ds.paths[samples.ds.index[i][0]]
         ref = out / f"{safe_name(s.id)}.sparcubes.ply"
         run_sparc3d(binary, "extract", shard, "--id", s.id, "-o", ref)
-        res = int(s.meta["resolution"])
-        vs_ref = run_sparc3d(binary, "eval", ref, mesh, "--resolution", res)
-        row = {"id": s.id, "uri": s.meta["uri"], "resolution": res,
-               "watertight_before_fill": r["watertight_before"], "watertight": r["watertight"],
-               "holes": r.get("holes", 0), "faces": r["faces"],
-               "latent_voxels": r["latent_voxels"], "latent_floats": r["latent_floats"],
-               "true_cells": r["true_cells"], "decoded_cells": r["decoded_cells"],
-               "vs_sparcubes": _metrics(vs_ref)}
+        row["vs_sparcubes"] = _metrics(run_sparc3d(binary, "eval", ref, mesh, "--resolution", res))
         src = Path(s.meta["uri"])
         if src.is_file():
             # The VAE's output and, as the floor it cannot beat, the Sparcubes mesh itself.
@@ -305,7 +321,6 @@ def evaluate(ckpt: Path, data: Sequence[str], sample: int, seed: int, out: Path,
                     run_sparc3d(binary, "eval", src, ref, "--resolution", res))
             except UsageError as e:
                 row["vs_source_error"] = str(e)
-        rows.append(row)
         print(f"{s.id}: CD {row['vs_sparcubes']['cd_voxels']:.3f} vox vs Sparcubes, "
               f"watertight {row['watertight_before_fill']} → {row['watertight']}", file=sys.stderr)
     summary = {"checkpoint": str(loaded.path), "data": list(data), "sample": len(rows),
@@ -325,6 +340,7 @@ def _aggregate(rows: List[Dict[str, Any]]) -> Dict[str, Any]:
     if not rows:
         return agg
     n = len(rows)
+    agg["failed"] = sum("error" in r for r in rows)
     agg["watertight_before_fill"] = sum(r["watertight_before_fill"] for r in rows) / n
     agg["watertight_after_fill"] = sum(r["watertight"] for r in rows) / n
     agg["latent_voxels_mean"] = _mean([r["latent_voxels"] for r in rows])
@@ -345,7 +361,8 @@ def _markdown(summary: Dict[str, Any]) -> str:
              f"checkpoint `{summary['checkpoint']}`, data {', '.join(summary['data'])}, seed {summary['seed']}", ""]
     if agg:
         lines += [f"- watertight before hole filling: {100 * agg['watertight_before_fill']:.0f}%, "
-                  f"after: {100 * agg['watertight_after_fill']:.0f}%",
+                  f"after: {100 * agg['watertight_after_fill']:.0f}%"
+                  + (f" ({agg['failed']} items failed, counted as not watertight)" if agg["failed"] else ""),
                   f"- latent: {agg['latent_voxels_mean']:.1f} voxels, {agg['latent_floats_mean']:.0f} floats per shape (mean)", ""]
         titles = {"vs_sparcubes": "VAE output against the item's Sparcubes mesh",
                   "vs_source": "VAE output against the source mesh",
@@ -361,6 +378,9 @@ def _markdown(summary: Dict[str, Any]) -> str:
     lines += ["| id | CD vs Sparcubes (vox) | ANC | watertight before → after fill | latent voxels |",
               "|---|---|---|---|---|"]
     for r in summary["items"]:
+        if "error" in r:
+            lines.append(f"| {r['id'][:16]} | failed: {r['error']} | | | {r['latent_voxels']} |")
+            continue
         m = r["vs_sparcubes"]
         lines.append(f"| {r['id'][:16]} | {m['cd_voxels']:.3f} | {m['anc']:.1f} | "
                      f"{r['watertight_before_fill']} → {r['watertight']} | {r['latent_voxels']} |")

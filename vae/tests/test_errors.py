@@ -101,3 +101,25 @@ def test_config_file_matches_the_defaults_and_refuses_unknown_keys(tmp_path):
     with pytest.raises(ConfigError, match="one per level"):
         load_config(bad)
     assert np.isclose(load_config(None).loss.kl, 1e-6)
+
+
+def test_batches_over_the_cell_limit_are_split_and_large_items_refused(job32, tmp_path, capsys):
+    from sparc3d_vae import train
+    from sparc3d_vae.train import split_parts
+
+    samples = [to_sample(it, deformation=False) for it in reader.iter_items(job32)]
+    small, big = sorted(samples, key=lambda s: len(s.cells))
+    # Two items that do not fit together are two parts whose gradients add up.
+    assert split_parts(samples, len(big.cells)) == [[0], [1]]
+    assert split_parts(samples, len(big.cells) + len(small.cells)) == [[0, 1]]
+    config = tmp_path / "limit.toml"
+    config.write_text("[model]\nchannels = [8, 8, 16, 16]\nblocks = [0, 1, 1, 1]\n"
+                      "downsample = 8\nheads = 2\n[train]\nthreads = 1\nbatch_size = 2\n"
+                      f"max_cells_per_batch = {len(small.cells)}\n")
+    summary = train.train([str(job32)], tmp_path / "run", config, 2, "cpu", resume=False)
+    assert summary["skipped"] == {big.id: len(big.cells)}
+    assert f"item {big.id!r} has {len(big.cells)} cells" in capsys.readouterr().err
+    # Encoding cannot skip an item: it is refused, naming the item and the limit.
+    code, err = run_cli("encode", "--ckpt", tmp_path / "run", "--data", job32,
+                        "--out", tmp_path / "lat", "--device", "cpu", capsys=capsys)
+    assert code == 2 and big.id in err and "max_cells_per_batch" in err, err
