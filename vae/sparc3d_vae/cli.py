@@ -22,6 +22,13 @@ def _device(p: argparse.ArgumentParser) -> None:
                    help="where to run: auto (CUDA when available, else CPU; the default), cpu, cuda")
 
 
+def _ckpt(p: argparse.ArgumentParser, data: bool = True) -> None:
+    p.add_argument("--ckpt", type=Path, required=True, help="checkpoint file or run folder")
+    if data:
+        p.add_argument("--data", nargs="+", required=True, metavar="JOB",
+                       help="job folders (or shard files)")
+
+
 def _sparc3d(p: argparse.ArgumentParser) -> None:
     p.add_argument("--sparc3d", metavar="PATH",
                    help="the sparc3d binary (default: $SPARC3D_BIN, else sparc3d on PATH)")
@@ -56,8 +63,7 @@ def parser() -> argparse.ArgumentParser:
                        description="Encode every ok item of the jobs (the posterior mean and "
                        "log-variance on the latent grid) into LATENTS/part-NNNNN.parquet, "
                        "readable with sparc3d_reader.iter_tensor_rows.")
-    p.add_argument("--ckpt", type=Path, required=True, help="checkpoint file or run folder")
-    p.add_argument("--data", nargs="+", required=True, metavar="JOB")
+    _ckpt(p)
     p.add_argument("--out", type=Path, required=True, metavar="LATENTS")
     _device(p)
 
@@ -65,7 +71,7 @@ def parser() -> argparse.ArgumentParser:
                        description="Decode latents (their mean) to pruned sparse cubes, extract "
                        "each mesh with `sparc3d extract` and close its holes (paper §3.4): "
                        "MESHES/<id>.ply.")
-    p.add_argument("--ckpt", type=Path, required=True, help="checkpoint file or run folder")
+    _ckpt(p, data=False)
     p.add_argument("--latents", type=Path, required=True, metavar="LATENTS")
     which = p.add_mutually_exclusive_group(required=True)
     which.add_argument("--id", action="append", metavar="X", help="item id (repeatable)")
@@ -78,8 +84,7 @@ def parser() -> argparse.ArgumentParser:
     p = sub.add_parser("reconstruct", help="one item of a job through the VAE to a mesh",
                        description="Encode an item (posterior mean), decode it, extract the "
                        "mesh with `sparc3d extract` and fill its holes.")
-    p.add_argument("--ckpt", type=Path, required=True, help="checkpoint file or run folder")
-    p.add_argument("--data", nargs="+", required=True, metavar="JOB")
+    _ckpt(p)
     p.add_argument("--id", required=True, metavar="X", help="item id")
     p.add_argument("-o", "--output", type=Path, required=True, metavar="mesh.ply")
     p.add_argument("--no-fill-holes", action="store_true", help="keep the extracted mesh as is")
@@ -93,8 +98,7 @@ def parser() -> argparse.ArgumentParser:
                        "`sparc3d eval JOB --sample N --sample-seed S`) and measure each with "
                        "`sparc3d eval` against the item's Sparcubes mesh and its source file; "
                        "writes OUT/summary.json, OUT/summary.md and the meshes.")
-    p.add_argument("--ckpt", type=Path, required=True, help="checkpoint file or run folder")
-    p.add_argument("--data", nargs="+", required=True, metavar="JOB")
+    _ckpt(p)
     p.add_argument("--sample", type=int, default=10, metavar="N", help="items to evaluate (10)")
     p.add_argument("--seed", type=int, default=0, help="seed of the sample (0)")
     p.add_argument("--out", type=Path, default=Path("vae-eval"), metavar="DIR",

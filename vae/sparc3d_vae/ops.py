@@ -133,38 +133,41 @@ def _init_weight(k: int, cin: int, cout: int) -> nn.Parameter:
     return nn.Parameter(torch.empty(k, cin, cout).uniform_(-bound, bound))
 
 
-class SubmConv3d(nn.Module):
+class _SparseConv(nn.Module):
+    """Weights [K, C_in, C_out] (initialised as torch.nn.Conv3d's) and an optional bias."""
+
+    def __init__(self, kernel: int, cin: int, cout: int, bias: bool):
+        super().__init__()
+        self.weight = _init_weight(kernel, cin, cout)
+        self.bias = nn.Parameter(torch.zeros(cout)) if bias else None
+
+
+class SubmConv3d(_SparseConv):
     """Submanifold 3×3×3 sparse convolution (outputs at the input voxels)."""
 
     def __init__(self, cin: int, cout: int, bias: bool = True):
-        super().__init__()
-        self.weight = _init_weight(27, cin, cout)
-        self.bias = nn.Parameter(torch.zeros(cout)) if bias else None
+        super().__init__(27, cin, cout, bias)
 
     def forward(self, x: SparseTensor) -> SparseTensor:
         return subm_conv3d(x, self.weight, self.bias)
 
 
-class DownConv3d(nn.Module):
+class DownConv3d(_SparseConv):
     """2×2×2 stride-2 sparse convolution: the voxels one level up, C_in → C_out."""
 
     def __init__(self, cin: int, cout: int, bias: bool = True):
-        super().__init__()
-        self.weight = _init_weight(8, cin, cout)
-        self.bias = nn.Parameter(torch.zeros(cout)) if bias else None
+        super().__init__(8, cin, cout, bias)
 
     def forward(self, x: SparseTensor) -> SparseTensor:
         return down_conv3d(x, self.weight, self.bias)
 
 
-class SubdivideConv3d(nn.Module):
+class SubdivideConv3d(_SparseConv):
     """Subdivision upsampling: every voxel → its kept children, a 2×2×2 stride-2 transposed
     convolution read at those children."""
 
     def __init__(self, cin: int, cout: int, bias: bool = True):
-        super().__init__()
-        self.weight = _init_weight(8, cin, cout)
-        self.bias = nn.Parameter(torch.zeros(cout)) if bias else None
+        super().__init__(8, cin, cout, bias)
 
     def forward(self, x: SparseTensor, child: SparseTensor) -> SparseTensor:
         return subdivide_conv3d(x, child, self.weight, self.bias)

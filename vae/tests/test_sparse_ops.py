@@ -41,6 +41,15 @@ def gather(grid, coords):
     return grid[c[:, 0], :, c[:, 1], c[:, 2], c[:, 3]]
 
 
+def assert_same_gradients(out, ref, inputs):
+    """Gradients of Σ out·g and Σ ref·g (one random g) with respect to `inputs` are equal."""
+    g = torch.randn_like(ref)
+    grads = torch.autograd.grad((out * g).sum(), inputs, retain_graph=True)
+    grads_ref = torch.autograd.grad((ref * g).sum(), inputs)
+    for a, b in zip(grads, grads_ref):
+        torch.testing.assert_close(a, b)
+
+
 @pytest.mark.parametrize("seed", [0, 1])
 def test_submanifold_conv_equals_dense_conv3d(seed):
     torch.manual_seed(seed)
@@ -59,11 +68,7 @@ def test_submanifold_conv_equals_dense_conv3d(seed):
     torch.testing.assert_close(y.feats, ref)
     assert torch.equal(y.coords, x.coords)
 
-    g = torch.randn_like(ref)
-    grads = torch.autograd.grad((y.feats * g).sum(), (feats, w_dense, bias), retain_graph=True)
-    grads_ref = torch.autograd.grad((ref * g).sum(), (feats, w_dense, bias))
-    for a, b in zip(grads, grads_ref):
-        torch.testing.assert_close(a, b)
+    assert_same_gradients(y.feats, ref, (feats, w_dense, bias))
 
 
 def test_submanifold_conv_gradcheck():
@@ -95,11 +100,7 @@ def test_down_conv_equals_strided_dense_conv3d():
     assert torch.equal(y.coords, torch.nonzero(occupied[:, 0] > 0).to(torch.int32))
     ref = gather(F.conv3d(dense(x.coords, x.feats), w_dense, bias, stride=2), y.coords)
     torch.testing.assert_close(y.feats, ref)
-    g = torch.randn_like(ref)
-    grads = torch.autograd.grad((y.feats * g).sum(), (feats, w_dense, bias), retain_graph=True)
-    grads_ref = torch.autograd.grad((ref * g).sum(), (feats, w_dense, bias))
-    for a, b in zip(grads, grads_ref):
-        torch.testing.assert_close(a, b)
+    assert_same_gradients(y.feats, ref, (feats, w_dense, bias))
 
 
 def test_subdivision_equals_transposed_dense_conv_at_the_kept_children():
@@ -116,11 +117,7 @@ def test_subdivision_equals_transposed_dense_conv_at_the_kept_children():
     y = subdivide_conv3d(x, child, w_t.permute(2, 3, 4, 0, 1).reshape(8, 3, 4), bias)
     ref = gather(F.conv_transpose3d(dense(x.coords, x.feats, side=half), w_t, bias, stride=2), child.coords)
     torch.testing.assert_close(y.feats, ref)
-    g = torch.randn_like(ref)
-    grads = torch.autograd.grad((y.feats * g).sum(), (feats, w_t, bias), retain_graph=True)
-    grads_ref = torch.autograd.grad((ref * g).sum(), (feats, w_t, bias))
-    for a, b in zip(grads, grads_ref):
-        torch.testing.assert_close(a, b)
+    assert_same_gradients(y.feats, ref, (feats, w_t, bias))
 
 
 def test_keys_round_trip_and_order():
