@@ -90,7 +90,7 @@ def shard_paths(paths: Union[PathLike, Iterable[PathLike]], complete_only: bool 
 
 
 #: The shard schema version this reader decodes (docs/FORMAT.md).
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 
 
 def decode_tensor(row: Dict[str, Any], name: str) -> Optional[np.ndarray]:
@@ -196,15 +196,25 @@ def corner_index(coords: np.ndarray, cells: np.ndarray, item_id: Optional[str] =
 
 def encode_tensor(array: np.ndarray, level: int = 3) -> Tuple[bytes, str, List[int]]:
     """Encodes an array as the shards store tensors (docs/FORMAT.md, "Tensor encoding"): one
-    zstd frame of its little-endian bytes in byte planes, its numpy dtype string and its shape.
-    `decode_tensor` reads it back."""
+    zstd frame, with its content checksum, of its little-endian bytes in byte planes, its numpy
+    dtype string and its shape. `decode_tensor` reads it back.
+
+    Needs the `zstandard` package (`pip install sparc3d-reader[write]`): pyarrow's codec
+    cannot set the checksum that schema 3 requires and `sparc3d` checks. Reading needs only
+    pyarrow."""
+    try:
+        import zstandard
+    except ImportError as e:
+        raise ImportError("writing tensor files needs the zstandard package "
+                          "(pip install 'sparc3d-reader[write]')") from e
     a = np.ascontiguousarray(array)
     a = a.astype(a.dtype.newbyteorder("<"), copy=False)
     shape = [int(d) for d in a.shape]
     n, k = (shape[0] if shape else 1), int(np.prod(shape[1:]))
     planes = a.reshape(n, k).view(np.uint8).reshape(n, k, a.dtype.itemsize).transpose(1, 2, 0)
     raw = np.ascontiguousarray(planes).tobytes()
-    blob = pa.Codec("zstd", compression_level=level).compress(raw, asbytes=True)
+    blob = zstandard.ZstdCompressor(level=level, write_checksum=True,
+                                    write_content_size=True).compress(raw)
     return blob, a.dtype.str, shape
 
 
