@@ -5,30 +5,27 @@ cd "$(dirname "$0")"
 cargo fmt --all --check
 cargo clippy --all-targets -- -D warnings
 cargo test --workspace 2>&1
-# The shard format as Python reads it (docs/FORMAT.md): needs pyarrow, numpy and pytest
-# (`pip install -r tests/python/requirements.txt`); CI sets SPARC3D_REQUIRE_PYTHON=1.
 PY="${PYTHON:-python3}"
 if [ -x .venv/bin/python ] && [ -z "${PYTHON:-}" ]; then PY=.venv/bin/python; fi
-if "$PY" -c "import pyarrow, numpy, pytest" 2>/dev/null; then
-  cargo build -p sparc3d
-  "$PY" -m pytest -q tests/python
-elif [ "${SPARC3D_REQUIRE_PYTHON:-0}" = "1" ]; then
-  echo "tests/python needs pyarrow, numpy and pytest" >&2
-  exit 1
-else
-  echo "skipping tests/python (pip install -r tests/python/requirements.txt to run it)" >&2
-fi
-# The VAE (vae/, docs/VAE.md): needs torch and trimesh (`pip install ./python ./vae trimesh`);
-# CI sets SPARC3D_REQUIRE_TORCH=1. About 2 minutes on 2 cores.
-if "$PY" -c "import torch, trimesh, sparc3d_vae" 2>/dev/null; then
-  cargo build -p sparc3d
-  "$PY" -m pytest -q vae/tests
-elif [ "${SPARC3D_REQUIRE_TORCH:-0}" = "1" ]; then
-  echo "vae/tests needs torch, trimesh and sparc3d-vae (pip install ./python ./vae)" >&2
-  exit 1
-else
-  echo "skipping vae/tests (pip install ./python ./vae to run it)" >&2
-fi
+# pytest_if DIR IMPORTS REQUIRED INSTALL: run DIR's tests when IMPORTS import; otherwise fail
+# when REQUIRED is 1 (CI), else say what to install.
+pytest_if() {
+  if "$PY" -c "import $2" 2>/dev/null; then
+    cargo build -p sparc3d
+    "$PY" -m pytest -q "$1"
+  elif [ "$3" = "1" ]; then
+    echo "$1 needs $2 ($4)" >&2
+    exit 1
+  else
+    echo "skipping $1 ($4 to run it)" >&2
+  fi
+}
+# The shard format as Python reads it (docs/FORMAT.md); CI sets SPARC3D_REQUIRE_PYTHON=1.
+pytest_if tests/python "pyarrow, numpy, pytest" "${SPARC3D_REQUIRE_PYTHON:-0}" \
+  "pip install -r tests/python/requirements.txt"
+# The VAE (vae/, docs/VAE.md; about 3 minutes on 2 cores); CI sets SPARC3D_REQUIRE_TORCH=1.
+pytest_if vae/tests "torch, trimesh, sparc3d_vae" "${SPARC3D_REQUIRE_TORCH:-0}" \
+  "pip install ./python ./vae"
 # Cluster runs on a real Slurm (root, apt; about 2 minutes): .ci/run sets SPARC3D_SLURM_TEST=1.
 if [[ ${SPARC3D_SLURM_TEST:-0} == 1 ]]; then
   tests/cluster/slurm_e2e.sh
