@@ -3,6 +3,7 @@
 mod cluster;
 mod commands;
 mod manifest_io;
+mod npz;
 mod progress;
 mod sample;
 mod shard_io;

@@ -3,7 +3,7 @@
 use crate::class::{ErrorClass, ItemStatus};
 use crate::columns as c;
 use crate::error::{Result, SchemaError};
-use crate::row::{RowCounts, RowTensors, RowTimings, ShardRow};
+use crate::row::{RowCounts, RowTensors, RowTimings, SampleTensors, ShardRow};
 use crate::tensor::{DType, EncodedTensor};
 use arrow_array::types::Int64Type;
 use arrow_array::{
@@ -202,6 +202,10 @@ fn opt_f64(a: &Float64Array, i: usize) -> Option<f64> {
 }
 
 fn read_tensor(batch: &RecordBatch, stem: &str, i: usize) -> Result<Option<EncodedTensor>> {
+    // Sample columns are optional: shards written before they existed lack them.
+    if c::SAMPLE_TENSORS.contains(&stem) && batch.column_by_name(stem).is_none() {
+        return Ok(None);
+    }
     let blob = col::<BinaryArray>(batch, stem)?;
     if !blob.is_valid(i) {
         return Ok(None);
@@ -308,6 +312,7 @@ pub fn batch_to_rows(batch: &RecordBatch) -> Result<Vec<ShardRow>> {
                 cells,
                 mesh_vertices: tensor("mesh_vertices")?,
                 mesh_faces: tensor("mesh_faces")?,
+                samples: SampleTensors::from_lookup(tensor)?,
             }),
             _ => None,
         };

@@ -6,6 +6,7 @@ pub mod bench_one;
 pub mod convert;
 pub mod deform_args;
 pub mod eval;
+pub mod export;
 pub mod failures;
 pub mod fill_holes;
 pub mod init;
@@ -61,6 +62,9 @@ enum Command {
     Inspect(inspect::Args),
     /// Decode one item of a job and write its mesh.
     Show(show::Args),
+    /// Write per-item .npz files in another codebase's layout: vector-set samples, Direct3D-S2
+    /// sparse SDF, TRELLIS.2 flexible dual grid, cubvh sparse voxels.
+    Export(export::Args),
     /// Check a reproducible sample of a job's outputs with pymeshlab; writes a report.
     Validate(validate::Args),
     /// Render a mesh (or a job's item) and its converted output side by side to a PNG.
@@ -93,6 +97,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Retry(args) => retry::run(args),
         Command::Inspect(args) => inspect::run(args),
         Command::Show(args) => show::run(args),
+        Command::Export(args) => export::run(args),
         Command::Validate(args) => validate::run(args),
         Command::Preview(args) => preview::run(args),
         Command::Report(args) => report::run(args),
