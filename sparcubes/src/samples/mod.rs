@@ -200,7 +200,7 @@ pub struct Samples {
     pub volume_sdf: Vec<f32>,
     /// 1 when the volume point is inside, else 0.
     pub volume_occupancy: Vec<u8>,
-    /// Sharp edges found on the mesh.
+    /// Sharp edges found on the mesh (not searched, 0, when no sharp sample is asked for).
     pub sharp_edges: u64,
 }
 
@@ -244,7 +244,11 @@ pub fn sample(cubes: &SparseCubes, mesh: &TriMesh, params: &SampleParams) -> Res
         .unzip();
 
     // Sharp edges.
-    let edges = sharp_edges(mesh, params.sharp_angle_deg);
+    let edges = if params.sharp > 0 {
+        sharp_edges(mesh, params.sharp_angle_deg)
+    } else {
+        Default::default()
+    };
     out.sharp_edges = edges.len() as u64;
     if !edges.is_empty() {
         (out.sharp_points, out.sharp_normals) = (0..params.sharp as u64)
