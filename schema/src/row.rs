@@ -158,7 +158,7 @@ impl SampleTensors {
     pub fn from_lookup(
         mut get: impl FnMut(&'static str) -> Result<Option<EncodedTensor>>,
     ) -> Result<Option<Self>> {
-        let mut take = |name| get(name);
+        let mut take = get;
         let (Some(a), Some(b), Some(cc), Some(d), Some(e), Some(f), Some(g), Some(h), Some(i)) = (
             take(c::SURFACE_POINTS)?,
             take(c::SURFACE_NORMALS)?,

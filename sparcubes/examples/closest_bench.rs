@@ -16,7 +16,24 @@ fn main() {
         .next()
         .and_then(|a| a.parse().ok())
         .unwrap_or(1_000_000);
-    let mesh = sphere([0.0; 3], 1.0, segments);
+    let mesh = if std::env::var("CUBE").is_ok() {
+        // The marching-cubes surface of a cube at the given resolution, in grid units.
+        let cube = sparcubes::shapes::cuboid([-1.0; 3], [1.0; 3], &[]);
+        let params = sparcubes::Params::with_resolution(segments);
+        match sparcubes::convert(&cube, &params) {
+            Ok(c) => {
+                let mut m = sparcubes::extract(&c.cubes);
+                let n = segments as f32;
+                for p in &mut m.positions {
+                    *p = p.map(|v| 2.0 * v / n - 1.0);
+                }
+                m
+            }
+            Err(e) => panic!("{e}"),
+        }
+    } else {
+        sphere([0.0; 3], 1.0, segments)
+    };
     let t = Instant::now();
     let index = TriangleIndex::new(&mesh);
     let build = t.elapsed().as_secs_f64();

@@ -1,32 +1,34 @@
 //! Exact closest-point queries on a triangle mesh: for a batch of points, the closest point of
 //! the mesh, its distance and the triangle it lies on.
 //!
-//! The tree is a binary BVH built by obvhs (PLOC, then collapsed to small leaves); the query
-//! is a nearest-first traversal of our own (obvhs has ray and box queries only): children are
-//! visited nearer box first and a subtree is skipped once its box is farther than the best
-//! triangle found. Batches are sorted along a Morton curve and cut into fixed chunks; inside a
+//! The tree is a binary BVH over the triangles sorted by the Morton code of their centroids,
+//! split where the highest differing code bit changes (a linear BVH); the query is a
+//! nearest-first traversal: children are visited nearer box first and a subtree is skipped
+//! once its box is not nearer than the best triangle found. An obvhs tree (PLOC, as the
+//! renderer uses) was measured first: on the marching-cubes surface of a cube its node boxes
+//! overlapped so much that queries were 20–130× slower, and it built 3–7× slower
+//! (docs/PERFORMANCE.md, "Samples"). Batches are sorted along a Morton curve and cut into fixed chunks; inside a
 //! chunk each query starts from the previous query's triangle as an upper bound, which prunes
 //! most of the tree for neighbouring queries.
 //!
-//! Determinism: the answer is the triangle minimising (squared distance, triangle index), so
-//! ties go to the lowest index and the result depends neither on the tree's shape nor on the
-//! chunking or the thread count. Pruning keeps a relative slack of 1e-12 so rounding in the
-//! box distance can never hide a tied triangle.
+//! A subtree is skipped as soon as its box is not nearer than the best triangle so far (not
+//! only when it is farther): on the large coplanar regions of CAD meshes and marching-cubes
+//! surfaces many overlapping boxes lie at exactly the best distance, and visiting them made
+//! queries hundreds of times slower. Among equally near triangles the answer is therefore the
+//! first one the search meets.
+//!
+//! Determinism: the tree is built single-threaded and the chunks (and so each query's starting
+//! triangle) are fixed, so results do not depend on the thread count.
 
 use crate::band::closest_point_on_triangle;
 use crate::mesh::TriMesh;
 use crate::vec3::dist2;
 use glam::Vec3A;
-use obvhs::bvh2::builder::build_bvh2;
 use obvhs::triangle::Triangle;
-use obvhs::BvhBuildParams;
 use rayon::prelude::*;
 
 /// Queries per chunk of a batch (fixed, so results never depend on the thread count).
 const CHUNK: usize = 512;
-
-/// Relative slack when comparing a box distance with the best distance found.
-const SLACK: f64 = 1e-12;
 
 /// The closest point of a mesh to a query point.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -36,7 +38,7 @@ pub struct ClosestPoint {
     /// Euclidean distance from the query to `point`.
     pub distance: f64,
     /// Index of the triangle (in the mesh's `triangles`) that `point` lies on; among equally
-    /// near triangles, the lowest index.
+    /// near triangles, the first one the search meets.
     pub triangle: u32,
 }
 
@@ -92,23 +94,9 @@ impl TriangleIndex {
                 slots: Vec::new(),
             };
         }
-        let mut params = BvhBuildParams::fast_build();
-        params.max_prims_per_leaf = 4;
-        let mut build_time = std::time::Duration::ZERO;
-        let bvh = build_bvh2(&tris, params, &mut build_time);
-        let nodes: Vec<Node> = bvh
-            .nodes
-            .iter()
-            .map(|n| Node {
-                lo: n.aabb.min.to_array(),
-                hi: n.aabb.max.to_array(),
-                first: n.first_index,
-                count: n.prim_count,
-            })
-            .collect();
-        // Triangles of a leaf are `primitive_indices[first..first + count]`; store them in that
+        let (nodes, order) = morton_tree(&tris);
+        // Triangles of a leaf are `order[first..first + count]`; store their corners in that
         // order so a leaf's corners are contiguous.
-        let order = bvh.primitive_indices.clone();
         let corners = order
             .iter()
             .map(|&t| {
@@ -210,7 +198,7 @@ impl TriangleIndex {
         stack.clear();
         stack.push((0, self.box_dist2(0, q)));
         while let Some((id, d)) = stack.pop() {
-            if d > best.0 * (1.0 + SLACK) {
+            if d >= best.0 {
                 continue;
             }
             let node = self.nodes[id as usize];
@@ -220,7 +208,7 @@ impl TriangleIndex {
                     let p = closest_point_on_triangle(q, &self.corners[s]);
                     let d2 = dist2(q, p);
                     let t = self.order[s];
-                    if d2 < best.0 || (d2 == best.0 && t < best.1) {
+                    if d2 < best.0 {
                         best = (d2, t, p);
                     }
                 }
@@ -266,11 +254,90 @@ impl TriangleIndex {
     }
 }
 
-/// Query numbers sorted along a Morton curve over the queries' bounding box (ties by number).
-fn morton_order(queries: &[[f64; 3]]) -> Vec<u32> {
+/// Triangles per leaf of [`morton_tree`].
+const LEAF: usize = 4;
+
+/// A tree over triangles sorted by the Morton code of their centroids: each node splits its
+/// run where the highest differing code bit changes (halfway when all codes are equal), leaves
+/// hold up to [`LEAF`] triangles, children are adjacent. Returns the nodes and the triangle
+/// order.
+fn morton_tree(tris: &[Triangle]) -> (Vec<Node>, Vec<u32>) {
+    let centroids: Vec<[f64; 3]> = tris
+        .iter()
+        .map(|t| std::array::from_fn(|a| (t.v0[a] as f64 + t.v1[a] as f64 + t.v2[a] as f64) / 3.0))
+        .collect();
+    let codes = morton_keys(&centroids);
+    let order: Vec<u32> = codes.iter().map(|&(_, i)| i).collect();
+    let keys: Vec<u64> = codes.iter().map(|&(k, _)| k).collect();
+    let mut nodes = vec![Node {
+        lo: [0.0; 3],
+        hi: [0.0; 3],
+        first: 0,
+        count: 0,
+    }];
+    build_node(tris, &order, &keys, 0, 0, order.len(), &mut nodes);
+    (nodes, order)
+}
+
+/// Fills node `id` with the run `start..end` of the sorted triangles (recursively).
+fn build_node(
+    tris: &[Triangle],
+    order: &[u32],
+    keys: &[u64],
+    id: usize,
+    start: usize,
+    end: usize,
+    nodes: &mut Vec<Node>,
+) {
+    if end - start <= LEAF {
+        let mut lo = [f32::INFINITY; 3];
+        let mut hi = [f32::NEG_INFINITY; 3];
+        for &t in &order[start..end] {
+            let t = &tris[t as usize];
+            for p in [t.v0, t.v1, t.v2] {
+                for a in 0..3 {
+                    lo[a] = lo[a].min(p[a]);
+                    hi[a] = hi[a].max(p[a]);
+                }
+            }
+        }
+        nodes[id] = Node {
+            lo,
+            hi,
+            first: start as u32,
+            count: (end - start) as u32,
+        };
+        return;
+    }
+    let (a, b) = (keys[start], keys[end - 1]);
+    let mid = if a == b {
+        (start + end) / 2
+    } else {
+        let bit = 63 - (a ^ b).leading_zeros();
+        let split = start + keys[start..end].partition_point(|k| (k >> bit) & 1 == 0);
+        split.clamp(start + 1, end - 1)
+    };
+    let left = nodes.len();
+    let blank = nodes[0];
+    nodes.push(blank);
+    nodes.push(blank);
+    build_node(tris, order, keys, left, start, mid, nodes);
+    build_node(tris, order, keys, left + 1, mid, end, nodes);
+    let (l, r) = (nodes[left], nodes[left + 1]);
+    nodes[id] = Node {
+        lo: std::array::from_fn(|k| l.lo[k].min(r.lo[k])),
+        hi: std::array::from_fn(|k| l.hi[k].max(r.hi[k])),
+        first: left as u32,
+        count: 0,
+    };
+}
+
+/// (Morton code, index) of every point over the points' bounding box, sorted (21 bits per
+/// axis; non-finite coordinates count as the box minimum).
+fn morton_keys(points: &[[f64; 3]]) -> Vec<(u64, u32)> {
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
-    for q in queries {
+    for q in points {
         for a in 0..3 {
             if q[a].is_finite() {
                 lo[a] = lo[a].min(q[a]);
@@ -278,43 +345,50 @@ fn morton_order(queries: &[[f64; 3]]) -> Vec<u32> {
             }
         }
     }
+    let cells = ((1u64 << 21) - 1) as f64;
     let scale: [f64; 3] = std::array::from_fn(|a| {
         let e = hi[a] - lo[a];
         if e > 0.0 && e.is_finite() {
-            1023.0 / e
+            cells / e
         } else {
             0.0
         }
     });
-    let mut keyed: Vec<(u32, u32)> = queries
+    let mut keyed: Vec<(u64, u32)> = points
         .par_iter()
         .enumerate()
         .map(|(i, q)| {
-            let cell: [u32; 3] = std::array::from_fn(|a| {
+            let cell: [u64; 3] = std::array::from_fn(|a| {
                 let v = (q[a] - lo[a]) * scale[a];
                 if v.is_finite() {
-                    v.clamp(0.0, 1023.0) as u32
+                    v.clamp(0.0, cells) as u64
                 } else {
                     0
                 }
             });
             (
-                spread(cell[0]) | spread(cell[1]) << 1 | spread(cell[2]) << 2,
+                spread(cell[0]) | (spread(cell[1]) << 1) | (spread(cell[2]) << 2),
                 i as u32,
             )
         })
         .collect();
     keyed.par_sort_unstable();
-    keyed.into_iter().map(|(_, i)| i).collect()
+    keyed
 }
 
-/// The 10 low bits of `v` spread to every third bit.
-fn spread(v: u32) -> u32 {
-    let mut x = v & 0x3ff;
-    x = (x | x << 16) & 0x0300_00ff;
-    x = (x | x << 8) & 0x0300_f00f;
-    x = (x | x << 4) & 0x030c_30c3;
-    x = (x | x << 2) & 0x0924_9249;
+/// Query numbers sorted along a Morton curve over the queries' bounding box (ties by number).
+fn morton_order(queries: &[[f64; 3]]) -> Vec<u32> {
+    morton_keys(queries).into_iter().map(|(_, i)| i).collect()
+}
+
+/// The 21 low bits of `v` spread to every third bit of a `u64`.
+fn spread(v: u64) -> u64 {
+    let mut x = v & 0x1f_ffff;
+    x = (x | (x << 32)) & 0x001f_0000_0000_ffff;
+    x = (x | (x << 16)) & 0x001f_0000_ff00_00ff;
+    x = (x | (x << 8)) & 0x100f_00f0_0f00_f00f;
+    x = (x | (x << 4)) & 0x10c3_0c30_c30c_30c3;
+    x = (x | (x << 2)) & 0x1249_2492_4924_9249;
     x
 }
 
@@ -324,14 +398,11 @@ mod tests {
     use crate::samples::rng::uniforms;
     use crate::shapes::{merge, quad, sphere, torus};
 
-    /// Brute force: the minimum of (squared distance, index) over every triangle.
-    fn brute(mesh: &TriMesh, q: [f64; 3]) -> (f64, u32) {
+    /// Brute force: the smallest squared distance over every triangle.
+    fn brute(mesh: &TriMesh, q: [f64; 3]) -> f64 {
         (0..mesh.triangles.len())
-            .map(|t| {
-                let p = closest_point_on_triangle(q, &mesh.triangle(t));
-                (dist2(q, p), t as u32)
-            })
-            .fold((f64::INFINITY, u32::MAX), |a, b| if b < a { b } else { a })
+            .map(|t| dist2(q, closest_point_on_triangle(q, &mesh.triangle(t))))
+            .fold(f64::INFINITY, f64::min)
     }
 
     fn test_mesh() -> TriMesh {
@@ -358,13 +429,11 @@ mod tests {
             .collect();
         let got = index.closest_batch(&queries);
         for (q, c) in queries.iter().zip(&got) {
-            let (d2, t) = brute(&mesh, *q);
-            assert!(
-                (c.distance - d2.sqrt()).abs() <= 1e-9,
-                "{q:?}: {c:?} vs {}",
-                d2.sqrt()
-            );
-            assert_eq!(c.triangle, t, "{q:?}");
+            let d = brute(&mesh, *q).sqrt();
+            assert!((c.distance - d).abs() <= 1e-9, "{q:?}: {c:?} vs {d}");
+            // The reported triangle is one of the nearest, and the point lies on it.
+            let own = closest_point_on_triangle(*q, &mesh.triangle(c.triangle as usize));
+            assert!((dist2(*q, own).sqrt() - d).abs() <= 1e-9, "{q:?}");
             assert!((dist2(*q, c.point).sqrt() - c.distance).abs() < 1e-12);
         }
     }
@@ -384,7 +453,8 @@ mod tests {
         let single = pool.install(|| index.closest_batch(&queries));
         assert_eq!(batch, single);
         for (q, c) in queries.iter().zip(&batch).step_by(97) {
-            assert_eq!(index.closest(*q), Some(*c));
+            let one = index.closest(*q).map(|o| o.distance);
+            assert_eq!(one, Some(c.distance));
         }
     }
 

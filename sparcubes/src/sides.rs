@@ -135,7 +135,7 @@ impl<'a> GridSides<'a> {
         let mut idx = [0usize; 8];
         for (k, slot) in idx.iter_mut().enumerate() {
             let k = k as i64;
-            *slot = self.vertex([c[0] + (k & 1), c[1] + (k >> 1 & 1), c[2] + (k >> 2)])?;
+            *slot = self.vertex([c[0] + (k & 1), c[1] + ((k >> 1) & 1), c[2] + (k >> 2)])?;
         }
         Some(idx)
     }
@@ -147,7 +147,7 @@ impl<'a> GridSides<'a> {
         for k in 0..8i64 {
             let c = [
                 cell[0] + (k & 1),
-                cell[1] + (k >> 1 & 1),
+                cell[1] + ((k >> 1) & 1),
                 cell[2] + (k >> 2),
             ];
             if let Some(i) = self.vertex(c) {

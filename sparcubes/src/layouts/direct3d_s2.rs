@@ -44,7 +44,7 @@ pub fn sparse_sdf(cubes: &SparseCubes, truncation: f64) -> SparseSdf {
             .map(|t| mesh.triangles[t])
             .collect(),
     };
-    if grid.tris.is_empty() || !(truncation > 0.0) {
+    if grid.tris.is_empty() || truncation.is_nan() || truncation <= 0.0 {
         return SparseSdf::default();
     }
     // Grid points within `truncation` of the surface are corners of cells within
@@ -70,7 +70,7 @@ pub fn sparse_sdf(cubes: &SparseCubes, truncation: f64) -> SparseSdf {
         .zip(&band.nearest)
         .map_init(Default::default, |scratch, (c, near)| {
             let udf = near.udf as f64;
-            if !(udf < truncation) || c.iter().any(|&v| v > n) {
+            if udf.is_nan() || udf >= truncation || c.iter().any(|&v| v > n) {
                 return None;
             }
             let g = c.map(f64::from);

@@ -25,7 +25,7 @@ pub(crate) fn cell_corners(cubes: &SparseCubes, c: [u16; 3]) -> Option<[usize; 8
         let k = k as u16;
         let v = [
             c[0].checked_add(k & 1)?,
-            c[1].checked_add(k >> 1 & 1)?,
+            c[1].checked_add((k >> 1) & 1)?,
             c[2].checked_add(k >> 2)?,
         ];
         *slot = cubes.vertex_index(v)?;

@@ -47,8 +47,8 @@ pub fn dual_grid(cubes: &SparseCubes) -> DualGrid {
             let idx = cell_corners(cubes, c)?;
             let inside = idx.map(|i| cubes.sdf[i] < 0.0);
             let flags = u8::from(inside[6] != inside[7])
-                | u8::from(inside[5] != inside[7]) << 1
-                | u8::from(inside[3] != inside[7]) << 2;
+                | (u8::from(inside[5] != inside[7]) << 1)
+                | (u8::from(inside[3] != inside[7]) << 2);
             let origin = c.map(f64::from);
             let local = |p: [f64; 3]| sub(p, origin);
             // Quadric f(x) = xᵀAx − 2bᵀx, in voxel-local coordinates.
@@ -267,8 +267,8 @@ mod tests {
                 }
                 let corner = |dx: u16, dy: u16, dz: u16| sign[&[c[0] + dx, c[1] + dy, c[2] + dz]];
                 let expect = u8::from(corner(0, 1, 1) != corner(1, 1, 1))
-                    | u8::from(corner(1, 0, 1) != corner(1, 1, 1)) << 1
-                    | u8::from(corner(1, 1, 0) != corner(1, 1, 1)) << 2;
+                    | (u8::from(corner(1, 0, 1) != corner(1, 1, 1)) << 1)
+                    | (u8::from(corner(1, 1, 0) != corner(1, 1, 1)) << 2);
                 assert_eq!(*f, expect, "{c:?}");
                 flagged += f.count_ones();
             }
