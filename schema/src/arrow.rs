@@ -44,7 +44,7 @@ pub fn schema() -> SchemaRef {
         f.push(Field::new(name, Float64, false));
     }
     f.push(Field::new(c::TIME_STAGES, Utf8, false));
-    for t in c::TENSORS {
+    for t in c::tensors() {
         f.push(Field::new(t, Binary, true));
         f.push(Field::new(c::dtype_column(t), Utf8, true));
         f.push(Field::new(c::shape_column(t), shape_type(), true));
@@ -156,7 +156,7 @@ pub fn rows_to_batch(rows: &[ShardRow]) -> Result<RecordBatch> {
             .map(|r| stages_json(&r.timings))
             .collect::<Vec<_>>(),
     )));
-    for stem in c::TENSORS {
+    for stem in c::tensors() {
         let ts: Vec<Option<&EncodedTensor>> = rows.iter().map(|r| tensor_of(r, stem)).collect();
         cols.push(Arc::new(BinaryArray::from_opt_vec(
             ts.iter().map(|t| t.map(|t| t.blob.as_slice())).collect(),

@@ -66,26 +66,22 @@ pub fn is_run_dependent(name: &str) -> bool {
     name.starts_with(TIMING_PREFIX) || name == ATTEMPTS || name == STDERR_TAIL
 }
 
-/// The tensors of a row, in column order: name stem (`coords` → columns `coords`,
-/// `coords_dtype`, `coords_shape`). The sparse cubes, the optional stored mesh, then the
-/// optional vector-set samples ([`SAMPLE_TENSORS`]).
-pub const TENSORS: [&str; 15] = [
+/// The sparse-cube and mesh tensors of a row, in column order: name stem (`coords` → columns
+/// `coords`, `coords_dtype`, `coords_shape`).
+pub const CUBE_TENSORS: [&str; 6] = [
     "coords",
     "sdf",
     "deformation",
     "cells",
     "mesh_vertices",
     "mesh_faces",
-    SURFACE_POINTS,
-    SURFACE_NORMALS,
-    SHARP_POINTS,
-    SHARP_NORMALS,
-    NEAR_POINTS,
-    NEAR_SDF,
-    VOLUME_POINTS,
-    VOLUME_SDF,
-    VOLUME_OCCUPANCY,
 ];
+
+/// Every tensor stem of a row in column order: [`CUBE_TENSORS`], then the optional
+/// vector-set samples ([`SAMPLE_TENSORS`]).
+pub fn tensors() -> impl Iterator<Item = &'static str> {
+    CUBE_TENSORS.into_iter().chain(SAMPLE_TENSORS)
+}
 
 /// Surface samples, `n × 3` floats in the normalized frame (only with `[samples]`).
 pub const SURFACE_POINTS: &str = "surface_points";

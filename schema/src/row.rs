@@ -156,7 +156,7 @@ impl SampleTensors {
 
     /// Builds the set from tensors looked up by column stem; `None` when any is missing.
     pub fn from_lookup(
-        mut get: impl FnMut(&'static str) -> Result<Option<EncodedTensor>>,
+        get: impl FnMut(&'static str) -> Result<Option<EncodedTensor>>,
     ) -> Result<Option<Self>> {
         let mut take = get;
         let (Some(a), Some(b), Some(cc), Some(d), Some(e), Some(f), Some(g), Some(h), Some(i)) = (
@@ -273,7 +273,7 @@ impl RowTensors {
         v
     }
 
-    /// The tensors in column order with their stems ([`crate::columns::TENSORS`]).
+    /// The tensors in column order with their stems ([`crate::columns::tensors`]).
     pub fn iter(&self) -> Vec<(&'static str, Option<&EncodedTensor>)> {
         let mut v = vec![
             ("coords", Some(&self.coords)),

@@ -164,18 +164,16 @@ fn export_row(
                 bail!("no sample columns (config key samples.enabled was off when it converted)");
             };
             let s = t.to_samples()?;
-            // Normalized p = 2·(source − center)·scale; distances scale by 1 / (2·scale).
-            let (to_point, dist): (Box<dyn Fn([f32; 3]) -> [f32; 3]>, f64) = match frame {
-                Frame::Normalized => (Box::new(|p| p), 1.0),
-                Frame::Source => (
-                    Box::new(move |p: [f32; 3]| {
-                        std::array::from_fn(|a| {
-                            (p[a] as f64 / (2.0 * norm.scale) + norm.center[a]) as f32
-                        })
-                    }),
-                    1.0 / (2.0 * norm.scale),
-                ),
+            // Normalized p = 2·(source − center)·scale: source = p·k + center with
+            // k = 1 / (2·scale), and distances scale by k.
+            let (k, offset) = match frame {
+                Frame::Normalized => (1.0, [0.0; 3]),
+                Frame::Source => (1.0 / (2.0 * norm.scale), norm.center),
             };
+            let to_point = |p: [f32; 3]| -> [f32; 3] {
+                std::array::from_fn(|a| (p[a] as f64 * k + offset[a]) as f32)
+            };
+            let dist = k;
             // The source frame is written as f32 (its coordinates may not fit f16 well).
             let descr = match (frame, dtype) {
                 (Frame::Normalized, Precision::F16) => "<f2",
