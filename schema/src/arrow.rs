@@ -202,10 +202,6 @@ fn opt_f64(a: &Float64Array, i: usize) -> Option<f64> {
 }
 
 fn read_tensor(batch: &RecordBatch, stem: &str, i: usize) -> Result<Option<EncodedTensor>> {
-    // Sample columns are optional: shards written before they existed lack them.
-    if c::SAMPLE_TENSORS.contains(&stem) && batch.column_by_name(stem).is_none() {
-        return Ok(None);
-    }
     let blob = col::<BinaryArray>(batch, stem)?;
     if !blob.is_valid(i) {
         return Ok(None);

@@ -57,6 +57,9 @@ def test_sample_columns_hold_the_configured_counts_in_f16(job):
     assert len(ok) == 3
     failed = [r for r in rows if r["status"] == "failed"]
     assert len(failed) == 1 and failed[0]["error_class"] == "empty_mesh"
+    for r in ok:
+        for name in reader.SAMPLE_TENSORS:  # framed like every blob: zstd, content checksum
+            assert r[name][:4] == b"\x28\xb5\x2f\xfd" and r[name][4] & 0x04, name
     items = list(reader.iter_items(job))
     for it in items:
         s = it["samples"]

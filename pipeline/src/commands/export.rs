@@ -8,6 +8,7 @@ use crate::npz::{npz_bytes, Array};
 use crate::shard_io::shard_rows;
 use anyhow::{bail, Context, Result};
 use sparc3d_schema::ShardRow;
+use sparc3d_workers::state::Check;
 use sparc3d_workers::Job;
 use sparcubes::layouts::{cubvh, direct3d_s2, trellis2};
 use sparcubes::samples::Precision;
@@ -85,7 +86,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let dtype = job.file.config.samples.params.dtype;
     let (mut written, mut failed) = (0u64, 0u64);
     for shard in shards {
-        for row in shard_rows(&job, shard)? {
+        for row in shard_rows(&job, shard, Check::Full)? {
             if !(wanted.is_empty() || wanted.contains(row.id.as_str())) || row.tensors.is_none() {
                 continue;
             }

@@ -21,6 +21,7 @@ pub mod show;
 pub mod status;
 pub mod submit;
 pub mod validate;
+pub mod verify;
 pub mod work;
 
 use clap::{Parser, Subcommand};
@@ -65,6 +66,8 @@ enum Command {
     /// Write per-item .npz files in another codebase's layout: vector-set samples, Direct3D-S2
     /// sparse SDF, TRELLIS.2 flexible dual grid, cubvh sparse voxels.
     Export(export::Args),
+    /// Hash every finished shard against its completion record; move damaged ones aside.
+    Verify(verify::Args),
     /// Check a reproducible sample of a job's outputs with pymeshlab; writes a report.
     Validate(validate::Args),
     /// Render a mesh (or a job's item) and its converted output side by side to a PNG.
@@ -98,6 +101,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Inspect(args) => inspect::run(args),
         Command::Show(args) => show::run(args),
         Command::Export(args) => export::run(args),
+        Command::Verify(args) => verify::run(args),
         Command::Validate(args) => validate::run(args),
         Command::Preview(args) => preview::run(args),
         Command::Report(args) => report::run(args),
