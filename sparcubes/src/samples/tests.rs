@@ -109,6 +109,26 @@ fn signs_agree_with_winding_number_and_distances_are_exact() {
 }
 
 #[test]
+fn bundled_meshes_signs_agree_with_winding_number_and_distances_are_exact() {
+    // The example files shipped with the repository: a closed organic mesh, a textured box
+    // (glTF), a triangulated cube (OFF).
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples");
+    for file in ["wuson.stl", "box_textured.glb", "cube.off"] {
+        let loaded = crate::io::load(&root.join(file)).unwrap_or_else(|e| panic!("{file}: {e}"));
+        let (cubes, mesh) = convert(&loaded.mesh, 24, false);
+        let s = sample(&cubes, &mesh, &small_params(3)).unwrap_or_else(|e| panic!("{e}"));
+        let (vol_agree, vol_err) = check(&cubes, &mesh, &s.volume_points, &s.volume_sdf);
+        let (near_agree, near_err) = check(&cubes, &mesh, &s.near_points, &s.near_sdf);
+        assert!(vol_agree >= 0.999, "{file}: volume {vol_agree}");
+        assert!(near_agree >= 0.999, "{file}: near {near_agree}");
+        assert!(
+            vol_err < 1e-6 && near_err < 1e-6,
+            "{file}: {vol_err} {near_err}"
+        );
+    }
+}
+
+#[test]
 fn surface_points_lie_on_the_mesh_with_its_normals() {
     let (cubes, mesh) = convert(&torus([0.0; 3], 0.6, 0.2, 24), 32, false);
     let s = sample(&cubes, &mesh, &small_params(1)).unwrap_or_else(|e| panic!("{e}"));
