@@ -2,6 +2,10 @@
 
 mod cluster;
 mod commands;
+mod hints;
+mod item_lookup;
+mod job_setup;
+mod label;
 mod manifest_io;
 mod npz;
 mod progress;

@@ -35,6 +35,24 @@ impl Lcg {
     }
 }
 
+/// The seed of the kill schedule (pauses and victims): `SPARC3D_TEST_SEED` when set, else from
+/// the clock. Printed either way, and named in the failure messages, so that a failing schedule
+/// can be run again (the processes it meets still depend on the machine's timing).
+fn kill_seed() -> u64 {
+    let seed = match std::env::var("SPARC3D_TEST_SEED") {
+        Ok(v) => v
+            .trim()
+            .parse()
+            .unwrap_or_else(|e| panic!("SPARC3D_TEST_SEED={v:?}: {e}")),
+        Err(_) => std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| d.as_nanos() as u64)
+            .unwrap_or(7),
+    };
+    eprintln!("kill schedule seed {seed} (replay with SPARC3D_TEST_SEED={seed})");
+    seed
+}
+
 #[test]
 fn kill_9_at_random_moments_then_resume_gives_the_same_content() {
     let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
@@ -69,17 +87,16 @@ fn kill_9_at_random_moments_then_resume_gives_the_same_content() {
         .to_string();
     assert_each_item_once(&a);
 
-    let seed = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| d.as_nanos() as u64)
-        .unwrap_or(7);
-    eprintln!("kill seed {seed}");
+    let seed = kill_seed();
     let mut rng = Lcg(seed);
     let mut kills = 0;
     let deadline = Instant::now() + Duration::from_secs(300);
     let mut run = spawn_run(&b, "3");
     loop {
-        assert!(Instant::now() < deadline, "job did not finish in time");
+        assert!(
+            Instant::now() < deadline,
+            "job did not finish in time (SPARC3D_TEST_SEED={seed})"
+        );
         // Kill quickly until the five required kills happened (conversion is fast and the
         // job must not finish first), then at a calmer pace.
         let pause = if kills < 5 {
@@ -122,7 +139,7 @@ fn kill_9_at_random_moments_then_resume_gives_the_same_content() {
     }
     assert!(
         kills >= 5,
-        "only {kills} kills happened; the job finished too fast"
+        "only {kills} kills happened; the job finished too fast (SPARC3D_TEST_SEED={seed})"
     );
     assert_each_item_once(&b);
     let digest = inspect(&b)["content_digest"]
@@ -131,7 +148,7 @@ fn kill_9_at_random_moments_then_resume_gives_the_same_content() {
         .to_string();
     assert_eq!(
         digest, reference,
-        "content differs after {kills} kills (seed {seed})"
+        "content differs after {kills} kills (SPARC3D_TEST_SEED={seed})"
     );
     // No lease or journal is left behind.
     let leftovers: Vec<_> = std::fs::read_dir(b.join("state"))

@@ -7,7 +7,8 @@
 //! once its box is not nearer than the best triangle found. An obvhs tree (PLOC, as the
 //! renderer uses) was measured first: on the marching-cubes surface of a cube its node boxes
 //! overlapped so much that queries were 20–130× slower, and it built 3–7× slower
-//! (docs/PERFORMANCE.md, "Samples"). Batches are sorted along a Morton curve and cut into fixed chunks; inside a
+//! (`examples/closest_bench.rs` with `CUBE=1`). Batches are sorted along a Morton curve and
+//! cut into fixed chunks; inside a
 //! chunk each query starts from the previous query's triangle as an upper bound, which prunes
 //! most of the tree for neighbouring queries.
 //!
