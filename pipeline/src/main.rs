@@ -7,6 +7,7 @@ mod item_lookup;
 mod job_setup;
 mod label;
 mod manifest_io;
+mod npz;
 mod progress;
 mod sample;
 mod shard_io;

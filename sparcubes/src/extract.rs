@@ -203,25 +203,53 @@ fn for_each_case(
         if !ok {
             continue;
         }
-        let mut mask = 0u8;
-        for (c, &i) in idx.iter().enumerate() {
-            if sdf[i] < 0.0 {
-                mask |= 1 << c;
-            }
+        if let Some(case) = case_of(sdf, table, &idx) {
+            f(&idx, case);
         }
-        if mask == 0 || mask == 0xff {
-            continue;
+    }
+}
+
+/// The marching-cubes case of the cell whose corners are the vertices `idx` (corner `c` at
+/// `(c & 1, c >> 1 & 1, c >> 2)`), or `None` when it has no sign change.
+#[inline]
+fn case_of<'t>(sdf: &[f32], table: &'t Table, idx: &[usize; 8]) -> Option<&'t Case> {
+    let mut mask = 0u8;
+    for (c, &i) in idx.iter().enumerate() {
+        if sdf[i] < 0.0 {
+            mask |= 1 << c;
         }
-        let mut bits = 0u8;
-        let ambiguous = mc_table::ambiguous_faces(mask);
-        for (face, fc) in FACE_CORNERS.iter().enumerate() {
-            if ambiguous >> face & 1 == 1
-                && mc_table::inside_joined(fc.map(|c| sdf[idx[c as usize]]))
-            {
-                bits |= 1 << face;
-            }
+    }
+    if mask == 0 || mask == 0xff {
+        return None;
+    }
+    let mut bits = 0u8;
+    let ambiguous = mc_table::ambiguous_faces(mask);
+    for (face, fc) in FACE_CORNERS.iter().enumerate() {
+        if ambiguous >> face & 1 == 1 && mc_table::inside_joined(fc.map(|c| sdf[idx[c as usize]])) {
+            bits |= 1 << face;
         }
-        f(&idx, table.case(mask, bits));
+    }
+    Some(table.case(mask, bits))
+}
+
+/// Appends to `out` the triangles that [`extract`] emits for one cell, given the indices in
+/// `cubes.coords` of its eight corners (corner `c` at `(c & 1, c >> 1 & 1, c >> 2)`), with
+/// the same positions (grid coordinates, deformation applied, rounded to `f32` as in the
+/// extracted mesh) and orientation. A cell without a sign change adds nothing.
+pub fn cell_triangles(cubes: &SparseCubes, idx: &[usize; 8], out: &mut Vec<[[f64; 3]; 3]>) {
+    let Some(case) = case_of(&cubes.sdf, mc_table::table(), idx) else {
+        return;
+    };
+    let point = |v: u8| {
+        let p = if v < CENTRE {
+            edge_point(cubes, idx, v)
+        } else {
+            centre_point(cubes, idx, &case.centres[(v - CENTRE) as usize])
+        };
+        to_f32(p).map(f64::from)
+    };
+    for tri in &case.triangles {
+        out.push(tri.map(point));
     }
 }
 
@@ -259,7 +287,7 @@ fn position(cubes: &SparseCubes, i: usize) -> [f64; 3] {
 /// Crossing point of the zero level set on cube edge `e` (linear interpolation of φ between
 /// the edge's two vertices, which alone decide it).
 #[inline]
-fn edge_point(cubes: &SparseCubes, idx: &[usize; 8], e: u8) -> [f64; 3] {
+pub(crate) fn edge_point(cubes: &SparseCubes, idx: &[usize; 8], e: u8) -> [f64; 3] {
     let (a, b, _) = EDGES[e as usize];
     let (ia, ib) = (idx[a as usize], idx[b as usize]);
     let (sa, sb) = (cubes.sdf[ia] as f64, cubes.sdf[ib] as f64);

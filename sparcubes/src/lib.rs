@@ -23,6 +23,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod band;
+pub mod closest;
 pub mod convert;
 pub mod cubes;
 pub mod deform;
@@ -32,6 +33,7 @@ pub mod flood;
 pub mod grid;
 pub mod holes;
 pub mod io;
+pub mod layouts;
 pub mod mc_table;
 pub mod mesh;
 pub mod metrics;
@@ -39,8 +41,10 @@ pub mod normalize;
 pub mod params;
 pub mod render;
 pub mod ring;
+pub mod samples;
 pub mod sanitize;
 pub mod shapes;
+pub mod sides;
 pub mod sign;
 pub mod topology;
 pub mod vec3;

@@ -4,7 +4,7 @@
 
 use sparc3d_schema::{
     EncodedTensor, ErrorClass, FrozenItem, ItemStatus, JobConfig, RowCounts, RowTensors,
-    RowTimings, ShardRow,
+    RowTimings, SampleTensors, ShardRow,
 };
 use std::path::Path;
 use std::time::Instant;
@@ -56,10 +56,28 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
         .collect();
 
     let t = Instant::now();
-    let mesh = config
-        .extract_mesh
-        .then(|| sparcubes::extract(&conversion.cubes));
+    let sampling = config.samples.enabled;
+    let mesh = (config.extract_mesh || sampling).then(|| sparcubes::extract(&conversion.cubes));
     timings.extract_s = t.elapsed().as_secs_f64();
+
+    let t = Instant::now();
+    let samples = match (&mesh, sampling) {
+        (Some(m), true) => {
+            match sparcubes::samples::sample(&conversion.cubes, m, &config.samples.params) {
+                Ok(s) => Some(s),
+                Err(e) => {
+                    let message = format!("item {}: samples: {e}", item.record.id);
+                    return fail(e.class().into(), message, timings);
+                }
+            }
+        }
+        _ => None,
+    };
+    if samples.is_some() {
+        timings
+            .stages
+            .push(("samples".to_string(), t.elapsed().as_secs_f64()));
+    }
 
     let t = Instant::now();
     let level = config.zstd_level;
@@ -67,6 +85,10 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
         if let (true, Some(m)) = (config.store_mesh, &mesh) {
             tensors.mesh_vertices = Some(EncodedTensor::from_f32x3(&m.positions, level)?);
             tensors.mesh_faces = Some(EncodedTensor::from_u32x3(&m.triangles, level)?);
+        }
+        if let Some(s) = &samples {
+            let dtype = config.samples.params.dtype;
+            tensors.samples = Some(SampleTensors::from_samples(s, dtype, level)?);
         }
         Ok(tensors)
     });
@@ -95,7 +117,10 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
             input_components: Some(input_components),
             active_vertices: conversion.cubes.coords.len() as u64,
             active_cells: conversion.cubes.cells.len() as u64,
-            output_faces: mesh.as_ref().map(|m| m.triangles.len() as u64),
+            output_faces: config
+                .extract_mesh
+                .then(|| mesh.as_ref().map(|m| m.triangles.len() as u64))
+                .flatten(),
             shell_vertices: stats.shell_vertices,
             wall_cells: stats.wall_cells,
         }),

@@ -46,7 +46,7 @@ pub fn writer_properties(job: &Job, shard: u64) -> Result<WriterProperties> {
     let mut b = WriterProperties::builder()
         .set_compression(Compression::ZSTD(level))
         .set_key_value_metadata(Some(kv));
-    for stem in columns::TENSORS {
+    for stem in columns::tensors() {
         let col = ColumnPath::from(stem);
         b = b
             .set_column_compression(col.clone(), Compression::UNCOMPRESSED)
