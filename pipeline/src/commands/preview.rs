@@ -8,9 +8,9 @@
 
 use crate::shard_io::shard_rows;
 use anyhow::{bail, Context, Result};
+use sparc3d_render::{compare, CompareOptions, Image};
 use sparc3d_schema::ShardRow;
 use sparc3d_workers::Job;
-use sparcubes::render::{compare, CompareOptions, Image};
 use sparcubes::TriMesh;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;

@@ -1,4 +1,5 @@
-//! Quality of an extracted mesh against its source (DESIGN.md §6, "How we measure").
+//! Quality of an extracted mesh against its source, as docs/QUALITY.md ("How we measure")
+//! defines it; `sparc3d eval` prints it.
 //!
 //! Both meshes are put in the frame where the source's bounding box is centred and its longest
 //! side is 1, and points are sampled uniformly by area on each. From those:
@@ -22,6 +23,7 @@
 //! Random numbers come from a counter-based hash of the seed and the sample index, and every
 //! sum is taken in index order, so the numbers are the same whatever the thread count. The
 //! same seed gives the same samples on identical meshes.
+#![deny(missing_docs)]
 
 mod geom;
 mod kdtree;
@@ -29,13 +31,13 @@ mod sample;
 mod tri_bvh;
 mod weld;
 
-use crate::error::{Error, Result};
-use crate::mesh::TriMesh;
 use geom::{dot, Vec3};
 use kdtree::KdTree;
 use rayon::prelude::*;
 use sample::{sample_subset, Faces, Samples};
 use serde::{Deserialize, Serialize};
+use sparcubes::error::{Error, Result};
+use sparcubes::TriMesh;
 use tri_bvh::TriBvh;
 
 /// Distance thresholds of the F1 scores, in units of the source's longest side.
@@ -56,7 +58,7 @@ pub const MIN_COMPONENT_SAMPLES: usize = 64;
 /// Welding tolerance as a fraction of the source's bounding box diagonal.
 pub const WELD_TOLERANCE: f64 = 1e-7;
 
-/// How to evaluate. `Copy`, with the defaults of DESIGN.md §6.
+/// How to evaluate. `Copy`, with the defaults of docs/QUALITY.md ("How we measure").
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct EvalOptions {
     /// Points sampled on each mesh.
