@@ -1,5 +1,5 @@
 //! Loads every mesh of a corpus and compares face counts with its manifest. Needs the dev
-//! corpus (see DESIGN.md §6), so it is ignored by default:
+//! corpus (docs/QUALITY.md says what it is), so it is ignored by default:
 //!
 //! ```text
 //! SPARC3D_CORPUS=/tmp/corpus/dev SPARC3D_CORPUS_MANIFEST=.../dev_manifest.tsv \
