@@ -52,8 +52,18 @@ def main():
     if a.address:
         ray.init(address=a.address, logging_level="ERROR")
     else:
-        ray.init(num_cpus=a.local_cpus, include_dashboard=False, _node_ip_address="127.0.0.1",
-                 logging_level="ERROR")
+        # Ray's raylet gives its agents 15 s to report their ports and aborts past that, which
+        # a busy machine can miss: up to three tries.
+        for attempt in range(1, 4):
+            try:
+                ray.init(num_cpus=a.local_cpus, include_dashboard=False,
+                         _node_ip_address="127.0.0.1", logging_level="ERROR")
+                break
+            except Exception as e:  # Ray raises a bare Exception for a node that did not start
+                ray.shutdown()
+                if attempt == 3:
+                    raise
+                print(f"Ray did not start (try {attempt} of 3): {e}", file=sys.stderr)
 
     @ray.remote(max_retries=a.retries, retry_exceptions=True)
     def work(shard):

@@ -21,13 +21,30 @@ fn restore_default_sigpipe() {
     }
 }
 
+/// An error and its causes on one line, leaving out a cause whose text the line already
+/// holds (typed errors often print their source inside their own message).
+fn describe(err: &anyhow::Error) -> String {
+    let mut line = String::new();
+    for cause in err.chain() {
+        let text = cause.to_string();
+        if line.contains(&text) {
+            continue;
+        }
+        if !line.is_empty() {
+            line.push_str(": ");
+        }
+        line.push_str(&text);
+    }
+    line
+}
+
 fn main() -> std::process::ExitCode {
     restore_default_sigpipe();
     let cli = commands::Cli::parse();
     match commands::run(cli) {
         Ok(code) => code,
         Err(err) => {
-            eprintln!("error: {err:#}");
+            eprintln!("error: {}", describe(&err));
             std::process::ExitCode::FAILURE
         }
     }

@@ -228,12 +228,3 @@ pub fn write(records: &[ManifestRecord], path: &Path) -> Result<()> {
     }
     Ok(())
 }
-
-/// Hex sha256 of a file's bytes.
-pub fn file_sha256(path: &Path) -> Result<String> {
-    use sha2::{Digest, Sha256};
-    let mut f = std::fs::File::open(path).with_context(|| format!("opening {}", path.display()))?;
-    let mut h = Sha256::new();
-    std::io::copy(&mut f, &mut h).with_context(|| format!("reading {}", path.display()))?;
-    Ok(sparc3d_schema::config::hex(&h.finalize()))
-}

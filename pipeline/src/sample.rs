@@ -93,13 +93,17 @@ pub fn for_each_shard_row(
     shard: u64,
     mut f: impl FnMut(ShardRow) -> Result<()>,
 ) -> Result<()> {
-    let done = sparc3d_workers::state::completion(&job.layout, shard, job.fingerprint())
+    use sparc3d_workers::state::{completion, Check, Completion};
+    match completion(&job.layout, shard, job.fingerprint(), Check::Quick)
         .with_context(|| format!("reading the completion record of shard {shard}"))?
-        .is_some();
-    if done {
-        return for_each_row(&job.layout.shard_file(shard), f);
+    {
+        Completion::Done(_) => return for_each_row(&job.layout.shard_file(shard), f),
+        Completion::Damaged(why) => return Err(crate::shard_io::damaged(job, shard, &why)),
+        Completion::Absent => {}
     }
-    for row in shard_rows(job, shard).with_context(|| format!("reading shard {shard}"))? {
+    for row in
+        shard_rows(job, shard, Check::Quick).with_context(|| format!("reading shard {shard}"))?
+    {
         f(row)?;
     }
     Ok(())

@@ -4,6 +4,7 @@ use anyhow::{Context, Result};
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use parquet::file::reader::{FileReader, SerializedFileReader};
 use sparc3d_schema::{JobLayout, ShardRow};
+use sparc3d_workers::state::{completion, Check, Completion};
 use sparc3d_workers::Job;
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -107,11 +108,24 @@ pub fn read_meta(path: &Path) -> Result<ShardMeta> {
     })
 }
 
-/// Rows of a shard whether finished (Parquet) or in progress (journal), in item order.
-pub fn shard_rows(job: &Job, shard: u64) -> Result<Vec<ShardRow>> {
+/// The error for a finished shard that no longer matches its completion record, saying how
+/// to get it converted again.
+pub fn damaged(job: &Job, shard: u64, why: &str) -> anyhow::Error {
+    let root = job.layout.root.display();
+    anyhow::anyhow!(
+        "shard {shard} of {root} is damaged: {why}; `sparc3d verify {root}` moves damaged \
+         shards aside and `sparc3d run {root}` converts them again"
+    )
+}
+
+/// Rows of a shard whether finished (Parquet, its record checked with `check`) or in progress
+/// (journal), in item order. A damaged shard is an error.
+pub fn shard_rows(job: &Job, shard: u64, check: Check) -> Result<Vec<ShardRow>> {
     let layout: &JobLayout = &job.layout;
-    if sparc3d_workers::state::completion(layout, shard, job.fingerprint())?.is_some() {
-        return read_rows(&layout.shard_file(shard));
+    match completion(layout, shard, job.fingerprint(), check)? {
+        Completion::Done(_) => return read_rows(&layout.shard_file(shard)),
+        Completion::Damaged(why) => return Err(damaged(job, shard, &why)),
+        Completion::Absent => {}
     }
     let jpath = layout.journal(shard);
     if !jpath.exists() {

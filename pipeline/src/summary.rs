@@ -1,12 +1,23 @@
-//! A job's progress read from its folder: completion records, leases and journals. Used by
-//! `status` and by `run` (to start its counters where the last run stopped).
+//! A job's progress read from its folder: completion records (checked against their shard
+//! files), leases and journals. Used by `status` and by `run` (to plan, and to start its
+//! counters where the last run stopped).
 
 use anyhow::Result;
+use rayon::prelude::*;
 use serde::Serialize;
 use sparc3d_schema::ItemStatus;
-use sparc3d_workers::state::{shard_state, ShardState};
+use sparc3d_workers::state::{shard_state, Check, ShardState};
 use sparc3d_workers::Job;
 use std::collections::BTreeMap;
+
+/// A finished shard that no longer matches its completion record.
+#[derive(Debug, Clone, Serialize)]
+pub struct DamagedShard {
+    /// Shard index.
+    pub shard: u64,
+    /// What is wrong.
+    pub reason: String,
+}
 
 /// An item being converted right now.
 #[derive(Debug, Clone, Serialize)]
@@ -32,6 +43,11 @@ pub struct JobSummary {
     pub shards_running: u64,
     /// Shards neither.
     pub shards_pending: u64,
+    /// Shards finished once whose file no longer matches its record (converted again by the
+    /// next `run` or `work`).
+    pub shards_damaged: u64,
+    /// Those shards and why.
+    pub damaged: Vec<DamagedShard>,
     /// Items in the job.
     pub items: u64,
     /// Items finished ok.
@@ -52,8 +68,22 @@ pub struct JobSummary {
     pub item_seconds: f64,
 }
 
-/// Reads the progress of a job.
+/// Every shard's state, its record checked with `check` (in parallel: a check may hash the
+/// shard file).
+pub fn shard_states(job: &Job, check: Check) -> Result<Vec<ShardState>> {
+    (0..job.file.shards)
+        .into_par_iter()
+        .map(|shard| Ok(shard_state(&job.layout, shard, job.fingerprint(), check)?))
+        .collect()
+}
+
+/// Reads the progress of a job, finished shards checked quickly ([`Check::Quick`]).
 pub fn summarize(job: &Job) -> Result<JobSummary> {
+    Ok(summarize_states(job, &shard_states(job, Check::Quick)?))
+}
+
+/// The progress of a job whose shard states are known.
+pub fn summarize_states(job: &Job, states: &[ShardState]) -> JobSummary {
     let mut s = JobSummary {
         shards: job.file.shards,
         items: job.file.items,
@@ -61,9 +91,8 @@ pub fn summarize(job: &Job) -> Result<JobSummary> {
     };
     let now = sparc3d_workers::now();
     let (mut first, mut last) = (f64::INFINITY, 0.0f64);
-    for shard in 0..job.file.shards {
-        let state = shard_state(&job.layout, shard, job.fingerprint())?;
-        match &state {
+    for (shard, state) in (0..job.file.shards).zip(states) {
+        match state {
             ShardState::Done(r) => {
                 s.shards_done += 1;
                 s.ok += r.ok;
@@ -78,6 +107,13 @@ pub fn summarize(job: &Job) -> Result<JobSummary> {
             }
             ShardState::Running(_) => s.shards_running += 1,
             ShardState::Pending => s.shards_pending += 1,
+            ShardState::Damaged(reason) => {
+                s.shards_damaged += 1;
+                s.damaged.push(DamagedShard {
+                    shard,
+                    reason: reason.clone(),
+                });
+            }
         }
         let jpath = job.layout.journal(shard);
         if !jpath.exists() {
@@ -100,7 +136,7 @@ pub fn summarize(job: &Job) -> Result<JobSummary> {
             s.item_seconds += d.total_s;
             last = last.max(d.at);
         }
-        if let (ShardState::Running(_), Some((index, at))) = (&state, js.in_flight) {
+        if let (ShardState::Running(_), Some((index, at))) = (state, js.in_flight) {
             if let Some(item) = job.items.get(index as usize) {
                 s.in_flight.push(InFlight {
                     shard,
@@ -121,5 +157,5 @@ pub fn summarize(job: &Job) -> Result<JobSummary> {
         s.items_per_hour = Some(rate);
         s.eta_seconds = Some(s.pending as f64 / rate * 3600.0);
     }
-    Ok(s)
+    s
 }

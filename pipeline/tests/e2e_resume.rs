@@ -8,50 +8,6 @@ use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-/// Pids of every descendant of `pid` (from /proc).
-fn descendants(pid: u32) -> Vec<u32> {
-    let mut parent_of = Vec::new();
-    if let Ok(d) = std::fs::read_dir("/proc") {
-        for e in d.flatten() {
-            let Ok(p) = e.file_name().to_string_lossy().parse::<u32>() else {
-                continue;
-            };
-            let Ok(stat) = std::fs::read_to_string(format!("/proc/{p}/stat")) else {
-                continue;
-            };
-            // "pid (comm) state ppid ..."; comm may hold spaces: split after the last ')'.
-            let Some(rest) = stat.rsplit_once(')').map(|x| x.1) else {
-                continue;
-            };
-            let ppid: u32 = rest
-                .split_whitespace()
-                .nth(1)
-                .and_then(|x| x.parse().ok())
-                .unwrap_or(0);
-            parent_of.push((p, ppid));
-        }
-    }
-    let mut out = Vec::new();
-    let mut frontier = vec![pid];
-    while let Some(q) = frontier.pop() {
-        for &(p, pp) in &parent_of {
-            if pp == q && !out.contains(&p) {
-                out.push(p);
-                frontier.push(p);
-            }
-        }
-    }
-    out
-}
-
-fn kill9(pid: u32) -> bool {
-    Command::new("kill")
-        .args(["-9", &pid.to_string()])
-        .status()
-        .map(|s| s.success())
-        .unwrap_or(false)
-}
-
 fn spawn_run(job: &Path, workers: &str) -> Child {
     Command::new(bin())
         .args([
@@ -77,6 +33,24 @@ impl Lcg {
             .wrapping_add(1442695040888963407);
         (self.0 >> 33) % n.max(1)
     }
+}
+
+/// The seed of the kill schedule (pauses and victims): `SPARC3D_TEST_SEED` when set, else from
+/// the clock. Printed either way, and named in the failure messages, so that a failing schedule
+/// can be run again (the processes it meets still depend on the machine's timing).
+fn kill_seed() -> u64 {
+    let seed = match std::env::var("SPARC3D_TEST_SEED") {
+        Ok(v) => v
+            .trim()
+            .parse()
+            .unwrap_or_else(|e| panic!("SPARC3D_TEST_SEED={v:?}: {e}")),
+        Err(_) => std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| d.as_nanos() as u64)
+            .unwrap_or(7),
+    };
+    eprintln!("kill schedule seed {seed} (replay with SPARC3D_TEST_SEED={seed})");
+    seed
 }
 
 #[test]
@@ -113,17 +87,16 @@ fn kill_9_at_random_moments_then_resume_gives_the_same_content() {
         .to_string();
     assert_each_item_once(&a);
 
-    let seed = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| d.as_nanos() as u64)
-        .unwrap_or(7);
-    eprintln!("kill seed {seed}");
+    let seed = kill_seed();
     let mut rng = Lcg(seed);
     let mut kills = 0;
     let deadline = Instant::now() + Duration::from_secs(300);
     let mut run = spawn_run(&b, "3");
     loop {
-        assert!(Instant::now() < deadline, "job did not finish in time");
+        assert!(
+            Instant::now() < deadline,
+            "job did not finish in time (SPARC3D_TEST_SEED={seed})"
+        );
         // Kill quickly until the five required kills happened (conversion is fast and the
         // job must not finish first), then at a calmer pace.
         let pause = if kills < 5 {
@@ -166,7 +139,7 @@ fn kill_9_at_random_moments_then_resume_gives_the_same_content() {
     }
     assert!(
         kills >= 5,
-        "only {kills} kills happened; the job finished too fast"
+        "only {kills} kills happened; the job finished too fast (SPARC3D_TEST_SEED={seed})"
     );
     assert_each_item_once(&b);
     let digest = inspect(&b)["content_digest"]
@@ -175,7 +148,7 @@ fn kill_9_at_random_moments_then_resume_gives_the_same_content() {
         .to_string();
     assert_eq!(
         digest, reference,
-        "content differs after {kills} kills (seed {seed})"
+        "content differs after {kills} kills (SPARC3D_TEST_SEED={seed})"
     );
     // No lease or journal is left behind.
     let leftovers: Vec<_> = std::fs::read_dir(b.join("state"))

@@ -78,7 +78,7 @@ def shard_paths(paths: Union[PathLike, Iterable[PathLike]], complete_only: bool 
 
 
 #: The shard schema version this reader decodes (docs/FORMAT.md).
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 
 
 def decode_tensor(row: Dict[str, Any], name: str) -> Optional[np.ndarray]:

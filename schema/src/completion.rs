@@ -3,6 +3,20 @@
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
+/// What the file system says about a file that only a change of the file alters: its
+/// modification and status-change times and its inode. A file whose stamp is as recorded has
+/// not been written since (the change time cannot be set back from user space, so a byte
+/// flipped and the modification time restored still changes the stamp).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct FileStamp {
+    /// Modification time, nanoseconds since the Unix epoch.
+    pub modified_ns: i128,
+    /// Status-change time (ctime), nanoseconds since the Unix epoch.
+    pub changed_ns: i128,
+    /// Inode number.
+    pub inode: u64,
+}
+
 /// Written last (`part-NNNNN.complete.json`): a shard without it is not finished.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CompletionRecord {
@@ -24,6 +38,10 @@ pub struct CompletionRecord {
     pub bytes: u64,
     /// Hex sha256 of the shard file.
     pub sha256: String,
+    /// The shard file's stamp once in place: while it is unchanged, a quick check trusts the
+    /// file without hashing it (absent in records of older versions).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stamp: Option<FileStamp>,
     /// Hex content digest of the rows, excluding run-dependent columns.
     pub content_digest: String,
     /// Sum of the items' `time_total_s`.

@@ -7,6 +7,7 @@
 //! JOB/shards/part-NNNNN.complete.json   its completion record (written last)
 //! JOB/state/part-NNNNN.journal          finished items of a shard in progress
 //! JOB/state/part-NNNNN.lease            who works on a shard, with heartbeat and expiry
+//! JOB/quarantine/part-NNNNN-<time>/     a damaged shard and its record, moved aside
 //! ```
 
 use std::path::{Path, PathBuf};
@@ -73,6 +74,11 @@ impl JobLayout {
     pub fn journal(&self, shard: u64) -> PathBuf {
         self.state_dir()
             .join(format!("{}.journal", Self::shard_name(shard)))
+    }
+
+    /// `quarantine/`: damaged shards moved aside (never deleted) to be converted again.
+    pub fn quarantine_dir(&self) -> PathBuf {
+        self.root.join("quarantine")
     }
 
     /// The lease of a shard.

@@ -18,7 +18,7 @@ pub mod row;
 pub mod tensor;
 
 pub use class::{ErrorClass, ItemStatus};
-pub use completion::CompletionRecord;
+pub use completion::{CompletionRecord, FileStamp};
 pub use config::{JobConfig, JobFile, Limits};
 pub use error::{Result, SchemaError};
 pub use layout::JobLayout;
@@ -27,8 +27,9 @@ pub use row::{RowCounts, RowTensors, RowTimings, ShardRow};
 pub use tensor::{DType, EncodedTensor};
 
 /// Version of the shard format; bumped on any change to columns or encodings. Version 2 stores
-/// tensor bytes in byte planes (version 1: row-major).
-pub const SCHEMA_VERSION: u32 = 2;
+/// tensor bytes in byte planes (version 1: row-major); version 3 puts zstd's content checksum
+/// in every tensor blob, so any zstd decoder fails loudly on a damaged blob.
+pub const SCHEMA_VERSION: u32 = 3;
 
 /// Version of the tool that wrote a file (the workspace version).
 pub const TOOL_VERSION: &str = env!("CARGO_PKG_VERSION");

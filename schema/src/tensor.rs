@@ -7,6 +7,10 @@
 //! 6×, cells 5×, sdf 1.2× smaller than row-major bytes, and faster to compress); in numpy,
 //! `np.frombuffer(raw, np.uint8).reshape(k, w, n).transpose(2, 0, 1).copy().view(dtype)`
 //! undoes it (docs/FORMAT.md).
+//!
+//! Every frame carries zstd's content checksum (schema version 3): a decoder (ours,
+//! pyarrow's `pa.decompress`, `zstandard`) verifies it and fails on a damaged blob instead of
+//! returning wrong numbers, and ours refuses a frame without one.
 
 use crate::error::{Result, SchemaError};
 use serde::{Deserialize, Serialize};
@@ -68,7 +72,18 @@ pub struct EncodedTensor {
 }
 
 fn compress(raw: &[u8], level: i32) -> Result<Vec<u8>> {
-    zstd::bulk::compress(raw, level).map_err(SchemaError::Zstd)
+    let mut c = zstd::bulk::Compressor::new(level).map_err(SchemaError::Zstd)?;
+    c.include_checksum(true).map_err(SchemaError::Zstd)?;
+    c.compress(raw).map_err(SchemaError::Zstd)
+}
+
+/// The zstd frame magic number, as stored (little-endian).
+const ZSTD_MAGIC: [u8; 4] = [0x28, 0xb5, 0x2f, 0xfd];
+
+/// Whether a zstd frame declares a content checksum (bit 2 of its frame header descriptor,
+/// RFC 8878 §3.1.1.1.1).
+fn has_checksum(blob: &[u8]) -> bool {
+    blob.len() > 4 && blob[..4] == ZSTD_MAGIC && blob[4] & 0x04 != 0
 }
 
 /// Row-major little-endian element bytes (`cols` columns of `width`-byte scalars) regrouped
@@ -163,6 +178,14 @@ impl EncodedTensor {
     /// Decompresses the blob, checks its length against dtype and shape, and returns the
     /// elements' little-endian bytes in row-major order.
     pub fn raw_bytes(&self, name: &str) -> Result<Vec<u8>> {
+        if !has_checksum(&self.blob) {
+            return Err(SchemaError::Tensor {
+                name: name.to_string(),
+                reason: "the blob is not a zstd frame with a content checksum (damaged, or \
+                         not written by schema version 3)"
+                    .into(),
+            });
+        }
         let expected = self.elements() as usize * self.dtype.size();
         let raw = zstd::bulk::decompress(&self.blob, expected.max(1)).map_err(|e| {
             SchemaError::Tensor {
@@ -296,6 +319,7 @@ mod tests {
     fn blob_holds_byte_planes_column_by_column() -> Result<()> {
         let t =
             EncodedTensor::from_u16x3(&[[0x0102, 0x0304, 0x0506], [0x0a0b, 0x0c0d, 0x0e0f]], 1)?;
+        assert!(has_checksum(&t.blob));
         let stored = zstd::bulk::decompress(&t.blob, 64).map_err(SchemaError::Zstd)?;
         // x low bytes, x high bytes, y low, y high, z low, z high.
         assert_eq!(
@@ -307,6 +331,40 @@ mod tests {
         let (a, b) = (1.0f32.to_le_bytes(), (-2.5f32).to_le_bytes());
         assert_eq!(stored, vec![a[0], b[0], a[1], b[1], a[2], b[2], a[3], b[3]]);
         assert_eq!(f.to_f32("f")?, vec![1.0, -2.5]);
+        Ok(())
+    }
+
+    /// Issue 10, item 2: a damaged blob never decodes to wrong numbers: a flipped bit
+    /// anywhere fails loudly, or (in the few bits zstd does not use) decodes to exactly the
+    /// stored tensor.
+    #[test]
+    fn a_flipped_bit_of_a_blob_never_decodes_to_wrong_numbers() -> Result<()> {
+        let sdf: Vec<f32> = (0..2000).map(|i| (i as f32 * 0.37).sin()).collect();
+        let t = EncodedTensor::from_f32(&sdf, 3)?;
+        assert_eq!(t.to_f32("sdf")?, sdf);
+        let (mut tried, mut refused) = (0, 0);
+        for at in 0..t.blob.len() {
+            for bit in [0x01u8, 0x10, 0x80] {
+                let mut bad = t.clone();
+                bad.blob[at] ^= bit;
+                tried += 1;
+                match bad.to_f32("sdf") {
+                    Err(_) => refused += 1,
+                    Ok(v) => assert!(v == sdf, "byte {at} flipped by {bit:#x}: wrong numbers"),
+                }
+            }
+        }
+        assert!(
+            refused * 100 > tried * 99,
+            "{refused} of {tried} flips refused"
+        );
+        // A frame without a checksum (as schema 2 wrote them) is refused.
+        let plain = EncodedTensor {
+            blob: zstd::bulk::compress(&to_planes(&le_bytes(&sdf, 4), 1, 4), 3)
+                .map_err(SchemaError::Zstd)?,
+            ..t
+        };
+        assert!(plain.to_f32("sdf").is_err());
         Ok(())
     }
 

@@ -184,6 +184,7 @@ pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
         context: "convert".into(),
         reason: "no triangles".into(),
     })?;
+    crate::normalize::check_extent(bounds, "convert")?;
     let norm = Normalization::fit(bounds, n, params.margin_cells);
     let (grid, degenerate) = to_grid(mesh, &norm, n);
     st.stats.degenerate_faces = degenerate;

@@ -2,7 +2,48 @@
 //! `[0, N]³`, the unit cube `[-0.5, 0.5]³` maps onto it, and the mesh's bounding box is
 //! centred with `margin_cells` free cells on each side of its longest extent.
 
+use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
+
+/// Smallest longest side of a mesh's bounding box that is converted, in source units. Input
+/// coordinates are `f32`: a mesh smaller than this lives among the subnormal and
+/// barely-normal numbers (below about 1e-38 `f32` keeps fewer than 24 bits, down to none at
+/// 1.4e-45), where the vertices no longer say where the surface is and a conversion would
+/// be silently wrong. 1e-15 keeps squared lengths (1e-30) far above that range; no real mesh
+/// in any unit (a nanometre model in metres is 1e-9 across) comes near it.
+pub const MIN_EXTENT: f64 = 1e-15;
+
+/// Largest longest side of a mesh's bounding box that is converted, in source units: squared
+/// lengths (1e30) stay far below `f32::MAX` (3.4e38), and the output, written back in the
+/// source frame as `f32`, stays finite.
+pub const MAX_EXTENT: f64 = 1e15;
+
+/// Refuses a mesh whose bounding box's longest side is outside [`MIN_EXTENT`, `MAX_EXTENT`]
+/// (a mesh smaller than the minimum is [`Error::EmptyMesh`]: nothing measurable is left, like a
+/// mesh of zero area; a larger one [`Error::TooLarge`]).
+pub fn check_extent(bounds: ([f64; 3], [f64; 3]), context: &str) -> Result<()> {
+    let (lo, hi) = bounds;
+    let extent = (0..3).map(|a| hi[a] - lo[a]).fold(0.0f64, f64::max);
+    if extent < MIN_EXTENT {
+        return Err(Error::EmptyMesh {
+            context: context.to_string(),
+            reason: format!(
+                "the mesh is {extent:e} across, below the smallest extent converted \
+                 ({MIN_EXTENT:e} source units): too small to be resolved in single precision"
+            ),
+        });
+    }
+    if extent > MAX_EXTENT {
+        return Err(Error::TooLarge {
+            context: context.to_string(),
+            reason: format!(
+                "the mesh is {extent:e} across, above the largest extent converted \
+                 ({MAX_EXTENT:e} source units)"
+            ),
+        });
+    }
+    Ok(())
+}
 
 /// Sub-voxel shift of the grid against the mesh, per axis: (√2−1)/16, (√3−1)/20, (√5−2)/13.
 pub const GRID_OFFSET: [f64; 3] = [

@@ -24,6 +24,24 @@ pub struct SanitizeStats {
 /// `context` names the source (a file name, or a description) in the error. Returns
 /// [`Error::EmptyMesh`] when no triangle is left, with the counts of what was dropped.
 pub fn sanitize(mesh: TriMesh, context: &str) -> Result<(TriMesh, SanitizeStats)> {
+    let n = mesh.positions.len();
+    let (mesh, stats) = drop_invalid(mesh);
+    if mesh.triangles.is_empty() {
+        return Err(Error::EmptyMesh {
+            context: context.to_string(),
+            reason: format!(
+                "no valid triangle ({} vertices; dropped {} faces with an out-of-range index \
+                 and {} with a non-finite coordinate)",
+                n, stats.faces_bad_index, stats.faces_non_finite
+            ),
+        });
+    }
+    Ok((mesh, stats))
+}
+
+/// What [`sanitize`] does without judging the result: the mesh may be left with no triangle
+/// (and then no vertex), for a caller that words that failure itself.
+pub fn drop_invalid(mesh: TriMesh) -> (TriMesh, SanitizeStats) {
     let TriMesh {
         positions,
         triangles,
@@ -46,17 +64,6 @@ pub fn sanitize(mesh: TriMesh, context: &str) -> Result<(TriMesh, SanitizeStats)
         }
     }
     drop(triangles);
-
-    if kept.is_empty() {
-        return Err(Error::EmptyMesh {
-            context: context.to_string(),
-            reason: format!(
-                "no valid triangle ({} vertices; dropped {} faces with an out-of-range index \
-                 and {} with a non-finite coordinate)",
-                n, stats.faces_bad_index, stats.faces_non_finite
-            ),
-        });
-    }
 
     // Compact: new index of every used vertex, in the original order.
     const UNUSED: u32 = u32::MAX;
@@ -81,7 +88,7 @@ pub fn sanitize(mesh: TriMesh, context: &str) -> Result<(TriMesh, SanitizeStats)
             }
         }
     }
-    Ok((TriMesh::new(new_positions, kept), stats))
+    (TriMesh::new(new_positions, kept), stats)
 }
 
 #[cfg(test)]

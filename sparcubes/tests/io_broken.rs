@@ -202,34 +202,143 @@ fn nan_coordinates_in_obj() {
         .all(|c| c.is_finite()));
 }
 
+/// Loads `bytes` as `name` and returns it, expecting `faces` kept and `dropped` faces dropped
+/// for a bad index, the first one's place naming `place`.
+fn expect_dropped(dir: &Path, name: &str, bytes: &[u8], faces: usize, dropped: u64, place: &str) {
+    let loaded = load(&write(dir, name, bytes)).unwrap_or_else(|e| panic!("{name}: {e}"));
+    assert_eq!(loaded.mesh.face_count(), faces, "{name}");
+    assert_eq!(loaded.stats.faces_bad_index, dropped, "{name}");
+    let first = loaded.stats.first_bad_face.unwrap_or_default();
+    assert!(first.contains(place), "{name}: first bad face at {first:?}");
+}
+
+/// One rule in every format (issue 10, item 10): a face with a bad vertex index (out of
+/// range, negative, not a number) is dropped and counted, the file fails only when no face
+/// is left, and the message names the format and the line or element.
 #[test]
-fn out_of_range_indices() {
+fn bad_face_indices_are_dropped_and_counted_in_every_format() {
     let dir = tempfile::tempdir().expect("tempdir");
-    // OBJ: tobj refuses the whole file.
-    let obj = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n";
-    expect_err(&write(dir.path(), "bad.obj", obj), ErrorClass::ParseError);
-    let obj = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n";
-    expect_err(&write(dir.path(), "zero.obj", obj), ErrorClass::ParseError);
-
-    // PLY and OFF: bad faces are dropped and counted.
-    let ply = b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
-        property float z\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n\
-        0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n3 0 1 -5\n";
-    let loaded = load(&write(dir.path(), "some_bad.ply", ply)).expect("load");
-    assert_eq!(loaded.mesh.face_count(), 1);
-    assert_eq!(loaded.stats.faces_bad_index, 1);
-    let off = b"OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n4 0 1 2 7\n";
-    let loaded = load(&write(dir.path(), "some_bad.off", off)).expect("load");
-    // The quad's fan keeps the triangle that does not touch the bad corner.
-    assert_eq!(loaded.mesh.face_count(), 2);
-    assert_eq!(loaded.stats.faces_bad_index, 1);
-
-    let off = b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n";
-    let e = expect_err(
-        &write(dir.path(), "all_bad.off", off),
-        ErrorClass::EmptyMesh,
+    let d = dir.path();
+    let v = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\n";
+    for (name, face, line) in [
+        ("range.obj", "f 1 2 9", "OBJ line 6"),
+        ("zero.obj", "f 0 1 2", "OBJ line 6"),
+        ("relative.obj", "f -1 -2 -7", "OBJ line 6"),
+        ("word.obj", "f 1 x 3", "OBJ line 6"),
+    ] {
+        let obj = format!("{v}f 1 2 3\n{face}\nf 1 3 4\n");
+        expect_dropped(d, name, obj.as_bytes(), 2, 1, line);
+    }
+    // Relative indices that are in range are resolved, not dropped.
+    expect_dropped(
+        d,
+        "rel_ok.obj",
+        format!("{v}f -4 -3 -2\n").as_bytes(),
+        1,
+        0,
+        "",
     );
-    assert!(e.to_string().contains("out-of-range"), "{e}");
+
+    let ply = |faces: &str, n: usize| {
+        format!(
+            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+             property float z\nelement face {n}\nproperty list uchar int vertex_indices\n\
+             end_header\n0 0 0\n1 0 0\n0 1 0\n{faces}"
+        )
+    };
+    for (name, bad) in [("neg.ply", "3 0 1 -5"), ("range.ply", "3 0 1 3")] {
+        let text = ply(&format!("3 0 1 2\n{bad}\n"), 2);
+        expect_dropped(d, name, text.as_bytes(), 1, 1, "PLY face element 1");
+    }
+
+    for (name, bad) in [
+        ("range.off", "3 0 1 7"),
+        ("neg.off", "3 0 1 -1"),
+        ("word.off", "3 0 x 2"),
+        ("short.off", "4 0 1 2"),
+    ] {
+        let off = format!("OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n{bad}\n");
+        expect_dropped(d, name, off.as_bytes(), 1, 1, "OFF line 7");
+    }
+    // A polygon with one bad corner is dropped whole, not partly kept.
+    let off = b"OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n4 0 1 2 7\n";
+    expect_dropped(d, "quad.off", off, 1, 1, "OFF line 7");
+
+    // glTF: a triangle whose index is past the primitive's vertices.
+    write(d, "tri.bin", &indexed_triangle_bytes([0, 1, 7]));
+    let gltf = write(d, "bad.gltf", gltf_indexed("tri.bin").as_bytes());
+    let e = expect_err(&gltf, ErrorClass::EmptyMesh);
+    assert!(
+        e.to_string().contains("glTF mesh 0 primitive 0 triangle 0"),
+        "{e}"
+    );
+
+    // Nothing left: an empty-mesh error naming the format and the first bad face's place.
+    for (name, bytes, place) in [
+        ("all_bad.obj", format!("{v}f 1 2 9\n"), "OBJ line 5"),
+        ("all_bad.ply", ply("3 0 1 -5\n", 1), "PLY face element 0"),
+        (
+            "all_bad.off",
+            "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n".to_string(),
+            "OFF line 6",
+        ),
+    ] {
+        let e = expect_err(&write(d, name, bytes.as_bytes()), ErrorClass::EmptyMesh);
+        assert!(
+            e.to_string().contains(place) && e.to_string().contains("bad vertex index"),
+            "{name}: {e}"
+        );
+    }
+}
+
+/// Runs `f` on a thread and fails the test if it does not return within a minute: a guard
+/// against a hang (which is the bug), not a speed target.
+fn without_hanging<T: Send + 'static>(what: &str, f: impl FnOnce() -> T + Send + 'static) -> T {
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = tx.send(f());
+    });
+    rx.recv_timeout(std::time::Duration::from_secs(60))
+        .unwrap_or_else(|_| panic!("{what}: still reading after a minute"))
+}
+
+/// Only regular files are meshes (issue 10, item 1): a FIFO and links to character devices
+/// are refused at once, naming what they are, instead of blocking or reading forever.
+#[test]
+fn fifos_and_devices_are_refused_at_once() {
+    without_hanging("special files", fifos_and_devices_are_refused);
+}
+
+/// Makes a FIFO at `path` and returns the path.
+fn mkfifo(path: &Path) -> PathBuf {
+    let made = std::process::Command::new("mkfifo")
+        .arg(path)
+        .status()
+        .expect("mkfifo");
+    assert!(made.success());
+    path.to_path_buf()
+}
+
+fn fifos_and_devices_are_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let fifo = mkfifo(&dir.path().join("x.obj"));
+    let e = expect_err(&fifo, ErrorClass::IoError);
+    assert!(e.to_string().contains("FIFO"), "{e}");
+    for (name, target) in [("zero.stl", "/dev/zero"), ("random.obj", "/dev/urandom")] {
+        let link = dir.path().join(name);
+        std::os::unix::fs::symlink(target, &link).expect("symlink");
+        let e = expect_err(&link, ErrorClass::IoError);
+        assert!(e.to_string().contains("character device"), "{e}");
+    }
+    // A glTF buffer that is a FIFO inside the folder is refused too, not waited for.
+    mkfifo(&dir.path().join("pipe.bin"));
+    let g = write(
+        dir.path(),
+        "pipe.gltf",
+        gltf_with_uri("pipe.bin").as_bytes(),
+    );
+    let e = expect_err(&g, ErrorClass::ParseError);
+    assert!(e.to_string().contains("FIFO"), "{e}");
 }
 
 #[test]
@@ -263,6 +372,27 @@ fn gltf_with_uri(uri: &str) -> String {
     )
 }
 
+/// A glTF with one indexed triangle (u16 indices after 36 bytes of positions) from `uri`.
+fn gltf_indexed(uri: &str) -> String {
+    format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],
+        "nodes":[{{"mesh":0}}],
+        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}},"indices":1}}]}}],
+        "accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3",
+            "min":[0,0,0],"max":[1,1,0]}},
+            {{"bufferView":1,"componentType":5123,"count":3,"type":"SCALAR"}}],
+        "bufferViews":[{{"buffer":0,"byteLength":36}},
+            {{"buffer":0,"byteOffset":36,"byteLength":6}}],
+        "buffers":[{{"byteLength":42,"uri":"{uri}"}}]}}"#
+    )
+}
+
+fn indexed_triangle_bytes(indices: [u16; 3]) -> Vec<u8> {
+    let mut b = triangle_bytes();
+    b.extend(indices.iter().flat_map(|i| i.to_le_bytes()));
+    b
+}
+
 fn triangle_bytes() -> Vec<u8> {
     [0f32, 0., 0., 1., 0., 0., 0., 1., 0.]
         .iter()
@@ -291,6 +421,13 @@ fn gltf_buffers_only_from_own_folder_or_data_uri() {
     assert_eq!(load(&ok).expect("data uri").mesh.face_count(), 1);
 
     let secret = root.path().join("secret.bin");
+    std::os::unix::fs::symlink(&secret, dir.join("link.bin")).expect("symlink");
+    std::fs::create_dir(dir.join("sub")).expect("mkdir");
+    std::os::unix::fs::symlink("../../secret.bin", dir.join("sub/link.bin")).expect("symlink");
+    // A link that stays inside the folder is followed.
+    std::os::unix::fs::symlink("tri.bin", dir.join("inside.bin")).expect("symlink");
+    let ok = write(&dir, "inside.gltf", gltf_with_uri("inside.bin").as_bytes());
+    assert_eq!(load(&ok).expect("link inside").mesh.face_count(), 1);
     for (name, uri) in [
         ("dotdot.gltf", "../secret.bin".to_string()),
         ("dotdot_enc.gltf", "%2E%2E/secret.bin".to_string()),
@@ -300,6 +437,9 @@ fn gltf_buffers_only_from_own_folder_or_data_uri() {
         ("https.gltf", "https://example.com/secret.bin".to_string()),
         ("file.gltf", format!("file://{}", secret.display())),
         ("missing.gltf", "nothing_here.bin".to_string()),
+        // A link inside the folder that leads out of it (issue 10, item 7).
+        ("link.gltf", "link.bin".to_string()),
+        ("link_sub.gltf", "sub/link.bin".to_string()),
         (
             "data_bad.gltf",
             "data:application/octet-stream;base64,@@@".to_string(),
@@ -347,4 +487,44 @@ fn gltf_node_transforms_are_applied() {
     let (lo, hi) = m.bounds().expect("bounds");
     assert_eq!(lo, [10.0, 0.0, 0.0]);
     assert_eq!(hi, [12.0, 2.0, 0.0]);
+}
+
+/// A small glTF whose nodes each reference the next one twice expands to 2^k instances
+/// (issue 10, item 8): it is refused by counting node instances before reading anything.
+#[test]
+fn gltf_node_dag_is_bounded_before_reading() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(dir.path(), "tri.bin", &triangle_bytes());
+    // Node i has children [i+1, i+1]; the last node holds the mesh. 2^22 = 4M instances of
+    // one triangle: 12M vertices, under the element limit, but far over the instance limit.
+    let depth = 22;
+    let mut nodes: Vec<String> = (0..depth)
+        .map(|i| format!(r#"{{"children":[{},{}]}}"#, i + 1, i + 1))
+        .collect();
+    nodes.push(r#"{"mesh":0}"#.to_string());
+    let text = gltf_with_uri("tri.bin").replace(
+        r#""nodes":[{"mesh":0}]"#,
+        &format!(r#""nodes":[{}]"#, nodes.join(",")),
+    );
+    assert!(
+        text.len() < 2000,
+        "the file stays small: {} bytes",
+        text.len()
+    );
+    let p = write(dir.path(), "dag.gltf", text.as_bytes());
+    let e = expect_err(&p, ErrorClass::TooLarge);
+    assert!(e.to_string().contains("node instances"), "{e}");
+    // A shallow DAG (2^4 instances) is read, every instance placed.
+    let shallow = gltf_with_uri("tri.bin").replace(
+        r#""nodes":[{"mesh":0}]"#,
+        &format!(
+            r#""nodes":[{},{{"mesh":0}}]"#,
+            (0..4)
+                .map(|i| format!(r#"{{"children":[{},{}]}}"#, i + 1, i + 1))
+                .collect::<Vec<_>>()
+                .join(",")
+        ),
+    );
+    let p = write(dir.path(), "shallow.gltf", shallow.as_bytes());
+    assert_eq!(load(&p).expect("shallow dag").mesh.face_count(), 16);
 }

@@ -10,7 +10,8 @@
 # on failure. About 1-3 minutes on 2 cores after the build.
 #
 # Environment: SPARC3D_BIN (default: build with cargo), SLURM_E2E_DIR (scratch folder,
-# default a fresh /tmp/sparc3d-slurm-e2e.XXXX), SLURM_E2E_RESOLUTION (default 64).
+# default a fresh /tmp/sparc3d-slurm-e2e.XXXX), SLURM_E2E_RESOLUTION (default 64),
+# SLURM_CI_CTLD_PORT / SLURM_CI_SLURMD_PORT (default: two free ports).
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 T0=$(date +%s)
@@ -22,6 +23,12 @@ mkdir -p "$WORK"
 chmod 755 "$WORK"
 # a private Slurm for this run: its config, keys, sockets, logs and pid files live here
 export SLURM_CI_DIR=$WORK/slurm
+# and ports of its own, free now, so that two runs on one machine do not collide
+read -r port1 port2 < <(python3 -c 'import socket
+s = [socket.socket() for _ in range(2)]
+for x in s: x.bind(("127.0.0.1", 0))
+print(*(x.getsockname()[1] for x in s))')
+export SLURM_CI_CTLD_PORT=${SLURM_CI_CTLD_PORT:-$port1} SLURM_CI_SLURMD_PORT=${SLURM_CI_SLURMD_PORT:-$port2}
 RES=${SLURM_E2E_RESOLUTION:-64}
 
 cleanup() {
@@ -42,15 +49,10 @@ cleanup() {
 trap cleanup EXIT
 trap 'exit 130' INT TERM
 
-# 1. the binary, copied so that a rebuild during the test cannot change it under Slurm
-if [[ -z ${SPARC3D_BIN:-} ]]; then
-  log "building sparc3d"
-  (cd "$ROOT" && cargo build -q -p sparc3d)
-  SPARC3D_BIN=${CARGO_TARGET_DIR:-$ROOT/target}/debug/sparc3d
-fi
-mkdir -p "$WORK/bin"
-cp "$SPARC3D_BIN" "$WORK/bin/sparc3d"
-S=$WORK/bin/sparc3d
+# shellcheck source=tests/cluster/lib.sh
+source "$ROOT/tests/cluster/lib.sh"
+# 1. the binary
+copy_binary
 
 # 2. Slurm on loopback
 log "starting Slurm under $SLURM_CI_DIR"
@@ -59,16 +61,7 @@ SLURM_CI_CPUS=${SLURM_CI_CPUS:-$(nproc)} "$ROOT/ops/slurm/ci/slurm-up.sh"
 source "$SLURM_CI_DIR/env.sh"
 
 # 3. two jobs with one manifest: a local reference and the Slurm one
-"$S" manifest build "$ROOT/tests/data/cluster" -o "$WORK/manifest.jsonl" >/dev/null
-ITEMS=$(grep -c . "$WORK/manifest.jsonl")
-[[ $ITEMS -ge 20 ]] || fail "manifest has $ITEMS items, expected at least 20"
-for j in ref job; do
-  "$S" init "$WORK/$j" --manifest "$WORK/manifest.jsonl" --resolution "$RES" --shard-size 2 >/dev/null
-done
-SHARDS=$(ls "$WORK"/job/manifest.jsonl >/dev/null && python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["shards"])' "$WORK/job/job.json")
-log "$ITEMS meshes in $SHARDS shards at resolution $RES"
-log "local reference run"
-"$S" run "$WORK/ref" --workers 2 >/dev/null 2>"$WORK/ref-run.log" || { cat "$WORK/ref-run.log"; fail "local run"; }
+reference_and_job
 
 # wait until none of the given array jobs has a task in the queue (sbatch --wait backs off)
 wait_gone() {
@@ -130,23 +123,6 @@ JID3=$("$S" submit slurm "$WORK/job" 2>/dev/null)
 [[ -z $JID3 ]] || fail "a finished job was submitted again ($JID3)"
 
 # 6. every item exactly once, same content as the local run
-for ((i = 0; i < SHARDS; i++)); do
-  p=$(printf 'part-%05d.parquet' "$i")
-  a=$("$S" inspect "$WORK/ref/shards/$p" --json | python3 -c 'import json,sys; print(json.load(sys.stdin)["content_digest"])')
-  b=$("$S" inspect "$WORK/job/shards/$p" --json | python3 -c 'import json,sys; print(json.load(sys.stdin)["content_digest"])')
-  [[ -n $a && $a == "$b" ]] || fail "shard $i: content digest $b, local run $a"
-done
-python3 - "$WORK" "$ITEMS" <<'EOF' || fail "job-level comparison"
-import json, subprocess, sys
-work, items = sys.argv[1], int(sys.argv[2])
-r = {j: json.loads(subprocess.check_output([work + "/bin/sparc3d", "inspect", f"{work}/{j}", "--json"]))
-     for j in ("ref", "job")}
-assert r["job"]["rows"] == items, f'{r["job"]["rows"]} rows for {items} items'
-assert r["job"]["content_digest"] == r["ref"]["content_digest"], "job digests differ"
-assert (r["job"]["ok"], r["job"]["failed"]) == (r["ref"]["ok"], r["ref"]["failed"])
-print(f'[slurm-e2e] {items} rows ({r["job"]["ok"]} ok, {r["job"]["failed"]} failed), digest {r["job"]["content_digest"][:16]}', file=sys.stderr)
-EOF
-leftover=$(find "$WORK/job/shards" -name '.*tmp*' | wc -l)
-[[ $leftover -eq 0 ]] || fail "$leftover temporary shard files left"
+same_as_reference slurm-e2e
 [[ -n $(ls "$WORK"/job/slurm/logs/"${JID2}"_*.out 2>/dev/null) ]] || fail "no per-task logs"
 log "OK: array, cancel, resubmit; $SHARDS shards equal to the local run"

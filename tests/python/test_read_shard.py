@@ -38,7 +38,7 @@ def test_snippet_reads_what_the_cli_decodes(tmp_path):
     assert scope["sdf"].shape == (scope["coords"].shape[0],)
 
     meta = pq.read_metadata(path).metadata
-    assert meta[b"sparc3d.schema_version"] == b"2"
+    assert meta[b"sparc3d.schema_version"] == b"3"
     assert any(r["status"] == "failed" for r in scope["rows"])
 
     for r in scope["rows"]:

@@ -38,18 +38,6 @@ fn set_memory_limit(bytes: u64) -> std::io::Result<()> {
     Ok(())
 }
 
-fn die_with_parent(parent: u32) {
-    #[cfg(target_os = "linux")]
-    // SAFETY: prctl with PR_SET_PDEATHSIG takes a signal number.
-    unsafe {
-        libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL);
-    }
-    // SAFETY: getppid has no preconditions.
-    if parent != 0 && unsafe { libc::getppid() } as u32 != parent {
-        std::process::exit(3);
-    }
-}
-
 /// Takes fd 1 for the protocol and points fd 1 at stderr, so stray prints cannot corrupt it.
 fn protocol_stdout() -> std::io::Result<std::fs::File> {
     // SAFETY: dup/dup2 on the process's own standard descriptors.
@@ -84,7 +72,7 @@ fn install_panic_hook() {
     }));
 }
 
-fn run_one(item: &FrozenItem, config: &JobConfig) -> ShardRow {
+fn run_one(item: &FrozenItem, config: &JobConfig, memory_bytes: u64) -> ShardRow {
     let (it, cfg) = (item.clone(), config.clone());
     let handle = std::thread::Builder::new()
         .name(format!("item-{}", item.index))
@@ -114,14 +102,19 @@ fn run_one(item: &FrozenItem, config: &JobConfig) -> ShardRow {
         },
         Err(e) => failed(
             ErrorClass::OutOfMemory,
-            format!("cannot start the item thread: {e}"),
+            format!(
+                "the item memory limit of {} (--item-memory) is too small to start the \
+                 conversion thread with its {}M stack ({e}); raise it",
+                crate::supervisor::describe_memory_limit(memory_bytes),
+                ITEM_STACK >> 20
+            ),
         ),
     }
 }
 
 /// Runs the item worker loop until stdin closes; returns the process exit code.
 pub fn main(opts: ChildOptions) -> i32 {
-    die_with_parent(opts.parent_pid);
+    crate::parent::die_with_parent(opts.parent_pid, libc::SIGKILL);
     let mut out = match protocol_stdout() {
         Ok(f) => f,
         Err(e) => {
@@ -155,7 +148,7 @@ pub fn main(opts: ChildOptions) -> i32 {
                 return 2;
             }
         };
-        let row = run_one(&item, &config);
+        let row = run_one(&item, &config, opts.memory_bytes);
         let bytes = match frame::encode(&Record::Done {
             row: Box::new(row),
             at: crate::now(),

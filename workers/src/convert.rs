@@ -2,20 +2,12 @@
 //! parameters, extract the mesh when asked, and encode the row. It runs inside the isolated
 //! item worker process ([`crate::child`]); every error becomes a `failed` row.
 
-use sha2::{Digest, Sha256};
 use sparc3d_schema::{
     EncodedTensor, ErrorClass, FrozenItem, ItemStatus, JobConfig, RowCounts, RowTensors,
     RowTimings, ShardRow,
 };
 use std::path::Path;
 use std::time::Instant;
-
-fn file_sha256(path: &Path) -> Option<String> {
-    let mut f = std::fs::File::open(path).ok()?;
-    let mut h = Sha256::new();
-    std::io::copy(&mut f, &mut h).ok()?;
-    Some(sparc3d_schema::config::hex(&h.finalize()))
-}
 
 /// Converts one item into its shard row (timings `total_s` and `attempts` are filled in by
 /// the supervisor).
@@ -37,7 +29,11 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
     };
     let mut timings = RowTimings::default();
     let t = Instant::now();
-    let sha = item.record.sha256.clone().or_else(|| file_sha256(path));
+    let sha = item
+        .record
+        .sha256
+        .clone()
+        .or_else(|| crate::fsutil::file_sha256(path).ok());
     let loaded = match sparcubes::io::load(path) {
         Ok(l) => l,
         Err(e) => return fail(e.class().into(), e.to_string(), timings),

@@ -50,7 +50,7 @@ pub enum WorkerError {
     #[error(transparent)]
     Schema(#[from] sparc3d_schema::SchemaError),
     /// Writing Parquet failed.
-    #[error("writing parquet {}: {source}", path.display())]
+    #[error("writing parquet {}: {source}{}", path.display(), parquet_hint(source))]
     Parquet {
         /// The file.
         path: PathBuf,
@@ -61,7 +61,27 @@ pub enum WorkerError {
 }
 
 fn hint(e: &std::io::Error) -> &'static str {
-    match e.raw_os_error() {
+    errno_hint(e.raw_os_error())
+}
+
+/// The hint for an I/O error inside a Parquet error: the writer reports it wrapped, or only
+/// as text (`... (os error 28)`).
+fn parquet_hint(e: &parquet::errors::ParquetError) -> &'static str {
+    if let parquet::errors::ParquetError::External(inner) = e {
+        if let Some(io) = inner.downcast_ref::<std::io::Error>() {
+            return hint(io);
+        }
+    }
+    let text = e.to_string();
+    let errno = text
+        .rsplit_once("(os error ")
+        .and_then(|(_, rest)| rest.split(')').next())
+        .and_then(|n| n.parse().ok());
+    errno_hint(errno)
+}
+
+fn errno_hint(errno: Option<i32>) -> &'static str {
+    match errno {
         Some(libc::ENOSPC) | Some(libc::EDQUOT) => {
             " (disk full: free space and run again; finished items are kept)"
         }

@@ -57,6 +57,16 @@ pub enum Event {
         /// Failed rows.
         failed: u64,
     },
+    /// A finished shard did not match its completion record (or the record was torn): both
+    /// were moved aside and the shard is converted again.
+    ShardDamaged {
+        /// Shard index.
+        shard: u64,
+        /// What was wrong.
+        reason: String,
+        /// The folder the damaged files were moved to.
+        moved_to: String,
+    },
     /// A shard was not processed (already done, or leased by another worker).
     ShardSkipped {
         /// Shard index.

@@ -1,6 +1,8 @@
-//! Durable file operations: fsync of files and folders, atomic replacement.
+//! Durable file operations: fsync of files and folders, atomic replacement; the sha256 and
+//! the stamp of a file.
 
 use crate::error::{Result, WorkerError};
+use sparc3d_schema::FileStamp;
 use std::fs::File;
 use std::io::Write;
 use std::path::Path;
@@ -47,4 +49,26 @@ pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
 /// Creates a folder and its parents.
 pub fn create_dir(path: &Path) -> Result<()> {
     std::fs::create_dir_all(path).map_err(|e| WorkerError::io("creating folder", path, e))
+}
+
+/// Hex sha256 of a regular file's bytes. A FIFO, device or socket (also behind a link) is
+/// refused at once ([`sparcubes::io::open_regular`]) instead of being read forever.
+pub fn file_sha256(path: &Path) -> Result<String> {
+    use sha2::{Digest, Sha256};
+    let (mut f, _) =
+        sparcubes::io::open_regular(path).map_err(|e| WorkerError::io("opening", path, e))?;
+    let mut h = Sha256::new();
+    std::io::copy(&mut f, &mut h).map_err(|e| WorkerError::io("reading", path, e))?;
+    Ok(sparc3d_schema::config::hex(&h.finalize()))
+}
+
+/// The stamp of a file from its metadata: modification and change times and inode.
+pub fn file_stamp(meta: &std::fs::Metadata) -> FileStamp {
+    use std::os::unix::fs::MetadataExt;
+    let ns = |s: i64, n: i64| s as i128 * 1_000_000_000 + n as i128;
+    FileStamp {
+        modified_ns: ns(meta.mtime(), meta.mtime_nsec()),
+        changed_ns: ns(meta.ctime(), meta.ctime_nsec()),
+        inode: meta.ino(),
+    }
 }

@@ -1,7 +1,11 @@
 //! Leases: a file per shard naming the worker that processes it, refreshed by a heartbeat
 //! and valid until it expires. They keep two workers off one shard, also across machines on a
-//! shared filesystem. A lease whose holder is gone (expired, or a dead process on this host)
-//! is taken over: renamed away (only one taker's rename succeeds), then created anew.
+//! shared filesystem. A lease file appears whole: it is written under a temporary name and
+//! hard-linked into place (which fails if a lease exists), and heartbeats replace it
+//! atomically. So a lease that does not parse (garbage, zero bytes) was damaged from outside
+//! and is stale by definition, like one whose holder is gone (expired, or a process of this
+//! host that no longer exists or is a zombie). A stale lease is taken over: renamed away (only
+//! one taker's rename succeeds), then created anew.
 
 use crate::error::{Result, WorkerError};
 use serde::{Deserialize, Serialize};
@@ -50,13 +54,29 @@ pub fn hostname() -> String {
     String::from_utf8_lossy(&buf[..end]).into_owned()
 }
 
+/// Whether a process of this host exists and is not a zombie (a process that has exited but
+/// was not reaped yet holds its pid and nothing else).
 fn pid_alive(pid: u32) -> bool {
     // SAFETY: signal 0 only checks whether the process exists.
     let rc = unsafe { libc::kill(pid as libc::pid_t, 0) };
-    rc == 0 || std::io::Error::last_os_error().raw_os_error() == Some(libc::EPERM)
+    let exists = rc == 0 || std::io::Error::last_os_error().raw_os_error() == Some(libc::EPERM);
+    exists && !is_zombie(pid)
 }
 
-/// Reads a lease file; `None` when absent or unreadable (a torn write).
+/// Whether `/proc/PID/stat` says the process is a zombie (`Z`) or dead (`X`).
+fn is_zombie(pid: u32) -> bool {
+    let Ok(stat) = std::fs::read_to_string(format!("/proc/{pid}/stat")) else {
+        return false;
+    };
+    // "pid (comm) state ...": comm may hold spaces and parentheses; the state follows the
+    // last ')'.
+    let state = stat
+        .rsplit_once(')')
+        .and_then(|(_, rest)| rest.split_whitespace().next());
+    matches!(state, Some("Z") | Some("X"))
+}
+
+/// Reads a lease file; `None` when absent or unreadable (damaged: stale by definition).
 pub fn read(path: &Path) -> Option<LeaseInfo> {
     let bytes = std::fs::read(path).ok()?;
     serde_json::from_slice(&bytes).ok()
@@ -87,62 +107,97 @@ fn json(i: &LeaseInfo) -> Vec<u8> {
     serde_json::to_vec(i).unwrap_or_default()
 }
 
-/// Tries to acquire the lease at `path`: `Ok(Ok(lease))`, or `Ok(Err(holder))` when a live
-/// worker holds it.
-pub fn acquire(
-    path: &Path,
-    owner: &str,
-    ttl: f64,
-) -> Result<std::result::Result<Lease, LeaseInfo>> {
-    for _ in 0..3 {
-        match OpenOptions::new().write(true).create_new(true).open(path) {
-            Ok(mut f) => {
-                f.write_all(&json(&info(owner, ttl)))
-                    .and_then(|_| f.sync_all())
-                    .map_err(|e| WorkerError::io("writing lease", path, e))?;
-                return Ok(Ok(Lease::start(path, owner, ttl)));
-            }
-            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
-                let holder = read(path);
-                let stale = match &holder {
-                    Some(h) => h.is_stale(crate::now()),
-                    None => file_age(path).is_some_and(|age| age > ttl),
-                };
-                if !stale {
-                    if let Some(h) = holder {
-                        return Ok(Err(h));
-                    }
-                    // Being written right now: let the writer finish.
-                    std::thread::sleep(Duration::from_millis(50));
-                    continue;
+/// The outcome of [`acquire`].
+#[derive(Debug)]
+pub enum Acquired {
+    /// The lease is ours; its heartbeat runs.
+    Held(Lease),
+    /// A live worker holds it.
+    Busy(LeaseInfo),
+    /// Other takers kept changing it while we tried: treat the shard as busy and look again
+    /// later.
+    Contended,
+}
+
+/// Takes over a lease at most this many times in one [`acquire`] before calling it contended.
+const TAKEOVER_TRIES: usize = 8;
+
+/// Creates the lease file whole: written under a temporary name, then hard-linked to `path`
+/// (which fails when a lease exists). `Ok(false)` when a lease exists. File systems without
+/// hard links fall back to an exclusive create and a write.
+fn create(path: &Path, content: &[u8], owner: &str) -> std::io::Result<bool> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let tmp = dir.join(format!(".{name}.new-{}", sanitize(owner)));
+    let linked = (|| {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(content)?;
+        f.sync_all()?;
+        std::fs::hard_link(&tmp, path)
+    })();
+    let _ = std::fs::remove_file(&tmp);
+    match linked {
+        Ok(()) => Ok(true),
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Ok(false),
+        Err(e)
+            if matches!(
+                e.raw_os_error(),
+                Some(libc::EPERM) | Some(libc::EOPNOTSUPP) | Some(libc::ENOSYS)
+            ) =>
+        {
+            match OpenOptions::new().write(true).create_new(true).open(path) {
+                Ok(mut f) => {
+                    f.write_all(content)?;
+                    f.sync_all()?;
+                    Ok(true)
                 }
-                // Take over: only one of several takers' renames succeeds.
-                let aside = path.with_extension(format!("stale-{}", sanitize(owner)));
-                if std::fs::rename(path, &aside).is_ok() {
-                    let _ = std::fs::remove_file(&aside);
-                }
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Ok(false),
+                Err(e) => Err(e),
             }
-            Err(e) => return Err(WorkerError::io("creating lease", path, e)),
+        }
+        Err(e) => Err(e),
+    }
+}
+
+/// Tries to acquire the lease at `path` for `owner`, taking over a stale or unreadable one.
+/// Never fails because of another worker's lease, only on I/O errors of our own writes.
+pub fn acquire(path: &Path, owner: &str, ttl: f64) -> Result<Acquired> {
+    for _ in 0..TAKEOVER_TRIES {
+        let content = json(&info(owner, ttl));
+        if create(path, &content, owner).map_err(|e| WorkerError::io("creating lease", path, e))? {
+            return Ok(Acquired::Held(Lease::start(path, owner, ttl)));
+        }
+        if let Some(h) = read(path).filter(|h| !h.is_stale(crate::now())) {
+            return Ok(Acquired::Busy(h));
+        }
+        // Stale or unreadable: take it over. Only one of several takers' renames succeeds.
+        let aside = path.with_extension(format!("stale-{}", sanitize(owner)));
+        if std::fs::rename(path, &aside).is_err() {
+            continue;
+        }
+        // Between our look and our rename another taker may have put a fresh lease there:
+        // give a live one back rather than stealing it.
+        match read(&aside).filter(|h| !h.is_stale(crate::now())) {
+            Some(h) => {
+                let _ = std::fs::hard_link(&aside, path);
+                let _ = std::fs::remove_file(&aside);
+                return Ok(Acquired::Busy(h));
+            }
+            None => {
+                let _ = std::fs::remove_file(&aside);
+            }
         }
     }
-    match read(path) {
-        Some(h) => Ok(Err(h)),
-        None => Err(WorkerError::BadFile {
-            path: path.to_path_buf(),
-            reason: "could not acquire the lease after three tries".into(),
-        }),
-    }
+    Ok(Acquired::Contended)
 }
 
 fn sanitize(s: &str) -> String {
     s.chars()
         .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
         .collect()
-}
-
-fn file_age(path: &Path) -> Option<f64> {
-    let modified = std::fs::metadata(path).ok()?.modified().ok()?;
-    Some(modified.elapsed().ok()?.as_secs_f64())
 }
 
 impl Lease {
@@ -247,8 +302,10 @@ mod tests {
     fn second_taker_is_refused_and_stale_lease_is_taken_over() -> Result<()> {
         let dir = tempfile::tempdir().map_err(|e| WorkerError::io("tmp", "/tmp", e))?;
         let path = dir.path().join("l");
-        let a = acquire(&path, "a", 60.0)?.map_err(|h| WorkerError::Child(h.owner))?;
-        assert!(matches!(acquire(&path, "b", 60.0)?, Err(h) if h.owner == "a"));
+        let Acquired::Held(a) = acquire(&path, "a", 60.0)? else {
+            panic!("a free lease is taken")
+        };
+        assert!(matches!(acquire(&path, "b", 60.0)?, Acquired::Busy(h) if h.owner == "a"));
         a.release();
         assert!(!path.exists());
         // An expired lease.
@@ -260,9 +317,60 @@ mod tests {
             expires_at: 1.0,
         };
         std::fs::write(&path, json(&old)).map_err(|e| WorkerError::io("t", &path, e))?;
-        let c = acquire(&path, "c", 60.0)?.map_err(|h| WorkerError::Child(h.owner))?;
+        let Acquired::Held(c) = acquire(&path, "c", 60.0)? else {
+            panic!("an expired lease is taken over")
+        };
         assert_eq!(read(&path).map(|h| h.owner), Some("c".to_string()));
         c.release();
+        Ok(())
+    }
+
+    /// Issue 10, item 5: a lease holding garbage or zero bytes is stale by definition and
+    /// taken over at once.
+    #[test]
+    fn unreadable_lease_is_taken_over_at_once() -> Result<()> {
+        let dir = tempfile::tempdir().map_err(|e| WorkerError::io("tmp", "/tmp", e))?;
+        let path = dir.path().join("l");
+        for junk in [&b""[..], b"\x00\xff garbage {", b"{\"owner\":"] {
+            std::fs::write(&path, junk).map_err(|e| WorkerError::io("t", &path, e))?;
+            let Acquired::Held(l) = acquire(&path, "me", 60.0)? else {
+                panic!("{junk:?}: not taken over")
+            };
+            assert_eq!(read(&path).map(|h| h.owner), Some("me".to_string()));
+            l.release();
+        }
+        Ok(())
+    }
+
+    /// Issue 10, item 3: a lease of a zombie process (exited, not reaped) is stale.
+    #[test]
+    fn lease_of_a_zombie_is_stale() -> Result<()> {
+        let mut child = std::process::Command::new("true")
+            .spawn()
+            .map_err(|e| WorkerError::io("spawning", "true", e))?;
+        // Not reaped yet: wait until it has exited and is a zombie.
+        let pid = child.id();
+        for _ in 0..200 {
+            if is_zombie(pid) {
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        assert!(is_zombie(pid), "the child did not become a zombie");
+        let lease = LeaseInfo {
+            owner: "zombie".into(),
+            host: hostname(),
+            pid,
+            heartbeat_at: crate::now(),
+            expires_at: crate::now() + 60.0,
+        };
+        assert!(lease.is_stale(crate::now()));
+        let _ = child.wait();
+        let me = LeaseInfo {
+            pid: std::process::id(),
+            ..lease
+        };
+        assert!(!me.is_stale(crate::now()));
         Ok(())
     }
 }

@@ -18,6 +18,7 @@ pub mod fsutil;
 pub mod job;
 pub mod journal;
 pub mod lease;
+pub mod parent;
 pub mod shard;
 pub mod state;
 pub mod supervisor;

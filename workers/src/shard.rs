@@ -7,8 +7,8 @@ use crate::events::Event;
 use crate::frame::Record;
 use crate::job::Job;
 use crate::journal::Journal;
-use crate::lease;
-use crate::state;
+use crate::lease::{self, Acquired};
+use crate::state::{self, Check, Completion};
 use crate::supervisor::{ChildCommand, ItemOutcome, ItemRunner};
 use sparc3d_schema::{CompletionRecord, ErrorClass, ItemStatus, Limits, ShardRow};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -41,29 +41,39 @@ pub enum ShardOutcome {
     Stopped,
 }
 
-/// Processes shard `shard` of `job`. Item failures become rows; errors are failures of the
-/// job's machinery (files, leases, config drift) and leave the journal for a later resume.
+/// Processes shard `shard` of `job`. A finished shard is checked against its completion
+/// record ([`Check::Quick`]) before it is skipped; a damaged one is moved aside and converted
+/// again. Item failures become rows; errors are failures of the job's machinery (files,
+/// leases, config drift) and leave the journal for a later resume.
 pub fn process_shard(job: &Job, shard: u64, opts: &mut WorkOptions) -> Result<ShardOutcome> {
     let layout = &job.layout;
     let fp = job.fingerprint().to_string();
-    if let Some(r) = state::completion(layout, shard, &fp)? {
+    if let Completion::Done(r) = state::completion(layout, shard, &fp, Check::Quick)? {
         (opts.events)(Event::ShardSkipped {
             shard,
             reason: "already done".into(),
         });
-        return Ok(ShardOutcome::AlreadyDone(r));
+        return Ok(ShardOutcome::AlreadyDone(*r));
     }
     crate::fsutil::create_dir(&layout.state_dir())?;
     crate::fsutil::create_dir(&layout.shards_dir())?;
     let owner = lease::owner_name();
     let held = match lease::acquire(&layout.lease(shard), &owner, opts.lease_ttl_s)? {
-        Ok(l) => l,
-        Err(holder) => {
+        Acquired::Held(l) => l,
+        Acquired::Busy(holder) => {
             (opts.events)(Event::ShardSkipped {
                 shard,
                 reason: format!("leased by {}", holder.owner),
             });
             return Ok(ShardOutcome::Busy(holder.owner));
+        }
+        Acquired::Contended => {
+            let who = "several workers taking its lease at once".to_string();
+            (opts.events)(Event::ShardSkipped {
+                shard,
+                reason: format!("leased by {who}"),
+            });
+            return Ok(ShardOutcome::Busy(who));
         }
     };
     let result = run_leased(job, shard, opts, &held, &owner);
@@ -80,9 +90,19 @@ fn run_leased(
 ) -> Result<ShardOutcome> {
     let layout = &job.layout;
     let fp = job.fingerprint().to_string();
-    // Someone may have finished it between our check and our lease.
-    if let Some(r) = state::completion(layout, shard, &fp)? {
-        return Ok(ShardOutcome::AlreadyDone(r));
+    // Someone may have finished it between our check and our lease; a damaged shard is
+    // moved aside (under the lease, so no one else moves or writes it meanwhile).
+    match state::completion(layout, shard, &fp, Check::Quick)? {
+        Completion::Done(r) => return Ok(ShardOutcome::AlreadyDone(*r)),
+        Completion::Damaged(reason) => {
+            let moved_to = state::quarantine(layout, shard, &reason)?;
+            (opts.events)(Event::ShardDamaged {
+                shard,
+                reason,
+                moved_to: moved_to.display().to_string(),
+            });
+        }
+        Completion::Absent => {}
     }
     let items = job.shard_items(shard);
     let mut journal = Journal::open(&layout.journal(shard), shard, &fp)?;

@@ -114,8 +114,26 @@ fn signal_name(sig: i32) -> &'static str {
     }
 }
 
-/// Classifies the death of an item worker from its exit status and stderr.
-pub fn classify_death(status: Option<ExitStatus>, stderr: &str) -> (ErrorClass, String) {
+/// A memory limit in the units `--item-memory` takes (powers of 1024): `8G`, `20M`, `1.5G`,
+/// or `none` for 0.
+pub fn describe_memory_limit(bytes: u64) -> String {
+    let (unit, size) = match bytes {
+        0 => return "none".into(),
+        b if b >= 1 << 30 => ("G", b as f64 / (1u64 << 30) as f64),
+        b => ("M", b as f64 / (1u64 << 20) as f64),
+    };
+    let text = format!("{size:.1}");
+    format!("{}{unit}", text.strip_suffix(".0").unwrap_or(&text))
+}
+
+/// Classifies the death of an item worker from its exit status and stderr; `memory_bytes` is
+/// the item memory limit it ran under. The message says what happened without repeating the
+/// class's name.
+pub fn classify_death(
+    status: Option<ExitStatus>,
+    stderr: &str,
+    memory_bytes: u64,
+) -> (ErrorClass, String) {
     let how = match status {
         Some(s) => match (s.signal(), s.code()) {
             (Some(sig), _) => format!("killed by signal {sig} ({})", signal_name(sig)),
@@ -127,7 +145,7 @@ pub fn classify_death(status: Option<ExitStatus>, stderr: &str) -> (ErrorClass, 
     if stderr.contains("has overflowed its stack") {
         (
             ErrorClass::StackOverflow,
-            format!("stack overflow: item worker {how}"),
+            format!("item worker {how} after its conversion thread ran past its stack"),
         )
     } else if stderr.contains("memory allocation of")
         || stderr.contains("Cannot allocate memory")
@@ -135,7 +153,11 @@ pub fn classify_death(status: Option<ExitStatus>, stderr: &str) -> (ErrorClass, 
     {
         (
             ErrorClass::OutOfMemory,
-            format!("out of memory under the item memory limit: item worker {how}"),
+            format!(
+                "item worker {how}: an allocation failed under the item memory limit of {} \
+                 (--item-memory)",
+                describe_memory_limit(memory_bytes)
+            ),
         )
     } else {
         (ErrorClass::Crashed, format!("item worker {how}"))
@@ -244,7 +266,7 @@ impl ItemRunner {
                 stderr_tail: tail,
             };
         }
-        let (class, message) = classify_death(status, &tail);
+        let (class, message) = classify_death(status, &tail, self.limits.item_memory_bytes);
         ItemOutcome::Died {
             class,
             message,

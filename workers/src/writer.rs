@@ -156,9 +156,9 @@ pub fn write_shard(
         std::fs::rename(&tmp, &final_path)
             .map_err(|e| WorkerError::io("renaming shard", &final_path, e))?;
         sync_dir(&layout.shards_dir())?;
-        let bytes = std::fs::metadata(&final_path)
-            .map_err(|e| WorkerError::io("reading shard size", &final_path, e))?
-            .len();
+        let meta = std::fs::metadata(&final_path)
+            .map_err(|e| WorkerError::io("reading shard size", &final_path, e))?;
+        let bytes = meta.len();
         Ok(CompletionRecord {
             shard,
             schema_version: sparc3d_schema::SCHEMA_VERSION,
@@ -169,6 +169,7 @@ pub fn write_shard(
             error_classes: classes,
             bytes,
             sha256: file_sha256,
+            stamp: Some(crate::fsutil::file_stamp(&meta)),
             content_digest: sparc3d_schema::config::hex(&digest.finalize()),
             item_seconds,
             started_at,

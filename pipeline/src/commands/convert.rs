@@ -78,6 +78,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         "input_vertices": s.input_vertices,
         "input_components": input_components,
         "degenerate_faces": s.degenerate_faces,
+        "dropped_faces_bad_index": loaded.stats.faces_bad_index,
+        "dropped_faces_non_finite": loaded.stats.faces_non_finite,
         "wall_cells": s.wall_cells,
         "active_vertices": s.active_vertices,
         "active_cells": s.active_cells,
@@ -112,6 +114,18 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             mesh.triangles.len(),
             topo.components
         );
+        let st = &loaded.stats;
+        if st.faces_bad_index + st.faces_non_finite > 0 {
+            println!(
+                "  dropped      {} faces with a bad vertex index{}, {} with a non-finite coordinate",
+                st.faces_bad_index,
+                st.first_bad_face
+                    .as_deref()
+                    .map(|p| format!(" (first: {p})"))
+                    .unwrap_or_default(),
+                st.faces_non_finite
+            );
+        }
         println!(
             "  active       {} vertices, {} cells ({} in thin shells)",
             s.active_vertices, s.active_cells, s.shell_vertices

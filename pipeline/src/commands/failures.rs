@@ -39,7 +39,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let mut n = 0;
     let mut out = std::io::stdout().lock();
     for shard in 0..job.file.shards {
-        for row in shard_rows(&job, shard)? {
+        for row in shard_rows(&job, shard, sparc3d_workers::state::Check::Quick)? {
             if row.status != ItemStatus::Failed {
                 continue;
             }

@@ -61,7 +61,7 @@ fn freeze(records: Vec<manifest_io::RawRecord>, shard_size: u32) -> Result<Vec<F
                 (Some(id), sha) => (id, sha),
                 (None, Some(sha)) => (sha.clone(), Some(sha)),
                 (None, None) => {
-                    let sha = manifest_io::file_sha256(std::path::Path::new(&r.uri))
+                    let sha = sparc3d_workers::fsutil::file_sha256(std::path::Path::new(&r.uri))
                         .with_context(|| format!("hashing {} for its id", r.uri))?;
                     (sha.clone(), Some(sha))
                 }

@@ -1,10 +1,16 @@
 //! `sparc3d inspect SHARD|JOB [--json]`: schema version, rows, bytes per column, percentiles
 //! of voxel counts, faces and timings, and the content digest (which excludes timings).
+//!
+//! Every finished shard is hashed against its completion record first (a shard file given
+//! alone, when its record lies beside it): a damaged shard is named and the command fails
+//! instead of reporting fewer rows or another digest.
 
-use crate::shard_io::{for_each_row, read_meta};
-use anyhow::{bail, Result};
+use crate::shard_io::{self, for_each_row, read_meta};
+use crate::summary::shard_states;
+use anyhow::{bail, Context, Result};
 use serde::Serialize;
 use sparc3d_schema::{digest, meta_keys, ItemStatus};
+use sparc3d_workers::state::{check_file, Check, ShardState};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -51,16 +57,50 @@ fn percentile(sorted: &[f64], p: f64) -> f64 {
     sorted[k.min(sorted.len() - 1)]
 }
 
+/// The completion record beside a shard file (`part-N.parquet` → `part-N.complete.json`).
+fn record_beside(file: &Path) -> Option<PathBuf> {
+    let name = file.file_name()?.to_str()?.strip_suffix(".parquet")?;
+    Some(file.with_file_name(format!("{name}.complete.json")))
+}
+
+/// Checks a shard file given alone against the completion record beside it, if any.
+fn check_alone(file: &Path) -> Result<()> {
+    let Some(record) = record_beside(file).filter(|r| r.exists()) else {
+        return Ok(());
+    };
+    let bytes = std::fs::read(&record).with_context(|| format!("reading {}", record.display()))?;
+    let rec: sparc3d_schema::CompletionRecord = serde_json::from_slice(&bytes)
+        .with_context(|| format!("{}: the completion record does not parse", record.display()))?;
+    if let Some(why) = check_file(file, &rec, Check::Full)? {
+        bail!("{} is damaged: {why}", file.display());
+    }
+    Ok(())
+}
+
+/// The finished shard files of a job (each hashed against its record), or the one file given.
 fn shard_files(target: &Path) -> Result<Vec<PathBuf>> {
     if target.is_file() {
+        check_alone(target)?;
         return Ok(vec![target.to_path_buf()]);
     }
     let job = sparc3d_workers::Job::open(target)?;
     let mut files = Vec::new();
-    for shard in 0..job.file.shards {
-        if sparc3d_workers::state::completion(&job.layout, shard, job.fingerprint())?.is_some() {
-            files.push(job.layout.shard_file(shard));
+    let mut damaged = Vec::new();
+    for (shard, state) in (0..).zip(shard_states(&job, Check::Full)?) {
+        match state {
+            ShardState::Done(_) => files.push(job.layout.shard_file(shard)),
+            ShardState::Damaged(why) => {
+                damaged.push(format!("{:#}", shard_io::damaged(&job, shard, &why)))
+            }
+            ShardState::Running(_) | ShardState::Pending => {}
         }
+    }
+    if !damaged.is_empty() {
+        bail!(
+            "{} damaged shard(s); no report of a partial job:\n  {}",
+            damaged.len(),
+            damaged.join("\n  ")
+        );
     }
     if files.is_empty() {
         bail!("{}: no finished shard yet", target.display());

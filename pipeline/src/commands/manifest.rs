@@ -32,23 +32,41 @@ pub struct BuildArgs {
     pub output: PathBuf,
 }
 
-/// Collects the supported mesh files below `dir`, recursively, in name order.
-pub(crate) fn scan(dir: &Path, out: &mut Vec<PathBuf>) -> Result<()> {
+/// Collects the mesh files below `dir`, recursively, in name order: files with a supported
+/// extension that are regular files once links are followed. A FIFO, device or socket with a
+/// mesh extension (or a link to one, or a dangling link) is skipped, and so is a file or
+/// folder whose name is not UTF-8 (a manifest could not keep it exactly); each skip is
+/// printed with the name (non-UTF-8 bytes escaped) and counted. Returns the count.
+pub(crate) fn scan(dir: &Path, out: &mut Vec<PathBuf>) -> Result<u64> {
     let mut entries: Vec<_> = std::fs::read_dir(dir)
         .with_context(|| format!("reading folder {}", dir.display()))?
         .filter_map(|e| e.ok())
         .collect();
     entries.sort_by_key(|e| e.file_name());
+    let mut skipped = 0;
     for e in entries {
         let path = e.path();
         let Ok(kind) = e.file_type() else { continue };
-        if kind.is_dir() {
-            scan(&path, out)?;
-        } else if sparcubes::io::Format::from_extension(&path).is_some() {
-            out.push(path);
+        let is_mesh = sparcubes::io::Format::from_extension(&path).is_some();
+        if !(kind.is_dir() || is_mesh) {
+            continue;
+        }
+        if e.file_name().to_str().is_none() {
+            eprintln!("skipping {path:?}: the name is not UTF-8 (rename it to convert it)");
+            skipped += 1;
+        } else if kind.is_dir() {
+            skipped += scan(&path, out)?;
+        } else {
+            match sparcubes::io::open_regular(&path) {
+                Ok(_) => out.push(path),
+                Err(err) => {
+                    eprintln!("skipping {}: {err}", path.display());
+                    skipped += 1;
+                }
+            }
         }
     }
-    Ok(())
+    Ok(skipped)
 }
 
 /// Runs `sparc3d manifest`.
@@ -57,11 +75,11 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let root = std::fs::canonicalize(&args.dir)
         .with_context(|| format!("opening folder {}", args.dir.display()))?;
     let mut files = Vec::new();
-    scan(&root, &mut files)?;
+    let skipped = scan(&root, &mut files)?;
     let hashed: Vec<(PathBuf, Result<String>)> = files
         .into_par_iter()
         .map(|p| {
-            let h = manifest_io::file_sha256(&p);
+            let h = sparc3d_workers::fsutil::file_sha256(&p).map_err(anyhow::Error::from);
             (p, h)
         })
         .collect();
@@ -98,7 +116,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
     }
     manifest_io::write(&records, &args.output)?;
     eprintln!(
-        "{} meshes written to {} ({duplicates} identical duplicates left out, {unreadable} unreadable)",
+        "{} meshes written to {} ({duplicates} identical duplicates left out, {unreadable} \
+         unreadable, {skipped} skipped: not regular files or names that are not UTF-8)",
         records.len(),
         args.output.display()
     );

@@ -20,6 +20,7 @@ pub mod show;
 pub mod status;
 pub mod submit;
 pub mod validate;
+pub mod verify;
 pub mod work;
 
 use clap::{Parser, Subcommand};
@@ -61,6 +62,8 @@ enum Command {
     Inspect(inspect::Args),
     /// Decode one item of a job and write its mesh.
     Show(show::Args),
+    /// Hash every finished shard against its completion record; move damaged ones aside.
+    Verify(verify::Args),
     /// Check a reproducible sample of a job's outputs with pymeshlab; writes a report.
     Validate(validate::Args),
     /// Render a mesh (or a job's item) and its converted output side by side to a PNG.
@@ -93,6 +96,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Retry(args) => retry::run(args),
         Command::Inspect(args) => inspect::run(args),
         Command::Show(args) => show::run(args),
+        Command::Verify(args) => verify::run(args),
         Command::Validate(args) => validate::run(args),
         Command::Preview(args) => preview::run(args),
         Command::Report(args) => report::run(args),

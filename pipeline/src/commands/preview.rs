@@ -83,7 +83,7 @@ pub fn find_row(job: &Job, id: &str) -> Result<ShardRow> {
     let Some(item) = job.items.iter().find(|i| i.record.id == id) else {
         bail!("no item with id {id:?} in {}", job.layout.root.display());
     };
-    shard_rows(job, item.shard)?
+    shard_rows(job, item.shard, sparc3d_workers::state::Check::Full)?
         .into_iter()
         .find(|r| r.id == id)
         .with_context(|| format!("item {id:?} (shard {}) is not converted yet", item.shard))

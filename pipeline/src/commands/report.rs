@@ -93,7 +93,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
 fn read_columns(job: &Job, max_failures: usize) -> Result<Columns> {
     let mut c = Columns::default();
     for shard in 0..job.file.shards {
-        let mut rows = shard_rows(job, shard)?;
+        let mut rows = shard_rows(job, shard, sparc3d_workers::state::Check::Quick)?;
         rows.sort_by_key(|r| r.item_index);
         for row in rows {
             add_row(&mut c, row, max_failures);

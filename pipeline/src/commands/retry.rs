@@ -5,7 +5,7 @@
 use crate::shard_io::read_rows;
 use anyhow::{bail, Result};
 use sparc3d_schema::{ErrorClass, ItemStatus, ShardRow};
-use sparc3d_workers::state::{shard_state, ShardState};
+use sparc3d_workers::state::{shard_state, Check, ShardState};
 use sparc3d_workers::Job;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -29,10 +29,11 @@ pub fn run(args: Args) -> Result<ExitCode> {
     };
     let (mut queued, mut shards) = (0usize, 0usize);
     for shard in 0..job.file.shards {
-        let rows = match shard_state(&job.layout, shard, job.fingerprint())? {
+        let rows = match shard_state(&job.layout, shard, job.fingerprint(), Check::Quick)? {
             ShardState::Done(_) => read_rows(&job.layout.shard_file(shard))?,
+            ShardState::Damaged(why) => return Err(crate::shard_io::damaged(&job, shard, &why)),
             ShardState::Running(l) => {
-                if crate::shard_io::shard_rows(&job, shard)?
+                if crate::shard_io::shard_rows(&job, shard, Check::Quick)?
                     .iter()
                     .any(matches)
                 {
@@ -43,7 +44,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 }
                 continue;
             }
-            ShardState::Pending => crate::shard_io::shard_rows(&job, shard)?,
+            ShardState::Pending => crate::shard_io::shard_rows(&job, shard, Check::Quick)?,
         };
         let n = rows.iter().filter(|r| matches(r)).count();
         if n == 0 {

@@ -1,21 +1,26 @@
 //! `sparc3d run JOB [--workers N] [--item-timeout 10m] [--item-memory 8G]`: the local
 //! orchestrator. Runs up to N `sparc3d work --events` processes, one shard each, shows
-//! progress, and stops cleanly on Ctrl-C; a later `run` resumes.
+//! progress, and stops cleanly on Ctrl-C or SIGTERM; a later `run` resumes.
+//!
+//! Its workers die with it (they stop as on SIGTERM when `run` is killed, releasing their
+//! leases). A shard leased by another live worker (another `run`, a cluster task, or the
+//! workers of a `run` just killed) is waited for and taken over once its lease is released
+//! or expires; one shard's failure does not stop the others; and `run` exits 0 only when every
+//! shard is done, otherwise it names what is left and exits non-zero.
 
 use super::work::{install_signals, LimitArgs};
 use crate::progress::Progress;
-use crate::summary::summarize;
+use crate::summary::{shard_states, summarize, summarize_states};
 use crate::units::{format_seconds, parse_duration};
 use anyhow::{Context, Result};
 use sparc3d_workers::events::Event;
-use sparc3d_workers::state::{shard_state, ShardState};
+use sparc3d_workers::state::{shard_state, Check, ShardState};
 use sparc3d_workers::Job;
-use std::collections::VecDeque;
+use std::collections::{BTreeMap, HashMap, VecDeque};
 use std::io::{BufRead, BufReader, Read};
 use std::os::unix::process::ExitStatusExt;
 use std::path::PathBuf;
 use std::process::{Child, Command, ExitCode, Stdio};
-use std::sync::atomic::Ordering;
 use std::sync::mpsc;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -42,10 +47,45 @@ pub struct Args {
 /// Times a shard's worker may be killed by a signal before the run gives up on it.
 const MAX_WORKER_DEATHS: u32 = 20;
 
+/// Times a shard's worker may end without finishing it (its lease was held elsewhere) before
+/// the run gives up on it.
+const MAX_UNFINISHED_EXITS: u32 = 1000;
+
+/// How often shards leased by other workers are looked at again.
+const WAIT_POLL: Duration = Duration::from_millis(250);
+
+/// A `work` process and the shard it runs.
 struct Running {
     child: Child,
     shard: u64,
     stderr: Arc<Mutex<String>>,
+    /// Signalled when its stderr reached its end.
+    stderr_done: mpsc::Receiver<()>,
+}
+
+impl Running {
+    /// The end of its stderr, once the process has exited: waits (briefly) until the reader
+    /// has read everything, so that the reason a worker failed is never lost.
+    fn stderr_tail(&self) -> String {
+        let _ = self.stderr_done.recv_timeout(Duration::from_secs(5));
+        self.stderr
+            .lock()
+            .map(|g| g.trim().to_string())
+            .unwrap_or_default()
+    }
+}
+
+impl Drop for Running {
+    /// A worker still running when `run` leaves (an error) is stopped and reaped.
+    fn drop(&mut self) {
+        if let Ok(None) = self.child.try_wait() {
+            // SAFETY: sending SIGTERM to a child we started and have not reaped.
+            unsafe {
+                libc::kill(self.child.id() as libc::pid_t, libc::SIGTERM);
+            }
+            let _ = self.child.wait();
+        }
+    }
 }
 
 fn spawn_work(
@@ -62,6 +102,8 @@ fn spawn_work(
         .arg("--shard-index")
         .arg(shard.to_string())
         .arg("--events")
+        .arg("--parent-pid")
+        .arg(std::process::id().to_string())
         .args(args.limits.to_args())
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
@@ -73,6 +115,7 @@ fn spawn_work(
         .spawn()
         .with_context(|| format!("starting a worker for shard {shard}"))?;
     let stderr = Arc::new(Mutex::new(String::new()));
+    let (done_tx, stderr_done) = mpsc::channel();
     if let Some(out) = child.stdout.take() {
         let tx = tx.clone();
         std::thread::spawn(move || {
@@ -102,13 +145,42 @@ fn spawn_work(
                     }
                 }
             }
+            let _ = done_tx.send(());
         });
     }
     Ok(Running {
         child,
         shard,
         stderr,
+        stderr_done,
     })
+}
+
+/// The shards this run must still see finished: those to start now, and those leased by
+/// another live worker (to wait for), from the shards' states.
+fn plan(states: &[ShardState], progress: &Progress) -> (VecDeque<u64>, BTreeMap<u64, String>) {
+    let mut queue = VecDeque::new();
+    let mut waiting = BTreeMap::new();
+    for (shard, state) in (0..).zip(states) {
+        match state {
+            ShardState::Done(_) => {}
+            ShardState::Running(l) => {
+                progress.println(&format!(
+                    "shard {shard}: leased by {}; waiting for it to finish or its lease to expire",
+                    l.owner
+                ));
+                waiting.insert(shard, l.owner.clone());
+            }
+            ShardState::Damaged(why) => {
+                progress.println(&format!(
+                    "shard {shard}: damaged ({why}); converting it again"
+                ));
+                queue.push_back(shard);
+            }
+            ShardState::Pending => queue.push_back(shard),
+        }
+    }
+    (queue, waiting)
 }
 
 /// Runs `sparc3d run`.
@@ -121,16 +193,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let workers = args.workers.unwrap_or(cores).max(1);
     let threads = (cores / workers).max(1);
     let start = Instant::now();
-    let before = summarize(&job)?;
-    let mut queue: VecDeque<u64> = VecDeque::new();
-    for shard in 0..job.file.shards {
-        if !matches!(
-            shard_state(&job.layout, shard, job.fingerprint())?,
-            ShardState::Done(_)
-        ) {
-            queue.push_back(shard);
-        }
-    }
+    let states = shard_states(&job, Check::Quick)?;
+    let before = summarize_states(&job, &states);
     let mut progress = Progress::new(
         job.file.items,
         before.ok,
@@ -138,11 +202,12 @@ pub fn run(args: Args) -> Result<ExitCode> {
         workers,
         args.log_interval,
     );
+    let (mut queue, mut waiting) = plan(&states, &progress);
     progress.println(&format!(
         "{}: {} items, {} shards left, {workers} workers",
         args.job.display(),
         before.pending,
-        queue.len()
+        queue.len() + waiting.len()
     ));
     let (tx, rx) = mpsc::channel::<(usize, Event)>();
     let mut slots: Vec<Option<Running>> = (0..workers).map(|_| None).collect();
@@ -151,10 +216,12 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let mut writing: Vec<Running> = Vec::new();
     let mut errors: Vec<String> = Vec::new();
     let mut signalled = false;
-    let mut killed: std::collections::HashMap<u64, u32> = std::collections::HashMap::new();
+    let mut killed: HashMap<u64, u32> = HashMap::new();
+    let mut unfinished: HashMap<u64, u32> = HashMap::new();
+    let mut last_look = Instant::now();
     loop {
-        let stopping = stop.load(Ordering::SeqCst);
-        if !stopping && errors.is_empty() {
+        let stopping = stop.requested();
+        if !stopping {
             for (slot, s) in slots.iter_mut().enumerate() {
                 if s.is_none() {
                     let Some(shard) = queue.pop_front() else {
@@ -174,9 +241,27 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 }
             }
         }
+        // Shards held elsewhere: finished there, or free to take over.
+        if !stopping && !waiting.is_empty() && last_look.elapsed() >= WAIT_POLL {
+            last_look = Instant::now();
+            let mut free = Vec::new();
+            for &shard in waiting.keys() {
+                match shard_state(&job.layout, shard, job.fingerprint(), Check::Quick)? {
+                    ShardState::Running(_) => {}
+                    ShardState::Done(_) => free.push((shard, false)),
+                    ShardState::Pending | ShardState::Damaged(_) => free.push((shard, true)),
+                }
+            }
+            for (shard, todo) in free {
+                waiting.remove(&shard);
+                if todo {
+                    queue.push_back(shard);
+                }
+            }
+        }
         if slots.iter().all(Option::is_none)
             && writing.is_empty()
-            && (queue.is_empty() || stopping || !errors.is_empty())
+            && ((queue.is_empty() && waiting.is_empty()) || stopping)
         {
             break;
         }
@@ -188,6 +273,14 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 Event::ShardSkipped { shard, reason } => {
                     progress.println(&format!("shard {shard}: {reason}"))
                 }
+                Event::ShardDamaged {
+                    shard,
+                    reason,
+                    moved_to,
+                } => progress.println(&format!(
+                    "shard {shard}: damaged ({reason}); moved aside to {moved_to}, converting it \
+                     again"
+                )),
                 Event::ShardWriting { shard } => {
                     if let Some(r) = slots[slot].take_if(|r| r.shard == shard) {
                         writing.push(r);
@@ -215,31 +308,59 @@ pub fn run(args: Args) -> Result<ExitCode> {
             }
         }
         for (slot, r, status) in exited {
-            if !status.success() && !stop.load(Ordering::SeqCst) {
-                let tail = r
-                    .stderr
-                    .lock()
-                    .map(|g| g.trim().to_string())
-                    .unwrap_or_default();
-                let deaths = killed.entry(r.shard).or_insert(0);
-                if status.signal().is_some() && *deaths < MAX_WORKER_DEATHS {
-                    // Killed from outside (kill -9, OOM killer): the journal keeps its
-                    // finished items; a new worker takes the shard over.
-                    *deaths += 1;
-                    progress.println(&format!(
-                        "shard {}: worker {status}; restarting it",
-                        r.shard
-                    ));
-                    queue.push_back(r.shard);
-                } else {
-                    let msg = format!("shard {} failed ({status}): {tail}", r.shard);
-                    progress.println(&msg);
-                    errors.push(msg);
-                }
-            }
             if let Some(slot) = slot {
                 progress.slot_shard(slot, None);
             }
+            if stop.requested() {
+                continue;
+            }
+            if status.success() {
+                // Done, or held by another worker (it said "leased by"): wait for that one.
+                match shard_state(&job.layout, r.shard, job.fingerprint(), Check::Quick)? {
+                    ShardState::Done(_) => {}
+                    other => {
+                        let n = unfinished.entry(r.shard).or_insert(0);
+                        *n += 1;
+                        if *n > MAX_UNFINISHED_EXITS {
+                            let msg = format!(
+                                "shard {} is still not finished after {n} tries ({other:?})",
+                                r.shard
+                            );
+                            progress.println(&msg);
+                            errors.push(msg);
+                        } else {
+                            let holder = match other {
+                                ShardState::Running(l) => l.owner,
+                                _ => "another worker".into(),
+                            };
+                            waiting.insert(r.shard, holder);
+                        }
+                    }
+                }
+                continue;
+            }
+            let deaths = killed.entry(r.shard).or_insert(0);
+            if status.signal().is_some() && *deaths < MAX_WORKER_DEATHS {
+                // Killed from outside (kill -9, OOM killer): the journal keeps its finished
+                // items; a new worker takes the shard over.
+                *deaths += 1;
+                progress.println(&format!(
+                    "shard {}: worker {status}; restarting it",
+                    r.shard
+                ));
+                queue.push_back(r.shard);
+                continue;
+            }
+            let tail = r.stderr_tail();
+            let reason = if tail.is_empty() {
+                "the worker printed no error".to_string()
+            } else {
+                tail
+            };
+            // This shard is left for a later run; the others go on.
+            let msg = format!("shard {} failed ({status}): {reason}", r.shard);
+            progress.println(&msg);
+            errors.push(msg);
         }
         progress.tick();
     }
@@ -262,15 +383,34 @@ pub fn run(args: Args) -> Result<ExitCode> {
         after.item_seconds - before.item_seconds,
         elapsed,
     );
-    if stop.load(Ordering::SeqCst) {
+    if stop.requested() {
         eprintln!("stopped; `sparc3d run {}` resumes", args.job.display());
-        return Ok(ExitCode::from(130));
+        return Ok(stop.exit_code());
     }
-    if !errors.is_empty() {
+    if after.shards_done < after.shards || after.pending > 0 {
+        let left: Vec<String> = shard_states(&job, Check::Quick)?
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| !matches!(s, ShardState::Done(_)))
+            .map(|(i, _)| i.to_string())
+            .take(20)
+            .collect();
         eprintln!(
-            "error: {} shard(s) could not be finished; fix the cause and run again to resume \
-             (finished items are kept)",
-            errors.len()
+            "error: {} items in {} shards are not finished (shards {}{}); {}fix the cause and \
+             run again to resume (finished items are kept)",
+            after.pending,
+            after.shards - after.shards_done,
+            left.join(", "),
+            if after.shards - after.shards_done > 20 {
+                ", …"
+            } else {
+                ""
+            },
+            if errors.is_empty() {
+                String::new()
+            } else {
+                format!("{} shard(s) failed (above); ", errors.len())
+            },
         );
         return Ok(ExitCode::FAILURE);
     }

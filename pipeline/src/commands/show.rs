@@ -32,7 +32,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let Some(item) = job.items.iter().find(|i| i.record.id == args.id) else {
         bail!("no item with id {:?} in {}", args.id, args.job.display());
     };
-    let rows = shard_rows(&job, item.shard)?;
+    // The shard is hashed against its completion record before its row is trusted.
+    let rows = shard_rows(&job, item.shard, sparc3d_workers::state::Check::Full)?;
     let Some(row) = rows.into_iter().find(|r| r.id == args.id) else {
         bail!(
             "item {:?} (shard {}) is not converted yet",

@@ -27,8 +27,16 @@ pub fn run(args: Args) -> Result<ExitCode> {
         return Ok(ExitCode::SUCCESS);
     }
     println!(
-        "shards: {} done, {} running, {} pending (of {})",
-        s.shards_done, s.shards_running, s.shards_pending, s.shards
+        "shards: {} done, {} running, {} pending{} (of {})",
+        s.shards_done,
+        s.shards_running,
+        s.shards_pending,
+        if s.shards_damaged > 0 {
+            format!(", {} damaged", s.shards_damaged)
+        } else {
+            String::new()
+        },
+        s.shards
     );
     println!(
         "items:  {} ok, {} failed, {} pending (of {})",
@@ -59,6 +67,12 @@ pub fn run(args: Args) -> Result<ExitCode> {
         for (c, n) in classes.iter().take(8) {
             println!("  {n:>6}  {c}");
         }
+    }
+    for d in &s.damaged {
+        println!(
+            "damaged: shard {}: {}; `sparc3d run` moves it aside and converts it again",
+            d.shard, d.reason
+        );
     }
     // Cluster runs: Slurm arrays submitted by `sparc3d submit slurm` (nothing if none).
     crate::cluster::slurm::print_status(&args.job);

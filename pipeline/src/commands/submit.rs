@@ -6,7 +6,7 @@
 use crate::cluster::slurm::{self, ArrayPlan, ScriptOptions, Submission};
 use crate::commands::work::LimitArgs;
 use anyhow::{bail, Context, Result};
-use sparc3d_workers::state::{shard_state, ShardState};
+use sparc3d_workers::state::{shard_state, Check, ShardState};
 use sparc3d_workers::Job;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -96,7 +96,7 @@ fn submit_slurm(args: SlurmArgs) -> Result<ExitCode> {
     let queued = slurm::queued_shards(&previous, &queue);
     let (mut todo, mut held_queued, mut held_live, mut done) = (Vec::new(), 0u64, 0u64, 0u64);
     for shard in 0..job.file.shards {
-        match shard_state(&job.layout, shard, job.fingerprint())? {
+        match shard_state(&job.layout, shard, job.fingerprint(), Check::Quick)? {
             ShardState::Done(_) => done += 1,
             _ if queued.contains(&shard) && !args.force => held_queued += 1,
             ShardState::Running(_) if !args.force => held_live += 1,

@@ -12,7 +12,7 @@ use sparc3d_workers::{process_shard, Job, ShardOutcome, WorkOptions};
 use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Arc;
 
 /// Per-item limits given on the command line (override the job's for this run).
@@ -84,6 +84,10 @@ pub struct Args {
     /// Print progress events as JSON lines on stdout (used by `run`).
     #[arg(long)]
     pub events: bool,
+    /// Pid of the orchestrator that started this worker: the worker stops (as on SIGTERM)
+    /// when it dies, so that no worker outlives `run` holding a lease (used by `run`).
+    #[arg(long, hide = true)]
+    pub parent_pid: Option<u32>,
     #[command(flatten)]
     pub limits: LimitArgs,
 }
@@ -101,12 +105,48 @@ pub fn array_task_index() -> Result<u64> {
     bail!("--array needs SLURM_ARRAY_TASK_ID or JOB_COMPLETION_INDEX in the environment")
 }
 
-/// SIGINT/SIGTERM set the returned flag; SIGXFSZ is ignored so that a file-size limit makes
-/// writes fail with an error instead of killing the process.
-pub fn install_signals() -> Result<Arc<AtomicBool>> {
-    let stop = Arc::new(AtomicBool::new(false));
+/// A stop requested by SIGINT or SIGTERM: the flag the work loops poll, and which signal
+/// came (for the exit status).
+#[derive(Debug, Clone)]
+pub struct Stop {
+    /// Set by either signal.
+    pub flag: Arc<AtomicBool>,
+    signal: Arc<AtomicUsize>,
+}
+
+impl Stop {
+    /// Whether a stop was requested.
+    pub fn requested(&self) -> bool {
+        self.flag.load(Ordering::SeqCst)
+    }
+
+    /// The signal that requested the stop (SIGTERM when none is recorded).
+    pub fn signal(&self) -> i32 {
+        match self.signal.load(Ordering::SeqCst) {
+            0 => libc::SIGTERM,
+            s => s as i32,
+        }
+    }
+
+    /// The conventional exit status of a process stopped by that signal: 128 + its number
+    /// (130 for SIGINT, 143 for SIGTERM).
+    pub fn exit_code(&self) -> ExitCode {
+        ExitCode::from((128 + self.signal()).clamp(0, 255) as u8)
+    }
+}
+
+/// SIGINT/SIGTERM request a stop ([`Stop`]); SIGXFSZ is ignored so that a file-size limit
+/// makes writes fail with an error instead of killing the process.
+pub fn install_signals() -> Result<Stop> {
+    let stop = Stop {
+        flag: Arc::new(AtomicBool::new(false)),
+        signal: Arc::new(AtomicUsize::new(0)),
+    };
     for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-        signal_hook::flag::register(sig, stop.clone()).context("installing signal handlers")?;
+        signal_hook::flag::register_usize(sig, stop.signal.clone(), sig as usize)
+            .context("installing signal handlers")?;
+        signal_hook::flag::register(sig, stop.flag.clone())
+            .context("installing signal handlers")?;
     }
     // SAFETY: setting a signal's disposition to SIG_IGN has no preconditions.
     unsafe {
@@ -137,12 +177,16 @@ pub fn run(args: Args) -> Result<ExitCode> {
         (None, false) => bail!("give --shard-index I or --array"),
     };
     let stop = install_signals()?;
+    if let Some(parent) = args.parent_pid {
+        // SIGTERM, not SIGKILL: the worker stops like on Ctrl-C and releases its lease.
+        sparc3d_workers::parent::die_with_parent(parent, libc::SIGTERM);
+    }
     let events = args.events;
     let mut opts = WorkOptions {
         child: child_command(Vec::new())?,
         limits: args.limits.apply(job.file.config.limits),
         lease_ttl_s: args.limits.lease_ttl,
-        stop: stop.clone(),
+        stop: stop.flag.clone(),
         events: Box::new(move |e: Event| {
             if events {
                 if let Ok(line) = serde_json::to_string(&e) {
@@ -150,6 +194,13 @@ pub fn run(args: Args) -> Result<ExitCode> {
                     let _ = writeln!(out, "{line}");
                     let _ = out.flush();
                 }
+            } else if let Event::ShardDamaged {
+                shard,
+                reason,
+                moved_to,
+            } = &e
+            {
+                eprintln!("shard {shard}: damaged ({reason}); moved aside to {moved_to}, converting it again");
             }
         }),
     };
@@ -185,7 +236,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         }
     }
     Ok(if stopped {
-        ExitCode::from(130)
+        stop.exit_code()
     } else {
         ExitCode::SUCCESS
     })

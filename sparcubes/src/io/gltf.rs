@@ -3,13 +3,19 @@
 //! Every triangle primitive (`TRIANGLES`, `TRIANGLE_STRIP`, `TRIANGLE_FAN`) of every mesh
 //! instance in the default scene (or the first scene when none is the default) is read, with
 //! the node transforms composed down the hierarchy. Points and lines are counted, not read.
+//! A node reached through several parents is an instance each time: before anything is read,
+//! the hierarchy is walked once to count node instances (at most [`MAX_NODE_INSTANCES`]) and
+//! the vertices and triangles they would produce (at most [`MAX_ELEMENTS`] each), so a small
+//! file whose nodes share children cannot expand exponentially. A triangle with a bad vertex
+//! index is dropped and counted (module docs of [`super`]).
 //!
 //! Only buffers are imported, never images. An external buffer is either a `data:` URI
 //! (base64) or a relative path inside the glTF file's own folder: absolute paths, `..`
-//! components and every other URI scheme are refused, so a file can never make us read
-//! elsewhere on disk or touch the network. Accessors are read by hand with checked bounds.
+//! components and every other URI scheme are refused, and so is a path that resolves (through
+//! symbolic links) to a file outside that folder, so a file can never make us read elsewhere
+//! on disk or touch the network. Accessors are read by hand with checked bounds.
 
-use super::{check_count, parse_err, LoadStats, MAX_ELEMENTS};
+use super::{bad_face, check_count, parse_err, too_large, LoadStats, MAX_ELEMENTS};
 use crate::error::{Error, Result};
 use crate::mesh::TriMesh;
 use base64::Engine as _;
@@ -19,6 +25,63 @@ use std::path::{Component, Path};
 
 /// Deepest node hierarchy followed (deeper means a cycle or an absurd file).
 const MAX_DEPTH: usize = 256;
+
+/// Most node instances read from one file (a node reached through k paths from the scene
+/// counts k times). Large CAD assemblies place some ten thousand parts; a million instances
+/// is far beyond any real scene and small enough to count in milliseconds.
+pub const MAX_NODE_INSTANCES: usize = 1 << 20;
+
+/// Walks the scene's node instances without reading any data, and refuses the file before
+/// anything is allocated when the instances, or the vertices or triangles they would
+/// produce, exceed the limits.
+fn check_expansion(scene: &gltf::Scene, path: &Path) -> Result<()> {
+    let mut stack: Vec<(gltf::Node, usize)> = scene.nodes().map(|n| (n, 0)).collect();
+    let (mut instances, mut vertices, mut triangles) = (0usize, 0usize, 0usize);
+    while let Some((node, depth)) = stack.pop() {
+        instances += 1;
+        if depth > MAX_DEPTH {
+            return Err(parse_err(path, "glTF: node hierarchy too deep or cyclic"));
+        }
+        if instances > MAX_NODE_INSTANCES {
+            return Err(too_large(
+                path,
+                format!(
+                    "glTF: the node hierarchy expands to more than {MAX_NODE_INSTANCES} node \
+                     instances (nodes shared by several parents count once per path)"
+                ),
+            ));
+        }
+        if let Some(m) = node.mesh() {
+            for prim in m.primitives() {
+                let n = prim
+                    .indices()
+                    .or_else(|| prim.get(&gltf::Semantic::Positions))
+                    .map_or(0, |a| a.count());
+                let n = match prim.mode() {
+                    Mode::Triangles => n / 3,
+                    Mode::TriangleStrip | Mode::TriangleFan => n.saturating_sub(2),
+                    _ => 0,
+                };
+                vertices = vertices.saturating_add(
+                    prim.get(&gltf::Semantic::Positions)
+                        .map_or(0, |a| a.count()),
+                );
+                triangles = triangles.saturating_add(n);
+            }
+            if vertices > MAX_ELEMENTS || triangles > MAX_ELEMENTS {
+                return Err(too_large(
+                    path,
+                    format!(
+                        "glTF: its {instances}+ node instances place more than {MAX_ELEMENTS} \
+                         vertices or triangles"
+                    ),
+                ));
+            }
+        }
+        stack.extend(node.children().map(|c| (c, depth + 1)));
+    }
+    Ok(())
+}
 
 pub(crate) fn read(bytes: &[u8], path: &Path, stats: &mut LoadStats) -> Result<TriMesh> {
     let gltf = open(bytes, path)?;
@@ -32,23 +95,19 @@ pub(crate) fn read(bytes: &[u8], path: &Path, stats: &mut LoadStats) -> Result<T
             reason: "glTF without a scene".to_string(),
         })?;
 
+    check_expansion(&scene, path)?;
     let mut mesh = TriMesh::default();
-    let mut stack: Vec<(gltf::Node, [[f64; 4]; 4], usize)> =
-        scene.nodes().map(|n| (n, IDENTITY, 0)).collect();
-    let mut visits = 0usize;
-    while let Some((node, parent, depth)) = stack.pop() {
-        visits += 1;
-        if depth > MAX_DEPTH || visits > MAX_ELEMENTS {
-            return Err(parse_err(path, "glTF: node hierarchy too deep or cyclic"));
-        }
+    let mut stack: Vec<(gltf::Node, [[f64; 4]; 4])> =
+        scene.nodes().map(|n| (n, IDENTITY)).collect();
+    while let Some((node, parent)) = stack.pop() {
         let world = mul(&parent, &to_f64(node.transform().matrix()));
         if let Some(m) = node.mesh() {
             for prim in m.primitives() {
-                read_primitive(&prim, &world, &buffers, path, stats, &mut mesh)?;
+                read_primitive(&prim, m.index(), &world, &buffers, path, stats, &mut mesh)?;
             }
         }
         for child in node.children() {
-            stack.push((child, world, depth + 1));
+            stack.push((child, world));
         }
     }
     Ok(mesh)
@@ -171,13 +230,29 @@ fn read_uri(uri: &str, path: &Path) -> Result<Vec<u8>> {
     {
         return Err(refuse("absolute paths and `..` components are not allowed"));
     }
-    let dir = path.parent().unwrap_or(Path::new(""));
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
     let file = dir.join(rel);
-    std::fs::read(&file).map_err(|e| {
+    let cannot = |e: &dyn std::fmt::Display| {
         parse_err(
             path,
             format!("glTF: cannot read buffer `{}`: {e}", file.display()),
         )
+    };
+    // Links are resolved: the file really read must lie inside the glTF file's own folder.
+    let real_dir = std::fs::canonicalize(dir).map_err(|e| cannot(&e))?;
+    let real = std::fs::canonicalize(&file).map_err(|e| cannot(&e))?;
+    if !real.starts_with(&real_dir) {
+        return Err(refuse(&format!(
+            "it resolves to `{}`, outside the glTF file's folder",
+            real.display()
+        )));
+    }
+    super::read_file(&real).map_err(|e| match e {
+        Error::TooLarge { .. } => e,
+        other => cannot(&other),
     })
 }
 
@@ -204,6 +279,7 @@ fn clip(s: &str) -> String {
 
 fn read_primitive(
     prim: &gltf::Primitive,
+    mesh_index: usize,
     world: &[[f64; 4]; 4],
     buffers: &[Vec<u8>],
     path: &Path,
@@ -290,6 +366,27 @@ fn read_primitive(
             for k in 1..n.saturating_sub(1) {
                 mesh.triangles.push([idx(0), idx(k), idx(k + 1)]);
             }
+        }
+    }
+    // Triangles with a bad vertex index are dropped and counted.
+    if mesh.triangles[before..]
+        .iter()
+        .any(|t| t.contains(&u32::MAX))
+    {
+        let added = mesh.triangles.split_off(before);
+        for (k, t) in added.into_iter().enumerate() {
+            if !t.contains(&u32::MAX) {
+                mesh.triangles.push(t);
+                continue;
+            }
+            bad_face(stats, || {
+                format!(
+                    "glTF mesh {mesh_index} primitive {} triangle {k}: a vertex index is out \
+                     of range (the primitive has {} vertices)",
+                    prim.index(),
+                    positions.len()
+                )
+            });
         }
     }
     // A mirroring transform flips the winding; flip it back.

@@ -4,7 +4,14 @@
 //! says nothing, and then [`crate::sanitize`]s what it read. Every reader takes the whole file as
 //! bytes, never trusts a count from a header for an allocation, and turns anything it cannot
 //! read into an [`Error`] that names the file; a panic inside a third-party parser is caught and
-//! reported the same way. [`save`] writes to a temporary file beside the target and renames it.
+//! reported the same way. Only regular files are read ([`open_regular`]): a FIFO, a device or a
+//! socket (also behind a link) is refused at once instead of blocking or reading forever.
+//!
+//! Every format follows one rule for faces whose vertex index is bad (out of range, negative,
+//! not a number): the face is dropped and counted in [`LoadStats::faces_bad_index`], the first
+//! one's place (format and line or element) is kept in [`LoadStats::first_bad_face`], and the
+//! file fails ([`Error::EmptyMesh`]) only when no face is left. [`save`] writes to a temporary
+//! file beside the target and renames it.
 
 mod gltf;
 mod obj;
@@ -15,7 +22,7 @@ mod write;
 
 use crate::error::{Error, Result};
 use crate::mesh::TriMesh;
-use crate::sanitize::sanitize;
+use crate::sanitize::drop_invalid;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;
 
@@ -33,8 +40,11 @@ pub struct LoadStats {
     pub points_skipped: u64,
     /// Line primitives skipped (segments).
     pub lines_skipped: u64,
-    /// Faces dropped because an index was out of range.
+    /// Faces dropped because a vertex index was bad (out of range, negative, not a number).
     pub faces_bad_index: u64,
+    /// Where the first such face is: format and line or element (e.g. `OBJ line 7: vertex
+    /// index 9, the file has 3 vertices`).
+    pub first_bad_face: Option<String>,
     /// Faces dropped because a corner had a non-finite coordinate.
     pub faces_non_finite: u64,
     /// Vertices dropped because no kept face used them.
@@ -66,6 +76,17 @@ pub enum Format {
 }
 
 impl Format {
+    /// The format's usual name, for messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            Format::Obj => "OBJ",
+            Format::Ply => "PLY",
+            Format::Stl => "STL",
+            Format::Off => "OFF",
+            Format::Gltf => "glTF",
+        }
+    }
+
     /// The format named by a file extension (case-insensitive), if any.
     pub fn from_extension(path: &Path) -> Option<Format> {
         let ext = path.extension()?.to_str()?.to_ascii_lowercase();
@@ -157,30 +178,126 @@ pub(crate) fn push_polygon(tris: &mut Vec<[u32; 3]>, poly: &[u32], stats: &mut L
     }
 }
 
-/// Reads a file whole, refusing files over [`MAX_FILE_BYTES`] and empty files.
-fn read_file(path: &Path) -> Result<Vec<u8>> {
+/// Counts a face dropped for a bad vertex index; `place` (format and line or element) is
+/// asked for only for the first one.
+pub(crate) fn bad_face(stats: &mut LoadStats, place: impl FnOnce() -> String) {
+    stats.faces_bad_index += 1;
+    if stats.first_bad_face.is_none() {
+        stats.first_bad_face = Some(place());
+    }
+}
+
+/// What a file-system object is, when it is not a regular file.
+fn special_kind(kind: &std::fs::FileType) -> Option<&'static str> {
+    use std::os::unix::fs::FileTypeExt;
+    if kind.is_file() {
+        None
+    } else if kind.is_dir() {
+        Some("a folder")
+    } else if kind.is_fifo() {
+        Some("a FIFO (named pipe)")
+    } else if kind.is_char_device() {
+        Some("a character device")
+    } else if kind.is_block_device() {
+        Some("a block device")
+    } else if kind.is_socket() {
+        Some("a socket")
+    } else {
+        Some("not a regular file")
+    }
+}
+
+/// Opens `path` for reading if it is a regular file once links are followed, and returns it
+/// with its size. A FIFO, device, socket or folder is refused with an error naming what it
+/// is, without a blocking open (the kind is checked before opening, the open does not wait
+/// for a FIFO's writer, and the opened file is checked again).
+pub fn open_regular(path: &Path) -> std::io::Result<(std::fs::File, u64)> {
+    let refuse = |what: &str| {
+        std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            format!("{what}, not a regular file; only regular files are read"),
+        )
+    };
+    if let Some(what) = special_kind(&std::fs::metadata(path)?.file_type()) {
+        return Err(refuse(what));
+    }
+    use std::os::unix::fs::OpenOptionsExt;
+    let file = std::fs::OpenOptions::new()
+        .read(true)
+        .custom_flags(libc::O_NONBLOCK)
+        .open(path)?;
+    let meta = file.metadata()?;
+    if let Some(what) = special_kind(&meta.file_type()) {
+        return Err(refuse(what));
+    }
+    Ok((file, meta.len()))
+}
+
+/// Reads a regular file whole ([`open_regular`]), refusing files over [`MAX_FILE_BYTES`]
+/// (also one that grows past it while being read) and empty files.
+pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>> {
+    use std::io::Read;
     let io_err = |source| Error::Io {
         path: path.to_path_buf(),
         source,
     };
-    let meta = std::fs::metadata(path).map_err(io_err)?;
-    if meta.is_dir() {
+    if std::fs::metadata(path).is_ok_and(|m| m.is_dir()) {
         return Err(parse_err(path, "is a directory, not a mesh file"));
     }
-    if meta.len() > MAX_FILE_BYTES {
-        return Err(too_large(
+    let (file, len) = open_regular(path).map_err(io_err)?;
+    let over = |len: u64| {
+        too_large(
             path,
-            format!(
-                "file is {} bytes (the limit is {MAX_FILE_BYTES})",
-                meta.len()
-            ),
-        ));
+            format!("file is {len} bytes (the limit is {MAX_FILE_BYTES})"),
+        )
+    };
+    if len > MAX_FILE_BYTES {
+        return Err(over(len));
     }
-    let bytes = std::fs::read(path).map_err(io_err)?;
+    let mut bytes = Vec::with_capacity(len as usize);
+    file.take(MAX_FILE_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(io_err)?;
+    if bytes.len() as u64 > MAX_FILE_BYTES {
+        return Err(over(bytes.len() as u64));
+    }
     if bytes.is_empty() {
         return Err(parse_err(path, "empty file"));
     }
     Ok(bytes)
+}
+
+/// Why a load ended with no triangle: what was dropped or skipped, and where the first face
+/// with a bad vertex index is.
+fn empty_reason(format: Format, stats: &LoadStats, vertices: usize) -> String {
+    let mut reason = format!(
+        "no valid triangle in this {} file ({vertices} vertices",
+        format.name()
+    );
+    if stats.faces_bad_index > 0 {
+        reason.push_str(&format!(
+            "; dropped {} faces with a bad vertex index, the first at {}",
+            stats.faces_bad_index,
+            stats
+                .first_bad_face
+                .as_deref()
+                .unwrap_or("an unknown place")
+        ));
+    }
+    if stats.faces_non_finite > 0 {
+        reason.push_str(&format!(
+            "; dropped {} faces with a non-finite coordinate",
+            stats.faces_non_finite
+        ));
+    }
+    if stats.points_skipped + stats.lines_skipped > 0 {
+        reason.push_str(&format!(
+            "; skipped {} points and {} line segments",
+            stats.points_skipped, stats.lines_skipped
+        ));
+    }
+    reason.push(')');
+    reason
 }
 
 /// Loads a mesh file, choosing the format by extension (then by content), and sanitises it.
@@ -224,25 +341,18 @@ pub fn load_bytes(bytes: &[u8], format: Format, path: &Path) -> Result<LoadedMes
     check_count(path, "vertices", raw.positions.len())?;
     check_count(path, "triangles", raw.triangles.len())?;
     let context = path.display().to_string();
-    let (mesh, s) = match sanitize(raw, &context) {
-        Ok(r) => r,
-        Err(Error::EmptyMesh { context, reason }) => {
-            let skipped = stats.points_skipped + stats.lines_skipped;
-            let reason = if skipped > 0 {
-                format!(
-                    "{reason}; skipped {} points and {} line segments",
-                    stats.points_skipped, stats.lines_skipped
-                )
-            } else {
-                reason
-            };
-            return Err(Error::EmptyMesh { context, reason });
-        }
-        Err(e) => return Err(e),
-    };
+    let vertices = raw.positions.len();
+    let (mesh, s) = drop_invalid(raw);
+    // Loaders drop faces with bad indices themselves; what sanitising finds adds to that.
     stats.faces_bad_index += s.faces_bad_index;
     stats.faces_non_finite += s.faces_non_finite;
     stats.vertices_unused += s.vertices_unused;
+    if mesh.triangles.is_empty() {
+        return Err(Error::EmptyMesh {
+            context,
+            reason: empty_reason(format, &stats, vertices),
+        });
+    }
     Ok(LoadedMesh { mesh, stats })
 }
 

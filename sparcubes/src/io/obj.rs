@@ -4,18 +4,45 @@
 //! normal indices removed from face corners), so bad texture/normal references, material
 //! libraries and object/group splits cannot fail or fragment the load. `p` and `l` statements
 //! are counted as skipped points and line segments (tobj would read a three-point `l` as a
-//! triangle).
+//! triangle). Face corners are resolved here (relative indices too) and checked against the
+//! file's vertex count: a face with a bad index is dropped and counted (module docs of
+//! [`super`]), so tobj only ever sees valid, absolute indices.
 
-use super::{check_count, parse_err, push_polygon, LoadStats};
+use super::{bad_face, check_count, parse_err, push_polygon, LoadStats};
 use crate::error::Result;
 use crate::mesh::TriMesh;
 use std::path::Path;
 
+/// The 1-based absolute index of an OBJ face corner (`7`, `-1`, `7/2/5`) given the vertices
+/// defined before it and in the whole file; `Err` says why it is bad.
+fn corner(word: &str, before: usize, total: usize) -> std::result::Result<usize, String> {
+    let text = word.split('/').next().unwrap_or(word);
+    let i: i64 = text
+        .parse()
+        .map_err(|_| format!("vertex index `{}` is not a number", clip(text)))?;
+    let abs = if i < 0 { before as i64 + i + 1 } else { i };
+    if abs < 1 || abs as usize > total {
+        return Err(format!(
+            "vertex index {i} is out of range (the file has {total} vertices)"
+        ));
+    }
+    Ok(abs as usize)
+}
+
+fn clip(s: &str) -> String {
+    s.chars().take(30).collect()
+}
+
 pub(crate) fn read(bytes: &[u8], path: &Path, stats: &mut LoadStats) -> Result<TriMesh> {
     let text = String::from_utf8_lossy(bytes);
+    let total = text
+        .lines()
+        .filter(|l| l.split_whitespace().next() == Some("v"))
+        .count();
     let mut geometry = String::with_capacity(text.len().min(1 << 28));
     let (mut n_v, mut n_f) = (0usize, 0usize);
-    for line in text.lines() {
+    let mut corners: Vec<usize> = Vec::new();
+    for (no, line) in text.lines().enumerate() {
         let line = line.trim();
         let mut words = line.split_whitespace();
         match words.next() {
@@ -26,10 +53,25 @@ pub(crate) fn read(bytes: &[u8], path: &Path, stats: &mut LoadStats) -> Result<T
             }
             Some("f") => {
                 n_f += 1;
-                geometry.push('f');
+                corners.clear();
+                let mut bad = None;
                 for w in words {
+                    match corner(w, n_v, total) {
+                        Ok(i) => corners.push(i),
+                        Err(why) => {
+                            bad = Some(why);
+                            break;
+                        }
+                    }
+                }
+                if let Some(why) = bad {
+                    bad_face(stats, || format!("OBJ line {}: {why}", no + 1));
+                    continue;
+                }
+                geometry.push('f');
+                for i in &corners {
                     geometry.push(' ');
-                    geometry.push_str(w.split('/').next().unwrap_or(w));
+                    geometry.push_str(&i.to_string());
                 }
                 geometry.push('\n');
             }

@@ -3,10 +3,11 @@
 //! `off-rs` accepts only the plain `OFF` header on a line of its own and one colour format, so
 //! the text is first put in that form: header variants (`COFF`, `NOFF`, `CNOFF`, `STOFF`, counts
 //! on the header line) are accepted, and colours, normals and texture coordinates after the
-//! coordinates or face indices are dropped. Our own cap on the counts comes first; the parser
-//! runs with its limits at their maximum.
+//! coordinates or face indices are dropped, and so is a face with a bad vertex index (not a
+//! number, or not below the vertex count), counted with its line (module docs of [`super`]).
+//! Our own cap on the counts comes first; the parser runs with its limits at their maximum.
 
-use super::{check_count, parse_err, push_polygon, LoadStats};
+use super::{bad_face, check_count, parse_err, push_polygon, LoadStats};
 use crate::error::Result;
 use crate::mesh::TriMesh;
 use off_rs::parser::options::{Limits, Options};
@@ -51,11 +52,13 @@ fn canonicalise(
     text: &str,
     stats: &mut LoadStats,
 ) -> std::result::Result<(String, (usize, usize)), String> {
+    // (1-based line number, text without comment), blank lines left out.
     let mut lines = text
         .lines()
-        .map(|l| l.split('#').next().unwrap_or("").trim())
-        .filter(|l| !l.is_empty());
-    let header = lines.next().ok_or("empty file")?;
+        .enumerate()
+        .map(|(no, l)| (no + 1, l.split('#').next().unwrap_or("").trim()))
+        .filter(|(_, l)| !l.is_empty());
+    let (_, header) = lines.next().ok_or("empty file")?;
     let mut words = header.split_whitespace();
     let keyword = words.next().unwrap_or("");
     let variant = keyword
@@ -71,6 +74,7 @@ fn canonicalise(
         lines
             .next()
             .ok_or("no counts line")?
+            .1
             .split_whitespace()
             .collect()
     } else {
@@ -95,14 +99,15 @@ fn canonicalise(
 
     let mut out = String::with_capacity(text.len() + 16);
     for _ in 0..nv {
-        let Some(l) = lines.next() else { break };
+        let Some((_, l)) = lines.next() else { break };
         let w: Vec<&str> = l.split_whitespace().take(3).collect();
         out.push_str(&w.join(" "));
         out.push('\n');
     }
     let mut kept_faces = nf;
+    let mut indices: Vec<&str> = Vec::new();
     for _ in 0..nf {
-        let Some(l) = lines.next() else { break };
+        let Some((no, l)) = lines.next() else { break };
         let mut w = l.split_whitespace();
         let first = w.next().unwrap_or("");
         let n = first.parse::<usize>().unwrap_or(usize::MAX);
@@ -116,8 +121,34 @@ fn canonicalise(
             kept_faces -= 1;
             continue;
         }
+        indices.clear();
+        indices.extend(w.take(n));
+        let bad = if n == usize::MAX {
+            Some(format!(
+                "the face's vertex count `{}` is not a number",
+                clip(first)
+            ))
+        } else if indices.len() < n {
+            Some(format!(
+                "the face has {} of its {n} vertex indices",
+                indices.len()
+            ))
+        } else {
+            indices.iter().find_map(|x| match x.parse::<usize>() {
+                Ok(i) if i < nv => None,
+                Ok(i) => Some(format!(
+                    "vertex index {i} is out of range (the file has {nv} vertices)"
+                )),
+                Err(_) => Some(format!("vertex index `{}` is not a valid index", clip(x))),
+            })
+        };
+        if let Some(why) = bad {
+            bad_face(stats, || format!("OFF line {no}: {why}"));
+            kept_faces -= 1;
+            continue;
+        }
         out.push_str(first);
-        for x in w.take(n) {
+        for x in &indices {
             out.push(' ');
             out.push_str(x);
         }

@@ -3,9 +3,11 @@
 //! Vertices are the `x`, `y`, `z` properties of the `vertex` element; faces the
 //! `vertex_indices` (or `vertex_index`) list of the `face` element. Other elements and
 //! properties are read past and ignored. Before the payload is parsed, the element counts in
-//! the header are checked against what the rest of the file can hold.
+//! the header are checked against what the rest of the file can hold. A face with a bad vertex
+//! index (negative or not below the vertex count) is dropped and counted with its element
+//! number (module docs of [`super`]).
 
-use super::{check_count, parse_err, push_polygon, LoadStats};
+use super::{bad_face, check_count, parse_err, push_polygon, LoadStats};
 use crate::error::Result;
 use crate::mesh::TriMesh;
 use ply_rs_bw::parser::Parser;
@@ -139,8 +141,23 @@ pub(crate) fn read(bytes: &[u8], path: &Path, stats: &mut LoadStats) -> Result<T
         mesh.positions = vs.iter().map(|v| v.xyz).collect();
     }
     if let Some(fs) = ply.payload.get("face") {
+        let n = mesh.positions.len();
         mesh.triangles.reserve(fs.len());
-        for f in fs {
+        for (k, f) in fs.iter().enumerate() {
+            if let Some(&i) = f.indices.iter().find(|&&i| i as usize >= n) {
+                bad_face(stats, || {
+                    let index = if i == u32::MAX {
+                        "negative or too large".to_string()
+                    } else {
+                        i.to_string()
+                    };
+                    format!(
+                        "PLY face element {k}: vertex index {index} is out of range (the file \
+                         has {n} vertices)"
+                    )
+                });
+                continue;
+            }
             push_polygon(&mut mesh.triangles, &f.indices, stats);
         }
     }
