@@ -1,34 +1,20 @@
-//! A bounding volume hierarchy over triangles for exact closest-point queries.
+//! Exact closest-point queries on a mesh's triangles, over `parry`'s bounding volume hierarchy.
 //!
-//! Median splits on the widest axis of the centroids, small leaves, flat nodes linked by
-//! `u32` index. Queries visit the nearer child first and prune by box distance; ties go to the
-//! first triangle found in that fixed order, so results do not depend on the thread count.
+//! `parry` builds the hierarchy (binned SAH, one leaf per triangle, in `f64`) and runs the
+//! best-first search ([`Bvh::find_best`]); the cost of a box is its squared distance to the
+//! query and the cost of a triangle the squared distance to its closest point from
+//! [`closest_on_triangle`], so distances are exactly those of that function and the search,
+//! which prunes a box only when it is no nearer than the best triangle so far, finds the true
+//! minimum. Of triangles at exactly the same distance (a shared corner, say) the first visited
+//! is kept; its point and distance are the same whichever it is, and the sign of a closed
+//! source (`weld::SignOracle`) is taken from the welded feature, so the results do not depend
+//! on the order of the tree or on the thread count.
 
 use super::geom::{closest_on_triangle, dist2, Feature, Vec3};
 use super::sample::Faces;
-
-/// Triangles per leaf.
-const LEAF_SIZE: usize = 4;
-
-/// Marks a node as a leaf in [`Node::left`].
-const LEAF: u32 = u32::MAX;
-
-/// One node: a box around all triangles below it.
-#[derive(Debug, Clone, Copy)]
-struct Node {
-    /// Box minimum.
-    lo: Vec3,
-    /// Box maximum.
-    hi: Vec3,
-    /// First entry of `order` under this node.
-    start: u32,
-    /// One past the last entry of `order` under this node.
-    end: u32,
-    /// Index of the left child, or [`LEAF`].
-    left: u32,
-    /// Index of the right child (inner nodes).
-    right: u32,
-}
+use parry3d_f64::bounding_volume::Aabb;
+use parry3d_f64::math::Vector;
+use parry3d_f64::partitioning::{Bvh, BvhBuildStrategy, BvhLeafCost, BvhNode};
 
 /// The closest point of a mesh to a query point.
 #[derive(Debug, Clone, Copy)]
@@ -43,139 +29,119 @@ pub struct Closest {
     pub feature: Feature,
 }
 
+impl BvhLeafCost for Closest {
+    fn cost(&self) -> f64 {
+        self.dist2
+    }
+}
+
 /// A BVH over the triangles of a borrowed [`Faces`].
-#[derive(Debug, Clone)]
+#[derive(Clone)]
 pub struct TriBvh<'a> {
     /// The triangles.
     faces: &'a Faces,
-    /// Triangle indices, permuted so that every node covers a contiguous range.
-    order: Vec<u32>,
-    /// Nodes; the root is node 0.
-    nodes: Vec<Node>,
+    /// One leaf per triangle; a leaf's data is the triangle's index.
+    bvh: Bvh,
 }
 
 impl<'a> TriBvh<'a> {
     /// Builds the hierarchy over all triangles of `faces`.
     pub fn new(faces: &'a Faces) -> Self {
-        let mut bvh = Self {
-            faces,
-            order: (0..faces.len() as u32).collect(),
-            nodes: Vec::new(),
-        };
-        if !faces.is_empty() {
-            bvh.build(0, faces.len());
-        }
-        bvh
-    }
-
-    /// Builds the subtree over `order[start..end]` and returns its node index.
-    fn build(&mut self, start: usize, end: usize) -> u32 {
-        let (lo, hi) = self.bounds(start, end);
-        let id = self.nodes.len() as u32;
-        self.nodes.push(Node {
-            lo,
-            hi,
-            start: start as u32,
-            end: end as u32,
-            left: LEAF,
-            right: LEAF,
+        let boxes = faces.corners.iter().map(|[a, b, c]| {
+            let lo = [0, 1, 2].map(|k| a[k].min(b[k]).min(c[k]));
+            let hi = [0, 1, 2].map(|k| a[k].max(b[k]).max(c[k]));
+            Aabb::new(Vector::from_array(lo), Vector::from_array(hi))
         });
-        if end - start <= LEAF_SIZE {
-            return id;
+        Self {
+            faces,
+            bvh: Bvh::from_iter(BvhBuildStrategy::Binned, boxes.enumerate()),
         }
-        let axis = (0..3)
-            .max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b])))
-            .unwrap_or(0);
-        let mid = start + (end - start) / 2;
-        let corners = &self.faces.corners;
-        let centroid = |t: u32| {
-            let [a, b, c] = corners[t as usize];
-            a[axis] + b[axis] + c[axis]
-        };
-        self.order[start..end]
-            .select_nth_unstable_by(mid - start, |&i, &j| centroid(i).total_cmp(&centroid(j)));
-        let left = self.build(start, mid);
-        let right = self.build(mid, end);
-        let node = &mut self.nodes[id as usize];
-        node.left = left;
-        node.right = right;
-        id
-    }
-
-    /// Bounding box of the triangles `order[start..end]`.
-    fn bounds(&self, start: usize, end: usize) -> (Vec3, Vec3) {
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
-        for &t in &self.order[start..end] {
-            for p in &self.faces.corners[t as usize] {
-                for a in 0..3 {
-                    lo[a] = lo[a].min(p[a]);
-                    hi[a] = hi[a].max(p[a]);
-                }
-            }
-        }
-        (lo, hi)
     }
 
     /// The closest point of the mesh to `q`, or `None` when there is no triangle.
     pub fn closest(&self, q: Vec3) -> Option<Closest> {
-        if self.nodes.is_empty() {
-            return None;
-        }
-        let mut best = Closest {
-            triangle: u32::MAX,
-            point: q,
-            dist2: f64::INFINITY,
-            feature: Feature::Face,
-        };
-        let mut stack: Vec<(u32, f64)> = Vec::with_capacity(64);
-        stack.push((0, self.box_dist2(0, q)));
-        while let Some((id, d)) = stack.pop() {
-            if d >= best.dist2 {
-                continue;
-            }
-            let node = self.nodes[id as usize];
-            if node.left == LEAF {
-                self.scan_leaf(&node, q, &mut best);
-                continue;
-            }
-            let (dl, dr) = (self.box_dist2(node.left, q), self.box_dist2(node.right, q));
-            // Push the farther child first so the nearer one is visited first.
-            if dl <= dr {
-                stack.push((node.right, dr));
-                stack.push((node.left, dl));
-            } else {
-                stack.push((node.left, dl));
-                stack.push((node.right, dr));
-            }
-        }
-        Some(best)
-    }
-
-    /// Updates `best` with the triangles of a leaf.
-    fn scan_leaf(&self, node: &Node, q: Vec3, best: &mut Closest) {
-        for &t in &self.order[node.start as usize..node.end as usize] {
-            let (point, feature) = closest_on_triangle(q, &self.faces.corners[t as usize]);
-            let d = dist2(q, point);
-            if d < best.dist2 {
-                *best = Closest {
-                    triangle: t,
-                    point,
-                    dist2: d,
-                    feature,
-                };
-            }
-        }
-    }
-
-    /// Squared distance from `q` to the box of node `id` (0 inside).
-    fn box_dist2(&self, id: u32, q: Vec3) -> f64 {
-        let node = &self.nodes[id as usize];
-        (0..3)
-            .map(|a| {
-                let d = (node.lo[a] - q[a]).max(0.0).max(q[a] - node.hi[a]);
-                d * d
+        let box_cost = |node: &BvhNode, _best: f64| box_dist2(node, q);
+        let triangle_cost = |t: u32, _best: f64| {
+            let (point, feature) = closest_on_triangle(q, self.faces.corners.get(t as usize)?);
+            Some(Closest {
+                triangle: t,
+                point,
+                dist2: dist2(q, point),
+                feature,
             })
-            .sum()
+        };
+        self.bvh
+            .find_best(f64::INFINITY, box_cost, triangle_cost)
+            .map(|(_, closest)| closest)
+    }
+}
+
+/// Squared distance from `q` to the box of `node` (0 inside).
+fn box_dist2(node: &BvhNode, q: Vec3) -> f64 {
+    let (lo, hi) = (node.mins().to_array(), node.maxs().to_array());
+    (0..3)
+        .map(|a| {
+            let d = (lo[a] - q[a]).max(0.0).max(q[a] - hi[a]);
+            d * d
+        })
+        .sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use sparcubes::shapes;
+
+    /// Flat triangles of a torus and a sphere that cuts through it, in `f64`.
+    fn faces() -> Faces {
+        let mesh = shapes::merge(&[
+            shapes::torus([0.0, 0.0, 0.0], 1.0, 0.3, 24),
+            shapes::sphere([1.0, 0.0, 0.2], 0.4, 12),
+        ]);
+        let at = |i: u32| mesh.positions[i as usize].map(f64::from);
+        Faces::new(
+            mesh.triangles
+                .iter()
+                .map(|t| [at(t[0]), at(t[1]), at(t[2])])
+                .collect(),
+        )
+    }
+
+    /// The smallest squared distance from `q` to any triangle, by trying them all.
+    fn brute_force(faces: &Faces, q: Vec3) -> f64 {
+        faces
+            .corners
+            .iter()
+            .map(|tri| dist2(q, closest_on_triangle(q, tri).0))
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    #[test]
+    fn closest_is_the_exact_minimum_over_all_triangles() {
+        let faces = faces();
+        let bvh = TriBvh::new(&faces);
+        // A lattice through, around and far outside both shapes, off the axes' symmetry.
+        let mut checked = 0;
+        for i in -6..=6 {
+            for j in -6..=6 {
+                for k in -4..=4 {
+                    let q = [0.31 * i as f64, 0.29 * j as f64 + 0.013, 0.23 * k as f64];
+                    let Some(c) = bvh.closest(q) else {
+                        panic!("no closest point for {q:?}");
+                    };
+                    assert_eq!(c.dist2, brute_force(&faces, q), "query {q:?}");
+                    let on = closest_on_triangle(q, &faces.corners[c.triangle as usize]);
+                    assert_eq!((c.point, c.feature), on, "query {q:?}");
+                    checked += 1;
+                }
+            }
+        }
+        assert_eq!(checked, 13 * 13 * 9);
+    }
+
+    #[test]
+    fn no_triangle_no_closest_point() {
+        let faces = Faces::new(Vec::new());
+        assert!(TriBvh::new(&faces).closest([0.0, 0.0, 0.0]).is_none());
     }
 }
