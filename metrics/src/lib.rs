@@ -196,19 +196,24 @@ pub fn evaluate(
         .iter()
         .map(|&t| f1_score(t, &to_src, &to_out))
         .collect();
-    let src_bvh = TriBvh::new(&src.faces);
-    let out_bvh = TriBvh::new(&out.faces);
-    let out_to_surface = surface_distances(&out_bvh, &src_samples.points);
+    // One triangle hierarchy at a time: each is dropped before the other is built.
+    let (out_to_surface, topo) = {
+        let out_bvh = TriBvh::new(&out.faces);
+        let distances = surface_distances(&out_bvh, &src_samples.points);
+        (
+            distances,
+            source_topology(source, &src, &welded, options, &out_bvh),
+        )
+    };
     let (src_to_surface, signs) = signed_surface_distances(
         source,
         &src,
-        &src_bvh,
+        &TriBvh::new(&src.faces),
         &out_samples,
         closed.then_some(&welded[..]),
     );
     let cd_surface =
         0.5 * (mean(out_to_surface.iter().copied()) + mean(src_to_surface.iter().copied()));
-    let topo = source_topology(source, &src, &welded, options, &out_bvh);
     let source_area = src.faces.subset_area(&all_src);
     Ok(QualityReport {
         options: *options,
