@@ -2,6 +2,9 @@
 
 mod cluster;
 mod commands;
+mod hints;
+mod item_lookup;
+mod job_setup;
 mod manifest_io;
 mod progress;
 mod sample;

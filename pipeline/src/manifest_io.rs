@@ -25,6 +25,17 @@ pub struct RawRecord {
     pub format: Option<String>,
 }
 
+impl From<ManifestRecord> for RawRecord {
+    fn from(r: ManifestRecord) -> Self {
+        Self {
+            id: Some(r.id),
+            uri: r.uri,
+            sha256: r.sha256,
+            format: r.format,
+        }
+    }
+}
+
 fn ext(path: &Path) -> String {
     path.extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase())

@@ -1,6 +1,7 @@
 //! Progress display of `run`: indicatif bars on a terminal (items done/failed, rate, ETA, one
 //! line per worker), plain periodic log lines otherwise.
 
+use crate::summary::rate_per_hour;
 use crate::units::format_seconds;
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
@@ -33,7 +34,7 @@ impl Progress {
         let bars = std::io::stderr().is_terminal().then(|| {
             let mp = MultiProgress::with_draw_target(ProgressDrawTarget::stderr());
             let style = ProgressStyle::with_template(
-                "{bar:30.cyan/blue} {pos}/{len} items {msg} [{elapsed_precise}, ETA {eta}]",
+                "{bar:30.cyan/blue} {pos}/{len} items {msg} [{elapsed_precise}]",
             )
             .unwrap_or_else(|_| ProgressStyle::default_bar());
             let main = mp.add(ProgressBar::new(total).with_style(style));
@@ -106,8 +107,21 @@ impl Progress {
         }
     }
 
-    fn rate_per_hour(&self) -> f64 {
-        self.done_this_run as f64 / self.start.elapsed().as_secs_f64().max(1e-3) * 3600.0
+    /// Items per hour in this run, once enough items finished ([`rate_per_hour`]).
+    fn rate_per_hour(&self) -> Option<f64> {
+        rate_per_hour(self.done_this_run, self.start.elapsed().as_secs_f64())
+    }
+
+    /// "1234/h, ETA 5m02s", or "rate not known yet" while too few items have finished.
+    fn rate_text(&self) -> String {
+        let remaining = self.total.saturating_sub(self.ok + self.failed) as f64;
+        match self.rate_per_hour() {
+            Some(rate) => format!(
+                "{rate:.0}/h, ETA {}",
+                format_seconds(remaining / rate * 3600.0)
+            ),
+            None => "rate not known yet".into(),
+        }
     }
 
     fn slot_text(&self, i: usize) -> String {
@@ -127,11 +141,11 @@ impl Progress {
     pub fn tick(&mut self) {
         let done = self.ok + self.failed;
         let msg = format!(
-            "({} ok, {} failed, {} retried) {:.0}/h",
+            "({} ok, {} failed, {} retried) {}",
             self.ok,
             self.failed,
             self.retried,
-            self.rate_per_hour()
+            self.rate_text()
         );
         if let Some((_, main, lines)) = &self.bars {
             main.set_position(done);
@@ -145,19 +159,12 @@ impl Progress {
             return;
         }
         self.last_log = Instant::now();
-        let remaining = self.total.saturating_sub(done) as f64;
-        let rate = self.rate_per_hour();
-        let eta = if rate > 0.0 {
-            format_seconds(remaining / rate * 3600.0)
-        } else {
-            "?".into()
-        };
         let busy: Vec<String> = (0..self.slots.len())
             .filter(|&i| self.slots[i].shard.is_some())
             .map(|i| self.slot_text(i))
             .collect();
         eprintln!(
-            "[{}] {done}/{} items {msg}, ETA {eta}; {}",
+            "[{}] {done}/{} items {msg}; {}",
             format_seconds(self.start.elapsed().as_secs_f64()),
             self.total,
             busy.join("; ")

@@ -22,6 +22,9 @@ pub enum SampleSize {
     Fraction(f64),
     /// A number of items (all of them when there are fewer).
     Count(usize),
+    /// A fraction of the `ok` items, but at least this many (all of them when there are
+    /// fewer): a small job's sample still means something.
+    FractionAtLeast(f64, usize),
 }
 
 impl SampleSize {
@@ -31,6 +34,7 @@ impl SampleSize {
             SampleSize::Count(k) => k.min(n),
             SampleSize::Fraction(f) if f <= 0.0 || n == 0 => 0,
             SampleSize::Fraction(f) => ((f * n as f64).ceil() as usize).clamp(1, n),
+            SampleSize::FractionAtLeast(f, k) => SampleSize::Fraction(f).of(n).max(k.min(n)),
         }
     }
 }
@@ -61,6 +65,7 @@ impl std::fmt::Display for SampleSize {
         match self {
             SampleSize::Fraction(x) => write!(f, "{}%", x * 100.0),
             SampleSize::Count(k) => write!(f, "{k}"),
+            SampleSize::FractionAtLeast(x, k) => write!(f, "{}% but at least {k}", x * 100.0),
         }
     }
 }
@@ -206,6 +211,9 @@ mod tests {
         assert_eq!(SampleSize::Fraction(0.0).of(5), 0);
         assert_eq!(SampleSize::Fraction(1.0).of(5), 5);
         assert_eq!(SampleSize::Count(10).of(3), 3);
+        assert_eq!(SampleSize::FractionAtLeast(0.01, 20).of(30), 20);
+        assert_eq!(SampleSize::FractionAtLeast(0.01, 20).of(12), 12);
+        assert_eq!(SampleSize::FractionAtLeast(0.01, 20).of(5000), 50);
     }
 
     #[test]

@@ -60,12 +60,26 @@ pub struct JobSummary {
     pub error_classes: BTreeMap<String, u64>,
     /// Items in flight, slowest first.
     pub in_flight: Vec<InFlight>,
-    /// Items finished per hour since the job's first item started.
+    /// Items finished per hour since the job's first item started (`None` until
+    /// [`RATE_MIN_ITEMS`] items and [`RATE_MIN_SECONDS`] seconds).
     pub items_per_hour: Option<f64>,
     /// Estimated seconds to finish at that rate.
     pub eta_seconds: Option<f64>,
     /// Sum of finished items' seconds.
     pub item_seconds: f64,
+}
+
+/// Items that must have finished before a rate is estimated: fewer give rates that mean
+/// nothing (one fast item in 10 ms reads as 360,000 an hour).
+pub const RATE_MIN_ITEMS: u64 = 5;
+/// Seconds that must have passed before a rate is estimated, for the same reason.
+pub const RATE_MIN_SECONDS: f64 = 10.0;
+
+/// `items` finished in `seconds` as items per hour, or `None` while fewer than
+/// [`RATE_MIN_ITEMS`] items or [`RATE_MIN_SECONDS`] seconds make the estimate meaningless.
+pub fn rate_per_hour(items: u64, seconds: f64) -> Option<f64> {
+    (items >= RATE_MIN_ITEMS && seconds >= RATE_MIN_SECONDS)
+        .then(|| items as f64 / seconds * 3600.0)
 }
 
 /// Every shard's state, its record checked with `check` (in parallel: a check may hash the
@@ -149,13 +163,29 @@ pub fn summarize_states(job: &Job, states: &[ShardState]) -> JobSummary {
     }
     s.pending = s.items.saturating_sub(s.ok + s.failed);
     s.in_flight.sort_by(|a, b| b.seconds.total_cmp(&a.seconds));
-    let finished = (s.ok + s.failed) as f64;
-    if finished > 0.0 && first.is_finite() {
+    if first.is_finite() {
         let end = if s.shards_running > 0 { now } else { last };
-        let span = (end - first).max(1e-3);
-        let rate = finished / span * 3600.0;
-        s.items_per_hour = Some(rate);
-        s.eta_seconds = Some(s.pending as f64 / rate * 3600.0);
+        if let Some(rate) = rate_per_hour(s.ok + s.failed, end - first) {
+            s.items_per_hour = Some(rate);
+            s.eta_seconds = Some(s.pending as f64 / rate * 3600.0);
+        }
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn no_rate_from_too_few_items_or_too_short_a_time() {
+        assert_eq!(rate_per_hour(1, 0.011), None, "one item in 11 ms");
+        assert_eq!(rate_per_hour(87, 1.0), None, "a second is too short");
+        assert_eq!(rate_per_hour(4, 3600.0), None, "four items are too few");
+        assert_eq!(rate_per_hour(100, 60.0), Some(6000.0));
+        assert_eq!(
+            rate_per_hour(RATE_MIN_ITEMS, RATE_MIN_SECONDS),
+            Some(1800.0)
+        );
+    }
 }

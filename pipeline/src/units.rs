@@ -56,6 +56,21 @@ pub fn format_seconds(s: f64) -> String {
     }
 }
 
+/// Formats bytes as the largest whole unit that `parse_size` reads back: `8G`, `512M`, `0`.
+pub fn format_size(bytes: u64) -> String {
+    for (suffix, shift) in [("T", 40), ("G", 30), ("M", 20), ("K", 10)] {
+        if bytes >= 1 << shift && bytes.is_multiple_of(1 << shift) {
+            return format!("{}{suffix}", bytes >> shift);
+        }
+    }
+    bytes.to_string()
+}
+
+/// A flag's help text followed by its default, as clap shows defaults: `TEXT [default: X]`.
+pub fn with_default(text: &str, default: impl std::fmt::Display) -> String {
+    format!("{text} [default: {default}]")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -71,5 +86,9 @@ mod tests {
         assert_eq!(parse_size("0"), Ok(0));
         assert!(parse_size("lots").is_err());
         assert_eq!(format_seconds(3725.0), "1h02m");
+        assert_eq!(format_size(8 << 30), "8G");
+        assert_eq!(format_size(1536 << 20), "1536M");
+        assert_eq!(format_size(0), "0");
+        assert_eq!(parse_size(&format_size(1536 << 20)), Ok(1536 << 20));
     }
 }

@@ -37,6 +37,16 @@ pub fn peak_rss_bytes() -> Option<u64> {
     Some(kb * 1024)
 }
 
+/// Why an output can have more components than its input, when it has: read without it, the
+/// summary looks like a part broke apart (docs/VALIDATION.md, the `components` check).
+pub fn components_note(input: u64, output: u64) -> Option<&'static str> {
+    (output > input).then_some(
+        "more components out than in is expected: open parts become thin closed shells, and a \
+         sheet or open part inside a closed one becomes a cavity, a closed surface of its own \
+         (nothing is split off or lost; docs/VALIDATION.md)",
+    )
+}
+
 /// Runs `sparc3d convert`.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let start = Instant::now();
@@ -87,6 +97,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         "output_faces": mesh.triangles.len(),
         "output_vertices": mesh.positions.len(),
         "output_components": topo.components,
+        "components_note": components_note(input_components, topo.components),
         "watertight": topo.is_watertight(),
         "manifold": topo.is_manifold(),
         "stage_seconds": stages.iter().map(|(k, v)| (k.to_string(), json!(v))).collect::<serde_json::Map<_, _>>(),
@@ -114,6 +125,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             mesh.triangles.len(),
             topo.components
         );
+        if let Some(note) = components_note(input_components, topo.components) {
+            println!("  note         {note}");
+        }
         let st = &loaded.stats;
         if st.faces_bad_index + st.faces_non_finite > 0 {
             println!(
@@ -145,4 +159,20 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::components_note;
+
+    #[test]
+    fn more_components_out_than_in_are_explained() {
+        assert!(components_note(2, 3).is_some_and(|n| n.contains("shells")));
+        assert_eq!(components_note(3, 3), None);
+        assert_eq!(
+            components_note(51, 4),
+            None,
+            "parts closer than a voxel merge"
+        );
+    }
 }

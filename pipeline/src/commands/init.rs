@@ -3,11 +3,12 @@
 //! config with its fingerprint. Re-running with another config is refused, naming the keys.
 
 use crate::manifest_io;
+use crate::units::with_default;
 use anyhow::{bail, Context, Result};
 use rayon::prelude::*;
 use sparc3d_schema::{FrozenItem, JobConfig, JobFile, JobLayout, ManifestRecord};
 use std::collections::HashMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 /// Arguments of `sparc3d init`.
@@ -18,19 +19,39 @@ pub struct Args {
     /// Manifest (.csv, .jsonl or .parquet with a path column).
     #[arg(long)]
     pub manifest: PathBuf,
+    #[command(flatten)]
+    pub config: ConfigArgs,
+}
+
+/// The flags that make a job's config (shared by `init` and `run --job`).
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct ConfigArgs {
     /// Grid resolution N (overrides the config file).
-    #[arg(long)]
+    #[arg(long, help = with_default(
+        "Grid resolution N (overrides the config file)",
+        JobConfig::default().params.resolution,
+    ))]
     pub resolution: Option<u32>,
     /// Items per shard (overrides the config file).
-    #[arg(long)]
+    #[arg(long, help = with_default(
+        "Items per shard (overrides the config file)",
+        JobConfig::default().shard_size,
+    ))]
     pub shard_size: Option<u32>,
     /// Config file (TOML) with any of the job config's keys.
     #[arg(long)]
     pub config: Option<PathBuf>,
 }
 
+impl ConfigArgs {
+    /// Whether any flag was given.
+    pub fn any(&self) -> bool {
+        self.resolution.is_some() || self.shard_size.is_some() || self.config.is_some()
+    }
+}
+
 /// The job config from defaults, the config file and the flags.
-pub fn build_config(args: &Args) -> Result<JobConfig> {
+pub fn build_config(args: &ConfigArgs) -> Result<JobConfig> {
     let mut overrides = serde_json::json!({});
     if let Some(path) = &args.config {
         let text = std::fs::read_to_string(path)
@@ -103,12 +124,34 @@ fn freeze(records: Vec<manifest_io::RawRecord>, shard_size: u32) -> Result<Vec<F
 
 /// Runs `sparc3d init`.
 pub fn run(args: Args) -> Result<ExitCode> {
-    let config = build_config(&args)?;
-    let layout = JobLayout::new(&args.job);
+    let config = build_config(&args.config)?;
     let records = manifest_io::read(&args.manifest)?;
     if records.is_empty() {
         bail!("{}: the manifest is empty", args.manifest.display());
     }
+    create(&args.job, records, config)?;
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Refuses a config that differs from the one `existing` was created with, naming the keys.
+pub fn check_same_config(existing: &sparc3d_workers::Job, config: &JobConfig) -> Result<()> {
+    let keys = existing.file.config.diff_keys(config)?;
+    if !keys.is_empty() {
+        bail!(
+            "{} is already initialised with a different config; differing keys: {} \
+             (use a new job folder, or the same config)",
+            existing.layout.root.display(),
+            keys.join(", ")
+        );
+    }
+    Ok(())
+}
+
+/// Creates the job folder `job` from manifest records and a config: frozen manifest, shard of
+/// every item, job file. An existing job with the same config and manifest is left as it is;
+/// one with another config or manifest is refused.
+pub fn create(job: &Path, records: Vec<manifest_io::RawRecord>, config: JobConfig) -> Result<()> {
+    let layout = JobLayout::new(job);
     let items = freeze(records, config.shard_size)?;
     let mut text = String::new();
     for it in &items {
@@ -121,15 +164,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     };
     if layout.job_file().exists() {
         let existing = sparc3d_workers::Job::open(&layout.root)?;
-        let keys = existing.file.config.diff_keys(&config)?;
-        if !keys.is_empty() {
-            bail!(
-                "{} is already initialised with a different config; differing keys: {} \
-                 (use a new job folder, or the same config)",
-                layout.root.display(),
-                keys.join(", ")
-            );
-        }
+        check_same_config(&existing, &config)?;
         if existing.file.manifest_sha256 != manifest_sha256 {
             bail!(
                 "{} is already initialised with a different manifest ({} items, now {}); \
@@ -143,7 +178,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
             "{} is already initialised with this config and manifest; nothing to do",
             layout.root.display()
         );
-        return Ok(ExitCode::SUCCESS);
+        return Ok(());
     }
     sparc3d_workers::fsutil::create_dir(&layout.shards_dir())?;
     sparc3d_workers::fsutil::create_dir(&layout.state_dir())?;
@@ -175,5 +210,5 @@ pub fn run(args: Args) -> Result<ExitCode> {
         shards,
         &file.fingerprint[..12]
     );
-    Ok(ExitCode::SUCCESS)
+    Ok(())
 }

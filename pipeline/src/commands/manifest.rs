@@ -69,11 +69,24 @@ pub(crate) fn scan(dir: &Path, out: &mut Vec<PathBuf>) -> Result<u64> {
     Ok(skipped)
 }
 
-/// Runs `sparc3d manifest`.
-pub fn run(args: Args) -> Result<ExitCode> {
-    let Sub::Build(args) = args.command;
-    let root = std::fs::canonicalize(&args.dir)
-        .with_context(|| format!("opening folder {}", args.dir.display()))?;
+/// The meshes found below a folder: one record per distinct file (id = sha256), and what was
+/// left out.
+pub(crate) struct Collected {
+    /// Records in name order.
+    pub records: Vec<ManifestRecord>,
+    /// Files identical to an earlier one (left out).
+    pub duplicates: usize,
+    /// Files that could not be read.
+    pub unreadable: usize,
+    /// Entries skipped by [`scan`].
+    pub skipped: u64,
+}
+
+/// Scans `dir` for meshes, hashes them in parallel and drops identical duplicates, printing
+/// each file left out on stderr.
+pub(crate) fn collect(dir: &Path) -> Result<Collected> {
+    let root =
+        std::fs::canonicalize(dir).with_context(|| format!("opening folder {}", dir.display()))?;
     let mut files = Vec::new();
     let skipped = scan(&root, &mut files)?;
     let hashed: Vec<(PathBuf, Result<String>)> = files
@@ -114,12 +127,27 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 .map(|e| e.to_string_lossy().to_ascii_lowercase()),
         });
     }
-    manifest_io::write(&records, &args.output)?;
+    Ok(Collected {
+        records,
+        duplicates,
+        unreadable,
+        skipped,
+    })
+}
+
+/// Runs `sparc3d manifest`.
+pub fn run(args: Args) -> Result<ExitCode> {
+    let Sub::Build(args) = args.command;
+    let c = collect(&args.dir)?;
+    manifest_io::write(&c.records, &args.output)?;
     eprintln!(
-        "{} meshes written to {} ({duplicates} identical duplicates left out, {unreadable} \
-         unreadable, {skipped} skipped: not regular files or names that are not UTF-8)",
-        records.len(),
-        args.output.display()
+        "{} meshes written to {} ({} identical duplicates left out, {} unreadable, {} \
+         skipped: not regular files or names that are not UTF-8)",
+        c.records.len(),
+        args.output.display(),
+        c.duplicates,
+        c.unreadable,
+        c.skipped
     );
     Ok(ExitCode::SUCCESS)
 }

@@ -11,6 +11,7 @@ pub mod fill_holes;
 pub mod init;
 pub mod inspect;
 pub mod item_worker;
+pub mod ls;
 pub mod manifest;
 pub mod preview;
 pub mod report;
@@ -46,7 +47,8 @@ enum Command {
     Manifest(manifest::Args),
     /// Create a job folder: freeze the manifest, assign shards, fix the config.
     Init(init::Args),
-    /// Run a job locally with N worker processes, with progress; resumable.
+    /// Run a job locally with N worker processes, with progress; resumable. With --job OUT,
+    /// make the job from a folder of meshes or a manifest first.
     Run(run::Args),
     /// Process shards of a job (one process; for clusters: --shard-index or --array).
     Work(work::Args),
@@ -54,7 +56,9 @@ enum Command {
     Status(status::Args),
     /// Submit a job's unfinished shards to a cluster scheduler (Slurm array jobs).
     Submit(submit::Args),
-    /// List a job's failed items.
+    /// List a job's items with their ids, status and source file (`--failed`: only failures).
+    Ls(ls::Args),
+    /// List a job's failed items with the reasons.
     Failures(failures::Args),
     /// Queue a job's failed items (optionally of one class) to be converted again.
     Retry(retry::Args),
@@ -65,6 +69,7 @@ enum Command {
     /// Hash every finished shard against its completion record; move damaged ones aside.
     Verify(verify::Args),
     /// Check a reproducible sample of a job's outputs with pymeshlab; writes a report.
+    #[command(after_help = validate::PYTHON_HELP)]
     Validate(validate::Args),
     /// Render a mesh (or a job's item) and its converted output side by side to a PNG.
     Preview(preview::Args),
@@ -92,6 +97,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Work(args) => work::run(args),
         Command::Status(args) => status::run(args),
         Command::Submit(args) => submit::run(args),
+        Command::Ls(args) => ls::run(args),
         Command::Failures(args) => failures::run(args),
         Command::Retry(args) => retry::run(args),
         Command::Inspect(args) => inspect::run(args),

@@ -1,12 +1,12 @@
 //! `sparc3d preview (MESH | JOB --id X) -o x.png`: a shaded ray-cast picture of a source mesh
-//! (top row) and its converted output (bottom row), from a few views, so a broken conversion
-//! is seen at a glance. Back faces are red: red in the top row is an open or inverted source,
+//! (top row, labelled SOURCE) and its converted output (bottom row, OUTPUT), from a few
+//! views, so a broken conversion is seen at a glance. Back faces are red: red in the top row is an open or inverted source,
 //! red in the bottom row a broken output.
 //!
 //! With a mesh, it is converted here (like `sparc3d convert`); with a job and an item id, the
 //! item's row is decoded (as `sparc3d show` does) and the source is loaded from the row's uri.
 
-use crate::shard_io::shard_rows;
+use crate::item_lookup;
 use anyhow::{bail, Context, Result};
 use sparc3d_render::{compare, CompareOptions, Image};
 use sparc3d_schema::ShardRow;
@@ -20,7 +20,8 @@ use std::process::ExitCode;
 pub struct Args {
     /// A mesh (OBJ, PLY, STL, OFF, glTF, GLB), or a job folder with `--id`.
     pub input: PathBuf,
-    /// Item id, when INPUT is a job folder.
+    /// Item, when INPUT is a job folder: its id, a unique prefix of it, or its source file's
+    /// path or name (`sparc3d ls JOB` lists the items).
     #[arg(long)]
     pub id: Option<String>,
     /// Output picture (PNG).
@@ -50,10 +51,10 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let (image, what) = match &args.id {
         Some(id) => {
             let job = Job::open(&args.input)?;
-            let row = find_row(&job, id)?;
+            let row = item_lookup::row(&job, item_lookup::find(&job, id)?)?;
             (
                 preview_row(&row, &options)?,
-                format!("item {id} ({})", row.uri),
+                format!("item {} ({})", row.id, row.uri),
             )
         }
         None => {
@@ -78,17 +79,6 @@ pub fn run(args: Args) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// The row of item `id`, decoded from its shard (finished or in progress).
-pub fn find_row(job: &Job, id: &str) -> Result<ShardRow> {
-    let Some(item) = job.items.iter().find(|i| i.record.id == id) else {
-        bail!("no item with id {id:?} in {}", job.layout.root.display());
-    };
-    shard_rows(job, item.shard, sparc3d_workers::state::Check::Full)?
-        .into_iter()
-        .find(|r| r.id == id)
-        .with_context(|| format!("item {id:?} (shard {}) is not converted yet", item.shard))
-}
-
 /// Converts the mesh at `path` at `resolution` and renders source above output.
 pub fn preview_mesh(path: &Path, resolution: u32, options: &CompareOptions) -> Result<Image> {
     let source = load(path)?;
@@ -96,7 +86,7 @@ pub fn preview_mesh(path: &Path, resolution: u32, options: &CompareOptions) -> R
     let conversion = sparcubes::convert(&source, &params)
         .with_context(|| format!("converting {}", path.display()))?;
     let output = sparcubes::extract::extract_to_source(&conversion.cubes);
-    Ok(compare(&[&source, &output], options))
+    Ok(source_above_output(&source, &output, options))
 }
 
 /// Decodes a row's cubes, extracts them in the source frame, loads the source from the row's
@@ -112,7 +102,21 @@ pub fn preview_row(row: &ShardRow, options: &CompareOptions) -> Result<Image> {
     let output = sparcubes::extract::extract_to_source(&cubes);
     let source = load(Path::new(&row.uri))
         .with_context(|| format!("loading the source of item {:?}", row.id))?;
-    Ok(compare(&[&source, &output], options))
+    Ok(source_above_output(&source, &output, options))
+}
+
+/// Renders `source` above `output`, each row labelled in its top-left corner (when the
+/// tiles are large enough to hold the label).
+fn source_above_output(source: &TriMesh, output: &TriMesh, options: &CompareOptions) -> Image {
+    let mut image = compare(&[source, output], options);
+    if options.tile >= 64 {
+        let scale = (options.tile / 128).clamp(1, 3);
+        // Rows are `tile` high with a 2-pixel line between them (`compare`).
+        for (row, text) in [(0, "SOURCE"), (1, "OUTPUT")] {
+            sparc3d_render::label::draw(&mut image, 4, row * (options.tile + 2) + 4, text, scale);
+        }
+    }
+    image
 }
 
 /// Loads a mesh, naming the file in the error.

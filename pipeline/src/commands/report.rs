@@ -7,7 +7,8 @@
 //! Every `<img>` carries `onload`/`onerror` attributes marking it `data-loaded` or
 //! `data-broken`, so a headless browser's dump of the page shows whether each picture decoded.
 
-use crate::commands::preview::{find_row, preview_row};
+use crate::commands::preview::preview_row;
+use crate::item_lookup;
 use crate::shard_io::shard_rows;
 use crate::summary::{summarize, JobSummary};
 use crate::units::format_seconds;
@@ -155,7 +156,7 @@ struct Preview {
 }
 
 fn preview(job: &Job, id: &str, options: &CompareOptions) -> Preview {
-    let row = find_row(job, id);
+    let row = item_lookup::find(job, id).and_then(|item| item_lookup::row(job, item));
     let uri = row.as_ref().map(|r| r.uri.clone()).unwrap_or_default();
     let png = row
         .and_then(|r| preview_row(&r, options))

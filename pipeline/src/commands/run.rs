@@ -1,6 +1,8 @@
 //! `sparc3d run JOB [--workers N] [--item-timeout 10m] [--item-memory 8G]`: the local
 //! orchestrator. Runs up to N `sparc3d work --events` processes, one shard each, shows
 //! progress, and stops cleanly on Ctrl-C or SIGTERM; a later `run` resumes.
+//! `sparc3d run DIR_OR_MANIFEST --job OUT` first makes the job OUT (as `manifest build` and
+//! `init` would) when it does not exist yet, and resumes it when it does.
 //!
 //! Its workers die with it (they stop as on SIGTERM when `run` is killed, releasing their
 //! leases). A shard leased by another live worker (another `run`, a cluster task, or the
@@ -19,7 +21,7 @@ use sparc3d_workers::Job;
 use std::collections::{BTreeMap, HashMap, VecDeque};
 use std::io::{BufRead, BufReader, Read};
 use std::os::unix::process::ExitStatusExt;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitCode, Stdio};
 use std::sync::mpsc;
 use std::sync::{Arc, Mutex};
@@ -28,8 +30,15 @@ use std::time::{Duration, Instant};
 /// Arguments of `sparc3d run`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Job folder.
-    pub job: PathBuf,
+    /// A job folder; or, with --job, a folder of meshes or a manifest to make the job from.
+    #[arg(value_name = "JOB|DIR|MANIFEST")]
+    pub input: PathBuf,
+    /// The job folder to run: made from INPUT (a folder of meshes, scanned as `manifest build`
+    /// does, or a manifest) with the config flags when it is not a job yet, resumed when it is.
+    #[arg(long, value_name = "OUT")]
+    pub job: Option<PathBuf>,
+    #[command(flatten)]
+    pub config: super::init::ConfigArgs,
     /// Worker processes (default: number of cores).
     #[arg(long)]
     pub workers: Option<usize>,
@@ -89,6 +98,7 @@ impl Drop for Running {
 }
 
 fn spawn_work(
+    job: &Path,
     args: &Args,
     shard: u64,
     slot: usize,
@@ -98,7 +108,7 @@ fn spawn_work(
     let exe = std::env::current_exe().context("locating the sparc3d binary")?;
     let mut cmd = Command::new(exe);
     cmd.arg("work")
-        .arg(&args.job)
+        .arg(job)
         .arg("--shard-index")
         .arg(shard.to_string())
         .arg("--events")
@@ -185,7 +195,8 @@ fn plan(states: &[ShardState], progress: &Progress) -> (VecDeque<u64>, BTreeMap<
 
 /// Runs `sparc3d run`.
 pub fn run(args: Args) -> Result<ExitCode> {
-    let job = Job::open(&args.job)?;
+    let job_dir = crate::job_setup::job_for_run(&args.input, args.job.as_deref(), &args.config)?;
+    let job = Job::open(&job_dir)?;
     let stop = install_signals()?;
     let cores = std::thread::available_parallelism()
         .map(|n| n.get())
@@ -205,7 +216,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let (mut queue, mut waiting) = plan(&states, &progress);
     progress.println(&format!(
         "{}: {} items, {} shards left, {workers} workers",
-        args.job.display(),
+        job_dir.display(),
         before.pending,
         queue.len() + waiting.len()
     ));
@@ -227,7 +238,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
                     let Some(shard) = queue.pop_front() else {
                         break;
                     };
-                    *s = Some(spawn_work(&args, shard, slot, threads, &tx)?);
+                    *s = Some(spawn_work(&job_dir, &args, shard, slot, threads, &tx)?);
                     progress.slot_shard(slot, Some(shard));
                 }
             }
@@ -383,8 +394,15 @@ pub fn run(args: Args) -> Result<ExitCode> {
         after.item_seconds - before.item_seconds,
         elapsed,
     );
+    // The last line points to the failures, whatever the outcome.
+    let failures_hint = || {
+        if let Some(hint) = crate::hints::failures(&job_dir, after.failed) {
+            eprintln!("{hint}");
+        }
+    };
     if stop.requested() {
-        eprintln!("stopped; `sparc3d run {}` resumes", args.job.display());
+        eprintln!("stopped; `sparc3d run {}` resumes", job_dir.display());
+        failures_hint();
         return Ok(stop.exit_code());
     }
     if after.shards_done < after.shards || after.pending > 0 {
@@ -412,10 +430,13 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 format!("{} shard(s) failed (above); ", errors.len())
             },
         );
+        failures_hint();
         return Ok(ExitCode::FAILURE);
     }
+    eprintln!("{}", crate::hints::next_steps(&job_dir, after.shards));
+    failures_hint();
     if let Some(sample) = args.validate_sample {
-        return super::validate::after_run(&args.job, sample);
+        return super::validate::after_run(&job_dir, sample);
     }
     Ok(ExitCode::SUCCESS)
 }

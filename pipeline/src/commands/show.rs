@@ -1,8 +1,8 @@
 //! `sparc3d show JOB --id X -o mesh.ply`: decodes one item's row and writes its extracted
 //! mesh, exactly as `sparc3d convert` would with the job's parameters.
 
-use crate::shard_io::shard_rows;
-use anyhow::{bail, Context, Result};
+use crate::item_lookup;
+use anyhow::{Context, Result};
 use sparc3d_workers::Job;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -12,7 +12,8 @@ use std::process::ExitCode;
 pub struct Args {
     /// Job folder.
     pub job: PathBuf,
-    /// Item id.
+    /// Item: its id, a unique prefix of it, or its source file's path or name (`sparc3d ls
+    /// JOB` lists the items with their ids).
     #[arg(long)]
     pub id: String,
     /// Output mesh (.ply, .obj, .stl, .glb).
@@ -29,22 +30,13 @@ pub struct Args {
 /// Runs `sparc3d show`.
 pub fn run(args: Args) -> Result<ExitCode> {
     let job = Job::open(&args.job)?;
-    let Some(item) = job.items.iter().find(|i| i.record.id == args.id) else {
-        bail!("no item with id {:?} in {}", args.id, args.job.display());
-    };
+    let item = item_lookup::find(&job, &args.id)?;
     // The shard is hashed against its completion record before its row is trusted.
-    let rows = shard_rows(&job, item.shard, sparc3d_workers::state::Check::Full)?;
-    let Some(row) = rows.into_iter().find(|r| r.id == args.id) else {
-        bail!(
-            "item {:?} (shard {}) is not converted yet",
-            args.id,
-            item.shard
-        );
-    };
+    let row = item_lookup::row(&job, item)?;
     let cubes = row.cubes().with_context(|| {
         format!(
             "item {:?}: {}",
-            args.id,
+            row.id,
             row.error_message.clone().unwrap_or_default()
         )
     })?;
@@ -69,8 +61,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
     sparcubes::io::save(&mesh, &args.output)
         .with_context(|| format!("writing {}", args.output.display()))?;
     eprintln!(
-        "{}: {} faces written to {}",
-        args.id,
+        "{} ({}): {} faces written to {}",
+        row.id,
+        row.uri,
         mesh.triangles.len(),
         args.output.display()
     );

@@ -1,7 +1,7 @@
 //! `sparc3d status JOB [--json]`: shards done/running/pending, items ok/failed/pending,
 //! throughput, ETA, the slowest items in flight and the top error classes.
 
-use crate::summary::summarize;
+use crate::summary::{summarize, RATE_MIN_ITEMS, RATE_MIN_SECONDS};
 use crate::units::format_seconds;
 use anyhow::Result;
 use sparc3d_workers::Job;
@@ -47,6 +47,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
             println!("rate:   {r:.0} items/hour, ETA {}", format_seconds(eta))
         }
         (Some(r), _) => println!("rate:   {r:.0} items/hour"),
+        (None, _) if s.pending > 0 && s.ok + s.failed > 0 => println!(
+            "rate:   not known yet (after {RATE_MIN_ITEMS} items and {RATE_MIN_SECONDS} s)"
+        ),
         _ => {}
     }
     if !s.in_flight.is_empty() {
@@ -67,6 +70,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
         for (c, n) in classes.iter().take(8) {
             println!("  {n:>6}  {c}");
         }
+    }
+    if let Some(hint) = crate::hints::failures(&args.job, s.failed) {
+        println!("{hint}");
     }
     for d in &s.damaged {
         println!(

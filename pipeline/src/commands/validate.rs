@@ -25,6 +25,20 @@ const VALIDATE_PY: &str = include_str!("../../../ops/validate/validate.py");
 /// The one command that installs what the validator needs.
 pub const INSTALL_HINT: &str = "python3 -m pip install -r ops/validate/requirements.txt";
 
+/// The smallest default sample (all `ok` items when there are fewer): 1% of a small job is
+/// one item, which says little.
+pub const DEFAULT_MIN_SAMPLE: usize = 20;
+
+/// How the interpreter is found, for `validate --help` (kept in step with
+/// [`python_candidates`]).
+pub const PYTHON_HELP: &str = "The checks run in Python with pymeshlab and numpy. The first \
+interpreter that imports both is used, tried in this order:
+  1. $SPARC3D_PYTHON (when set, the only one tried)
+  2. $VIRTUAL_ENV/bin/python (the activated virtual environment)
+  3. .venv/bin/python next to the job folder, inside it, and in the current folder
+  4. python3 on PATH
+Install what it needs with: python3 -m pip install -r ops/validate/requirements.txt";
+
 /// Exit code when no Python with pymeshlab was found (checks failing give 1).
 const EXIT_NO_PYMESHLAB: u8 = 2;
 
@@ -34,7 +48,8 @@ pub struct Args {
     /// Job folder.
     pub job: PathBuf,
     /// How many `ok` items to check: a percentage (`2%`) or a count (`50`). Default: the job's
-    /// `validation_sample_rate`.
+    /// `validation_sample_rate` (1% unless its config sets another), but at least 20 items
+    /// (all of them when there are fewer).
     #[arg(long)]
     pub sample: Option<SampleSize>,
     /// Seed of the sample: the same seed gives the same items whatever the worker count.
@@ -137,14 +152,19 @@ pub fn after_run(job: &Path, sample: SampleSize) -> Result<ExitCode> {
     })
 }
 
-/// Interpreters to try, in order: `$SPARC3D_PYTHON`; `.venv/bin/python` next to the job, in
-/// the job folder and in the current folder; `python3`.
+/// Interpreters to try, in order ([`PYTHON_HELP`]): `$SPARC3D_PYTHON` alone when set; else
+/// `$VIRTUAL_ENV/bin/python`; `.venv/bin/python` next to the job, in the job folder and in
+/// the current folder; `python3`.
 fn python_candidates(job: &Path) -> Vec<PathBuf> {
-    if let Some(p) = std::env::var_os("SPARC3D_PYTHON") {
+    if let Some(p) = std::env::var_os("SPARC3D_PYTHON").filter(|p| !p.is_empty()) {
         return vec![PathBuf::from(p)];
     }
-    let venv = |dir: &Path| dir.join(".venv").join("bin").join("python");
+    let python = |venv: &Path| venv.join("bin").join("python");
+    let venv = |dir: &Path| python(&dir.join(".venv"));
     let mut c = Vec::new();
+    if let Some(active) = std::env::var_os("VIRTUAL_ENV").filter(|p| !p.is_empty()) {
+        c.push(python(Path::new(&active)));
+    }
     let abs = std::path::absolute(job).unwrap_or_else(|_| job.to_path_buf());
     if let Some(parent) = abs.parent() {
         c.push(venv(parent));
@@ -178,8 +198,9 @@ pub fn find_python(job: &Path) -> Result<PathBuf> {
     let tried: Vec<String> = candidates.iter().map(|c| c.display().to_string()).collect();
     Err(NoPymeshlab(format!(
         "validation needs pymeshlab, which none of these Pythons can import: {}. Install it \
-         with `{INSTALL_HINT}` (from the sparc3d checkout, in a venv next to the job or in the \
-         current folder), or set SPARC3D_PYTHON to an interpreter that has it",
+         with `{INSTALL_HINT}` (from the sparc3d checkout, in the active virtual environment, \
+         a .venv next to the job or in the current folder), or set SPARC3D_PYTHON to an \
+         interpreter that has it (`sparc3d validate --help` gives the order)",
         tried.join(", ")
     ))
     .into())
@@ -244,9 +265,10 @@ fn prepare(row: &ShardRow, work: &Path) -> Prepared {
 pub fn validate_job(job_dir: &Path, options: &Options) -> Result<Outcome> {
     let job = Job::open(job_dir)?;
     let python = find_python(job_dir)?;
-    let size = options
-        .sample
-        .unwrap_or(SampleSize::Fraction(job.file.config.validation_sample_rate));
+    let size = options.sample.unwrap_or(SampleSize::FractionAtLeast(
+        job.file.config.validation_sample_rate,
+        DEFAULT_MIN_SAMPLE,
+    ));
     let drawn = sample::draw(&job, size, options.seed)?;
     let dir = job.layout.root.join("validation");
     let work = dir.join("work");

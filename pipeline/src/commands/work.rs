@@ -3,7 +3,7 @@
 //! is skipped after checking its completion record. For Slurm arrays and Kubernetes indexed
 //! jobs, `--array` reads `SLURM_ARRAY_TASK_ID` or `JOB_COMPLETION_INDEX`.
 
-use crate::units::{parse_duration, parse_size};
+use crate::units::{format_seconds, format_size, parse_duration, parse_size, with_default};
 use anyhow::{bail, Context, Result};
 use sparc3d_schema::Limits;
 use sparc3d_workers::events::Event;
@@ -18,14 +18,27 @@ use std::sync::Arc;
 /// Per-item limits given on the command line (override the job's for this run).
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct LimitArgs {
-    /// Time limit per item (e.g. 90, 30s, 10m).
-    #[arg(long, value_parser = parse_duration)]
+    /// Time limit per item (e.g. 90, 30s, 10m); default: the job's `limits.item_timeout_s`.
+    #[arg(long, value_parser = parse_duration, help = with_default(
+        "Time limit per item (e.g. 90, 30s, 10m)",
+        format!("the job's limits.item_timeout_s, {} unless its config sets another",
+            format_seconds(Limits::default().item_timeout_s)),
+    ))]
     pub item_timeout: Option<f64>,
-    /// Memory (address-space) limit per item (e.g. 8G; 0 for none).
-    #[arg(long, value_parser = parse_size)]
+    /// Memory (address-space) limit per item (e.g. 8G; 0 for none); default: the job's
+    /// `limits.item_memory_bytes`.
+    #[arg(long, value_parser = parse_size, help = with_default(
+        "Memory (address-space) limit per item (e.g. 8G; 0 for none)",
+        format!("the job's limits.item_memory_bytes, {} unless its config sets another",
+            format_size(Limits::default().item_memory_bytes)),
+    ))]
     pub item_memory: Option<u64>,
-    /// Retries of an item whose process crashed.
-    #[arg(long)]
+    /// Retries of an item whose process crashed; default: the job's `limits.max_crash_retries`.
+    #[arg(long, help = with_default(
+        "Retries of an item whose process crashed",
+        format!("the job's limits.max_crash_retries, {} unless its config sets another",
+            Limits::default().max_crash_retries),
+    ))]
     pub max_crash_retries: Option<u32>,
     /// Seconds a shard lease lives without a heartbeat.
     #[arg(long, default_value_t = 60.0, hide = true)]

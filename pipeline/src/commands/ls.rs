@@ -1,0 +1,124 @@
+//! `sparc3d ls JOB [--failed] [--json]`: every item of a job in manifest order with its id,
+//! status (`ok`, `failed:CLASS`, `skipped`, `pending`, or `damaged` when its finished shard no longer
+//! matches its record) and source file: where the ids that `show`/`preview --id` take come
+//! from.
+
+use crate::hints;
+use crate::shard_io::shard_rows;
+use anyhow::Result;
+use serde::Serialize;
+use sparc3d_schema::ItemStatus;
+use sparc3d_workers::state::Check;
+use sparc3d_workers::Job;
+use std::collections::HashMap;
+use std::io::Write;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// Arguments of `sparc3d ls`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Job folder.
+    pub job: PathBuf,
+    /// Only the failed items.
+    #[arg(long)]
+    pub failed: bool,
+    /// Print JSON lines (index, shard, id, status, error_class, uri).
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// One listed item.
+#[derive(Serialize)]
+struct Listed<'a> {
+    index: u64,
+    shard: u64,
+    id: &'a str,
+    status: &'static str,
+    error_class: Option<&'static str>,
+    uri: &'a str,
+}
+
+/// Statuses (and error classes) of a shard's finished items by manifest position; `None`
+/// when the shard cannot be read (damaged), said on stderr.
+fn shard_statuses(
+    job: &Job,
+    shard: u64,
+) -> Option<HashMap<u64, (ItemStatus, Option<&'static str>)>> {
+    match shard_rows(job, shard, Check::Quick) {
+        Ok(rows) => Some(
+            rows.into_iter()
+                .map(|r| (r.item_index, (r.status, r.error_class.map(|c| c.as_str()))))
+                .collect(),
+        ),
+        Err(e) => {
+            eprintln!("shard {shard}: {e:#}");
+            None
+        }
+    }
+}
+
+/// Runs `sparc3d ls`.
+pub fn run(args: Args) -> Result<ExitCode> {
+    let job = Job::open(&args.job)?;
+    let mut out = std::io::stdout().lock();
+    let mut statuses = None;
+    let mut loaded = None;
+    let mut counts: HashMap<&'static str, u64> = HashMap::new();
+    for item in &job.items {
+        if loaded != Some(item.shard) {
+            statuses = shard_statuses(&job, item.shard);
+            loaded = Some(item.shard);
+        }
+        let (status, class) = match &statuses {
+            None => ("damaged", None),
+            Some(s) => match s.get(&item.index) {
+                Some((ItemStatus::Ok, _)) => ("ok", None),
+                Some((ItemStatus::Skipped, _)) => ("skipped", None),
+                Some((ItemStatus::Failed, class)) => ("failed", Some(class.unwrap_or("unknown"))),
+                None => ("pending", None),
+            },
+        };
+        *counts.entry(status).or_default() += 1;
+        if args.failed && status != "failed" {
+            continue;
+        }
+        let listed = Listed {
+            index: item.index,
+            shard: item.shard,
+            id: &item.record.id,
+            status,
+            error_class: class,
+            uri: &item.record.uri,
+        };
+        let line = if args.json {
+            serde_json::to_string(&listed)?
+        } else {
+            let status = match class {
+                Some(c) => format!("{status}:{c}"),
+                None => status.to_string(),
+            };
+            format!("{}\t{status}\t{}", listed.id, listed.uri)
+        };
+        if writeln!(out, "{line}").is_err() {
+            return Ok(ExitCode::SUCCESS); // the reader went away (e.g. `| head`)
+        }
+    }
+    let n = |k: &str| counts.get(k).copied().unwrap_or(0);
+    eprintln!(
+        "{} items: {} ok, {} failed, {} pending{}",
+        job.items.len(),
+        n("ok"),
+        n("failed"),
+        n("pending"),
+        if n("damaged") > 0 {
+            format!(", {} in damaged shards", n("damaged"))
+        } else {
+            String::new()
+        }
+    );
+    if let Some(hint) = hints::failures(&args.job, n("failed")) {
+        eprintln!("{hint}");
+    }
+    Ok(ExitCode::SUCCESS)
+}
