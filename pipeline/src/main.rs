@@ -5,7 +5,6 @@ mod commands;
 mod hints;
 mod item_lookup;
 mod job_setup;
-mod label;
 mod manifest_io;
 mod npz;
 mod progress;

@@ -1,4 +1,5 @@
-//! The conversion driver: the stages of DESIGN.md §3, top to bottom, each a free function.
+//! The conversion driver: the stages of docs/ALGORITHM.md (§1–6), top to bottom, each a free
+//! function.
 
 use crate::band::{compute_band, triangle_planes, Band, CORE_REACH, REACH};
 use crate::cubes::SparseCubes;
@@ -150,7 +151,8 @@ fn sign_changes(cells: &BrickSet, core: Values, ring: Option<Values>) -> Vec<(u3
         .collect()
 }
 
-/// Converts a sanitised mesh into sparse cubes (DESIGN.md §3, steps 1–5).
+/// Converts a sanitised mesh into sparse cubes (docs/ALGORITHM.md §1–6; extraction, §7, is
+/// [`crate::extract()`]).
 pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
     params.validate()?;
     let n = params.resolution;

@@ -1,5 +1,6 @@
 //! `sparc3d eval SOURCE OUTPUT`: quality of an extracted mesh against its source
-//! (Chamfer distance, normal consistency, F1, components kept, offset; DESIGN.md §6).
+//! (Chamfer distance, normal consistency, F1, components kept, offset; docs/QUALITY.md,
+//! "How we measure").
 //!
 //! `sparc3d eval JOB --sample N`: the same for a reproducible sample of a job's `ok` items
 //! (the sampler of `sparc3d validate`): each row is decoded, its mesh extracted in the source
@@ -9,9 +10,9 @@ use crate::commands::validate::median;
 use crate::sample::{self, SampleSize};
 use anyhow::{bail, Context};
 use serde_json::{json, Value};
+use sparc3d_metrics::{evaluate, EvalOptions, QualityReport};
 use sparc3d_schema::ShardRow;
 use sparc3d_workers::Job;
-use sparcubes::metrics::{evaluate, EvalOptions, QualityReport};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -240,7 +241,7 @@ fn medians(reports: &[QualityReport]) -> Value {
         "offset_voxels": m(&|r| r.offset_voxels),
         "output_to_source_voxels": m(&|r| Some(r.output_to_source_voxels)),
     });
-    for (i, t) in sparcubes::metrics::F1_THRESHOLDS.iter().enumerate() {
+    for (i, t) in sparc3d_metrics::F1_THRESHOLDS.iter().enumerate() {
         v[format!("f1_{t}")] = json!(m(&|r| r.f1.get(i).map(|f| f.f1)));
     }
     v

@@ -8,9 +8,9 @@
 
 use crate::item_lookup;
 use anyhow::{bail, Context, Result};
+use sparc3d_render::{compare, CompareOptions, Image};
 use sparc3d_schema::ShardRow;
 use sparc3d_workers::Job;
-use sparcubes::render::{compare, CompareOptions, Image};
 use sparcubes::TriMesh;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -113,7 +113,7 @@ fn source_above_output(source: &TriMesh, output: &TriMesh, options: &CompareOpti
         let scale = (options.tile / 128).clamp(1, 3);
         // Rows are `tile` high with a 2-pixel line between them (`compare`).
         for (row, text) in [(0, "SOURCE"), (1, "OUTPUT")] {
-            crate::label::draw(&mut image, 4, row * (options.tile + 2) + 4, text, scale);
+            sparc3d_render::label::draw(&mut image, 4, row * (options.tile + 2) + 4, text, scale);
         }
     }
     image
