@@ -10,6 +10,7 @@ mod local_workers;
 mod manifest_io;
 mod pool;
 mod progress;
+mod resolution_arg;
 mod sample;
 mod shard_io;
 mod summary;

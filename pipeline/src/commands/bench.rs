@@ -23,7 +23,8 @@ pub struct Args {
     /// .parquet with a `uri` or `path` column) or a single mesh.
     pub input: PathBuf,
     /// Grid resolutions, comma-separated.
-    #[arg(long, value_delimiter = ',', default_value = "512")]
+    #[arg(long, value_delimiter = ',',
+          default_values_t = [crate::resolution_arg::default_resolution()])]
     pub resolution: Vec<u32>,
     /// Print every row and the summary as one JSON document instead of tables.
     #[arg(long)]

@@ -15,9 +15,6 @@ use sparcubes::metrics::{evaluate, EvalOptions, QualityReport};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-/// Resolution that voxel units refer to when none is given and there is no job to take it from.
-const DEFAULT_RESOLUTION: u32 = 512;
-
 /// Items evaluated from a job when `--sample` is not given.
 const DEFAULT_JOB_SAMPLE: SampleSize = SampleSize::Count(10);
 
@@ -30,9 +27,9 @@ pub struct Args {
     /// The mesh to measure against it, in the same frame (e.g. the output of `convert`).
     pub output: Option<PathBuf>,
     /// Grid resolution N that voxel units refer to (a voxel is 1/N of the source's longest
-    /// side). Default: 512, or each item's resolution for a job.
-    #[arg(long)]
-    pub resolution: Option<u32>,
+    /// side); for a job, each item's unless given.
+    #[command(flatten)]
+    pub resolution: crate::resolution_arg::ResolutionArg,
     /// For a job: how many `ok` items to measure, a count (`20`) or a percentage (`2%`);
     /// default 10.
     #[arg(long)]
@@ -80,7 +77,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let options = EvalOptions {
         samples: args.samples,
         seed: args.seed,
-        resolution: args.resolution.unwrap_or(DEFAULT_RESOLUTION),
+        resolution: args.resolution.get(),
     };
     let report = evaluate(&source, &output, &options).with_context(|| {
         format!(
@@ -107,7 +104,7 @@ fn eval_row(row: &ShardRow, args: &Args) -> anyhow::Result<QualityReport> {
     let options = EvalOptions {
         samples: args.samples,
         seed: args.seed,
-        resolution: args.resolution.unwrap_or(row.resolution),
+        resolution: args.resolution.or(row.resolution),
     };
     evaluate(&source, &output, &options)
         .with_context(|| format!("item {:?}: evaluating against {}", row.id, row.uri))
