@@ -15,6 +15,7 @@ mod sample;
 mod shard_io;
 mod summary;
 mod units;
+mod validation;
 
 use clap::Parser;
 

@@ -133,7 +133,9 @@ pub struct Pool<L: Launcher> {
     unfinished: HashMap<u64, u32>,
     errors: Vec<String>,
     last_look: Instant,
-    events: (Sender<(usize, Event)>, Receiver<(usize, Event)>),
+    /// Workers' events, tagged with their slot: the sender given to each, and the receiver.
+    events_tx: Sender<(usize, Event)>,
+    events: Receiver<(usize, Event)>,
 }
 
 impl<L: Launcher> Pool<L> {
@@ -145,6 +147,7 @@ impl<L: Launcher> Pool<L> {
         queue: VecDeque<u64>,
         waiting: BTreeMap<u64, String>,
     ) -> Self {
+        let (events_tx, events) = mpsc::channel();
         Self {
             launcher,
             queue,
@@ -155,7 +158,8 @@ impl<L: Launcher> Pool<L> {
             unfinished: HashMap::new(),
             errors: Vec::new(),
             last_look: Instant::now(),
-            events: mpsc::channel(),
+            events_tx,
+            events,
         }
     }
 
@@ -200,7 +204,7 @@ impl<L: Launcher> Pool<L> {
             observer.tick();
         }
         // The last events.
-        while let Ok((slot, e)) = self.events.1.try_recv() {
+        while let Ok((slot, e)) = self.events.try_recv() {
             if let Event::ItemFinished { status, .. } = e {
                 observer.item_finished(slot, &status);
             }
@@ -215,7 +219,7 @@ impl<L: Launcher> Pool<L> {
                 let Some(shard) = self.queue.pop_front() else {
                     break;
                 };
-                let worker = self.launcher.spawn(shard, slot, &self.events.0)?;
+                let worker = self.launcher.spawn(shard, slot, &self.events_tx)?;
                 *s = Some(Running { worker, shard });
                 observer.slot_shard(slot, Some(shard));
             }
@@ -249,7 +253,7 @@ impl<L: Launcher> Pool<L> {
     /// Shows the workers' events (waiting briefly for the first); a worker writing its shard
     /// leaves its slot for the next shard.
     fn take_events(&mut self, observer: &mut dyn Observer) {
-        let mut next = self.events.1.recv_timeout(Duration::from_millis(20)).ok();
+        let mut next = self.events.recv_timeout(Duration::from_millis(20)).ok();
         while let Some((slot, e)) = next {
             match e {
                 Event::ItemStarted { uri, .. } => observer.item_started(slot, &uri),
@@ -273,7 +277,7 @@ impl<L: Launcher> Pool<L> {
                 }
                 _ => {}
             }
-            next = self.events.1.try_recv().ok();
+            next = self.events.try_recv().ok();
         }
     }
 
