@@ -1,6 +1,7 @@
 //! Reading finished shards and journals back: rows, key-value metadata, column sizes.
 
 use anyhow::{Context, Result};
+use arrow_array::RecordBatch;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use parquet::file::reader::{FileReader, SerializedFileReader};
 use sparc3d_schema::{JobLayout, ShardRow};
@@ -9,8 +10,9 @@ use sparc3d_workers::Job;
 use std::collections::BTreeMap;
 use std::path::Path;
 
-/// Calls `f` on every row of a shard file, batch by batch.
-pub fn for_each_row(path: &Path, mut f: impl FnMut(ShardRow) -> Result<()>) -> Result<()> {
+/// Calls `f` on every record batch of a shard file or a tensor file (docs/FORMAT.md), after
+/// checking its schema version.
+pub fn for_each_batch(path: &Path, mut f: impl FnMut(RecordBatch) -> Result<()>) -> Result<()> {
     let file = std::fs::File::open(path).with_context(|| format!("opening {}", path.display()))?;
     let builder = ParquetRecordBatchReaderBuilder::try_new(file)
         .with_context(|| format!("reading {}", path.display()))?;
@@ -37,14 +39,21 @@ pub fn for_each_row(path: &Path, mut f: impl FnMut(ShardRow) -> Result<()>) -> R
         .build()
         .with_context(|| format!("reading {}", path.display()))?;
     for batch in reader {
-        let batch = batch.with_context(|| format!("reading {}", path.display()))?;
+        f(batch.with_context(|| format!("reading {}", path.display()))?)?;
+    }
+    Ok(())
+}
+
+/// Calls `f` on every row of a shard file, batch by batch.
+pub fn for_each_row(path: &Path, mut f: impl FnMut(ShardRow) -> Result<()>) -> Result<()> {
+    for_each_batch(path, |batch| {
         for row in sparc3d_schema::arrow::batch_to_rows(&batch)
             .with_context(|| format!("decoding {}", path.display()))?
         {
             f(row)?;
         }
-    }
-    Ok(())
+        Ok(())
+    })
 }
 
 /// Every row of a shard file.
