@@ -5,13 +5,17 @@ mod commands;
 mod hints;
 mod item_lookup;
 mod job_setup;
+mod local_workers;
 mod manifest_io;
 mod npz;
+mod pool;
 mod progress;
+mod resolution_arg;
 mod sample;
 mod shard_io;
 mod summary;
 mod units;
+mod validation;
 
 use clap::Parser;
 

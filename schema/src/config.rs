@@ -163,6 +163,14 @@ impl JobConfig {
     /// Builds a config from defaults overlaid with a partial JSON object (e.g. a parsed
     /// `job.toml`). Unknown keys are refused with their dotted name.
     pub fn from_overrides(overrides: &Value) -> Result<Self> {
+        let config = Self::overlaid(overrides)?;
+        config.validate()?;
+        Ok(config)
+    }
+
+    /// Defaults overlaid with a partial JSON object, not validated yet: typed overrides (the
+    /// command line's) may still be set before [`JobConfig::validate`].
+    pub fn overlaid(overrides: &Value) -> Result<Self> {
         let mut base = to_value(&Self::default())?;
         // The samples section is left out of a default config's JSON; offer its keys.
         if let Value::Object(m) = &mut base {
@@ -175,18 +183,20 @@ impl JobConfig {
             m.insert("samples".into(), samples);
         }
         merge(&mut base, overrides, "")?;
-        let config: JobConfig =
-            serde_json::from_value(base).map_err(|source| SchemaError::Json {
-                context: "job config".into(),
-                source,
-            })?;
-        config.params.validate().map_err(|e| SchemaError::Invalid {
+        serde_json::from_value(base).map_err(|source| SchemaError::Json {
+            context: "job config".into(),
+            source,
+        })
+    }
+
+    /// Refuses parameters the converter would refuse and a shard size of 0.
+    pub fn validate(&self) -> Result<()> {
+        self.params.validate().map_err(|e| SchemaError::Invalid {
             what: "job config",
             value: e.to_string(),
         })?;
-        if config.samples.enabled {
-            config
-                .samples
+        if self.samples.enabled {
+            self.samples
                 .params
                 .validate()
                 .map_err(|e| SchemaError::Invalid {
@@ -194,13 +204,13 @@ impl JobConfig {
                     value: e.to_string(),
                 })?;
         }
-        if config.shard_size == 0 {
+        if self.shard_size == 0 {
             return Err(SchemaError::Invalid {
                 what: "job config",
                 value: "shard_size must be at least 1".into(),
             });
         }
-        Ok(config)
+        Ok(())
     }
 
     /// Dotted keys whose values differ between two configs (e.g. `params.resolution`).

@@ -3,8 +3,9 @@
 //!
 //! Roles, one module each: [`job`] (read a job folder), [`lease`] (who works on a shard),
 //! [`journal`] (finished items, appended and fsynced), [`convert`] (the one function that
-//! touches geometry), [`child`] (the isolated process that runs it), [`supervisor`] (runs
-//! items in a child, with a watchdog, and classifies its deaths), [`writer`] (tmp → fsync →
+//! touches geometry), [`child`] (the isolated process that runs it), [`process`] (the one
+//! child-process supervisor: stderr tail, parent-death signal, time limit, resource use),
+//! [`supervisor`] (runs items in a child, with a watchdog, and classifies its deaths), [`writer`] (tmp → fsync →
 //! rename → completion record), [`shard`] (the loop over a shard's items), [`state`] (is a
 //! shard done, running or pending), [`events`] (progress reports).
 #![deny(missing_docs)]
@@ -19,6 +20,7 @@ pub mod job;
 pub mod journal;
 pub mod lease;
 pub mod parent;
+pub mod process;
 pub mod shard;
 pub mod state;
 pub mod supervisor;

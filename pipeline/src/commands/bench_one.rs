@@ -17,9 +17,8 @@ use std::time::Instant;
 pub struct Args {
     /// Input mesh (OBJ, PLY, STL, OFF, glTF, GLB).
     pub input: PathBuf,
-    /// Grid resolution N (cells per axis).
-    #[arg(long, default_value_t = 512)]
-    pub resolution: u32,
+    #[command(flatten)]
+    pub resolution: crate::resolution_arg::ResolutionArg,
     #[command(flatten)]
     pub deform: super::deform_args::DeformArgs,
     /// zstd level of the encoded tensors (the job default is 3).
@@ -112,7 +111,7 @@ pub struct BenchRow {
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let mut row = BenchRow {
         path: args.input.display().to_string(),
-        resolution: args.resolution,
+        resolution: args.resolution.get(),
         ..Default::default()
     };
     if let Err(e) = measure(&args, &mut row) {
@@ -134,10 +133,10 @@ fn measure(args: &Args, row: &mut BenchRow) -> anyhow::Result<()> {
     row.input_faces = loaded.mesh.triangles.len() as u64;
     row.input_vertices = loaded.mesh.positions.len() as u64;
 
-    let mut params = sparcubes::Params::with_resolution(args.resolution);
+    let mut params = sparcubes::Params::with_resolution(args.resolution.get());
     params.deform = args.deform.enabled();
     let conversion = sparcubes::convert(&loaded.mesh, &params)
-        .with_context(|| format!("convert {name} at {}", args.resolution))?;
+        .with_context(|| format!("convert {name} at {}", args.resolution.get()))?;
     drop(loaded);
     let s = &conversion.stats;
     row.stages

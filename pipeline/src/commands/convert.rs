@@ -16,9 +16,8 @@ pub struct Args {
     /// Output mesh (.ply, .obj, .stl, .glb), in the source's coordinate frame.
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Grid resolution N (cells per axis, up to 4096).
-    #[arg(long, default_value_t = 512)]
-    pub resolution: u32,
+    #[command(flatten)]
+    pub resolution: crate::resolution_arg::ResolutionArg,
     #[command(flatten)]
     pub deform: super::deform_args::DeformArgs,
     /// Write the output in grid coordinates (voxels) instead of the source frame.
@@ -53,7 +52,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let loaded = sparcubes::io::load(&args.input)
         .with_context(|| format!("loading {}", args.input.display()))?;
     let load_seconds = start.elapsed().as_secs_f64();
-    let mut params = sparcubes::Params::with_resolution(args.resolution);
+    let mut params = sparcubes::Params::with_resolution(args.resolution.get());
     params.deform = args.deform.enabled();
     let conversion = sparcubes::convert(&loaded.mesh, &params)
         .with_context(|| format!("converting {}", args.input.display()))?;
@@ -82,7 +81,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let summary = json!({
         "input": args.input.display().to_string(),
         "output": args.output.display().to_string(),
-        "resolution": args.resolution,
+        "resolution": args.resolution.get(),
         "deform": params.deform,
         "input_faces": s.input_faces,
         "input_vertices": s.input_vertices,
@@ -111,7 +110,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             "{} → {} at {}³{}",
             args.input.display(),
             args.output.display(),
-            args.resolution,
+            args.resolution.get(),
             if params.deform {
                 ""
             } else {

@@ -6,8 +6,8 @@
 //! (the sampler of `sparc3d validate`): each row is decoded, its mesh extracted in the source
 //! frame and measured against the source file of its `uri`; per-item rows, then medians.
 
-use crate::commands::validate::median;
 use crate::sample::{self, SampleSize};
+use crate::validation::median;
 use anyhow::{bail, Context};
 use serde_json::{json, Value};
 use sparc3d_metrics::{evaluate, EvalOptions, QualityReport};
@@ -15,9 +15,6 @@ use sparc3d_schema::ShardRow;
 use sparc3d_workers::Job;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-
-/// Resolution that voxel units refer to when none is given and there is no job to take it from.
-const DEFAULT_RESOLUTION: u32 = 512;
 
 /// Items evaluated from a job when `--sample` is not given.
 const DEFAULT_JOB_SAMPLE: SampleSize = SampleSize::Count(10);
@@ -31,9 +28,9 @@ pub struct Args {
     /// The mesh to measure against it, in the same frame (e.g. the output of `convert`).
     pub output: Option<PathBuf>,
     /// Grid resolution N that voxel units refer to (a voxel is 1/N of the source's longest
-    /// side). Default: 512, or each item's resolution for a job.
-    #[arg(long)]
-    pub resolution: Option<u32>,
+    /// side); for a job, each item's unless given.
+    #[command(flatten)]
+    pub resolution: crate::resolution_arg::ResolutionArg,
     /// For a job: how many `ok` items to measure, a count (`20`) or a percentage (`2%`);
     /// default 10.
     #[arg(long)]
@@ -81,7 +78,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let options = EvalOptions {
         samples: args.samples,
         seed: args.seed,
-        resolution: args.resolution.unwrap_or(DEFAULT_RESOLUTION),
+        resolution: args.resolution.get(),
     };
     let report = evaluate(&source, &output, &options).with_context(|| {
         format!(
@@ -108,7 +105,7 @@ fn eval_row(row: &ShardRow, args: &Args) -> anyhow::Result<QualityReport> {
     let options = EvalOptions {
         samples: args.samples,
         seed: args.seed,
-        resolution: args.resolution.unwrap_or(row.resolution),
+        resolution: args.resolution.or(row.resolution),
     };
     evaluate(&source, &output, &options)
         .with_context(|| format!("item {:?}: evaluating against {}", row.id, row.uri))

@@ -76,7 +76,7 @@ enum Command {
     /// Hash every finished shard against its completion record; move damaged ones aside.
     Verify(verify::Args),
     /// Check a reproducible sample of a job's outputs with pymeshlab; writes a report.
-    #[command(after_help = validate::PYTHON_HELP)]
+    #[command(after_help = crate::validation::PYTHON_HELP)]
     Validate(validate::Args),
     /// Render a mesh (or a job's item) and its converted output side by side to a PNG.
     Preview(preview::Args),

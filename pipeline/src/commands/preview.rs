@@ -36,9 +36,8 @@ pub struct Args {
     /// Camera elevation in degrees.
     #[arg(long, default_value_t = 30.0, allow_negative_numbers = true)]
     pub elevation: f32,
-    /// Grid resolution N for a mesh (a job uses its own).
-    #[arg(long, default_value_t = 256)]
-    pub resolution: u32,
+    #[command(flatten)]
+    pub resolution: crate::resolution_arg::ResolutionArg,
 }
 
 /// Runs `sparc3d preview`.
@@ -65,7 +64,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 );
             }
             (
-                preview_mesh(&args.input, args.resolution, &options)?,
+                preview_mesh(&args.input, args.resolution.get(), &options)?,
                 args.input.display().to_string(),
             )
         }
