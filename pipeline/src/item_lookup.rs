@@ -67,6 +67,17 @@ pub fn row(job: &Job, item: &FrozenItem) -> Result<ShardRow> {
         })
 }
 
+/// The sparse cubes of a converted row; a failed row's error names the item and its failure.
+pub fn cubes(row: &ShardRow) -> Result<sparcubes::SparseCubes> {
+    row.cubes().with_context(|| {
+        format!(
+            "item {:?}: {}",
+            row.id,
+            row.error_message.clone().unwrap_or_default()
+        )
+    })
+}
+
 /// Whether `query` names the source `uri`: the same text, the same file once resolved, or
 /// the uri's last path components.
 fn is_source(uri: &str, query: &str, canonical: Option<&str>) -> bool {

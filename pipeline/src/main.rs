@@ -2,14 +2,19 @@
 
 mod cluster;
 mod commands;
+mod folder_scan;
 mod hints;
 mod item_lookup;
 mod job_setup;
 mod label;
 mod manifest_io;
+mod memory;
+mod pictures;
 mod progress;
 mod sample;
 mod shard_io;
+mod signals;
+mod stats;
 mod summary;
 mod units;
 

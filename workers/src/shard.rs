@@ -135,22 +135,14 @@ fn run_leased(
                 .get(&item.index)
                 .cloned()
                 .unwrap_or_default();
-            let id = &item.record.id;
-            let uri = &item.record.uri;
             if attempts.interrupted() >= opts.limits.max_interrupted_attempts {
-                let mut row = ShardRow::failed(
-                    item.index,
-                    id,
-                    uri,
-                    resolution,
-                    ErrorClass::Crashed,
-                    format!(
-                        "the worker was killed {} times while converting this item",
-                        attempts.interrupted()
-                    ),
+                let message = format!(
+                    "the worker was killed {} times while converting this item",
+                    attempts.interrupted()
                 );
+                let class = ErrorClass::Crashed;
+                let mut row = ShardRow::failed_item(item, resolution, class, message);
                 row.attempts = attempts.started;
-                row.source_sha256 = item.record.sha256.clone();
                 finish(&mut journal, opts, shard, row)?;
                 break;
             }
@@ -162,8 +154,8 @@ fn run_leased(
             (opts.events)(Event::ItemStarted {
                 shard,
                 index: item.index,
-                id: id.clone(),
-                uri: uri.clone(),
+                id: item.record.id.clone(),
+                uri: item.record.uri.clone(),
             });
             let t = std::time::Instant::now();
             let outcome = runner.run(item, &opts.stop)?;
@@ -203,8 +195,7 @@ fn run_leased(
                         });
                         continue;
                     }
-                    let mut row = ShardRow::failed(item.index, id, uri, resolution, class, message);
-                    row.source_sha256 = item.record.sha256.clone();
+                    let mut row = ShardRow::failed_item(item, resolution, class, message);
                     row.stderr_tail = (!stderr_tail.is_empty()).then_some(stderr_tail);
                     row.attempts = attempts.started + 1;
                     row.timings.total_s = seconds;

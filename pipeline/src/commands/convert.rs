@@ -4,6 +4,7 @@
 
 use anyhow::Context;
 use serde_json::json;
+use sparc3d_workers::convert::{convert_file, StageError, Steps};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
@@ -29,14 +30,6 @@ pub struct Args {
     pub json: bool,
 }
 
-/// Peak resident set size of this process in bytes (Linux `VmHWM`), if known.
-pub fn peak_rss_bytes() -> Option<u64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
-}
-
 /// Why an output can have more components than its input, when it has: read without it, the
 /// summary looks like a part broke apart (docs/VALIDATION.md, the `components` check).
 pub fn components_note(input: u64, output: u64) -> Option<&'static str> {
@@ -50,17 +43,26 @@ pub fn components_note(input: u64, output: u64) -> Option<&'static str> {
 /// Runs `sparc3d convert`.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let start = Instant::now();
-    let loaded = sparcubes::io::load(&args.input)
-        .with_context(|| format!("loading {}", args.input.display()))?;
-    let load_seconds = start.elapsed().as_secs_f64();
     let mut params = sparcubes::Params::with_resolution(args.resolution);
     params.deform = args.deform.enabled();
-    let conversion = sparcubes::convert(&loaded.mesh, &params)
-        .with_context(|| format!("converting {}", args.input.display()))?;
-    let t = Instant::now();
-    let cubes = &conversion.cubes;
-    let mut mesh = sparcubes::extract(cubes);
-    let extract_seconds = t.elapsed().as_secs_f64();
+    let steps = Steps {
+        params: &params,
+        input_components: true,
+        extract: true,
+        keep_mesh: true,
+        encode: None,
+    };
+    let done = convert_file(&args.input, steps).map_err(|failed| {
+        let context = match failed.error {
+            StageError::Load(_) => "loading",
+            _ => "converting",
+        };
+        anyhow::Error::new(failed.error).context(format!("{context} {}", args.input.display()))
+    })?;
+    let cubes = &done.conversion.cubes;
+    let (Some(mut mesh), Some(input_components)) = (done.mesh, done.input_components) else {
+        anyhow::bail!("the conversion path returned no mesh or component count");
+    };
     let topo = sparcubes::topology::check(&mesh);
     if !args.grid_frame {
         sparcubes::extract::to_source(&mut mesh, &cubes.normalization, cubes.resolution);
@@ -69,16 +71,12 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     sparcubes::io::save(&mesh, &args.output)
         .with_context(|| format!("writing {}", args.output.display()))?;
     let save_seconds = t.elapsed().as_secs_f64();
-    let input_components =
-        sparcubes::topology::check(&sparcubes::topology::weld(&loaded.mesh)).components;
 
-    let s = &conversion.stats;
-    let mut stages: Vec<(&str, f64)> = vec![("load", load_seconds)];
-    stages.extend(s.stage_seconds.iter().cloned());
-    stages.push(("extract", extract_seconds));
-    stages.push(("save", save_seconds));
+    let s = &done.conversion.stats;
+    let mut stages = done.seconds.in_order;
+    stages.push(("save".into(), save_seconds));
     let total = start.elapsed().as_secs_f64();
-    let peak = peak_rss_bytes();
+    let peak = crate::memory::peak_rss_bytes();
     let summary = json!({
         "input": args.input.display().to_string(),
         "output": args.output.display().to_string(),
@@ -88,8 +86,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         "input_vertices": s.input_vertices,
         "input_components": input_components,
         "degenerate_faces": s.degenerate_faces,
-        "dropped_faces_bad_index": loaded.stats.faces_bad_index,
-        "dropped_faces_non_finite": loaded.stats.faces_non_finite,
+        "dropped_faces_bad_index": done.load_stats.faces_bad_index,
+        "dropped_faces_non_finite": done.load_stats.faces_non_finite,
         "wall_cells": s.wall_cells,
         "active_vertices": s.active_vertices,
         "active_cells": s.active_cells,
@@ -128,7 +126,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         if let Some(note) = components_note(input_components, topo.components) {
             println!("  note         {note}");
         }
-        let st = &loaded.stats;
+        let st = &done.load_stats;
         if st.faces_bad_index + st.faces_non_finite > 0 {
             println!(
                 "  dropped      {} faces with a bad vertex index{}, {} with a non-finite coordinate",

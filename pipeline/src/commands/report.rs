@@ -7,8 +7,8 @@
 //! Every `<img>` carries `onload`/`onerror` attributes marking it `data-loaded` or
 //! `data-broken`, so a headless browser's dump of the page shows whether each picture decoded.
 
-use crate::commands::preview::preview_row;
 use crate::item_lookup;
+use crate::pictures::preview_row;
 use crate::shard_io::shard_rows;
 use crate::summary::{summarize, JobSummary};
 use crate::units::format_seconds;

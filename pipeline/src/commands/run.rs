@@ -10,8 +10,9 @@
 //! or expires; one shard's failure does not stop the others; and `run` exits 0 only when every
 //! shard is done, otherwise it names what is left and exits non-zero.
 
-use super::work::{install_signals, LimitArgs};
+use super::work::LimitArgs;
 use crate::progress::Progress;
+use crate::signals::install_signals;
 use crate::summary::{shard_states, summarize, summarize_states};
 use crate::units::{format_seconds, parse_duration};
 use anyhow::{Context, Result};
