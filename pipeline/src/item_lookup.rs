@@ -3,10 +3,10 @@
 //! A miss suggests the closest ids and file names; an ambiguous prefix or name lists its
 //! matches. Every command that takes `--id` (`show`, `preview`) goes through [`find`].
 
-use crate::shard_io::shard_rows;
 use anyhow::{bail, Context, Result};
 use sparc3d_schema::{FrozenItem, ShardRow};
-use sparc3d_workers::state::Check;
+use sparc3d_workers::store::read::shard_rows;
+use sparc3d_workers::store::state::Check;
 use sparc3d_workers::Job;
 
 /// How many matches or suggestions an error lists.

@@ -12,7 +12,6 @@ mod memory;
 mod pictures;
 mod progress;
 mod sample;
-mod shard_io;
 mod signals;
 mod stats;
 mod summary;

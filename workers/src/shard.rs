@@ -8,7 +8,7 @@ use crate::frame::Record;
 use crate::job::Job;
 use crate::journal::Journal;
 use crate::lease::{self, Acquired};
-use crate::state::{self, Check, Completion};
+use crate::store::state::{self, Check, Completion};
 use crate::supervisor::{ChildCommand, ItemOutcome, ItemRunner};
 use sparc3d_schema::{CompletionRecord, ErrorClass, ItemStatus, Limits, ShardRow};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -209,7 +209,7 @@ fn run_leased(
     (opts.events)(Event::ShardWriting { shard });
     // Every result on disk (and any failed background flush reported) before the shard.
     journal.sync()?;
-    let record = crate::writer::write_shard(job, shard, &journal, owner, started_at)?;
+    let record = crate::store::write::write_shard(job, shard, &journal, owner, started_at)?;
     let journal_path = journal.path().to_path_buf();
     drop(journal);
     let _ = std::fs::remove_file(&journal_path);

@@ -17,7 +17,7 @@ use crate::summary::{shard_states, summarize, summarize_states};
 use crate::units::{format_seconds, parse_duration};
 use anyhow::{Context, Result};
 use sparc3d_workers::events::Event;
-use sparc3d_workers::state::{shard_state, Check, ShardState};
+use sparc3d_workers::store::state::{shard_state, Check, ShardState};
 use sparc3d_workers::Job;
 use std::collections::{BTreeMap, HashMap, VecDeque};
 use std::io::{BufRead, BufReader, Read};
