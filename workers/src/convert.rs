@@ -250,3 +250,72 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
         tensors: done.tensors,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn example(name: &str) -> std::path::PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../examples")
+            .join(name)
+    }
+
+    #[test]
+    fn the_path_runs_the_steps_asked_for_in_order() -> Result<(), Box<dyn std::error::Error>> {
+        let params = Params::with_resolution(32);
+        let mut steps = Steps {
+            params: &params,
+            input_components: true,
+            extract: true,
+            keep_mesh: false,
+            encode: Some(Encoding {
+                zstd_level: 3,
+                store_mesh: true,
+            }),
+        };
+        let done = convert_file(&example("cube.off"), steps).map_err(|f| f.error)?;
+        let names: Vec<&str> = done
+            .seconds
+            .in_order
+            .iter()
+            .map(|(k, _)| k.as_str())
+            .collect();
+        assert_eq!(names.first(), Some(&"load"));
+        assert_eq!(names[names.len() - 2..], ["extract", "encode"]);
+        assert_eq!(names.len() - 3, done.conversion.stats.stage_seconds.len());
+        assert_eq!((done.input_faces, done.input_components), (12, Some(1)));
+        assert!(done.mesh.is_none(), "not kept");
+        let tensors = done.tensors.ok_or("no tensors")?;
+        assert!(tensors.mesh_faces.is_some(), "stored although not kept");
+        assert!(done.output_faces.is_some_and(|n| n > 0));
+
+        steps.encode = None;
+        steps.keep_mesh = true;
+        let kept = convert_file(&example("cube.off"), steps).map_err(|f| f.error)?;
+        assert_eq!(
+            kept.mesh.map(|m| m.triangles.len() as u64),
+            done.output_faces
+        );
+        assert_eq!(kept.conversion.cubes.coords, done.conversion.cubes.coords);
+        Ok(())
+    }
+
+    #[test]
+    fn a_failure_names_its_stage_and_class() {
+        let params = Params::with_resolution(32);
+        let steps = Steps {
+            params: &params,
+            input_components: false,
+            extract: false,
+            keep_mesh: false,
+            encode: None,
+        };
+        let Err(failed) = convert_file(&example("missing.obj"), steps) else {
+            panic!("a missing file converted")
+        };
+        assert!(matches!(failed.error, StageError::Load(_)));
+        assert_eq!(failed.error.class(), ErrorClass::IoError);
+        assert!(failed.seconds.in_order.is_empty());
+    }
+}
