@@ -3,8 +3,9 @@
 //! peak memory).
 
 use anyhow::Context;
-use serde_json::json;
+use serde_json::{json, Value};
 use sparc3d_workers::convert::{convert_file, StageError, Steps};
+use sparcubes::io::LoadStats;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
@@ -105,58 +106,60 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     if args.json {
         println!("{summary}");
     } else {
-        println!(
-            "{} → {} at {}³{}",
-            args.input.display(),
-            args.output.display(),
-            args.resolution,
-            if params.deform {
-                ""
-            } else {
-                " (no deformation)"
-            }
-        );
-        println!(
-            "  faces        {} in ({} components) → {} out ({} components)",
-            s.input_faces,
-            input_components,
-            mesh.triangles.len(),
-            topo.components
-        );
-        if let Some(note) = components_note(input_components, topo.components) {
-            println!("  note         {note}");
-        }
-        let st = &done.load_stats;
-        if st.faces_bad_index + st.faces_non_finite > 0 {
-            println!(
-                "  dropped      {} faces with a bad vertex index{}, {} with a non-finite coordinate",
-                st.faces_bad_index,
-                st.first_bad_face
-                    .as_deref()
-                    .map(|p| format!(" (first: {p})"))
-                    .unwrap_or_default(),
-                st.faces_non_finite
-            );
-        }
-        println!(
-            "  active       {} vertices, {} cells ({} in thin shells)",
-            s.active_vertices, s.active_cells, s.shell_vertices
-        );
-        println!(
-            "  watertight   {}, manifold {}",
-            topo.is_watertight(),
-            topo.is_manifold()
-        );
-        let parts: Vec<String> = stages
-            .iter()
-            .map(|(k, v)| format!("{k} {:.3}s", v))
-            .collect();
-        println!("  time         {:.3}s: {}", total, parts.join(", "));
-        if let Some(p) = peak {
-            println!("  peak memory  {:.1} MB", p as f64 / 1e6);
-        }
+        print_text(&summary, &done.load_stats, &stages);
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Prints `convert`'s JSON summary for a reader, with the first dropped face from `load`.
+fn print_text(v: &Value, load: &LoadStats, stages: &[(String, f64)]) {
+    let text = |key: &str| v[key].as_str().unwrap_or_default().to_string();
+    let deform = if v["deform"] == true {
+        ""
+    } else {
+        " (no deformation)"
+    };
+    println!(
+        "{} → {} at {}³{deform}",
+        text("input"),
+        text("output"),
+        v["resolution"]
+    );
+    println!(
+        "  faces        {} in ({} components) → {} out ({} components)",
+        v["input_faces"], v["input_components"], v["output_faces"], v["output_components"]
+    );
+    if let Some(note) = v["components_note"].as_str() {
+        println!("  note         {note}");
+    }
+    if load.faces_bad_index + load.faces_non_finite > 0 {
+        println!(
+            "  dropped      {} faces with a bad vertex index{}, {} with a non-finite coordinate",
+            load.faces_bad_index,
+            load.first_bad_face
+                .as_deref()
+                .map(|p| format!(" (first: {p})"))
+                .unwrap_or_default(),
+            load.faces_non_finite
+        );
+    }
+    println!(
+        "  active       {} vertices, {} cells ({} in thin shells)",
+        v["active_vertices"], v["active_cells"], v["shell_vertices"]
+    );
+    println!(
+        "  watertight   {}, manifold {}",
+        v["watertight"], v["manifold"]
+    );
+    let parts: Vec<String> = stages
+        .iter()
+        .map(|(k, v)| format!("{k} {:.3}s", v))
+        .collect();
+    let total = v["total_seconds"].as_f64().unwrap_or_default();
+    println!("  time         {:.3}s: {}", total, parts.join(", "));
+    if let Some(p) = v["peak_rss_bytes"].as_u64() {
+        println!("  peak memory  {:.1} MB", p as f64 / 1e6);
+    }
 }
 
 #[cfg(test)]
