@@ -11,6 +11,11 @@
     batch = collate_sparse([item_a, item_b])
     batch["coords"]           # int32 [K_a + K_b, 4]: batch index, x, y, z
     batch["feats"]            # float32 [K_a + K_b, 4]: sdf, dx, dy, dz
+    batch["corners"]          # int64 [C_a + C_b, 8]: rows of each cell's 8 corners
+
+Tensor files (the same encoding, other columns) are written with `write_tensor_file` and read
+with `iter_tensor_rows`; `sparc3d extract` reads such a file, and `sparc3d-vae` writes its
+latents with it.
 
 Only numpy and pyarrow are needed; `SparseCubesDataset` is a `torch.utils.data.Dataset` when
 torch is installed (imported only when the class is first used) and a plain indexable class
@@ -35,6 +40,13 @@ __all__ = [
     "row_to_item",
     "iter_items",
     "collate_sparse",
+    "corner_index",
+    "CORNER_OFFSETS",
+    "encode_tensor",
+    "write_tensor_file",
+    "iter_tensor_rows",
+    "shard_config",
+    "check_schema_version",
     "SparseCubesDataset",
 ]
 
@@ -114,13 +126,30 @@ def row_to_item(row: Dict[str, Any]) -> Dict[str, Any]:
     return item
 
 
-def _rows(path: pathlib.Path, batch_size: int) -> Iterator[Dict[str, Any]]:
-    f = pq.ParquetFile(path)
+def check_schema_version(path: PathLike) -> None:
+    """Raises a ValueError naming the file when a shard (or tensor file) is of another schema
+    version than this reader decodes."""
+    _check_version(pathlib.Path(path), pq.ParquetFile(path))
+
+
+def _check_version(path: pathlib.Path, f: pq.ParquetFile) -> None:
     meta = f.metadata.metadata or {}
     version = meta.get(b"sparc3d.schema_version", b"missing").decode()
     if version != str(SCHEMA_VERSION):
         raise ValueError(f"{path}: shard schema version {version}, this reader decodes "
                          f"version {SCHEMA_VERSION} (docs/FORMAT.md)")
+
+
+def shard_config(path: PathLike) -> Dict[str, Any]:
+    """The job config a shard was written with (its `sparc3d.config` metadata); {} if absent."""
+    meta = pq.ParquetFile(path).metadata.metadata or {}
+    raw = meta.get(b"sparc3d.config")
+    return json.loads(raw) if raw else {}
+
+
+def _rows(path: pathlib.Path, batch_size: int) -> Iterator[Dict[str, Any]]:
+    f = pq.ParquetFile(path)
+    _check_version(path, f)
     for batch in f.iter_batches(batch_size=batch_size, columns=_READ_COLUMNS):
         yield from batch.to_pylist()
 
@@ -135,6 +164,106 @@ def iter_items(paths: Union[PathLike, Iterable[PathLike]], complete_only: bool =
                 yield row_to_item(row)
 
 
+#: The 8 corners of a cell as offsets from its minimum corner; corner `o` is
+#: `(o >> 2 & 1, o >> 1 & 1, o & 1)`, the order of `corner_index` and of `collate_sparse`'s
+#: `corners`.
+CORNER_OFFSETS = np.array([[(o >> 2) & 1, (o >> 1) & 1, o & 1] for o in range(8)], dtype=np.int64)
+
+
+def _vertex_keys(xyz: np.ndarray) -> np.ndarray:
+    """One int64 per grid point (x, y, z in 0..=4096), ordered as (x, y, z) lexicographically."""
+    xyz = xyz.astype(np.int64)
+    return (xyz[..., 0] << 26) | (xyz[..., 1] << 13) | xyz[..., 2]
+
+
+def corner_index(coords: np.ndarray, cells: np.ndarray, item_id: Optional[str] = None) -> np.ndarray:
+    """Rows of `coords` ([K, 3], sorted as the shards store them) holding the 8 corners of each
+    cell of `cells` ([C, 3] minimum corners): int64 [C, 8] in `CORNER_OFFSETS` order. A ValueError
+    names the item when a corner is missing (the shard contract says there is none)."""
+    keys = _vertex_keys(np.asarray(coords))
+    if len(keys) > 1 and not np.all(keys[1:] > keys[:-1]):
+        raise ValueError(f"item {item_id!r}: coords are not sorted and unique (docs/FORMAT.md)")
+    want = _vertex_keys(np.asarray(cells)[:, None, :] + CORNER_OFFSETS[None, :, :])
+    idx = np.searchsorted(keys, want)
+    found = idx < len(keys)
+    found[found] = keys[idx[found]] == want[found]
+    if not found.all():
+        c = int(np.argwhere(~found.all(axis=1))[0, 0])
+        raise ValueError(f"item {item_id!r}: cell {np.asarray(cells)[c].tolist()} has a corner "
+                         "that is not among the active vertices (docs/FORMAT.md)")
+    return idx.astype(np.int64)
+
+
+def encode_tensor(array: np.ndarray, level: int = 3) -> Tuple[bytes, str, List[int]]:
+    """Encodes an array as the shards store tensors (docs/FORMAT.md, "Tensor encoding"): one
+    zstd frame, with its content checksum, of its little-endian bytes in byte planes, its numpy
+    dtype string and its shape. `decode_tensor` reads it back.
+
+    Needs the `zstandard` package (`pip install sparc3d-reader[write]`): pyarrow's codec
+    cannot set the checksum that schema 3 requires and `sparc3d` checks. Reading needs only
+    pyarrow."""
+    try:
+        import zstandard
+    except ImportError as e:
+        raise ImportError("writing tensor files needs the zstandard package "
+                          "(pip install 'sparc3d-reader[write]')") from e
+    a = np.ascontiguousarray(array)
+    a = a.astype(a.dtype.newbyteorder("<"), copy=False)
+    shape = [int(d) for d in a.shape]
+    n, k = (shape[0] if shape else 1), int(np.prod(shape[1:]))
+    planes = a.reshape(n, k).view(np.uint8).reshape(n, k, a.dtype.itemsize).transpose(1, 2, 0)
+    raw = np.ascontiguousarray(planes).tobytes()
+    blob = zstandard.ZstdCompressor(level=level, write_checksum=True,
+                                    write_content_size=True).compress(raw)
+    return blob, a.dtype.str, shape
+
+
+def write_tensor_file(path: PathLike, rows: Sequence[Dict[str, Any]], tensors: Sequence[str],
+                      metadata: Optional[Dict[str, str]] = None,
+                      schema: Optional[Dict[str, pa.DataType]] = None) -> None:
+    """Writes rows to one Parquet file in the shards' layout: each name in `tensors` becomes
+    the three columns `<name>`, `<name>_dtype`, `<name>_shape` (a numpy array per row, or
+    None), every other key of the rows a plain column (types from `schema`, else inferred).
+    The file carries `sparc3d.schema_version`, so the reader and `sparc3d extract` accept it.
+    Written to a temporary name and renamed, so a reader never sees half a file."""
+    schema = schema or {}
+    plain = [k for k in (rows[0].keys() if rows else []) if k not in tensors]
+    columns: Dict[str, pa.Array] = {}
+    for k in plain:
+        columns[k] = pa.array([r[k] for r in rows], type=schema.get(k))
+    for name in tensors:
+        enc = [None if r.get(name) is None else encode_tensor(r[name]) for r in rows]
+        columns[name] = pa.array([e and e[0] for e in enc], type=pa.binary())
+        columns[name + "_dtype"] = pa.array([e and e[1] for e in enc], type=pa.string())
+        columns[name + "_shape"] = pa.array([e and e[2] for e in enc], type=pa.list_(pa.int64()))
+    table = pa.table(columns)
+    meta = {"sparc3d.schema_version": str(SCHEMA_VERSION), **(metadata or {})}
+    table = table.replace_schema_metadata({k.encode(): v.encode() for k, v in meta.items()})
+    path = pathlib.Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    pq.write_table(table, tmp, compression="zstd", use_dictionary=False,
+                   write_statistics=False, row_group_size=64)
+    os.replace(tmp, path)
+
+
+def iter_tensor_rows(paths: Union[PathLike, Iterable[PathLike]], tensors: Sequence[str],
+                     complete_only: bool = True, batch_size: int = 16) -> Iterator[Dict[str, Any]]:
+    """Yields every row of tensor files (or shards) as a dict: the plain columns as they are,
+    each name in `tensors` decoded (None when null). Folders are read like job folders
+    (their `part-*.parquet`, with completion records unless `complete_only` is false)."""
+    for path in shard_paths(paths, complete_only):
+        f = pq.ParquetFile(path)
+        _check_version(path, f)
+        names = [n for n in f.schema_arrow.names if not any(
+            n in (t + "_dtype", t + "_shape") for t in tensors)]
+        for batch in f.iter_batches(batch_size=batch_size):
+            for row in batch.to_pylist():
+                out = {k: row[k] for k in names if k not in tensors}
+                for t in tensors:
+                    out[t] = decode_tensor(row, t)
+                yield out
+
+
 def collate_sparse(batch: Sequence[Dict[str, Any]], to_torch: bool = False) -> Dict[str, Any]:
     """Concatenates items into the layout sparse-convolution libraries expect:
 
@@ -142,6 +271,8 @@ def collate_sparse(batch: Sequence[Dict[str, Any]], to_torch: bool = False) -> D
     - `feats` float32 [ΣK, 4]: sdf, deformation x, y, z
     - `offsets` int64 [B + 1]: item b's rows are `offsets[b]:offsets[b + 1]`
     - `cells` int32 [ΣC, 4] (batch index + minimum corner) and `cell_offsets` int64 [B + 1]
+    - `corners` int64 [ΣC, 8]: the rows of `coords` / `feats` holding each cell's 8 corners,
+      in `CORNER_OFFSETS` order (so `feats[corners, 0]` is φ at the corners, [ΣC, 8])
     - `ids`, `resolution` (lists)
 
     With `to_torch=True` the arrays are torch tensors."""
@@ -154,6 +285,7 @@ def collate_sparse(batch: Sequence[Dict[str, Any]], to_torch: bool = False) -> D
     cell_offsets = np.zeros(len(batch) + 1, dtype=np.int64)
     offsets[1:] = np.cumsum(ks)
     cell_offsets[1:] = np.cumsum(cs)
+    corners = np.zeros((sum(cs), 8), dtype=np.int64)
     for b, it in enumerate(batch):
         lo, hi = offsets[b], offsets[b + 1]
         coords[lo:hi, 0] = b
@@ -163,19 +295,21 @@ def collate_sparse(batch: Sequence[Dict[str, Any]], to_torch: bool = False) -> D
         clo, chi = cell_offsets[b], cell_offsets[b + 1]
         cells[clo:chi, 0] = b
         cells[clo:chi, 1:] = it["cells"]
+        corners[clo:chi] = corner_index(it["coords"], it["cells"], it.get("id")) + lo
     out: Dict[str, Any] = {
         "coords": coords,
         "feats": feats,
         "offsets": offsets,
         "cells": cells,
         "cell_offsets": cell_offsets,
+        "corners": corners,
         "ids": [it["id"] for it in batch],
         "resolution": [it["resolution"] for it in batch],
     }
     if to_torch:
         import torch
 
-        for k in ("coords", "feats", "offsets", "cells", "cell_offsets"):
+        for k in ("coords", "feats", "offsets", "cells", "cell_offsets", "corners"):
             out[k] = torch.from_numpy(out[k])
     return out
 

@@ -11,7 +11,7 @@ use arrow_array::{
     UInt64Array,
 };
 use arrow_schema::{DataType, Field, Schema, SchemaRef};
-use sparcubes::Normalization;
+use sparcubes::{Normalization, SparseCubes};
 use std::sync::Arc;
 
 fn shape_type() -> DataType {
@@ -241,6 +241,77 @@ fn parse_stages(s: &str) -> Vec<(String, f64)> {
     }
 }
 
+/// The normalization of row `i` from the `center_x`, `center_y`, `center_z`, `scale` columns
+/// (in that order); `None` when any is null.
+fn normalization_at(norm: &[&Float64Array], i: usize) -> Option<Normalization> {
+    match (
+        opt_f64(norm[0], i),
+        opt_f64(norm[1], i),
+        opt_f64(norm[2], i),
+        opt_f64(norm[3], i),
+    ) {
+        (Some(x), Some(y), Some(z), Some(s)) => Some(Normalization {
+            center: [x, y, z],
+            scale: s,
+        }),
+        _ => None,
+    }
+}
+
+fn normalization_columns(batch: &RecordBatch) -> Result<Vec<&Float64Array>> {
+    [c::CENTER_X, c::CENTER_Y, c::CENTER_Z, c::SCALE]
+        .iter()
+        .map(|n| col::<Float64Array>(batch, n))
+        .collect()
+}
+
+/// The four cube tensors of row `i` (without the optional mesh tensors); `None` unless all
+/// four are present.
+fn cube_tensors_at(batch: &RecordBatch, i: usize) -> Result<Option<RowTensors>> {
+    let tensor = |stem| read_tensor(batch, stem, i);
+    Ok(
+        match (
+            tensor("coords")?,
+            tensor("sdf")?,
+            tensor("deformation")?,
+            tensor("cells")?,
+        ) {
+            (Some(coords), Some(sdf), Some(deformation), Some(cells)) => Some(RowTensors {
+                coords,
+                sdf,
+                deformation,
+                cells,
+                mesh_vertices: None,
+                mesh_faces: None,
+            }),
+            _ => None,
+        },
+    )
+}
+
+/// Decodes the id and the sparse cubes of every row of a batch that has at least the columns
+/// `id`, `resolution`, `center_x`, `center_y`, `center_z`, `scale` and the `coords`, `sdf`,
+/// `deformation` and `cells` tensors: a shard, or a tensor file (docs/FORMAT.md, "Tensor
+/// files"). A row without tensors (a failed item) or with inconsistent ones gives an error in
+/// its place.
+pub fn batch_to_cubes(batch: &RecordBatch) -> Result<Vec<(String, Result<SparseCubes>)>> {
+    let id = col::<StringArray>(batch, c::ID)?;
+    let resolution = col::<UInt32Array>(batch, c::RESOLUTION)?;
+    let norm = normalization_columns(batch)?;
+    let mut out = Vec::with_capacity(batch.num_rows());
+    for i in 0..batch.num_rows() {
+        let cubes = match (cube_tensors_at(batch, i)?, normalization_at(&norm, i)) {
+            (Some(t), Some(n)) => t.to_cubes(resolution.value(i), n),
+            _ => Err(SchemaError::Invalid {
+                what: "row",
+                value: format!("item {} has no tensors", id.value(i)),
+            }),
+        };
+        out.push((id.value(i).to_string(), cubes));
+    }
+    Ok(out)
+}
+
 /// Decodes every row of a record batch written with [`schema`].
 pub fn batch_to_rows(batch: &RecordBatch) -> Result<Vec<ShardRow>> {
     let index = col::<UInt64Array>(batch, c::ITEM_INDEX)?;
@@ -253,10 +324,7 @@ pub fn batch_to_rows(batch: &RecordBatch) -> Result<Vec<ShardRow>> {
     let stderr = col::<StringArray>(batch, c::STDERR_TAIL)?;
     let attempts = col::<UInt32Array>(batch, c::ATTEMPTS)?;
     let resolution = col::<UInt32Array>(batch, c::RESOLUTION)?;
-    let norm: Vec<&Float64Array> = [c::CENTER_X, c::CENTER_Y, c::CENTER_Z, c::SCALE]
-        .iter()
-        .map(|n| col::<Float64Array>(batch, n))
-        .collect::<Result<_>>()?;
+    let norm = normalization_columns(batch)?;
     let counts: Vec<&UInt64Array> = COUNT_COLUMNS
         .iter()
         .map(|n| col::<UInt64Array>(batch, n))
@@ -268,18 +336,7 @@ pub fn batch_to_rows(batch: &RecordBatch) -> Result<Vec<ShardRow>> {
     let stages = col::<StringArray>(batch, c::TIME_STAGES)?;
     let mut rows = Vec::with_capacity(batch.num_rows());
     for i in 0..batch.num_rows() {
-        let normalization = match (
-            opt_f64(norm[0], i),
-            opt_f64(norm[1], i),
-            opt_f64(norm[2], i),
-            opt_f64(norm[3], i),
-        ) {
-            (Some(x), Some(y), Some(z), Some(s)) => Some(Normalization {
-                center: [x, y, z],
-                scale: s,
-            }),
-            _ => None,
-        };
+        let normalization = normalization_at(&norm, i);
         let k: Vec<Option<u64>> = counts.iter().map(|a| opt_u64(a, i)).collect();
         let row_counts = match (k[0], k[1], k[3], k[4], k[6], k[7]) {
             (Some(f), Some(v), Some(av), Some(ac), Some(sv), Some(wc)) => Some(RowCounts {
@@ -294,22 +351,13 @@ pub fn batch_to_rows(batch: &RecordBatch) -> Result<Vec<ShardRow>> {
             }),
             _ => None,
         };
-        let tensor = |stem| read_tensor(batch, stem, i);
-        let tensors = match (
-            tensor("coords")?,
-            tensor("sdf")?,
-            tensor("deformation")?,
-            tensor("cells")?,
-        ) {
-            (Some(coords), Some(sdf), Some(deformation), Some(cells)) => Some(RowTensors {
-                coords,
-                sdf,
-                deformation,
-                cells,
-                mesh_vertices: tensor("mesh_vertices")?,
-                mesh_faces: tensor("mesh_faces")?,
+        let tensors = match cube_tensors_at(batch, i)? {
+            Some(t) => Some(RowTensors {
+                mesh_vertices: read_tensor(batch, "mesh_vertices", i)?,
+                mesh_faces: read_tensor(batch, "mesh_faces", i)?,
+                ..t
             }),
-            _ => None,
+            None => None,
         };
         rows.push(ShardRow {
             item_index: index.value(i),
@@ -408,6 +456,36 @@ pub(crate) mod tests {
         let cubes = back[0].cubes()?;
         assert_eq!(cubes.coords, vec![[1, 2, 3], [1, 2, 4]]);
         assert!(back[1].cubes().is_err());
+        Ok(())
+    }
+
+    #[test]
+    fn cubes_decode_from_the_tensor_columns_alone() -> Result<()> {
+        let rows = sample_rows();
+        let full = rows_to_batch(&rows)?;
+        // A tensor file holds only the id, resolution, normalization and cube tensors.
+        let mut keep = vec![c::ID, c::RESOLUTION, c::CENTER_X, c::CENTER_Y, c::CENTER_Z];
+        keep.push(c::SCALE);
+        let mut names: Vec<String> = keep.iter().map(|s| s.to_string()).collect();
+        for t in ["coords", "sdf", "deformation", "cells"] {
+            names.extend([t.to_string(), c::dtype_column(t), c::shape_column(t)]);
+        }
+        let schema = full.schema();
+        let indices: Vec<usize> = names
+            .iter()
+            .map(|n| schema.index_of(n))
+            .collect::<std::result::Result<_, _>>()?;
+        let subset = full.project(&indices)?;
+        let cubes = batch_to_cubes(&subset)?;
+        assert_eq!(cubes.len(), 2);
+        assert_eq!(cubes[0].0, "a");
+        assert_eq!(cubes[0].1.as_ref().ok(), Some(&rows[0].cubes()?));
+        assert_eq!(cubes[1].0, "b");
+        assert!(cubes[1].1.is_err());
+        // A batch without the cube columns is refused as a whole, naming the column.
+        let no_cells = full.project(&[schema.index_of(c::ID)?])?;
+        let err = batch_to_cubes(&no_cells).err().map(|e| e.to_string());
+        assert!(err.is_some_and(|e| e.contains(c::RESOLUTION)));
         Ok(())
     }
 }

@@ -111,6 +111,48 @@ def test_collate_builds_batched_sparse_coordinates(job):
         np.testing.assert_array_equal(batch["feats"][lo:hi, 1:], it["deformation"])
         clo, chi = batch["cell_offsets"][b], batch["cell_offsets"][b + 1]
         assert (batch["cells"][clo:chi, 0] == b).all()
+        # corners: the rows of each cell's 8 corners, in CORNER_OFFSETS order.
+        corners = batch["corners"][clo:chi]
+        assert corners.dtype == np.int64 and corners.shape == (chi - clo, 8)
+        assert ((corners >= lo) & (corners < hi)).all()
+        expect = it["cells"][:, None, :] + reader.CORNER_OFFSETS[None, :, :]
+        np.testing.assert_array_equal(batch["coords"][corners][..., 1:], expect)
+
+
+def test_corner_index_refuses_a_missing_corner(job):
+    it = next(reader.iter_items(job))
+    cells = np.concatenate([it["cells"], [[9999, 0, 0]]]).astype(np.int32)
+    with pytest.raises(ValueError, match="corner"):
+        reader.corner_index(it["coords"], cells, it["id"])
+
+
+def test_tensor_files_round_trip_and_extract_like_the_shard(job, tmp_path):
+    """A tensor file written by the reader holds the same tensors, and `sparc3d extract`
+    makes the same mesh from it as `sparc3d show` from the job."""
+    it = next(reader.iter_items(job))
+    row = {"id": it["id"], "resolution": it["resolution"], "center_x": float(it["center"][0]),
+           "center_y": float(it["center"][1]), "center_z": float(it["center"][2]),
+           "scale": it["scale"], "coords": it["coords"].astype(np.uint16), "sdf": it["sdf"],
+           "deformation": it["deformation"], "cells": it["cells"].astype(np.uint16)}
+    import pyarrow as pa
+
+    path = tmp_path / "cubes.parquet"
+    reader.write_tensor_file(path, [row], ["coords", "sdf", "deformation", "cells"],
+                             schema={"resolution": pa.uint32()})
+    back = list(reader.iter_tensor_rows(path, ["coords", "sdf", "deformation", "cells"]))
+    assert len(back) == 1 and back[0]["id"] == it["id"]
+    for name in ("coords", "sdf", "deformation", "cells"):
+        np.testing.assert_array_equal(back[0][name], row[name])
+        assert back[0][name].dtype == row[name].dtype
+    run("extract", path, "-o", tmp_path / "from_file.ply")
+    run("show", job, "--id", it["id"], "-o", tmp_path / "from_job.ply")
+    assert (tmp_path / "from_file.ply").read_bytes() == (tmp_path / "from_job.ply").read_bytes()
+    # A shard is a tensor file too; with several rows, --id is needed.
+    shard = reader.shard_paths(job)[0]
+    r = run("extract", shard, "-o", tmp_path / "x.ply", check=False)
+    assert r.returncode != 0 and "--id" in r.stderr, r.stderr
+    run("extract", shard, "--id", it["id"], "-o", tmp_path / "from_shard.ply")
+    assert (tmp_path / "from_shard.ply").read_bytes() == (tmp_path / "from_job.ply").read_bytes()
 
 
 def test_torch_dataset_and_loader(job):

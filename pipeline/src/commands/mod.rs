@@ -6,6 +6,7 @@ pub mod bench_one;
 pub mod convert;
 pub mod deform_args;
 pub mod eval;
+pub mod extract;
 pub mod failures;
 pub mod fill_holes;
 pub mod init;
@@ -41,6 +42,8 @@ enum Command {
     Convert(convert::Args),
     /// Fill the holes of a mesh (e.g. decoded from a VAE) by smallest-angle ear filling.
     FillHoles(fill_holes::Args),
+    /// Extract the mesh of sparse cubes in a tensor file or shard (e.g. decoded by a VAE).
+    Extract(extract::Args),
     /// Measure a mesh against its source: Chamfer, normal consistency, F1, components, offset.
     Eval(eval::Args),
     /// Build a manifest by scanning a folder for meshes.
@@ -90,6 +93,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
         Command::Convert(args) => convert::run(args),
         Command::FillHoles(args) => fill_holes::run(args),
+        Command::Extract(args) => extract::run(args),
         Command::Eval(args) => eval::run(args),
         Command::Manifest(args) => manifest::run(args),
         Command::Init(args) => init::run(args),

@@ -1,9 +1,11 @@
-//! Reading shards back: rows of a finished shard (its schema version checked), the facts of
-//! its footer, and the rows of a shard whether finished or still in its journal.
+//! Reading shards back: record batches and rows of a finished shard or a tensor file (its
+//! schema version checked), the facts of its footer, and the rows of a shard whether
+//! finished or still in its journal.
 
 use super::state::{completion, Check, Completion};
 use crate::error::{Result, WorkerError};
 use crate::job::Job;
+use arrow_array::RecordBatch;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use parquet::file::reader::{FileReader, SerializedFileReader};
 use sparc3d_schema::ShardRow;
@@ -19,11 +21,11 @@ fn unreadable(stage: &'static str, path: &Path, e: impl std::fmt::Display) -> Wo
     }
 }
 
-/// Calls `f` on every row of a shard file, batch by batch; a file of another schema version
-/// is an error that says so.
-pub fn for_each_row<E: From<WorkerError>>(
+/// Calls `f` on every record batch of a shard file or a tensor file (docs/FORMAT.md), after
+/// checking its schema version: a file of another version is an error that says so.
+pub fn for_each_batch<E: From<WorkerError>>(
     path: &Path,
-    mut f: impl FnMut(ShardRow) -> std::result::Result<(), E>,
+    mut f: impl FnMut(RecordBatch) -> std::result::Result<(), E>,
 ) -> std::result::Result<(), E> {
     let file = std::fs::File::open(path).map_err(|e| unreadable("opening", path, e))?;
     let builder = ParquetRecordBatchReaderBuilder::try_new(file)
@@ -54,14 +56,24 @@ pub fn for_each_row<E: From<WorkerError>>(
         .build()
         .map_err(|e| unreadable("reading", path, e))?;
     for batch in reader {
-        let batch = batch.map_err(|e| unreadable("reading", path, e))?;
+        f(batch.map_err(|e| unreadable("reading", path, e))?)?;
+    }
+    Ok(())
+}
+
+/// Calls `f` on every row of a shard file, batch by batch.
+pub fn for_each_row<E: From<WorkerError>>(
+    path: &Path,
+    mut f: impl FnMut(ShardRow) -> std::result::Result<(), E>,
+) -> std::result::Result<(), E> {
+    for_each_batch(path, |batch| {
         let rows = sparc3d_schema::arrow::batch_to_rows(&batch)
             .map_err(|e| unreadable("decoding", path, e))?;
         for row in rows {
             f(row)?;
         }
-    }
-    Ok(())
+        Ok(())
+    })
 }
 
 /// Every row of a shard file.

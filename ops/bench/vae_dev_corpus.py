@@ -1,0 +1,111 @@
+#!/usr/bin/env python3
+"""The VAE on a corpus, as docs/VAE.md measures it: split the ok items of a converted job into
+a training set and unseen items (by the seeded key of `sparc3d eval --sample`), convert each
+part as its own job, train `sparc3d-vae` on the training job for a time budget, then evaluate
+reconstructions of the unseen items and of as many training items against their Sparcubes
+meshes and sources.
+
+    ops/bench/vae_dev_corpus.py --job dev64 --work out/vae-dev --train 128 --unseen 16 \\
+        --minutes 30 [--config vae.toml]
+
+Needs `sparc3d` (SPARC3D_BIN or PATH) and `sparc3d-vae` (`pip install ./python ./vae`).
+Writes WORK/report.json with the split, training time, steps/s, peak memory and both
+evaluation summaries.
+"""
+
+import argparse
+import hashlib
+import json
+import os
+import pathlib
+import resource
+import shutil
+import struct
+import subprocess
+import sys
+import time
+
+
+def sample_key(seed, item_id):
+    """The key of pipeline/src/sample.rs: first 8 bytes, big-endian, of sha256(seed_le ‖ id)."""
+    return int.from_bytes(hashlib.sha256(struct.pack("<Q", seed) + item_id.encode()).digest()[:8], "big")
+
+
+def sparc3d():
+    return os.environ.get("SPARC3D_BIN") or shutil.which("sparc3d") or sys.exit("no sparc3d binary")
+
+
+def run(cmd, **kw):
+    print("+", " ".join(map(str, cmd)), file=sys.stderr)
+    subprocess.run([str(c) for c in cmd], check=True, **kw)
+
+
+def vae(*args):
+    return [sys.executable, "-m", "sparc3d_vae", *map(str, args)]
+
+
+def ok_ids(job):
+    import sparc3d_reader as reader
+
+    ds = reader.SparseCubesDataset(job)
+    return list(ds.ids)
+
+
+def make_job(src_job, ids, work, name, resolution):
+    """A job of the manifest records of `ids` (taken from the source job's frozen manifest)."""
+    wanted = set(ids)
+    lines = [l for l in (pathlib.Path(src_job) / "manifest.jsonl").read_text().splitlines()
+             if json.loads(l)["id"] in wanted]
+    manifest = work / f"{name}.jsonl"
+    manifest.write_text("".join(json.dumps({k: v for k, v in json.loads(l).items()
+                                            if k not in ("index", "shard")}) + "\n" for l in lines))
+    job = work / name
+    if not (job / "job.json").exists():
+        run([sparc3d(), "init", job, "--manifest", manifest, "--resolution", resolution])
+    run([sparc3d(), "run", job, "--workers", 2])
+    return job
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--job", required=True, help="a converted job holding the corpus")
+    ap.add_argument("--work", required=True, type=pathlib.Path)
+    ap.add_argument("--train", type=int, default=128)
+    ap.add_argument("--unseen", type=int, default=16)
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--minutes", type=float, default=30.0, help="training time budget")
+    ap.add_argument("--steps-per-second", type=float, required=True,
+                    help="measured rate, to turn the budget into a step count")
+    ap.add_argument("--config", type=pathlib.Path)
+    args = ap.parse_args()
+    args.work.mkdir(parents=True, exist_ok=True)
+    config = json.loads((pathlib.Path(args.job) / "job.json").read_text())["config"]
+    resolution = config["params"]["resolution"]
+
+    ids = sorted(ok_ids(args.job), key=lambda i: (sample_key(args.seed, i), i))
+    unseen, training = ids[:args.unseen], ids[args.unseen:args.unseen + args.train]
+    train_job = make_job(args.job, training, args.work, "train", resolution)
+    unseen_job = make_job(args.job, unseen, args.work, "unseen", resolution)
+
+    steps = int(args.minutes * 60 * args.steps_per_second)
+    cmd = vae("train", "--data", train_job, "--out", args.work / "run", "--steps", steps, "--device", "cpu")
+    if args.config:
+        cmd += ["--config", args.config]
+    began = time.monotonic()
+    run(cmd)
+    seconds = time.monotonic() - began
+    peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * 1024
+    report = {"split": {"train": len(training), "unseen": len(unseen), "seed": args.seed},
+              "resolution": resolution, "steps": steps, "train_seconds": seconds,
+              "steps_per_second": steps / seconds, "train_peak_rss_bytes": peak}
+    for name, job, n in (("unseen", unseen_job, len(unseen)), ("train", train_job, len(unseen))):
+        out = args.work / f"eval-{name}"
+        run(vae("evaluate", "--ckpt", args.work / "run", "--data", job, "--sample", n,
+                "--out", out, "--device", "cpu"), stdout=subprocess.DEVNULL)
+        report[f"eval_{name}"] = json.loads((out / "summary.json").read_text())["aggregate"]
+    (args.work / "report.json").write_text(json.dumps(report, indent=2) + "\n")
+    print(json.dumps(report, indent=2))
+
+
+if __name__ == "__main__":
+    main()

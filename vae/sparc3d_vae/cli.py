@@ -1,0 +1,171 @@
+"""`sparc3d-vae` (or `python -m sparc3d_vae`): train / encode / decode / reconstruct / evaluate.
+
+Bad input (a job of another schema version, an item with no active cells, a checkpoint of
+another config, `--device cuda` without a GPU, a missing `sparc3d` binary) ends with one
+`error: ...` line naming the thing and exit status 2, not a stack trace.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from pathlib import Path
+from typing import List, Optional
+
+from . import __version__
+
+
+def _device(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--device", default="auto", choices=["auto", "cpu", "cuda"],
+                   help="where to run: auto (CUDA when available, else CPU; the default), cpu, cuda")
+
+
+def _ckpt(p: argparse.ArgumentParser, data: bool = True) -> None:
+    p.add_argument("--ckpt", type=Path, required=True, help="checkpoint file or run folder")
+    if data:
+        p.add_argument("--data", nargs="+", required=True, metavar="JOB",
+                       help="job folders (or shard files)")
+
+
+def _sparc3d(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--sparc3d", metavar="PATH",
+                   help="the sparc3d binary (default: $SPARC3D_BIN, else sparc3d on PATH)")
+
+
+def parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(
+        prog="sparc3d-vae",
+        description="Sparconv-VAE (Sparc3D §3.5) on sparc3d shards: train, encode to sparse "
+                    "latents, decode back to watertight meshes. See docs/VAE.md.")
+    ap.add_argument("--version", action="version", version=f"sparc3d-vae {__version__}")
+    sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    p = sub.add_parser("train", help="train a VAE on the items of one or more jobs",
+                       description="Train (or with --resume continue) a VAE on the ok items of "
+                       "jobs. Writes RUN/config.json, RUN/loss.csv, RUN/tensorboard/ (when "
+                       "TensorBoard is installed) and RUN/checkpoint.pt every "
+                       "train.checkpoint_every steps. bf16 autocast on CUDA; on CPU a run with "
+                       "the same seed gives the same weights, also across --resume.")
+    p.add_argument("--data", nargs="+", required=True, metavar="JOB",
+                   help="job folders (or shard files) to train on")
+    p.add_argument("--config", type=Path, metavar="vae.toml",
+                   help="settings overriding the defaults (vae/vae.toml documents every key)")
+    p.add_argument("--out", type=Path, required=True, metavar="RUN", help="run folder")
+    p.add_argument("--steps", type=int, help="optimizer steps in total (default: train.steps)")
+    p.add_argument("--seed", type=int, help="seed (default: train.seed)")
+    p.add_argument("--resume", action="store_true",
+                   help="continue the run in RUN from its last checkpoint")
+    _device(p)
+
+    p = sub.add_parser("encode", help="write the latents of a job's items as Parquet shards",
+                       description="Encode every ok item of the jobs (the posterior mean and "
+                       "log-variance on the latent grid) into LATENTS/part-NNNNN.parquet, "
+                       "readable with sparc3d_reader.iter_tensor_rows.")
+    _ckpt(p)
+    p.add_argument("--out", type=Path, required=True, metavar="LATENTS")
+    _device(p)
+
+    p = sub.add_parser("decode", help="decode latents to meshes",
+                       description="Decode latents (their mean) to pruned sparse cubes, extract "
+                       "each mesh with `sparc3d extract` and close its holes (paper §3.4): "
+                       "MESHES/<id>.ply.")
+    _ckpt(p, data=False)
+    p.add_argument("--latents", type=Path, required=True, metavar="LATENTS")
+    which = p.add_mutually_exclusive_group(required=True)
+    which.add_argument("--id", action="append", metavar="X", help="item id (repeatable)")
+    which.add_argument("--all", action="store_true", help="every item of LATENTS")
+    p.add_argument("--out", type=Path, required=True, metavar="MESHES")
+    p.add_argument("--no-fill-holes", action="store_true", help="keep the extracted mesh as is")
+    _device(p)
+    _sparc3d(p)
+
+    p = sub.add_parser("reconstruct", help="one item of a job through the VAE to a mesh",
+                       description="Encode an item (posterior mean), decode it, extract the "
+                       "mesh with `sparc3d extract` and fill its holes.")
+    _ckpt(p)
+    p.add_argument("--id", required=True, metavar="X", help="item id")
+    p.add_argument("-o", "--output", type=Path, required=True, metavar="mesh.ply")
+    p.add_argument("--no-fill-holes", action="store_true", help="keep the extracted mesh as is")
+    p.add_argument("--tensors", type=Path, metavar="cubes.parquet",
+                   help="also keep the decoded sparse cubes as a tensor file")
+    _device(p)
+    _sparc3d(p)
+
+    p = sub.add_parser("evaluate", help="CD / ANC / F1 and watertightness of reconstructions",
+                       description="Reconstruct a seeded sample of items (the sample of "
+                       "`sparc3d eval JOB --sample N --sample-seed S`) and measure each with "
+                       "`sparc3d eval` against the item's Sparcubes mesh and its source file; "
+                       "writes OUT/summary.json, OUT/summary.md and the meshes.")
+    _ckpt(p)
+    p.add_argument("--sample", type=int, default=10, metavar="N", help="items to evaluate (10)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the sample (0)")
+    p.add_argument("--out", type=Path, default=Path("vae-eval"), metavar="DIR",
+                   help="where the summary and meshes go (./vae-eval)")
+    _device(p)
+    _sparc3d(p)
+    return ap
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    args = parser().parse_args(argv)
+    # OpenMP threads that spin while waiting slow torch down many times over on a machine whose
+    # cores are busy with other work (measured in docs/VAE.md); waiting passively costs little
+    # on an idle one. Must be set before torch is imported; an explicit setting wins.
+    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+    # Imported here so that `--help` answers without loading torch.
+    from .config import ConfigError
+    from .data import DataError
+    from .model import TooManyVoxels
+    from .runtime import UsageError
+
+    try:
+        return _run(args)
+    except (ConfigError, DataError, UsageError, TooManyVoxels) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+def _run(args: argparse.Namespace) -> int:
+    from . import infer, train
+
+    if args.command == "train":
+        summary = train.train(args.data, args.out, args.config, args.steps, args.device,
+                              args.resume, args.seed)
+        t = summary["terms"]
+        print(f"trained {summary['steps']} steps (from {summary['resumed_from']}) on "
+              f"{summary['items']} items in {summary['seconds']:.0f} s "
+              f"({summary['steps_per_second']:.2f} steps/s); last loss "
+              f"{t.get('loss', float('nan')):.4f}; checkpoint {args.out / 'checkpoint.pt'}")
+    elif args.command == "encode":
+        s = infer.encode(args.ckpt, args.data, args.out, args.device)
+        print(f"{s['items']} items encoded into {s['shards']} shard(s) in {args.out}; "
+              f"{s['latent_voxels_mean']:.1f} latent voxels × {s['latent_channels']} channels "
+              "per item on average")
+    elif args.command == "decode":
+        rows = infer.decode(args.ckpt, args.latents, None if args.all else args.id, args.out,
+                            args.device, not args.no_fill_holes, args.sparc3d)
+        for r in rows:
+            if "error" in r:
+                print(f"error: {r['error']}", file=sys.stderr)
+            else:
+                print(f"{r['id']}: {r['faces']} faces, watertight {r['watertight']} → {r['output']}")
+        if any("error" in r for r in rows):
+            return 1
+    elif args.command == "reconstruct":
+        r = infer.reconstruct(args.ckpt, args.data, args.id, args.output, args.device,
+                              not args.no_fill_holes, args.sparc3d, args.tensors)
+        print(json.dumps(r))
+    elif args.command == "evaluate":
+        infer.evaluate(args.ckpt, args.data, args.sample, args.seed, args.out, args.device,
+                       args.sparc3d)
+        print((args.out / "summary.md").read_text())
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
