@@ -3,10 +3,10 @@
 //! A miss suggests the closest ids and file names; an ambiguous prefix or name lists its
 //! matches. Every command that takes `--id` (`show`, `preview`) goes through [`find`].
 
-use crate::shard_io::shard_rows;
 use anyhow::{bail, Context, Result};
 use sparc3d_schema::{FrozenItem, ShardRow};
-use sparc3d_workers::state::Check;
+use sparc3d_workers::store::read::shard_rows;
+use sparc3d_workers::store::state::Check;
 use sparc3d_workers::Job;
 
 /// How many matches or suggestions an error lists.
@@ -65,6 +65,17 @@ pub fn row(job: &Job, item: &FrozenItem) -> Result<ShardRow> {
                 item.record.uri, item.shard
             )
         })
+}
+
+/// The sparse cubes of a converted row; a failed row's error names the item and its failure.
+pub fn cubes(row: &ShardRow) -> Result<sparcubes::SparseCubes> {
+    row.cubes().with_context(|| {
+        format!(
+            "item {:?}: {}",
+            row.id,
+            row.error_message.clone().unwrap_or_default()
+        )
+    })
 }
 
 /// Whether `query` names the source `uri`: the same text, the same file once resolved, or

@@ -6,7 +6,7 @@ use crate::pool::{Launcher, Worker};
 use anyhow::{Context, Result};
 use sparc3d_workers::events::Event;
 use sparc3d_workers::process::{Process, ProcessOptions};
-use sparc3d_workers::state::{shard_state, Check, ShardState};
+use sparc3d_workers::store::state::{shard_state, Check, ShardState};
 use sparc3d_workers::Job;
 use std::io::{BufRead, BufReader};
 use std::path::PathBuf;

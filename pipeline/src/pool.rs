@@ -10,7 +10,7 @@
 
 use anyhow::Result;
 use sparc3d_workers::events::Event;
-use sparc3d_workers::state::ShardState;
+use sparc3d_workers::store::state::ShardState;
 use std::collections::{BTreeMap, HashMap, VecDeque};
 use std::os::unix::process::ExitStatusExt;
 use std::process::ExitStatus;

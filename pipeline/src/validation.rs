@@ -10,6 +10,7 @@
 //! `JOB/validation/summary.md`.
 
 use crate::sample::{self, SampleSize};
+use crate::stats::median;
 use anyhow::{bail, Context, Result};
 use serde_json::{json, Value};
 use sparc3d_schema::ShardRow;
@@ -469,21 +470,6 @@ fn measure(rows: &[Value], key: &str) -> Vec<f64> {
     rows.iter()
         .filter_map(|r| r["measures"][key].as_f64())
         .collect()
-}
-
-/// Median of `v` (`None` when empty).
-pub fn median(v: &[f64]) -> Option<f64> {
-    let mut v: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
-    if v.is_empty() {
-        return None;
-    }
-    v.sort_by(f64::total_cmp);
-    let m = v.len() / 2;
-    Some(if v.len() % 2 == 1 {
-        v[m]
-    } else {
-        0.5 * (v[m - 1] + v[m])
-    })
 }
 
 /// The Markdown summary.

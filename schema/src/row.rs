@@ -3,6 +3,7 @@
 use crate::class::{ErrorClass, ItemStatus};
 use crate::columns as c;
 use crate::error::{Result, SchemaError};
+use crate::manifest::FrozenItem;
 use crate::tensor::{DType, EncodedTensor};
 use serde::{Deserialize, Serialize};
 use sparcubes::samples::{Precision, Samples};
@@ -350,6 +351,27 @@ impl ShardRow {
             timings: RowTimings::default(),
             tensors: None,
         }
+    }
+
+    /// A failed row for a manifest item, carrying the source's sha256 from the manifest
+    /// (the one failed row the worker writes, whatever the stage or death).
+    pub fn failed_item(
+        item: &FrozenItem,
+        resolution: u32,
+        class: ErrorClass,
+        message: String,
+    ) -> Self {
+        let record = &item.record;
+        let mut row = Self::failed(
+            item.index,
+            &record.id,
+            &record.uri,
+            resolution,
+            class,
+            message,
+        );
+        row.source_sha256 = record.sha256.clone();
+        row
     }
 
     /// Decodes the row's sparse cubes; an error when the row has none.

@@ -8,9 +8,9 @@ use crate::frame::Record;
 use crate::job::Job;
 use crate::journal::Journal;
 use crate::lease::{self, Acquired};
-use crate::state::{self, Check, Completion};
+use crate::store::state::{self, Check, Completion};
 use crate::supervisor::{ChildCommand, ItemOutcome, ItemRunner};
-use sparc3d_schema::{CompletionRecord, ErrorClass, ItemStatus, Limits, ShardRow};
+use sparc3d_schema::{CompletionRecord, ErrorClass, FrozenItem, ItemStatus, Limits, ShardRow};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
@@ -120,97 +120,18 @@ fn run_leased(
             continue;
         }
         loop {
-            if opts.stop.load(Ordering::SeqCst) {
-                return Ok(ShardOutcome::Stopped);
-            }
-            if let Some(new_owner) = held.lost_to() {
-                return Err(WorkerError::LeaseLost {
-                    shard,
-                    owner: new_owner,
-                });
-            }
-            let attempts = journal
-                .state
-                .attempts
-                .get(&item.index)
-                .cloned()
-                .unwrap_or_default();
-            let id = &item.record.id;
-            let uri = &item.record.uri;
-            if attempts.interrupted() >= opts.limits.max_interrupted_attempts {
-                let mut row = ShardRow::failed(
-                    item.index,
-                    id,
-                    uri,
-                    resolution,
-                    ErrorClass::Crashed,
-                    format!(
-                        "the worker was killed {} times while converting this item",
-                        attempts.interrupted()
-                    ),
-                );
-                row.attempts = attempts.started;
-                row.source_sha256 = item.record.sha256.clone();
-                finish(&mut journal, opts, shard, row)?;
-                break;
-            }
-            journal.append(&Record::Start {
-                index: item.index,
-                attempt: attempts.started + 1,
-                at: crate::now(),
-            })?;
-            (opts.events)(Event::ItemStarted {
+            match attempt(
+                &mut journal,
+                opts,
                 shard,
-                index: item.index,
-                id: id.clone(),
-                uri: uri.clone(),
-            });
-            let t = std::time::Instant::now();
-            let outcome = runner.run(item, &opts.stop)?;
-            let seconds = t.elapsed().as_secs_f64();
-            match outcome {
-                ItemOutcome::Finished(mut row) => {
-                    row.attempts = attempts.started + 1;
-                    row.timings.total_s = seconds;
-                    finish(&mut journal, opts, shard, *row)?;
-                    break;
-                }
-                ItemOutcome::Stopped => {
-                    journal.append(&Record::Abort {
-                        index: item.index,
-                        at: crate::now(),
-                    })?;
-                    return Ok(ShardOutcome::Stopped);
-                }
-                ItemOutcome::Died {
-                    class,
-                    message,
-                    stderr_tail,
-                } => {
-                    if class.is_crash() && attempts.crashes < opts.limits.max_crash_retries {
-                        journal.append(&Record::Crash {
-                            index: item.index,
-                            class,
-                            message,
-                            at: crate::now(),
-                        })?;
-                        (opts.events)(Event::ItemFinished {
-                            shard,
-                            index: item.index,
-                            status: "retry".into(),
-                            class: Some(class.as_str().into()),
-                            seconds,
-                        });
-                        continue;
-                    }
-                    let mut row = ShardRow::failed(item.index, id, uri, resolution, class, message);
-                    row.source_sha256 = item.record.sha256.clone();
-                    row.stderr_tail = (!stderr_tail.is_empty()).then_some(stderr_tail);
-                    row.attempts = attempts.started + 1;
-                    row.timings.total_s = seconds;
-                    finish(&mut journal, opts, shard, row)?;
-                    break;
-                }
+                held,
+                &mut runner,
+                item,
+                resolution,
+            )? {
+                Attempt::Finished => break,
+                Attempt::Retry => continue,
+                Attempt::Stopped => return Ok(ShardOutcome::Stopped),
             }
         }
     }
@@ -218,7 +139,7 @@ fn run_leased(
     (opts.events)(Event::ShardWriting { shard });
     // Every result on disk (and any failed background flush reported) before the shard.
     journal.sync()?;
-    let record = crate::writer::write_shard(job, shard, &journal, owner, started_at)?;
+    let record = crate::store::write::write_shard(job, shard, &journal, owner, started_at)?;
     let journal_path = journal.path().to_path_buf();
     drop(journal);
     let _ = std::fs::remove_file(&journal_path);
@@ -229,6 +150,112 @@ fn run_leased(
         failed: record.failed,
     });
     Ok(ShardOutcome::Done(record))
+}
+
+/// How one attempt at an item ended, for the loop over a shard's items.
+enum Attempt {
+    /// The item has its final row in the journal.
+    Finished,
+    /// It crashed and is to be tried again.
+    Retry,
+    /// A stop was requested; the attempt is recorded as aborted.
+    Stopped,
+}
+
+/// One attempt at `item`: give it up when it killed its worker too often, else journal its
+/// start, run it in the item worker, and journal the result, the crash to retry, or the abort.
+fn attempt(
+    journal: &mut Journal,
+    opts: &mut WorkOptions,
+    shard: u64,
+    held: &lease::Lease,
+    runner: &mut ItemRunner,
+    item: &FrozenItem,
+    resolution: u32,
+) -> Result<Attempt> {
+    if opts.stop.load(Ordering::SeqCst) {
+        return Ok(Attempt::Stopped);
+    }
+    if let Some(new_owner) = held.lost_to() {
+        return Err(WorkerError::LeaseLost {
+            shard,
+            owner: new_owner,
+        });
+    }
+    let attempts = journal
+        .state
+        .attempts
+        .get(&item.index)
+        .cloned()
+        .unwrap_or_default();
+    if attempts.interrupted() >= opts.limits.max_interrupted_attempts {
+        let message = format!(
+            "the worker was killed {} times while converting this item",
+            attempts.interrupted()
+        );
+        let class = ErrorClass::Crashed;
+        let mut row = ShardRow::failed_item(item, resolution, class, message);
+        row.attempts = attempts.started;
+        finish(journal, opts, shard, row)?;
+        return Ok(Attempt::Finished);
+    }
+    journal.append(&Record::Start {
+        index: item.index,
+        attempt: attempts.started + 1,
+        at: crate::now(),
+    })?;
+    (opts.events)(Event::ItemStarted {
+        shard,
+        index: item.index,
+        id: item.record.id.clone(),
+        uri: item.record.uri.clone(),
+    });
+    let t = std::time::Instant::now();
+    let outcome = runner.run(item, &opts.stop)?;
+    let seconds = t.elapsed().as_secs_f64();
+    match outcome {
+        ItemOutcome::Finished(mut row) => {
+            row.attempts = attempts.started + 1;
+            row.timings.total_s = seconds;
+            finish(journal, opts, shard, *row)?;
+            Ok(Attempt::Finished)
+        }
+        ItemOutcome::Stopped => {
+            journal.append(&Record::Abort {
+                index: item.index,
+                at: crate::now(),
+            })?;
+            Ok(Attempt::Stopped)
+        }
+        ItemOutcome::Died {
+            class,
+            message,
+            stderr_tail,
+        } => {
+            if class.is_crash() && attempts.crashes < opts.limits.max_crash_retries {
+                journal.append(&Record::Crash {
+                    index: item.index,
+                    class,
+                    message,
+                    at: crate::now(),
+                })?;
+                (opts.events)(Event::ItemFinished {
+                    shard,
+                    index: item.index,
+                    status: "retry".into(),
+                    class: Some(class.as_str().into()),
+                    seconds,
+                });
+                return Ok(Attempt::Retry);
+            }
+            let mut row = ShardRow::failed_item(item, resolution, class, message);
+            row.stderr_tail = (!stderr_tail.is_empty()).then_some(stderr_tail);
+            row.attempts = attempts.started + 1;
+            row.timings.total_s = seconds;
+            finish(journal, opts, shard, row)?;
+            Ok(Attempt::Finished)
+        }
+    }
 }
 
 fn finish(journal: &mut Journal, opts: &mut WorkOptions, shard: u64, row: ShardRow) -> Result<()> {

@@ -73,11 +73,7 @@ impl Spread {
         }
         v.sort_by(f64::total_cmp);
         let n = v.len();
-        let median = if n % 2 == 1 {
-            v[n / 2]
-        } else {
-            (v[n / 2 - 1] + v[n / 2]) / 2.0
-        };
+        let median = crate::stats::median(&v).unwrap_or_default();
         let rank = ((0.95 * n as f64).ceil() as usize).clamp(1, n);
         Self {
             median,
@@ -136,7 +132,7 @@ struct Report<'a> {
 fn collect_inputs(input: &Path) -> Result<Vec<PathBuf>> {
     let mut files = Vec::new();
     if input.is_dir() {
-        super::manifest::scan(input, &mut files)?;
+        crate::folder_scan::scan(input, &mut files)?;
     } else if sparcubes::io::Format::from_extension(input).is_some() {
         files.push(input.to_path_buf());
     } else if input.is_file() {

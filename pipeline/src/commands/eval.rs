@@ -7,7 +7,7 @@
 //! frame and measured against the source file of its `uri`; per-item rows, then medians.
 
 use crate::sample::{self, SampleSize};
-use crate::validation::median;
+use crate::stats::median;
 use anyhow::{bail, Context};
 use serde_json::{json, Value};
 use sparc3d_metrics::{evaluate, EvalOptions, QualityReport};

@@ -5,10 +5,10 @@
 //! normalization (`center`, `scale`, `resolution`).
 
 use crate::npz::{npz_bytes, Array};
-use crate::shard_io::shard_rows;
 use anyhow::{bail, Context, Result};
 use sparc3d_schema::ShardRow;
-use sparc3d_workers::state::Check;
+use sparc3d_workers::store::read::shard_rows;
+use sparc3d_workers::store::state::Check;
 use sparc3d_workers::Job;
 use sparcubes::layouts::{cubvh, direct3d_s2, trellis2};
 use sparcubes::samples::Precision;

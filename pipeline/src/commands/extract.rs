@@ -5,9 +5,9 @@
 //! normalization and cube tensor columns in the shard encoding (docs/FORMAT.md, "Tensor files").
 
 use crate::commands::fill_holes;
-use crate::shard_io::for_each_batch;
 use anyhow::{bail, Context, Result};
 use serde_json::{json, Map, Value};
+use sparc3d_workers::store::read::for_each_batch;
 use sparcubes::SparseCubes;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -49,7 +49,7 @@ fn find_cubes(args: &Args) -> Result<(String, SparseCubes)> {
                 found = Some((id, cubes));
             }
         }
-        Ok(())
+        anyhow::Ok(())
     })?;
     if args.id.is_none() && rows > 1 {
         bail!("{} holds {rows} rows: choose one with --id", path.display());

@@ -5,12 +5,12 @@
 //! alone, when its record lies beside it): a damaged shard is named and the command fails
 //! instead of reporting fewer rows or another digest.
 
-use crate::shard_io::{self, for_each_row, read_meta};
 use crate::summary::shard_states;
 use anyhow::{bail, Context, Result};
 use serde::Serialize;
 use sparc3d_schema::{digest, meta_keys, ItemStatus};
-use sparc3d_workers::state::{check_file, Check, ShardState};
+use sparc3d_workers::store::read::{self, for_each_row, read_meta};
+use sparc3d_workers::store::state::{check_file, Check, ShardState};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -90,7 +90,7 @@ fn shard_files(target: &Path) -> Result<Vec<PathBuf>> {
         match state {
             ShardState::Done(_) => files.push(job.layout.shard_file(shard)),
             ShardState::Damaged(why) => {
-                damaged.push(format!("{:#}", shard_io::damaged(&job, shard, &why)))
+                damaged.push(format!("{:#}", read::damaged(&job, shard, &why)))
             }
             ShardState::Running(_) | ShardState::Pending => {}
         }
@@ -165,7 +165,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
             if let Some(v) = values.get_mut("time_total_s") {
                 v.push(row.timings.total_s);
             }
-            Ok(())
+            anyhow::Ok(())
         })?;
         use sha2::Digest;
         digests.push(sparc3d_schema::config::hex(&h.finalize()));

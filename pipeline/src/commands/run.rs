@@ -10,14 +10,15 @@
 //! or expires; one shard's failure does not stop the others; and `run` exits 0 only when every
 //! shard is done, otherwise it names what is left and exits non-zero.
 
-use super::work::{install_signals, LimitArgs};
+use super::work::LimitArgs;
 use crate::local_workers::LocalWorkers;
 use crate::pool::{self, Pool};
 use crate::progress::Progress;
+use crate::signals::install_signals;
 use crate::summary::{shard_states, summarize, summarize_states, JobSummary};
 use crate::units::{format_seconds, parse_duration};
 use anyhow::Result;
-use sparc3d_workers::state::{Check, ShardState};
+use sparc3d_workers::store::state::{Check, ShardState};
 use sparc3d_workers::Job;
 use std::path::PathBuf;
 use std::process::ExitCode;

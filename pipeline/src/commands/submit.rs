@@ -6,7 +6,7 @@
 use crate::cluster::slurm::{self, ArrayPlan, ScriptOptions, Submission};
 use crate::commands::work::LimitArgs;
 use anyhow::{bail, Context, Result};
-use sparc3d_workers::state::{shard_state, Check, ShardState};
+use sparc3d_workers::store::state::{shard_state, Check, ShardState};
 use sparc3d_workers::Job;
 use std::path::PathBuf;
 use std::process::ExitCode;

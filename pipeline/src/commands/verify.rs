@@ -6,7 +6,7 @@
 use anyhow::Result;
 use rayon::prelude::*;
 use serde::Serialize;
-use sparc3d_workers::state::{verify_shard, Verified};
+use sparc3d_workers::store::state::{verify_shard, Verified};
 use sparc3d_workers::Job;
 use std::path::PathBuf;
 use std::process::ExitCode;
