@@ -49,6 +49,7 @@ pub fn process_shard(job: &Job, shard: u64, opts: &mut WorkOptions) -> Result<Sh
     let layout = &job.layout;
     let fp = job.fingerprint().to_string();
     if let Completion::Done(r) = state::completion(layout, shard, &fp, Check::Quick)? {
+        clear_leftovers(job, shard, opts.lease_ttl_s)?;
         (opts.events)(Event::ShardSkipped {
             shard,
             reason: "already done".into(),
@@ -79,6 +80,23 @@ pub fn process_shard(job: &Job, shard: u64, opts: &mut WorkOptions) -> Result<Sh
     let result = run_leased(job, shard, opts, &held, &owner);
     held.release();
     result
+}
+
+/// A worker killed after writing a shard's completion record but before removing its journal
+/// and lease leaves both behind. The shard holds every row, so the journal is redundant: take
+/// the lease (unless a live worker still holds it, which then cleans up itself), remove the
+/// journal, release the lease.
+pub fn clear_leftovers(job: &Job, shard: u64, lease_ttl_s: f64) -> Result<()> {
+    let layout = &job.layout;
+    let (journal, lease_file) = (layout.journal(shard), layout.lease(shard));
+    if !journal.exists() && !lease_file.exists() {
+        return Ok(());
+    }
+    if let Acquired::Held(held) = lease::acquire(&lease_file, &lease::owner_name(), lease_ttl_s)? {
+        let _ = std::fs::remove_file(&journal);
+        held.release();
+    }
+    Ok(())
 }
 
 fn run_leased(

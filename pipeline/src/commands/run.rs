@@ -114,6 +114,11 @@ pub fn run(args: Args) -> Result<ExitCode> {
         failures_hint();
         return Ok(ExitCode::FAILURE);
     }
+    // A worker killed between a shard's completion record and its cleanup left the shard's
+    // journal and lease behind; every shard is done now, so they go.
+    for shard in 0..after.shards {
+        sparc3d_workers::shard::clear_leftovers(&job, shard, args.limits.lease_ttl)?;
+    }
     eprintln!("{}", crate::hints::next_steps(&job_dir, after.shards));
     failures_hint();
     if let Some(sample) = args.validate_sample {
