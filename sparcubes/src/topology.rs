@@ -282,7 +282,9 @@ pub fn component_count(mesh: &TriMesh) -> u64 {
     let roots: u64 = (0..nv)
         .into_par_iter()
         .with_min_len(CHUNK)
-        .filter(|&v| used[v].load(Ordering::Relaxed) && parent[v].load(Ordering::Relaxed) == v as u32)
+        .filter(|&v| {
+            used[v].load(Ordering::Relaxed) && parent[v].load(Ordering::Relaxed) == v as u32
+        })
         .count() as u64;
     roots + bad
 }

@@ -21,9 +21,9 @@ mod ply;
 mod stl;
 mod write;
 
+use crate::duplicate_faces::drop_duplicate_faces;
 use crate::error::{Error, Result};
 use crate::mesh::TriMesh;
-use crate::duplicate_faces::drop_duplicate_faces;
 use crate::sanitize::drop_invalid;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;
