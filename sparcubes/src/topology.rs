@@ -62,29 +62,67 @@ const CHUNK: usize = 1 << 14;
 ///
 /// Every count is local: each vertex looks at the triangles around it (its link), counts the
 /// edges to its higher-numbered neighbours by direction and checks that its fan is one piece,
-/// so the vertices are checked in parallel with no global edge list to sort. All results are
-/// counts, the same whatever the thread count or the order the links are filled in.
+/// so the vertices are checked in parallel with no global edge list to sort. Two passes over
+/// the triangles (degrees and face checks; links and the components' union-find), one over
+/// the vertices. All results are counts, the same whatever the thread count or the order the
+/// links are filled in.
 pub fn check(mesh: &TriMesh) -> TopologyReport {
     let nv = mesh.positions.len();
-    let good = |t: &[u32; 3]| !is_degenerate(t) && t.iter().all(|&v| (v as usize) < nv);
-    let (degenerate_faces, zero_area_faces) = mesh
+    let in_range = |t: &[u32; 3]| t.iter().all(|&v| (v as usize) < nv);
+    let good = |t: &[u32; 3]| in_range(t) && !is_degenerate(t);
+
+    // Pass 1: link sizes, degenerate and zero-area faces, faces with a bad index.
+    let degree: Vec<AtomicU32> = (0..nv).map(|_| AtomicU32::new(0)).collect();
+    let [degenerate_faces, zero_area_faces, out_of_range] = mesh
         .triangles
         .par_chunks(CHUNK)
         .enumerate()
         .map(|(c, tris)| {
-            let (mut degenerate, mut zero) = (0u64, 0u64);
+            let mut n = [0u64; 3];
             for (k, t) in tris.iter().enumerate() {
                 if !good(t) {
-                    degenerate += 1;
-                } else if zero_area(mesh.triangle(c * CHUNK + k)) {
-                    zero += 1;
+                    n[0] += 1;
+                    n[2] += u64::from(!in_range(t));
+                    continue;
                 }
+                for &v in t {
+                    degree[v as usize].fetch_add(1, Ordering::Relaxed);
+                }
+                n[1] += u64::from(zero_area(mesh.triangle(c * CHUNK + k)));
             }
-            (degenerate, zero)
+            n
         })
-        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+        .reduce(|| [0; 3], |a, b| [a[0] + b[0], a[1] + b[1], a[2] + b[2]]);
 
-    let links = VertexLinks::build(&mesh.triangles, nv, good);
+    // Pass 2: the links, and the components (through every in-range triangle).
+    let parent: Vec<AtomicU32> = (0..nv as u32).map(AtomicU32::new).collect();
+    let mut degenerate_corners = Vec::new();
+    let links = VertexLinks::fill(&mesh.triangles, degree, good, |t| {
+        if in_range(t) {
+            unite(&parent, t[0], t[1]);
+            unite(&parent, t[0], t[2]);
+        }
+    });
+    if degenerate_faces > out_of_range {
+        // Rare: vertices used only by degenerate faces still make components.
+        degenerate_corners.extend(
+            mesh.triangles
+                .iter()
+                .filter(|t| in_range(t) && is_degenerate(t))
+                .flatten(),
+        );
+        degenerate_corners.sort_unstable();
+    }
+    let roots = (0..nv)
+        .into_par_iter()
+        .with_min_len(CHUNK)
+        .filter(|&v| {
+            parent[v].load(Ordering::Relaxed) == v as u32
+                && (!links.of(v).is_empty()
+                    || degenerate_corners.binary_search(&(v as u32)).is_ok())
+        })
+        .count() as u64;
+
     let counts = (0..nv)
         .into_par_iter()
         .with_min_len(CHUNK)
@@ -103,7 +141,7 @@ pub fn check(mesh: &TriMesh) -> TopologyReport {
         non_manifold_edges: counts.non_manifold_edges,
         non_manifold_vertices: counts.non_manifold_vertices,
         inconsistently_oriented_edges: counts.inconsistently_oriented_edges,
-        components: component_count(mesh),
+        components: roots + out_of_range,
         degenerate_faces,
         zero_area_faces,
     }
@@ -119,18 +157,16 @@ struct VertexLinks {
 }
 
 impl VertexLinks {
-    /// The links of the triangles of `triangles` that pass `keep` (their indices `< nv`).
-    fn build(triangles: &[[u32; 3]], nv: usize, keep: impl Fn(&[u32; 3]) -> bool + Sync) -> Self {
-        let degree: Vec<AtomicU32> = (0..nv).map(|_| AtomicU32::new(0)).collect();
-        triangles.par_chunks(CHUNK).for_each(|tris| {
-            for t in tris.iter().filter(|t| keep(t)) {
-                for &v in t {
-                    degree[v as usize].fetch_add(1, Ordering::Relaxed);
-                }
-            }
-        });
+    /// The links of the triangles of `triangles` that pass `keep`, given each vertex's number
+    /// of kept triangles (`degree`); `visit` sees every triangle on the way.
+    fn fill(
+        triangles: &[[u32; 3]],
+        degree: Vec<AtomicU32>,
+        keep: impl Fn(&[u32; 3]) -> bool + Sync,
+        visit: impl Fn(&[u32; 3]) + Sync,
+    ) -> Self {
         // Exclusive prefix sum; `degree` becomes each row's fill cursor.
-        let mut start = Vec::with_capacity(nv + 1);
+        let mut start = Vec::with_capacity(degree.len() + 1);
         let mut sum = 0u32;
         for d in &degree {
             start.push(sum);
@@ -141,7 +177,11 @@ impl VertexLinks {
             .map(|_| [AtomicU32::new(0), AtomicU32::new(0)])
             .collect();
         triangles.par_chunks(CHUNK).for_each(|tris| {
-            for t in tris.iter().filter(|t| keep(t)) {
+            for t in tris {
+                visit(t);
+                if !keep(t) {
+                    continue;
+                }
                 for i in 0..3 {
                     let slot = degree[t[i] as usize].fetch_add(1, Ordering::Relaxed) as usize;
                     link[slot][0].store(t[(i + 1) % 3], Ordering::Relaxed);
@@ -160,6 +200,33 @@ impl VertexLinks {
     fn of(&self, v: usize) -> &[[u32; 2]] {
         &self.link[self.start[v] as usize..self.start[v + 1] as usize]
     }
+}
+
+/// Whether `link` is one closed fan, consistently oriented: following each triangle to the
+/// one that continues it (whose first corner is this one's second) visits every triangle once
+/// and comes back. Then every edge at the vertex has one triangle on each side, in opposite
+/// directions, and there is nothing to count. Only for small links (the common case); larger
+/// or broken ones take the general path.
+fn is_closed_fan(link: &[[u32; 2]]) -> bool {
+    let k = link.len();
+    if !(3..=64).contains(&k) {
+        return false;
+    }
+    let (mut at, mut seen) = (0usize, 0u64);
+    for _ in 0..k {
+        if seen >> at & 1 == 1 {
+            return false;
+        }
+        seen |= 1 << at;
+        let b = link[at][1];
+        match link.iter().position(|e| e[0] == b) {
+            Some(next) => at = next,
+            None => return false,
+        }
+    }
+    // k steps over k distinct triangles, back at the first: one cycle through all of them,
+    // so the map to the continuing triangle is one-to-one and no corner repeats.
+    at == 0 && seen.count_ones() as usize == k
 }
 
 /// Reused buffers of [`LinkCounts::add_vertex`].
@@ -196,7 +263,7 @@ impl LinkCounts {
 
     /// Counts the edges from `v` to its higher neighbours and whether its fan is one piece.
     fn add_vertex(&mut self, v: u32, link: &[[u32; 2]], s: &mut Scratch) {
-        if link.is_empty() {
+        if link.is_empty() || is_closed_fan(link) {
             return;
         }
         s.neighbours.clear();
@@ -445,6 +512,13 @@ mod tests {
         let mut m = tetra();
         m.triangles.push([1, 1, 2]);
         assert_eq!(check(&m).degenerate_faces, 1);
+
+        // A degenerate face on vertices of its own is still a component.
+        m.positions.extend([[5.0, 0.0, 0.0], [6.0, 0.0, 0.0]]);
+        m.triangles.push([4, 5, 5]);
+        let r = check(&m);
+        assert_eq!((r.degenerate_faces, r.components), (2, 2));
+        assert_eq!(component_count(&m), 2);
     }
 
     #[test]
@@ -454,9 +528,10 @@ mod tests {
         let torus = crate::shapes::torus([0.0; 3], 2.0, 0.5, 200);
         let far = crate::shapes::torus([10.0, 0.0, 0.0], 2.0, 0.5, 200);
         let tube = crate::shapes::open_cylinder([0.0, 20.0], 1.0, 0.0, 1.0, 64);
-        let r = check(&crate::shapes::merge(&[torus.clone(), far]));
+        let both = crate::shapes::merge(&[torus.clone(), far]);
+        let r = check(&both);
         assert!(r.is_closed_oriented_manifold(), "{r:?}");
-        assert_eq!(r.components, 2);
+        assert_eq!((r.components, component_count(&both)), (2, 2));
         let r = check(&tube);
         assert_eq!(r.boundary_edges, 2 * 64, "{r:?}");
         assert_eq!((r.non_manifold_edges, r.components), (0, 1));
