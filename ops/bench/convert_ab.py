@@ -91,6 +91,9 @@ def summarize(path):
                                   for i, n in enumerate(names)))
         print(f"per-mesh wall B/A: median {statistics.median(ratios):.2f}, "
               f"min {min(ratios):.2f}, max {max(ratios):.2f}")
+        cpu = [(b[m]["user_s"] + b[m]["sys_s"]) / (a[m]["user_s"] + a[m]["sys_s"]) for m in both]
+        print(f"per-mesh CPU (user+sys) B/A: median {statistics.median(cpu):.2f}, "
+              f"min {min(cpu):.2f}, max {max(cpu):.2f}")
         for label, side in (("A", a), ("B", b)):
             stages = {}
             outside = []
