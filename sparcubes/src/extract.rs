@@ -33,31 +33,7 @@ pub fn extract(cubes: &SparseCubes) -> TriMesh {
     let table = mc_table::table();
     let chunks: Vec<&[[u16; 3]]> = cubes.cells.chunks(CHUNK).collect();
 
-    // Pass 1: triangles and centres per chunk; crossed edges used by a triangle.
-    let used: Vec<AtomicU64> = (0..(3 * n).div_ceil(64))
-        .map(|_| AtomicU64::new(0))
-        .collect();
-    let counts: Vec<(usize, usize)> = chunks
-        .par_iter()
-        .map(|cells| {
-            let (mut triangles, mut centres) = (0, 0);
-            for_each_case(cubes, n, table, cells, |idx, case| {
-                triangles += case.triangles.len();
-                centres += centres_used(case).count_ones() as usize;
-                for tri in &case.triangles {
-                    for &v in tri.iter().filter(|&&v| v < CENTRE) {
-                        let key = edge_key(idx, v);
-                        let (word, bit) = (&used[key / 64], 1u64 << (key % 64));
-                        if word.load(Ordering::Relaxed) & bit == 0 {
-                            word.fetch_or(bit, Ordering::Relaxed);
-                        }
-                    }
-                }
-            });
-            (triangles, centres)
-        })
-        .collect();
-    let used: Vec<u64> = used.into_iter().map(AtomicU64::into_inner).collect();
+    let (counts, used) = count_cases(cubes, n, table, &chunks);
     // Rank of each bitmap word: crossing points are numbered in edge-key order.
     let mut rank = Vec::with_capacity(used.len());
     let mut edge_points = 0u32;
@@ -131,6 +107,43 @@ pub fn extract(cubes: &SparseCubes) -> TriMesh {
     );
     positions.extend(centre_points);
     TriMesh::new(positions, triangles)
+}
+
+/// Pass 1 of [`extract`]: the triangles and used centres of each chunk of cells, and a bitmap
+/// (by edge key) of the crossed edges some triangle uses.
+fn count_cases(
+    cubes: &SparseCubes,
+    n: usize,
+    table: &Table,
+    chunks: &[&[[u16; 3]]],
+) -> (Vec<(usize, usize)>, Vec<u64>) {
+    let used: Vec<AtomicU64> = (0..(3 * n).div_ceil(64))
+        .map(|_| AtomicU64::new(0))
+        .collect();
+    let counts: Vec<(usize, usize)> = chunks
+        .par_iter()
+        .map(|cells| {
+            let (mut triangles, mut centres) = (0, 0);
+            for_each_case(cubes, n, table, cells, |idx, case| {
+                triangles += case.triangles.len();
+                centres += centres_used(case).count_ones() as usize;
+                for tri in &case.triangles {
+                    for &v in tri.iter().filter(|&&v| v < CENTRE) {
+                        let key = edge_key(idx, v);
+                        let (word, bit) = (&used[key / 64], 1u64 << (key % 64));
+                        if word.load(Ordering::Relaxed) & bit == 0 {
+                            word.fetch_or(bit, Ordering::Relaxed);
+                        }
+                    }
+                }
+            });
+            (triangles, centres)
+        })
+        .collect();
+    (
+        counts,
+        used.into_iter().map(AtomicU64::into_inner).collect(),
+    )
 }
 
 /// [`extract`], mapped to the source frame with `cubes.normalization`.

@@ -146,6 +146,89 @@ fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     std::fs::rename(&tmp, path).with_context(|| format!("renaming to {}", path.display()))
 }
 
+/// The vector-set samples of one item (points, normals, signed distances, occupancy) in
+/// `frame`, with the frame's name; distances scale with the frame.
+fn vecset_arrays(
+    row: &ShardRow,
+    norm: &sparcubes::Normalization,
+    frame: Frame,
+    dtype: Precision,
+) -> Result<Vec<Array>> {
+    let Some(t) = row.tensors.as_ref().and_then(|t| t.samples.as_ref()) else {
+        bail!("no sample columns (config key samples.enabled was off when it converted)");
+    };
+    let s = t.to_samples()?;
+    // Normalized p = 2·(source − center)·scale: source = p·k + center with
+    // k = 1 / (2·scale), and distances scale by k.
+    let (k, offset) = match frame {
+        Frame::Normalized => (1.0, [0.0; 3]),
+        Frame::Source => (1.0 / (2.0 * norm.scale), norm.center),
+    };
+    let to_point =
+        |p: [f32; 3]| -> [f32; 3] { std::array::from_fn(|a| (p[a] as f64 * k + offset[a]) as f32) };
+    let dist = k;
+    // The source frame is written as f32 (its coordinates may not fit f16 well).
+    let descr = match (frame, dtype) {
+        (Frame::Normalized, Precision::F16) => "<f2",
+        _ => "<f4",
+    };
+    let floats = |name: &str, shape: Vec<usize>, v: Vec<f32>| -> Array {
+        if descr == "<f2" {
+            let h: Vec<u16> = v
+                .iter()
+                .map(|&x| half::f16::from_f32(x).to_bits())
+                .collect();
+            Array::numbers(name, descr, shape, &h)
+        } else {
+            Array::numbers(name, descr, shape, &v)
+        }
+    };
+    let points = |name: &str, v: &[[f32; 3]]| {
+        floats(
+            name,
+            vec![v.len(), 3],
+            v.iter().flat_map(|p| to_point(*p)).collect(),
+        )
+    };
+    let vectors = |name: &str, v: &[[f32; 3]]| {
+        floats(
+            name,
+            vec![v.len(), 3],
+            v.iter().flatten().copied().collect(),
+        )
+    };
+    let distances = |name: &str, v: &[f32]| {
+        floats(
+            name,
+            vec![v.len()],
+            v.iter().map(|&d| (d as f64 * dist) as f32).collect(),
+        )
+    };
+    Ok(vec![
+        points("surface_points", &s.surface_points),
+        vectors("surface_normals", &s.surface_normals),
+        points("sharp_points", &s.sharp_points),
+        vectors("sharp_normals", &s.sharp_normals),
+        points("near_points", &s.near_points),
+        distances("near_sdf", &s.near_sdf),
+        points("volume_points", &s.volume_points),
+        distances("volume_sdf", &s.volume_sdf),
+        Array::numbers(
+            "volume_occupancy",
+            "|u1",
+            vec![s.volume_occupancy.len()],
+            &s.volume_occupancy,
+        ),
+        Array::text(
+            "frame",
+            match frame {
+                Frame::Source => "source",
+                Frame::Normalized => "normalized",
+            },
+        ),
+    ])
+}
+
 /// The arrays of one item in `format`.
 fn export_row(
     row: &ShardRow,
@@ -162,82 +245,7 @@ fn export_row(
         Array::numbers("resolution", "<i8", vec![], &[n as i64]),
     ];
     match format {
-        Format::VecsetNpz => {
-            let Some(t) = row.tensors.as_ref().and_then(|t| t.samples.as_ref()) else {
-                bail!("no sample columns (config key samples.enabled was off when it converted)");
-            };
-            let s = t.to_samples()?;
-            // Normalized p = 2·(source − center)·scale: source = p·k + center with
-            // k = 1 / (2·scale), and distances scale by k.
-            let (k, offset) = match frame {
-                Frame::Normalized => (1.0, [0.0; 3]),
-                Frame::Source => (1.0 / (2.0 * norm.scale), norm.center),
-            };
-            let to_point = |p: [f32; 3]| -> [f32; 3] {
-                std::array::from_fn(|a| (p[a] as f64 * k + offset[a]) as f32)
-            };
-            let dist = k;
-            // The source frame is written as f32 (its coordinates may not fit f16 well).
-            let descr = match (frame, dtype) {
-                (Frame::Normalized, Precision::F16) => "<f2",
-                _ => "<f4",
-            };
-            let floats = |name: &str, shape: Vec<usize>, v: Vec<f32>| -> Array {
-                if descr == "<f2" {
-                    let h: Vec<u16> = v
-                        .iter()
-                        .map(|&x| half::f16::from_f32(x).to_bits())
-                        .collect();
-                    Array::numbers(name, descr, shape, &h)
-                } else {
-                    Array::numbers(name, descr, shape, &v)
-                }
-            };
-            let points = |name: &str, v: &[[f32; 3]]| {
-                floats(
-                    name,
-                    vec![v.len(), 3],
-                    v.iter().flat_map(|p| to_point(*p)).collect(),
-                )
-            };
-            let vectors = |name: &str, v: &[[f32; 3]]| {
-                floats(
-                    name,
-                    vec![v.len(), 3],
-                    v.iter().flatten().copied().collect(),
-                )
-            };
-            let distances = |name: &str, v: &[f32]| {
-                floats(
-                    name,
-                    vec![v.len()],
-                    v.iter().map(|&d| (d as f64 * dist) as f32).collect(),
-                )
-            };
-            arrays.extend([
-                points("surface_points", &s.surface_points),
-                vectors("surface_normals", &s.surface_normals),
-                points("sharp_points", &s.sharp_points),
-                vectors("sharp_normals", &s.sharp_normals),
-                points("near_points", &s.near_points),
-                distances("near_sdf", &s.near_sdf),
-                points("volume_points", &s.volume_points),
-                distances("volume_sdf", &s.volume_sdf),
-                Array::numbers(
-                    "volume_occupancy",
-                    "|u1",
-                    vec![s.volume_occupancy.len()],
-                    &s.volume_occupancy,
-                ),
-                Array::text(
-                    "frame",
-                    match frame {
-                        Frame::Source => "source",
-                        Frame::Normalized => "normalized",
-                    },
-                ),
-            ]);
-        }
+        Format::VecsetNpz => arrays.extend(vecset_arrays(row, &norm, frame, dtype)?),
         Format::Direct3dS2 => {
             let s = direct3d_s2::sparse_sdf(&cubes, direct3d_s2::TRUNCATION);
             let index: Vec<i32> = s.coords.iter().flatten().map(|&c| c as i32).collect();
