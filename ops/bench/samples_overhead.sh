@@ -5,6 +5,8 @@
 # format. Prints wall seconds per job, their ratio, and bytes per item per layout.
 #
 #   ops/bench/samples_overhead.sh MESH_DIR OUT_DIR [RESOLUTION] [WORKERS]
+#
+# FORMATS="vecset-npz trellis2" exports only those layouts (default: all four).
 set -euo pipefail
 meshes=$1 out=$2 res=${3:-512} workers=${4:-2}
 bin=${SPARC3D_BIN:-sparc3d}
@@ -32,7 +34,7 @@ done
 items=$("$bin" status "$out/samples" --json | python3 -c 'import json,sys; print(json.load(sys.stdin)["ok"])' 2>/dev/null || echo "?")
 echo "resolution $res, workers $workers, ok items $items"
 echo "without samples: ${secs[plain]} s; with samples: ${secs[samples]} s; ratio $(echo "scale=3; ${secs[samples]} / ${secs[plain]}" | bc)"
-for fmt in vecset-npz direct3d-s2 trellis2 cubvh; do
+for fmt in ${FORMATS:-vecset-npz direct3d-s2 trellis2 cubvh}; do
   "$bin" export "$out/samples" --format "$fmt" --out "$out/export-$fmt" >/dev/null 2>&1
   n=$(ls "$out/export-$fmt" | wc -l)
   bytes=$(du -sb "$out/export-$fmt" | cut -f1)

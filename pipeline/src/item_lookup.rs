@@ -1,7 +1,8 @@
 //! Finding a job's item from what a user types after `--id`: the whole id, a unique prefix of
 //! it, or the item's source file (its path, or a trailing part of it such as the file name).
 //! A miss suggests the closest ids and file names; an ambiguous prefix or name lists its
-//! matches. Every command that takes `--id` (`show`, `preview`) goes through [`find`].
+//! matches. Every command that names items (`show --id`, `preview --id`, `export --ids`) goes
+//! through [`find`].
 
 use anyhow::{bail, Context, Result};
 use sparc3d_schema::{FrozenItem, ShardRow};

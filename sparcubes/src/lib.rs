@@ -30,6 +30,7 @@ pub mod closest;
 pub mod convert;
 pub mod cubes;
 pub mod deform;
+pub mod duplicate_faces;
 pub mod error;
 pub mod extract;
 pub mod flood;

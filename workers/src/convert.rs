@@ -128,7 +128,7 @@ pub fn convert_file(path: &Path, steps: Steps) -> Result<Converted, Box<Failed>>
     };
     let input_components = steps
         .input_components
-        .then(|| sparcubes::topology::check(&sparcubes::topology::weld(&source)).components);
+        .then(|| sparcubes::topology::component_count(&sparcubes::topology::weld(&source)));
     seconds.timings.load_s = t.elapsed().as_secs_f64();
     seconds.add("load", seconds.timings.load_s);
 

@@ -64,7 +64,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let (Some(mut mesh), Some(input_components)) = (done.mesh, done.input_components) else {
         anyhow::bail!("the conversion path returned no mesh or component count");
     };
+    let t = Instant::now();
     let topo = sparcubes::topology::check(&mesh);
+    let check_seconds = t.elapsed().as_secs_f64();
     if !args.grid_frame {
         sparcubes::extract::to_source(&mut mesh, &cubes.normalization, cubes.resolution);
     }
@@ -75,6 +77,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
 
     let s = &done.conversion.stats;
     let mut stages = done.seconds.in_order;
+    stages.push(("check".into(), check_seconds));
     stages.push(("save".into(), save_seconds));
     let total = start.elapsed().as_secs_f64();
     let peak = crate::memory::peak_rss_bytes();
@@ -89,6 +92,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         "degenerate_faces": s.degenerate_faces,
         "dropped_faces_bad_index": done.load_stats.faces_bad_index,
         "dropped_faces_non_finite": done.load_stats.faces_non_finite,
+        "dropped_faces_duplicate": done.load_stats.faces_duplicate,
         "wall_cells": s.wall_cells,
         "active_vertices": s.active_vertices,
         "active_cells": s.active_cells,
@@ -141,6 +145,12 @@ fn print_text(v: &Value, load: &LoadStats, stages: &[(String, f64)]) {
                 .map(|p| format!(" (first: {p})"))
                 .unwrap_or_default(),
             load.faces_non_finite
+        );
+    }
+    if load.faces_duplicate > 0 {
+        println!(
+            "  duplicates   {} faces dropped: each repeats an earlier face's vertices",
+            load.faces_duplicate
         );
     }
     println!(

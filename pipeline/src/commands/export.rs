@@ -4,6 +4,7 @@
 //! samples come from the shard's sample columns. Every file carries the item's
 //! normalization (`center`, `scale`, `resolution`).
 
+use crate::item_lookup;
 use crate::npz::{npz_bytes, Array};
 use anyhow::{bail, Context, Result};
 use sparc3d_schema::ShardRow;
@@ -50,7 +51,8 @@ pub struct Args {
     /// Output folder (created); one `<id>.npz` per item.
     #[arg(long)]
     pub out: PathBuf,
-    /// Only these item ids (comma-separated or repeated); default: every ok item.
+    /// Only these items (comma-separated or repeated), each named as `--id` elsewhere: its id,
+    /// a unique prefix of it, or its source file (path or file name); default: every ok item.
     #[arg(long, value_delimiter = ',')]
     pub ids: Vec<String>,
     /// Frame of sample coordinates and distances (vecset-npz only).
@@ -69,11 +71,11 @@ pub fn run(args: Args) -> Result<ExitCode> {
             args.job.display()
         );
     }
-    let wanted: BTreeSet<&str> = args.ids.iter().map(String::as_str).collect();
-    for id in &wanted {
-        if !job.items.iter().any(|i| i.record.id == *id) {
-            bail!("no item with id {id:?} in {}", args.job.display());
-        }
+    // Each `--ids` entry names an item as `--id` does elsewhere (whole id, unique prefix or
+    // source file); a miss fails before anything is written, with the closest names.
+    let mut wanted: BTreeSet<&str> = BTreeSet::new();
+    for query in &args.ids {
+        wanted.insert(item_lookup::find(&job, query)?.record.id.as_str());
     }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
