@@ -26,6 +26,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod band;
+pub mod close_grid;
 pub mod closest;
 pub mod convert;
 pub mod cubes;
