@@ -234,11 +234,7 @@ impl TriangleIndex {
                 let start = node.first as usize;
                 for s in start..start + node.count as usize {
                     let corners = &self.corners[s];
-                    let n = self.normals[s];
-                    let a = corners[0];
-                    let gap = n[0] as f64 * (q[0] - a[0])
-                        + n[1] as f64 * (q[1] - a[1])
-                        + n[2] as f64 * (q[2] - a[2]);
+                    let gap = dot(self.normals[s].map(f64::from), sub(q, corners[0]));
                     if gap * gap >= best.0 {
                         continue;
                     }
@@ -432,7 +428,7 @@ fn slab_on_triangles(tris: &[Triangle], run: &[u32], axis: [f32; 3]) -> (f32, f3
     for &t in run {
         let t = &tris[t as usize];
         for p in [t.v0, t.v1, t.v2] {
-            let d = n[0] * p[0] as f64 + n[1] * p[1] as f64 + n[2] * p[2] as f64;
+            let d = dot(n, [p[0] as f64, p[1] as f64, p[2] as f64]);
             near = near.min(d);
             far = far.max(d);
         }

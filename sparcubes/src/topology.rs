@@ -63,7 +63,7 @@ const CHUNK: usize = 1 << 14;
 /// Every count is local: each vertex looks at the triangles around it (its link), counts the
 /// edges to its higher-numbered neighbours by direction and checks that its fan is one piece,
 /// so the vertices are checked in parallel with no global edge list to sort. Two passes over
-/// the triangles (degrees and face checks; links and the components' union-find), one over
+/// the triangles (degrees and face checks; links), one for [`component_count`], one over
 /// the vertices. All results are counts, the same whatever the thread count or the order the
 /// links are filled in.
 pub fn check(mesh: &TriMesh) -> TopologyReport {
@@ -71,18 +71,17 @@ pub fn check(mesh: &TriMesh) -> TopologyReport {
     let in_range = |t: &[u32; 3]| t.iter().all(|&v| (v as usize) < nv);
     let good = |t: &[u32; 3]| in_range(t) && !is_degenerate(t);
 
-    // Pass 1: link sizes, degenerate and zero-area faces, faces with a bad index.
+    // Pass 1: link sizes, degenerate (or out-of-range) and zero-area faces.
     let degree: Vec<AtomicU32> = (0..nv).map(|_| AtomicU32::new(0)).collect();
-    let [degenerate_faces, zero_area_faces, out_of_range] = mesh
+    let [degenerate_faces, zero_area_faces] = mesh
         .triangles
         .par_chunks(CHUNK)
         .enumerate()
         .map(|(c, tris)| {
-            let mut n = [0u64; 3];
+            let mut n = [0u64; 2];
             for (k, t) in tris.iter().enumerate() {
                 if !good(t) {
                     n[0] += 1;
-                    n[2] += u64::from(!in_range(t));
                     continue;
                 }
                 for &v in t {
@@ -92,36 +91,10 @@ pub fn check(mesh: &TriMesh) -> TopologyReport {
             }
             n
         })
-        .reduce(|| [0; 3], |a, b| [a[0] + b[0], a[1] + b[1], a[2] + b[2]]);
+        .reduce(|| [0; 2], |a, b| [a[0] + b[0], a[1] + b[1]]);
 
-    // Pass 2: the links, and the components (through every in-range triangle).
-    let parent: Vec<AtomicU32> = (0..nv as u32).map(AtomicU32::new).collect();
-    let mut degenerate_corners = Vec::new();
-    let links = VertexLinks::fill(&mesh.triangles, degree, good, |t| {
-        if in_range(t) {
-            unite(&parent, t[0], t[1]);
-            unite(&parent, t[0], t[2]);
-        }
-    });
-    if degenerate_faces > out_of_range {
-        // Rare: vertices used only by degenerate faces still make components.
-        degenerate_corners.extend(
-            mesh.triangles
-                .iter()
-                .filter(|t| in_range(t) && is_degenerate(t))
-                .flatten(),
-        );
-        degenerate_corners.sort_unstable();
-    }
-    let roots = (0..nv)
-        .into_par_iter()
-        .with_min_len(CHUNK)
-        .filter(|&v| {
-            parent[v].load(Ordering::Relaxed) == v as u32
-                && (!links.of(v).is_empty()
-                    || degenerate_corners.binary_search(&(v as u32)).is_ok())
-        })
-        .count() as u64;
+    // Pass 2: the links.
+    let links = VertexLinks::fill(&mesh.triangles, degree, good);
 
     let counts = (0..nv)
         .into_par_iter()
@@ -141,7 +114,7 @@ pub fn check(mesh: &TriMesh) -> TopologyReport {
         non_manifold_edges: counts.non_manifold_edges,
         non_manifold_vertices: counts.non_manifold_vertices,
         inconsistently_oriented_edges: counts.inconsistently_oriented_edges,
-        components: roots + out_of_range,
+        components: component_count(mesh),
         degenerate_faces,
         zero_area_faces,
     }
@@ -158,12 +131,11 @@ struct VertexLinks {
 
 impl VertexLinks {
     /// The links of the triangles of `triangles` that pass `keep`, given each vertex's number
-    /// of kept triangles (`degree`); `visit` sees every triangle on the way.
+    /// of kept triangles (`degree`).
     fn fill(
         triangles: &[[u32; 3]],
         degree: Vec<AtomicU32>,
         keep: impl Fn(&[u32; 3]) -> bool + Sync,
-        visit: impl Fn(&[u32; 3]) + Sync,
     ) -> Self {
         // Exclusive prefix sum; `degree` becomes each row's fill cursor.
         let mut start = Vec::with_capacity(degree.len() + 1);
@@ -178,7 +150,6 @@ impl VertexLinks {
             .collect();
         triangles.par_chunks(CHUNK).for_each(|tris| {
             for t in tris {
-                visit(t);
                 if !keep(t) {
                     continue;
                 }
