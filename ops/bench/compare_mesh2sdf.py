@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""sparc3d against the common pipeline (mesh2sdf), mesh by mesh (DESIGN.md §6).
+"""sparc3d against the common pipeline (mesh2sdf), mesh by mesh (docs/QUALITY.md).
 
 The common pipeline used to make training meshes watertight (Dora, CLAY, Craftsman follow the
 mesh2sdf README example): normalise the mesh into [-1, 1] with a margin (`--mesh-scale`, 0.8

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Quality of `sparc3d convert` over a folder of meshes (DESIGN.md §6, "How we measure").
+"""Quality of `sparc3d convert` over a folder of meshes (docs/QUALITY.md, "How we measure").
 
 For every mesh in CORPUS (OBJ, PLY, STL, OFF, glTF, GLB), converts it at one resolution with
 and without deformation, measures each output against the source with `sparc3d eval`, and

@@ -6,7 +6,10 @@ reconstructions of the unseen items and of as many training items against their 
 meshes and sources.
 
     ops/bench/vae_dev_corpus.py --job dev64 --work out/vae-dev --train 128 --unseen 16 \\
-        --minutes 30 [--config vae.toml]
+        --minutes 30 --steps-per-second 0.75 [--config vae.toml]
+
+The step count is minutes × 60 × --steps-per-second (train stops at a step count, and the
+learning-rate schedule depends on it): measure the rate with a short `train` first.
 
 Needs `sparc3d` (SPARC3D_BIN or PATH) and `sparc3d-vae` (`pip install ./python ./vae`).
 Writes WORK/report.json with the split, training time, steps/s, peak memory and both

@@ -1,12 +1,13 @@
 //! Finding a job's item from what a user types after `--id`: the whole id, a unique prefix of
 //! it, or the item's source file (its path, or a trailing part of it such as the file name).
 //! A miss suggests the closest ids and file names; an ambiguous prefix or name lists its
-//! matches. Every command that takes `--id` (`show`, `preview`) goes through [`find`].
+//! matches. Every command that names items (`show --id`, `preview --id`, `export --ids`) goes
+//! through [`find`].
 
-use crate::shard_io::shard_rows;
 use anyhow::{bail, Context, Result};
 use sparc3d_schema::{FrozenItem, ShardRow};
-use sparc3d_workers::state::Check;
+use sparc3d_workers::store::read::shard_rows;
+use sparc3d_workers::store::state::Check;
 use sparc3d_workers::Job;
 
 /// How many matches or suggestions an error lists.
@@ -65,6 +66,17 @@ pub fn row(job: &Job, item: &FrozenItem) -> Result<ShardRow> {
                 item.record.uri, item.shard
             )
         })
+}
+
+/// The sparse cubes of a converted row; a failed row's error names the item and its failure.
+pub fn cubes(row: &ShardRow) -> Result<sparcubes::SparseCubes> {
+    row.cubes().with_context(|| {
+        format!(
+            "item {:?}: {}",
+            row.id,
+            row.error_message.clone().unwrap_or_default()
+        )
+    })
 }
 
 /// Whether `query` names the source `uri`: the same text, the same file once resolved, or

@@ -2,7 +2,7 @@
 //! a folder of meshes or a manifest when OUT is not a job yet, with `init`'s config flags.
 
 use crate::commands::init::{build_config, check_same_config, create, ConfigArgs};
-use crate::commands::manifest::collect;
+use crate::folder_scan::collect;
 use crate::manifest_io::{self, RawRecord};
 use anyhow::{bail, Result};
 use sparc3d_schema::JobLayout;

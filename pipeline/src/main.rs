@@ -2,16 +2,24 @@
 
 mod cluster;
 mod commands;
+mod folder_scan;
 mod hints;
 mod item_lookup;
 mod job_setup;
-mod label;
+mod local_workers;
 mod manifest_io;
+mod memory;
+mod npz;
+mod pictures;
+mod pool;
 mod progress;
+mod resolution_arg;
 mod sample;
-mod shard_io;
+mod signals;
+mod stats;
 mod summary;
 mod units;
+mod validation;
 
 use clap::Parser;
 

@@ -7,10 +7,10 @@
 //! the sample is the same whatever the number of workers, shards or runs that produced the
 //! rows, and a larger sample (same seed) contains every smaller one.
 
-use crate::shard_io::{for_each_row, shard_rows};
 use anyhow::{bail, Context, Result};
 use sha2::{Digest, Sha256};
 use sparc3d_schema::{ItemStatus, ShardRow};
+use sparc3d_workers::store::read::{for_each_row, shard_rows};
 use sparc3d_workers::Job;
 use std::str::FromStr;
 
@@ -98,12 +98,14 @@ pub fn for_each_shard_row(
     shard: u64,
     mut f: impl FnMut(ShardRow) -> Result<()>,
 ) -> Result<()> {
-    use sparc3d_workers::state::{completion, Check, Completion};
+    use sparc3d_workers::store::state::{completion, Check, Completion};
     match completion(&job.layout, shard, job.fingerprint(), Check::Quick)
         .with_context(|| format!("reading the completion record of shard {shard}"))?
     {
         Completion::Done(_) => return for_each_row(&job.layout.shard_file(shard), f),
-        Completion::Damaged(why) => return Err(crate::shard_io::damaged(job, shard, &why)),
+        Completion::Damaged(why) => {
+            return Err(sparc3d_workers::store::read::damaged(job, shard, &why).into())
+        }
         Completion::Absent => {}
     }
     for row in

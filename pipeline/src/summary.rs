@@ -6,7 +6,7 @@ use anyhow::Result;
 use rayon::prelude::*;
 use serde::Serialize;
 use sparc3d_schema::ItemStatus;
-use sparc3d_workers::state::{shard_state, Check, ShardState};
+use sparc3d_workers::store::state::{shard_state, Check, ShardState};
 use sparc3d_workers::Job;
 use std::collections::BTreeMap;
 

@@ -230,6 +230,59 @@ fn ids_are_found_by_prefix_or_source_and_misses_suggest() {
     ]);
     assert!(out.status.success(), "{}", stderr(&out));
     assert!(stderr(&out).contains(&wuson), "{}", stderr(&out));
+
+    // `export --ids` too: a file name and a prefix give those items' files, nothing else.
+    let sphere_a = id_of(&job, "a/part.obj");
+    let export = tmp.path().join("export");
+    let ids = format!("wuson.stl,{}", &sphere_a[..10]);
+    let out = sparc3d(&[
+        "export",
+        j,
+        "--format",
+        "trellis2",
+        "--out",
+        s(&export),
+        "--ids",
+        &ids,
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let mut files: Vec<String> = std::fs::read_dir(&export)
+        .unwrap_or_else(|e| panic!("{e}"))
+        .map(|e| {
+            e.unwrap_or_else(|e| panic!("{e}"))
+                .file_name()
+                .to_string_lossy()
+                .into_owned()
+        })
+        .collect();
+    files.sort();
+    let mut expected = vec![format!("{wuson}.npz"), format!("{sphere_a}.npz")];
+    expected.sort();
+    assert_eq!(files, expected);
+    // A typo is refused before anything is written, with the closest item; so is a shared name.
+    let export_err = |ids: &str| {
+        let out_dir = tmp.path().join("export-miss");
+        let out = sparc3d(&[
+            "export",
+            j,
+            "--format",
+            "trellis2",
+            "--out",
+            s(&out_dir),
+            "--ids",
+            ids,
+        ]);
+        assert!(!out.status.success(), "--ids {ids} should fail");
+        assert!(!out_dir.exists(), "--ids {ids} wrote {}", out_dir.display());
+        stderr(&out)
+    };
+    let err = export_err(&format!("{wuson},wusn.stl"));
+    assert!(err.contains("closest") && err.contains(&wuson), "{err}");
+    let err = export_err("part.obj");
+    assert!(
+        err.contains("ambiguous") && err.contains("a/part.obj"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -17,6 +17,11 @@ Tensor files (the same encoding, other columns) are written with `write_tensor_f
 with `iter_tensor_rows`; `sparc3d extract` reads such a file, and `sparc3d-vae` writes its
 latents with it.
 
+Jobs with `[samples]` also give `item["samples"]` (vector-set VAE samples in the normalized
+frame; `samples_to_source` maps them to the source frame), batched by `collate_vecset`. The
+layouts of other codebases are written by `sparc3d export` (`run_export`) and read back with
+`iter_export` / `ExportDataset` and `collate_direct3d_s2`, `collate_trellis2`, `collate_cubvh`.
+
 Only numpy and pyarrow are needed; `SparseCubesDataset` is a `torch.utils.data.Dataset` when
 torch is installed (imported only when the class is first used) and a plain indexable class
 otherwise.
@@ -35,6 +40,15 @@ import pyarrow.parquet as pq
 
 __all__ = [
     "TENSORS",
+    "SAMPLE_TENSORS",
+    "samples_to_source",
+    "collate_vecset",
+    "run_export",
+    "iter_export",
+    "ExportDataset",
+    "collate_direct3d_s2",
+    "collate_trellis2",
+    "collate_cubvh",
     "shard_paths",
     "decode_tensor",
     "row_to_item",
@@ -64,7 +78,12 @@ TENSORS = {
 META_COLUMNS = ["item_index", "id", "uri", "status", "resolution",
                 "center_x", "center_y", "center_z", "scale"]
 
+#: Vector-set sample columns (docs/FORMAT.md, "Samples"), present when the job has `[samples]`.
+SAMPLE_TENSORS = ["surface_points", "surface_normals", "sharp_points", "sharp_normals",
+                  "near_points", "near_sdf", "volume_points", "volume_sdf", "volume_occupancy"]
+
 _READ_COLUMNS = META_COLUMNS + [f"{t}{s}" for t in TENSORS for s in ("", "_dtype", "_shape")]
+_SAMPLE_COLUMNS = [f"{t}{s}" for t in SAMPLE_TENSORS for s in ("", "_dtype", "_shape")]
 
 PathLike = Union[str, os.PathLike]
 
@@ -123,7 +142,58 @@ def row_to_item(row: Dict[str, Any]) -> Dict[str, Any]:
         if name in ("coords", "deformation", "cells"):
             t = t.reshape(-1, 3)
         item[name] = t.astype(dtype, copy=True)
+    if row.get("surface_points") is not None:
+        item["samples"] = {name: decode_tensor(row, name) for name in SAMPLE_TENSORS}
     return item
+
+
+def samples_to_source(item: Dict[str, Any]) -> Dict[str, np.ndarray]:
+    """The item's samples in the source mesh's frame (float32): points map as
+    `source = p / (2 * scale) + center`, distances as `d / (2 * scale)`; normals and
+    occupancy are unchanged."""
+    s, center, scale = item["samples"], item["center"], item["scale"]
+    out = {}
+    for name, v in s.items():
+        v = np.asarray(v)
+        if name.endswith("_points"):
+            out[name] = (v.astype(np.float64) / (2.0 * scale) + center).astype(np.float32)
+        elif name.endswith("_sdf"):
+            out[name] = (v.astype(np.float64) / (2.0 * scale)).astype(np.float32)
+        else:
+            out[name] = v.copy()
+    return out
+
+
+def collate_vecset(batch: Sequence[Dict[str, Any]], to_torch: bool = False) -> Dict[str, Any]:
+    """Stacks the samples of items (dicts with `samples`, or the dicts `iter_export` yields for
+    `vecset-npz`) into float32 arrays [B, n, ...]: `surface` [B, n, 6] (points + normals, as
+    Hunyuan3D-2.1 and Dora feed their encoders), `sharp_surface` [B, m, 6], `near_points`
+    [B, q, 3], `near_sdf` [B, q], `volume_points` [B, p, 3], `volume_sdf` [B, p],
+    `volume_occupancy` [B, p]. Every item must have the same counts (a job's config fixes
+    them; `sharp` is empty for a mesh without sharp edges, so it is stacked only when all
+    items have the same number)."""
+    def get(it, name):
+        s = it["samples"] if "samples" in it else it
+        return np.asarray(s[name])
+
+    out: Dict[str, Any] = {}
+    out["surface"] = np.stack([np.concatenate([get(it, "surface_points"), get(it, "surface_normals")], 1)
+                               for it in batch]).astype(np.float32)
+    sharp = [np.concatenate([get(it, "sharp_points"), get(it, "sharp_normals")], 1) for it in batch]
+    if len({len(x) for x in sharp}) == 1:
+        out["sharp_surface"] = np.stack(sharp).astype(np.float32)
+    else:
+        out["sharp_surface"] = [x.astype(np.float32) for x in sharp]
+    for name in ("near_points", "near_sdf", "volume_points", "volume_sdf", "volume_occupancy"):
+        out[name] = np.stack([get(it, name) for it in batch]).astype(np.float32)
+    out["ids"] = [it.get("id") for it in batch]
+    if to_torch:
+        import torch
+
+        for k, v in out.items():
+            if isinstance(v, np.ndarray):
+                out[k] = torch.from_numpy(v)
+    return out
 
 
 def check_schema_version(path: PathLike) -> None:
@@ -147,19 +217,21 @@ def shard_config(path: PathLike) -> Dict[str, Any]:
     return json.loads(raw) if raw else {}
 
 
-def _rows(path: pathlib.Path, batch_size: int) -> Iterator[Dict[str, Any]]:
+def _rows(path: pathlib.Path, batch_size: int, samples: bool = True) -> Iterator[Dict[str, Any]]:
     f = pq.ParquetFile(path)
     _check_version(path, f)
-    for batch in f.iter_batches(batch_size=batch_size, columns=_READ_COLUMNS):
+    columns = _READ_COLUMNS + (_SAMPLE_COLUMNS if samples else [])
+    for batch in f.iter_batches(batch_size=batch_size, columns=columns):
         yield from batch.to_pylist()
 
 
 def iter_items(paths: Union[PathLike, Iterable[PathLike]], complete_only: bool = True,
-               batch_size: int = 16) -> Iterator[Dict[str, Any]]:
+               batch_size: int = 16, samples: bool = True) -> Iterator[Dict[str, Any]]:
     """Yields every `ok` item of the given jobs / shard files, in shard and item order
-    (failed and skipped rows are left out). Reads `batch_size` rows at a time."""
+    (failed and skipped rows are left out). Reads `batch_size` rows at a time; with
+    `samples=False` the sample columns are not read."""
     for path in shard_paths(paths, complete_only):
-        for row in _rows(path, batch_size):
+        for row in _rows(path, batch_size, samples):
             if row["status"] == "ok":
                 yield row_to_item(row)
 
@@ -349,7 +421,8 @@ class _SparseCubesDatasetBase:
         s, g, r = self.index[i]
         key, table = self._cache
         if key != (s, g) or table is None:
-            table = pq.ParquetFile(self.paths[s]).read_row_group(g, columns=_READ_COLUMNS)
+            table = pq.ParquetFile(self.paths[s]).read_row_group(
+                g, columns=_READ_COLUMNS + _SAMPLE_COLUMNS)
             self._cache = ((s, g), table)
         item = row_to_item(table.slice(r, 1).to_pylist()[0])
         return self.transform(item) if self.transform else item
@@ -394,3 +467,143 @@ def __getattr__(name: str):
 def read_job_config(job: PathLike) -> Dict[str, Any]:
     """The config of a job folder (`job.json`'s `config`)."""
     return json.loads((pathlib.Path(job) / "job.json").read_text())["config"]
+
+
+# --- Layouts of other codebases, written by `sparc3d export` -------------------------------
+
+#: The formats of `sparc3d export`.
+EXPORT_FORMATS = ("vecset-npz", "direct3d-s2", "trellis2", "cubvh")
+
+
+def run_export(job: PathLike, fmt: str, out: PathLike, ids: Optional[Sequence[str]] = None,
+               frame: str = "source", binary: str = "sparc3d") -> pathlib.Path:
+    """Runs `sparc3d export JOB --format FMT --out OUT` (the geometry of every layout lives in
+    the Rust CLI, so Python never recomputes it) and returns the output folder."""
+    import subprocess
+
+    if fmt not in EXPORT_FORMATS:
+        raise ValueError(f"unknown format {fmt!r}; one of {', '.join(EXPORT_FORMATS)}")
+    cmd = [binary, "export", str(job), "--format", fmt, "--out", str(out), "--frame", frame]
+    if ids:
+        cmd += ["--ids", ",".join(ids)]
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)} failed ({r.returncode}): {r.stderr.strip()}")
+    return pathlib.Path(out)
+
+
+def _load_npz(path: pathlib.Path) -> Dict[str, Any]:
+    with np.load(path) as z:
+        item = {k: z[k] for k in z.files}
+    item["id"] = path.stem
+    return item
+
+
+def iter_export(folder: PathLike) -> Iterator[Dict[str, Any]]:
+    """Yields the arrays of every `.npz` in an export folder (sorted by name), with `id` set
+    from the file name."""
+    for path in sorted(pathlib.Path(folder).glob("*.npz")):
+        yield _load_npz(path)
+
+
+class ExportDataset:
+    """The `.npz` files of an export folder as an indexable dataset (`ds[i]` is a dict of
+    arrays); works as a `torch.utils.data.Dataset` with `DataLoader` and the collate
+    functions below."""
+
+    def __init__(self, folder: PathLike, transform=None):
+        self.paths = sorted(pathlib.Path(folder).glob("*.npz"))
+        self.transform = transform
+
+    def __len__(self) -> int:
+        return len(self.paths)
+
+    def __getitem__(self, i: int) -> Dict[str, Any]:
+        item = _load_npz(self.paths[i])
+        return self.transform(item) if self.transform else item
+
+
+def _batch_coords(parts: Sequence[np.ndarray]) -> np.ndarray:
+    """int32 [ΣN, 4]: batch index, then the item's (x, y, z)."""
+    total = sum(len(p) for p in parts)
+    out = np.zeros((total, 4), dtype=np.int32)
+    lo = 0
+    for b, p in enumerate(parts):
+        out[lo:lo + len(p), 0] = b
+        out[lo:lo + len(p), 1:] = p
+        lo += len(p)
+    return out
+
+
+def _torch(out: Dict[str, Any], to_torch: bool) -> Dict[str, Any]:
+    if to_torch:
+        import torch
+
+        for k, v in out.items():
+            if isinstance(v, np.ndarray):
+                out[k] = torch.from_numpy(v)
+    return out
+
+
+def collate_direct3d_s2(batch: Sequence[Dict[str, Any]], to_torch: bool = False) -> Dict[str, Any]:
+    """Direct3D-S2 items → the batch its sparse SDF VAE encodes (`ss_vae.py` reads
+    `sparse_sdf`, `sparse_index`, `batch_idx`): `sparse_sdf` float32 [ΣN, 1] in (−1, 1),
+    `sparse_index` int32 [ΣN, 3], `batch_idx` int64 [ΣN], and `coords` int32 [ΣN, 4]."""
+    coords = _batch_coords([np.asarray(it["sparse_index"]) for it in batch])
+    out = {
+        "coords": coords,
+        "sparse_index": coords[:, 1:].copy(),
+        "batch_idx": coords[:, 0].astype(np.int64),
+        "sparse_sdf": np.concatenate([np.asarray(it["sparse_sdf"], np.float32).reshape(-1, 1)
+                                      for it in batch]),
+        "ids": [it.get("id") for it in batch],
+    }
+    return _torch(out, to_torch)
+
+
+def collate_trellis2(batch: Sequence[Dict[str, Any]], to_torch: bool = False) -> Dict[str, Any]:
+    """TRELLIS.2 items → its flexible-dual-grid batch (as `FlexiDualGridDataset` builds it):
+    `coords` int32 [ΣN, 4] (batch index first), `vertices` float32 [ΣN, 3] = u8 / 255 (the dual
+    vertex inside its voxel), `intersected` bool [ΣN, 3] (x, y, z edge flags)."""
+    coords = _batch_coords([np.asarray(it["coord"]).astype(np.int32) for it in batch])
+    flags = np.concatenate([np.asarray(it["intersected"]).reshape(-1) for it in batch])
+    out = {
+        "coords": coords,
+        "vertices": np.concatenate([np.asarray(it["vertices"]) for it in batch]).astype(np.float32) / 255.0,
+        "intersected": np.stack([flags & 1, flags >> 1 & 1, flags >> 2 & 1], axis=1).astype(bool),
+        "ids": [it.get("id") for it in batch],
+    }
+    return _torch(out, to_torch)
+
+
+def cubvh_cells(item: Dict[str, Any]) -> np.ndarray:
+    """The cells of a cubvh item, int32 [N, 3], from its packed `active_cells`."""
+    res = int(item["resolution"])
+    c = np.asarray(item["active_cells"], dtype=np.uint64)
+    return np.stack([c // (res * res), c // res % res, c % res], axis=1).astype(np.int32)
+
+
+def cubvh_corner_values(item: Dict[str, Any]) -> np.ndarray:
+    """The 8 corner values of each cubvh cell, float32 [N, 8] in voxels (cubvh's corner order
+    000, 100, 110, 010, 001, 101, 111, 011; negative inside), from the packed bytes."""
+    packed = np.asarray(item["active_cells_sdf"], dtype=np.uint64)
+    codes = (packed[:, None] >> (np.arange(8, dtype=np.uint64) * np.uint64(8))) & np.uint64(0xFF)
+    codes = codes.astype(np.uint8)
+    mag = (codes & 0x7F).astype(np.float32) * np.float32(np.sqrt(3.0) / 127.0)
+    return np.where(codes & 0x80, -mag, mag).astype(np.float32)
+
+
+def collate_cubvh(batch: Sequence[Dict[str, Any]], to_torch: bool = False) -> Dict[str, Any]:
+    """cubvh items → `coords` int32 [ΣN, 4] (batch index first) and `corners` float32 [ΣN, 8]
+    (corner values in voxels, cubvh's corner order), `codes` uint8 [ΣN, 8] (the stored sign +
+    magnitude bytes)."""
+    coords = _batch_coords([cubvh_cells(it) for it in batch])
+    packed = np.concatenate([np.asarray(it["active_cells_sdf"], np.uint64) for it in batch])
+    codes = ((packed[:, None] >> (np.arange(8, dtype=np.uint64) * np.uint64(8))) & np.uint64(0xFF)).astype(np.uint8)
+    out = {
+        "coords": coords,
+        "corners": np.concatenate([cubvh_corner_values(it) for it in batch]),
+        "codes": codes,
+        "ids": [it.get("id") for it in batch],
+    }
+    return _torch(out, to_torch)

@@ -3,7 +3,7 @@
 use crate::class::{ErrorClass, ItemStatus};
 use crate::columns as c;
 use crate::error::{Result, SchemaError};
-use crate::row::{RowCounts, RowTensors, RowTimings, ShardRow};
+use crate::row::{RowCounts, RowTensors, RowTimings, SampleTensors, ShardRow};
 use crate::tensor::{DType, EncodedTensor};
 use arrow_array::types::Int64Type;
 use arrow_array::{
@@ -44,7 +44,7 @@ pub fn schema() -> SchemaRef {
         f.push(Field::new(name, Float64, false));
     }
     f.push(Field::new(c::TIME_STAGES, Utf8, false));
-    for t in c::TENSORS {
+    for t in c::tensors() {
         f.push(Field::new(t, Binary, true));
         f.push(Field::new(c::dtype_column(t), Utf8, true));
         f.push(Field::new(c::shape_column(t), shape_type(), true));
@@ -156,7 +156,7 @@ pub fn rows_to_batch(rows: &[ShardRow]) -> Result<RecordBatch> {
             .map(|r| stages_json(&r.timings))
             .collect::<Vec<_>>(),
     )));
-    for stem in c::TENSORS {
+    for stem in c::tensors() {
         let ts: Vec<Option<&EncodedTensor>> = rows.iter().map(|r| tensor_of(r, stem)).collect();
         cols.push(Arc::new(BinaryArray::from_opt_vec(
             ts.iter().map(|t| t.map(|t| t.blob.as_slice())).collect(),
@@ -283,6 +283,7 @@ fn cube_tensors_at(batch: &RecordBatch, i: usize) -> Result<Option<RowTensors>> 
                 cells,
                 mesh_vertices: None,
                 mesh_faces: None,
+                samples: None,
             }),
             _ => None,
         },
@@ -355,6 +356,7 @@ pub fn batch_to_rows(batch: &RecordBatch) -> Result<Vec<ShardRow>> {
             Some(t) => Some(RowTensors {
                 mesh_vertices: read_tensor(batch, "mesh_vertices", i)?,
                 mesh_faces: read_tensor(batch, "mesh_faces", i)?,
+                samples: SampleTensors::from_lookup(|stem| read_tensor(batch, stem, i))?,
                 ..t
             }),
             None => None,

@@ -66,15 +66,53 @@ pub fn is_run_dependent(name: &str) -> bool {
     name.starts_with(TIMING_PREFIX) || name == ATTEMPTS || name == STDERR_TAIL
 }
 
-/// The tensors of a row, in column order: name stem (`coords` → columns `coords`,
-/// `coords_dtype`, `coords_shape`).
-pub const TENSORS: [&str; 6] = [
+/// The sparse-cube and mesh tensors of a row, in column order: name stem (`coords` → columns
+/// `coords`, `coords_dtype`, `coords_shape`).
+pub const CUBE_TENSORS: [&str; 6] = [
     "coords",
     "sdf",
     "deformation",
     "cells",
     "mesh_vertices",
     "mesh_faces",
+];
+
+/// Every tensor stem of a row in column order: [`CUBE_TENSORS`], then the optional
+/// vector-set samples ([`SAMPLE_TENSORS`]).
+pub fn tensors() -> impl Iterator<Item = &'static str> {
+    CUBE_TENSORS.into_iter().chain(SAMPLE_TENSORS)
+}
+
+/// Surface samples, `n × 3` floats in the normalized frame (only with `[samples]`).
+pub const SURFACE_POINTS: &str = "surface_points";
+/// Unit normals of the surface samples, `n × 3`.
+pub const SURFACE_NORMALS: &str = "surface_normals";
+/// Samples on sharp edges, `m × 3` (`m` is 0 when the mesh has no sharp edge).
+pub const SHARP_POINTS: &str = "sharp_points";
+/// Edge normals of the sharp samples, `m × 3`.
+pub const SHARP_NORMALS: &str = "sharp_normals";
+/// Near-surface samples, `q × 3`.
+pub const NEAR_POINTS: &str = "near_points";
+/// Signed distance of the near samples, `q` (normalized units, negative inside).
+pub const NEAR_SDF: &str = "near_sdf";
+/// Volume samples, `p × 3`.
+pub const VOLUME_POINTS: &str = "volume_points";
+/// Signed distance of the volume samples, `p`.
+pub const VOLUME_SDF: &str = "volume_sdf";
+/// Occupancy of the volume samples, `p` bytes (1 inside).
+pub const VOLUME_OCCUPANCY: &str = "volume_occupancy";
+
+/// The sample tensors, in column order.
+pub const SAMPLE_TENSORS: [&str; 9] = [
+    SURFACE_POINTS,
+    SURFACE_NORMALS,
+    SHARP_POINTS,
+    SHARP_NORMALS,
+    NEAR_POINTS,
+    NEAR_SDF,
+    VOLUME_POINTS,
+    VOLUME_SDF,
+    VOLUME_OCCUPANCY,
 ];
 
 /// Name of a tensor's dtype column.

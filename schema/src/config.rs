@@ -49,6 +49,29 @@ pub struct JobConfig {
     pub validation_sample_rate: f64,
     /// Per-item limits (not fingerprinted).
     pub limits: Limits,
+    /// Vector-set samples drawn from each item's watertight mesh (`[samples]`). Left out of
+    /// the canonical config while disabled, so jobs without samples keep their fingerprint.
+    #[serde(default, skip_serializing_if = "SampleConfig::is_disabled")]
+    pub samples: SampleConfig,
+}
+
+/// The `[samples]` section of a job config: `enabled = true` alone draws the documented
+/// defaults of [`sparcubes::samples::SampleParams`] (docs/FORMAT.md, "Samples").
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default)]
+pub struct SampleConfig {
+    /// Whether each ok item gets sample columns.
+    pub enabled: bool,
+    /// Counts, noise scales, sharp-edge angle, dtype and seed.
+    #[serde(flatten)]
+    pub params: sparcubes::samples::SampleParams,
+}
+
+impl SampleConfig {
+    /// Whether samples are off (the section is then left out of the canonical config).
+    pub fn is_disabled(&self) -> bool {
+        !self.enabled
+    }
 }
 
 impl Default for JobConfig {
@@ -61,6 +84,7 @@ impl Default for JobConfig {
             store_mesh: false,
             validation_sample_rate: 0.01,
             limits: Limits::default(),
+            samples: SampleConfig::default(),
         }
     }
 }
@@ -139,24 +163,54 @@ impl JobConfig {
     /// Builds a config from defaults overlaid with a partial JSON object (e.g. a parsed
     /// `job.toml`). Unknown keys are refused with their dotted name.
     pub fn from_overrides(overrides: &Value) -> Result<Self> {
+        let config = Self::overlaid(overrides)?;
+        config.validate()?;
+        Ok(config)
+    }
+
+    /// Defaults overlaid with a partial JSON object, not validated yet: typed overrides (the
+    /// command line's) may still be set before [`JobConfig::validate`].
+    pub fn overlaid(overrides: &Value) -> Result<Self> {
         let mut base = to_value(&Self::default())?;
-        merge(&mut base, overrides, "")?;
-        let config: JobConfig =
-            serde_json::from_value(base).map_err(|source| SchemaError::Json {
-                context: "job config".into(),
-                source,
+        // The samples section is left out of a default config's JSON; offer its keys.
+        if let Value::Object(m) = &mut base {
+            let samples = serde_json::to_value(SampleConfig::default()).map_err(|source| {
+                SchemaError::Json {
+                    context: "serializing the samples config".into(),
+                    source,
+                }
             })?;
-        config.params.validate().map_err(|e| SchemaError::Invalid {
+            m.insert("samples".into(), samples);
+        }
+        merge(&mut base, overrides, "")?;
+        serde_json::from_value(base).map_err(|source| SchemaError::Json {
+            context: "job config".into(),
+            source,
+        })
+    }
+
+    /// Refuses parameters the converter would refuse and a shard size of 0.
+    pub fn validate(&self) -> Result<()> {
+        self.params.validate().map_err(|e| SchemaError::Invalid {
             what: "job config",
             value: e.to_string(),
         })?;
-        if config.shard_size == 0 {
+        if self.samples.enabled {
+            self.samples
+                .params
+                .validate()
+                .map_err(|e| SchemaError::Invalid {
+                    what: "job config",
+                    value: e.to_string(),
+                })?;
+        }
+        if self.shard_size == 0 {
             return Err(SchemaError::Invalid {
                 what: "job config",
                 value: "shard_size must be at least 1".into(),
             });
         }
-        Ok(config)
+        Ok(())
     }
 
     /// Dotted keys whose values differ between two configs (e.g. `params.resolution`).
@@ -281,6 +335,51 @@ mod tests {
         assert!(
             JobConfig::from_overrides(&serde_json::json!({"params": {"resolution": 2}})).is_err()
         );
+        Ok(())
+    }
+
+    #[test]
+    fn samples_section_defaults_validates_and_stays_out_when_off() -> Result<()> {
+        let off = JobConfig::default();
+        assert!(!off.to_canonical_json()?.contains("samples"));
+        let on = JobConfig::from_overrides(&serde_json::json!({"samples": {"enabled": true}}))?;
+        assert!(on.samples.enabled);
+        assert_eq!(
+            on.samples.params,
+            sparcubes::samples::SampleParams::default()
+        );
+        assert_ne!(on.fingerprint()?, off.fingerprint()?);
+        assert!(on.to_canonical_json()?.contains("\"near_sigmas\""));
+        let e = JobConfig::from_overrides(
+            &serde_json::json!({"samples": {"enabled": true, "volume": 1u64 << 40}}),
+        );
+        assert!(
+            matches!(e, Err(SchemaError::Invalid { value, .. }) if value.contains("samples.volume"))
+        );
+        let e = JobConfig::from_overrides(&serde_json::json!({"samples": {"enabeld": true}}));
+        assert!(matches!(e, Err(SchemaError::Invalid { value, .. }) if value == "samples.enabeld"));
+        let f32s = JobConfig::from_overrides(
+            &serde_json::json!({"samples": {"enabled": true, "dtype": "f32", "surface": 10}}),
+        )?;
+        assert_eq!(
+            f32s.samples.params.dtype,
+            sparcubes::samples::Precision::F32
+        );
+        assert_eq!(f32s.samples.params.surface, 10);
+        // A config written before samples existed still reads.
+        let mut v =
+            serde_json::to_value(JobConfig::default()).map_err(|source| SchemaError::Json {
+                context: "test".into(),
+                source,
+            })?;
+        if let Value::Object(m) = &mut v {
+            m.remove("samples");
+        }
+        let back: JobConfig = serde_json::from_value(v).map_err(|source| SchemaError::Json {
+            context: "test".into(),
+            source,
+        })?;
+        assert_eq!(back, JobConfig::default());
         Ok(())
     }
 

@@ -19,16 +19,17 @@ pub mod tensor;
 
 pub use class::{ErrorClass, ItemStatus};
 pub use completion::{CompletionRecord, FileStamp};
-pub use config::{JobConfig, JobFile, Limits};
+pub use config::{JobConfig, JobFile, Limits, SampleConfig};
 pub use error::{Result, SchemaError};
 pub use layout::JobLayout;
 pub use manifest::{FrozenItem, ManifestRecord};
-pub use row::{RowCounts, RowTensors, RowTimings, ShardRow};
+pub use row::{RowCounts, RowTensors, RowTimings, SampleTensors, ShardRow};
 pub use tensor::{DType, EncodedTensor};
 
 /// Version of the shard format; bumped on any change to columns or encodings. Version 2 stores
 /// tensor bytes in byte planes (version 1: row-major); version 3 puts zstd's content checksum
-/// in every tensor blob, so any zstd decoder fails loudly on a damaged blob.
+/// in every tensor blob, so any zstd decoder fails loudly on a damaged blob, and adds the
+/// optional vector-set sample columns with the `<f2` and `<u1` dtypes.
 pub const SCHEMA_VERSION: u32 = 3;
 
 /// Version of the tool that wrote a file (the workspace version).

@@ -1,9 +1,12 @@
 //! One shard row in memory: an item's outcome, counts, timings and encoded tensors.
 
 use crate::class::{ErrorClass, ItemStatus};
+use crate::columns as c;
 use crate::error::{Result, SchemaError};
-use crate::tensor::EncodedTensor;
+use crate::manifest::FrozenItem;
+use crate::tensor::{DType, EncodedTensor};
 use serde::{Deserialize, Serialize};
+use sparcubes::samples::{Precision, Samples};
 use sparcubes::{Normalization, SparseCubes};
 
 /// Counts of an ok item.
@@ -59,6 +62,129 @@ pub struct RowTensors {
     pub mesh_vertices: Option<EncodedTensor>,
     /// Extracted mesh triangles, `f × 3` `<u4`, when stored.
     pub mesh_faces: Option<EncodedTensor>,
+    /// Vector-set samples, when the job draws them.
+    pub samples: Option<SampleTensors>,
+}
+
+/// The encoded vector-set samples of an item (columns [`crate::columns::SAMPLE_TENSORS`]):
+/// points, normals and distances as `<f2` or `<f4`, occupancy as `<u1`.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct SampleTensors {
+    /// Surface points, `n × 3`.
+    pub surface_points: EncodedTensor,
+    /// Surface normals, `n × 3`.
+    pub surface_normals: EncodedTensor,
+    /// Sharp-edge points, `m × 3`.
+    pub sharp_points: EncodedTensor,
+    /// Sharp-edge normals, `m × 3`.
+    pub sharp_normals: EncodedTensor,
+    /// Near-surface points, `q × 3`.
+    pub near_points: EncodedTensor,
+    /// Their signed distances, `q`.
+    pub near_sdf: EncodedTensor,
+    /// Volume points, `p × 3`.
+    pub volume_points: EncodedTensor,
+    /// Their signed distances, `p`.
+    pub volume_sdf: EncodedTensor,
+    /// Their occupancy, `p` bytes.
+    pub volume_occupancy: EncodedTensor,
+}
+
+impl SampleTensors {
+    /// Encodes samples at `dtype` (their values are already rounded to it).
+    pub fn from_samples(s: &Samples, dtype: Precision, level: i32) -> Result<Self> {
+        let dt = match dtype {
+            Precision::F16 => DType::F16,
+            Precision::F32 => DType::F32,
+        };
+        let rows = |v: &[[f32; 3]]| {
+            EncodedTensor::from_floats(v.as_flattened(), vec![v.len() as u64, 3], dt, level)
+        };
+        let column = |v: &[f32]| EncodedTensor::from_floats(v, vec![v.len() as u64], dt, level);
+        Ok(Self {
+            surface_points: rows(&s.surface_points)?,
+            surface_normals: rows(&s.surface_normals)?,
+            sharp_points: rows(&s.sharp_points)?,
+            sharp_normals: rows(&s.sharp_normals)?,
+            near_points: rows(&s.near_points)?,
+            near_sdf: column(&s.near_sdf)?,
+            volume_points: rows(&s.volume_points)?,
+            volume_sdf: column(&s.volume_sdf)?,
+            volume_occupancy: EncodedTensor::from_u8(&s.volume_occupancy, level)?,
+        })
+    }
+
+    /// Decodes the samples (values as `f32`; `sharp_edges` is not stored and reads 0).
+    pub fn to_samples(&self) -> Result<Samples> {
+        let rows = |t: &EncodedTensor, name: &str| -> Result<Vec<[f32; 3]>> {
+            let v = t.to_floats(name)?;
+            if t.shape.len() != 2 || t.shape[1] != 3 {
+                return Err(SchemaError::Tensor {
+                    name: name.into(),
+                    reason: format!("expected shape [n, 3], found {:?}", t.shape),
+                });
+            }
+            Ok(v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
+        };
+        Ok(Samples {
+            surface_points: rows(&self.surface_points, c::SURFACE_POINTS)?,
+            surface_normals: rows(&self.surface_normals, c::SURFACE_NORMALS)?,
+            sharp_points: rows(&self.sharp_points, c::SHARP_POINTS)?,
+            sharp_normals: rows(&self.sharp_normals, c::SHARP_NORMALS)?,
+            near_points: rows(&self.near_points, c::NEAR_POINTS)?,
+            near_sdf: self.near_sdf.to_floats(c::NEAR_SDF)?,
+            volume_points: rows(&self.volume_points, c::VOLUME_POINTS)?,
+            volume_sdf: self.volume_sdf.to_floats(c::VOLUME_SDF)?,
+            volume_occupancy: self.volume_occupancy.to_u8(c::VOLUME_OCCUPANCY)?,
+            sharp_edges: 0,
+        })
+    }
+
+    /// The tensors with their column stems, in column order.
+    pub fn iter(&self) -> [(&'static str, &EncodedTensor); 9] {
+        [
+            (c::SURFACE_POINTS, &self.surface_points),
+            (c::SURFACE_NORMALS, &self.surface_normals),
+            (c::SHARP_POINTS, &self.sharp_points),
+            (c::SHARP_NORMALS, &self.sharp_normals),
+            (c::NEAR_POINTS, &self.near_points),
+            (c::NEAR_SDF, &self.near_sdf),
+            (c::VOLUME_POINTS, &self.volume_points),
+            (c::VOLUME_SDF, &self.volume_sdf),
+            (c::VOLUME_OCCUPANCY, &self.volume_occupancy),
+        ]
+    }
+
+    /// Builds the set from tensors looked up by column stem; `None` when any is missing.
+    pub fn from_lookup(
+        get: impl FnMut(&'static str) -> Result<Option<EncodedTensor>>,
+    ) -> Result<Option<Self>> {
+        let mut take = get;
+        let (Some(a), Some(b), Some(cc), Some(d), Some(e), Some(f), Some(g), Some(h), Some(i)) = (
+            take(c::SURFACE_POINTS)?,
+            take(c::SURFACE_NORMALS)?,
+            take(c::SHARP_POINTS)?,
+            take(c::SHARP_NORMALS)?,
+            take(c::NEAR_POINTS)?,
+            take(c::NEAR_SDF)?,
+            take(c::VOLUME_POINTS)?,
+            take(c::VOLUME_SDF)?,
+            take(c::VOLUME_OCCUPANCY)?,
+        ) else {
+            return Ok(None);
+        };
+        Ok(Some(Self {
+            surface_points: a,
+            surface_normals: b,
+            sharp_points: cc,
+            sharp_normals: d,
+            near_points: e,
+            near_sdf: f,
+            volume_points: g,
+            volume_sdf: h,
+            volume_occupancy: i,
+        }))
+    }
 }
 
 impl RowTensors {
@@ -86,6 +212,7 @@ impl RowTensors {
             cells: cells?,
             mesh_vertices: None,
             mesh_faces: None,
+            samples: None,
         })
     }
 
@@ -131,19 +258,37 @@ impl RowTensors {
         if let Some(t) = self.mesh_faces.as_mut() {
             v.push(&mut t.blob);
         }
+        if let Some(s) = self.samples.as_mut() {
+            v.extend([
+                &mut s.surface_points.blob,
+                &mut s.surface_normals.blob,
+                &mut s.sharp_points.blob,
+                &mut s.sharp_normals.blob,
+                &mut s.near_points.blob,
+                &mut s.near_sdf.blob,
+                &mut s.volume_points.blob,
+                &mut s.volume_sdf.blob,
+                &mut s.volume_occupancy.blob,
+            ]);
+        }
         v
     }
 
-    /// The tensors in column order with their stems ([`crate::columns::TENSORS`]).
-    pub fn iter(&self) -> [(&'static str, Option<&EncodedTensor>); 6] {
-        [
+    /// The tensors in column order with their stems ([`crate::columns::tensors`]).
+    pub fn iter(&self) -> Vec<(&'static str, Option<&EncodedTensor>)> {
+        let mut v = vec![
             ("coords", Some(&self.coords)),
             ("sdf", Some(&self.sdf)),
             ("deformation", Some(&self.deformation)),
             ("cells", Some(&self.cells)),
             ("mesh_vertices", self.mesh_vertices.as_ref()),
             ("mesh_faces", self.mesh_faces.as_ref()),
-        ]
+        ];
+        match &self.samples {
+            Some(s) => v.extend(s.iter().map(|(n, t)| (n, Some(t)))),
+            None => v.extend(c::SAMPLE_TENSORS.map(|n| (n, None))),
+        }
+        v
     }
 }
 
@@ -206,6 +351,27 @@ impl ShardRow {
             timings: RowTimings::default(),
             tensors: None,
         }
+    }
+
+    /// A failed row for a manifest item, carrying the source's sha256 from the manifest
+    /// (the one failed row the worker writes, whatever the stage or death).
+    pub fn failed_item(
+        item: &FrozenItem,
+        resolution: u32,
+        class: ErrorClass,
+        message: String,
+    ) -> Self {
+        let record = &item.record;
+        let mut row = Self::failed(
+            item.index,
+            &record.id,
+            &record.uri,
+            resolution,
+            class,
+            message,
+        );
+        row.source_sha256 = record.sha256.clone();
+        row
     }
 
     /// Decodes the row's sparse cubes; an error when the row has none.

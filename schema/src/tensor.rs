@@ -1,5 +1,5 @@
 //! Tensor encodings: a tensor is a zstd-compressed blob of its elements' little-endian bytes
-//! laid out in byte planes, with its dtype (numpy notation: `<u2`, `<u4`, `<f4`) and shape
+//! laid out in byte planes, with its dtype (numpy notation: `<u1`, `<u2`, `<u4`, `<f2`, `<f4`) and shape
 //! stored beside it. For shape `[n, k]` (`[n]` is `k = 1`) and `w`-byte scalars the blob holds
 //! `k·w` planes of `n` bytes, column by column and within a column from the least significant
 //! byte up: byte `b` of element `(i, j)` is at `(j·w + b)·n + i`. Grouping the bytes of one
@@ -18,10 +18,14 @@ use serde::{Deserialize, Serialize};
 /// Element type of a tensor, named as numpy names it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum DType {
+    /// Unsigned 8-bit integer (`<u1`).
+    U8,
     /// Little-endian unsigned 16-bit integer (`<u2`).
     U16,
     /// Little-endian unsigned 32-bit integer (`<u4`).
     U32,
+    /// Little-endian IEEE 754 half precision (`<f2`).
+    F16,
     /// Little-endian IEEE 754 single precision (`<f4`).
     F32,
 }
@@ -30,8 +34,10 @@ impl DType {
     /// The numpy dtype string stored in the `*_dtype` column.
     pub fn as_str(self) -> &'static str {
         match self {
+            DType::U8 => "<u1",
             DType::U16 => "<u2",
             DType::U32 => "<u4",
+            DType::F16 => "<f2",
             DType::F32 => "<f4",
         }
     }
@@ -39,6 +45,8 @@ impl DType {
     /// Parses a stored dtype string.
     pub fn parse(s: &str) -> Result<Self> {
         match s {
+            "<u1" | "|u1" => Ok(DType::U8),
+            "<f2" => Ok(DType::F16),
             "<u2" => Ok(DType::U16),
             "<u4" => Ok(DType::U32),
             "<f4" => Ok(DType::F32),
@@ -52,7 +60,8 @@ impl DType {
     /// Bytes per element.
     pub fn size(self) -> usize {
         match self {
-            DType::U16 => 2,
+            DType::U8 => 1,
+            DType::U16 | DType::F16 => 2,
             DType::U32 | DType::F32 => 4,
         }
     }
@@ -168,6 +177,73 @@ impl EncodedTensor {
             shape: vec![v.len() as u64],
             blob: compress(&raw, level)?,
         })
+    }
+
+    /// Encodes floats as `dtype` (`F32` or `F16`, rounded to nearest) with `shape` (`[n]` or
+    /// `[n, k]`, row-major over `values`).
+    pub fn from_floats(values: &[f32], shape: Vec<u64>, dtype: DType, level: i32) -> Result<Self> {
+        let cols = shape.get(1).copied().unwrap_or(1) as usize;
+        if shape.iter().product::<u64>() as usize != values.len() || cols == 0 {
+            return Err(SchemaError::Tensor {
+                name: "floats".into(),
+                reason: format!("{} values do not fill shape {shape:?}", values.len()),
+            });
+        }
+        let raw = match dtype {
+            DType::F32 => to_planes(&le_bytes(values, 4), cols, 4),
+            DType::F16 => {
+                let halves: Vec<u16> = values
+                    .iter()
+                    .map(|&v| half::f16::from_f32(v).to_bits())
+                    .collect();
+                to_planes(&le_bytes(&halves, 2), cols, 2)
+            }
+            other => {
+                return Err(SchemaError::Invalid {
+                    what: "float dtype",
+                    value: other.as_str().into(),
+                })
+            }
+        };
+        Ok(Self {
+            dtype,
+            shape,
+            blob: compress(&raw, level)?,
+        })
+    }
+
+    /// Encodes `n` bytes (`<u1`).
+    pub fn from_u8(v: &[u8], level: i32) -> Result<Self> {
+        Ok(Self {
+            dtype: DType::U8,
+            shape: vec![v.len() as u64],
+            blob: compress(v, level)?,
+        })
+    }
+
+    /// Decodes a float tensor (`<f2` or `<f4`) into row-major `f32` values.
+    pub fn to_floats(&self, name: &str) -> Result<Vec<f32>> {
+        let raw = self.raw_bytes(name)?;
+        match self.dtype {
+            DType::F32 => Ok(raw
+                .chunks_exact(4)
+                .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+                .collect()),
+            DType::F16 => Ok(raw
+                .chunks_exact(2)
+                .map(|c| half::f16::from_bits(u16::from_le_bytes([c[0], c[1]])).to_f32())
+                .collect()),
+            other => Err(SchemaError::Tensor {
+                name: name.to_string(),
+                reason: format!("expected <f2 or <f4, found {}", other.as_str()),
+            }),
+        }
+    }
+
+    /// Decodes an `n` `<u1` tensor.
+    pub fn to_u8(&self, name: &str) -> Result<Vec<u8>> {
+        self.check(name, DType::U8, None)?;
+        self.raw_bytes(name)
     }
 
     /// Number of elements the shape describes.
@@ -305,6 +381,21 @@ mod tests {
         assert_eq!(EncodedTensor::from_u32x3(&u, 3)?.to_u32x3("u")?, u);
         let e = EncodedTensor::from_f32(&[], 3)?;
         assert!(e.to_f32("e")?.is_empty());
+        let h = EncodedTensor::from_floats(
+            &[0.5, -1.25, 3.0e-8, 1.0, 2.0, 4.0],
+            vec![2, 3],
+            DType::F16,
+            3,
+        )?;
+        assert_eq!(h.dtype.as_str(), "<f2");
+        let back = h.to_floats("h")?;
+        assert_eq!(back[..2], [0.5, -1.25]);
+        assert_eq!(back[2], half::f16::from_f32(3.0e-8).to_f32());
+        assert!(EncodedTensor::from_floats(&[1.0], vec![2], DType::F16, 3).is_err());
+        let o = EncodedTensor::from_u8(&[0, 1, 1], 3)?;
+        assert_eq!(o.to_u8("o")?, vec![0, 1, 1]);
+        // Sample tensors are framed like the others: with zstd's content checksum.
+        assert!(has_checksum(&h.blob) && has_checksum(&o.blob));
         Ok(())
     }
 

@@ -43,7 +43,8 @@ fn madd(a: [f64; 3], s: f64, d: [f64; 3]) -> [f64; 3] {
 }
 
 /// Closest point to `p` on triangle `abc` (Ericson, "Real-Time Collision Detection", §5.1.5).
-/// The triangle must have non-zero area.
+/// A triangle of zero area (collinear or repeated corners) gives the closest point of its
+/// three edges.
 #[inline]
 pub fn closest_point_on_triangle(p: [f64; 3], t: &[[f64; 3]; 3]) -> [f64; 3] {
     let [a, b, c] = *t;
@@ -79,8 +80,36 @@ pub fn closest_point_on_triangle(p: [f64; 3], t: &[[f64; 3]; 3]) -> [f64; 3] {
     if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
         return madd(b, (d4 - d3) / ((d4 - d3) + (d5 - d6)), sub(c, b));
     }
-    let denom = 1.0 / (va + vb + vc);
+    let sum = va + vb + vc;
+    if !(sum > 0.0 && sum.is_finite()) {
+        return closest_point_on_edges(p, t);
+    }
+    let denom = 1.0 / sum;
     madd(madd(a, vb * denom, ab), vc * denom, ac)
+}
+
+/// Closest point to `p` on the three edges of `abc` (the fallback for a degenerate triangle).
+fn closest_point_on_edges(p: [f64; 3], t: &[[f64; 3]; 3]) -> [f64; 3] {
+    let mut best = t[0];
+    let mut best_d2 = f64::INFINITY;
+    for k in 0..3 {
+        let (a, b) = (t[k], t[(k + 1) % 3]);
+        let ab = sub(b, a);
+        let len2 = dot(ab, ab);
+        let s = if len2 > 0.0 {
+            (dot(sub(p, a), ab) / len2).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let q = madd(a, s, ab);
+        let d = sub(p, q);
+        let d2 = dot(d, d);
+        if d2 < best_d2 {
+            best_d2 = d2;
+            best = q;
+        }
+    }
+    best
 }
 
 /// For each brick of `verts`, the triangles within `reach` of it, ascending (CSR layout).

@@ -1,4 +1,5 @@
-//! The conversion driver: the stages of DESIGN.md §3, top to bottom, each a free function.
+//! The conversion driver: the stages of docs/ALGORITHM.md (§1–6), top to bottom, each a free
+//! function.
 
 use crate::band::{compute_band, triangle_planes, Band, CORE_REACH, REACH};
 use crate::cubes::SparseCubes;
@@ -180,18 +181,9 @@ fn winding_piece(n: u32) -> f64 {
     (n as f64 / 128.0).max(8.0)
 }
 
-/// Converts a sanitised mesh into sparse cubes (DESIGN.md §3, steps 1–5).
-pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
-    params.validate()?;
-    let n = params.resolution;
-    let mut st = Stages {
-        stats: ConvertStats {
-            input_faces: mesh.triangles.len() as u64,
-            input_vertices: mesh.positions.len() as u64,
-            ..Default::default()
-        },
-        last: Instant::now(),
-    };
+/// Checks that a mesh is sanitised (indices in range, finite coordinates, an extent the grid
+/// can hold) and returns its bounds.
+fn checked_bounds(mesh: &TriMesh) -> Result<([f64; 3], [f64; 3])> {
     if let Some(bad) = mesh
         .triangles
         .iter()
@@ -213,6 +205,82 @@ pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
         reason: "no triangles".into(),
     })?;
     crate::normalize::check_extent(bounds, "convert")?;
+    Ok(bounds)
+}
+
+/// One band's values as the assembly reads them: its field and its thin-shell flags.
+#[derive(Clone, Copy)]
+struct BandSide<'a> {
+    field: &'a Field,
+    thin: &'a [bool],
+}
+
+/// The stored cubes: each active vertex's φ (and δ when `params.deform`) from the core band,
+/// or from the ring's band where its id carries `RING_TAG`; returns them with the count of
+/// thin-shell vertices among them.
+fn assemble(
+    coords: Vec<[u16; 3]>,
+    ids: &[u32],
+    kept: BrickSet,
+    core: BandSide<'_>,
+    ring: BandSide<'_>,
+    normalization: Normalization,
+    params: &Params,
+) -> (SparseCubes, u64) {
+    let source = |i: u32| -> (BandSide<'_>, usize) {
+        if i & RING_TAG == 0 {
+            (core, i as usize)
+        } else {
+            (ring, (i & !RING_TAG) as usize)
+        }
+    };
+    let cubes = SparseCubes {
+        resolution: params.resolution,
+        normalization,
+        coords,
+        sdf: ids
+            .par_iter()
+            .map(|&i| {
+                let (b, j) = source(i);
+                b.field.sdf[j]
+            })
+            .collect(),
+        deformation: if params.deform {
+            ids.par_iter()
+                .map(|&i| {
+                    let (b, j) = source(i);
+                    b.field.deformation_at(j)
+                })
+                .collect()
+        } else {
+            vec![[0.0; 3]; ids.len()]
+        },
+        cells: kept.sorted_members(),
+    };
+    let shell_vertices = ids
+        .par_iter()
+        .filter(|&&i| {
+            let (b, j) = source(i);
+            b.thin[j]
+        })
+        .count() as u64;
+    (cubes, shell_vertices)
+}
+
+/// Converts a sanitised mesh into sparse cubes (docs/ALGORITHM.md §1–6; extraction, §7, is
+/// [`crate::extract()`]).
+pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
+    params.validate()?;
+    let n = params.resolution;
+    let mut st = Stages {
+        stats: ConvertStats {
+            input_faces: mesh.triangles.len() as u64,
+            input_vertices: mesh.positions.len() as u64,
+            ..Default::default()
+        },
+        last: Instant::now(),
+    };
+    let bounds = checked_bounds(mesh)?;
     let norm = Normalization::fit(bounds, n, params.margin_cells);
     let (grid, degenerate) = to_grid(mesh, &norm, n);
     st.stats.degenerate_faces = degenerate;
@@ -299,43 +367,16 @@ pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
             "internal: a corner of an active cell is outside the band".into(),
         ));
     }
-    let source = |i: u32| -> (&Field, &[bool], usize) {
-        if i & RING_TAG == 0 {
-            (&field, &signs.thin, i as usize)
-        } else {
-            (&ring_field, &ring_signs.thin, (i & !RING_TAG) as usize)
-        }
+    let core = BandSide {
+        field: &field,
+        thin: &signs.thin,
     };
-    let cubes = SparseCubes {
-        resolution: n,
-        normalization: norm,
-        coords: vertex_coords,
-        sdf: ids
-            .par_iter()
-            .map(|&i| {
-                let (f, _, j) = source(i);
-                f.sdf[j]
-            })
-            .collect(),
-        deformation: if params.deform {
-            ids.par_iter()
-                .map(|&i| {
-                    let (f, _, j) = source(i);
-                    f.deformation_at(j)
-                })
-                .collect()
-        } else {
-            vec![[0.0; 3]; ids.len()]
-        },
-        cells: kept.sorted_members(),
+    let outer = BandSide {
+        field: &ring_field,
+        thin: &ring_signs.thin,
     };
-    st.stats.shell_vertices = ids
-        .par_iter()
-        .filter(|&&i| {
-            let (_, thin, j) = source(i);
-            thin[j]
-        })
-        .count() as u64;
+    let (cubes, shell_vertices) = assemble(vertex_coords, &ids, kept, core, outer, norm, params);
+    st.stats.shell_vertices = shell_vertices;
     st.stats.active_vertices = cubes.coords.len() as u64;
     st.stats.active_cells = cubes.cells.len() as u64;
     st.done("assemble");

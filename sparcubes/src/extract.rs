@@ -33,31 +33,7 @@ pub fn extract(cubes: &SparseCubes) -> TriMesh {
     let table = mc_table::table();
     let chunks: Vec<&[[u16; 3]]> = cubes.cells.chunks(CHUNK).collect();
 
-    // Pass 1: triangles and centres per chunk; crossed edges used by a triangle.
-    let used: Vec<AtomicU64> = (0..(3 * n).div_ceil(64))
-        .map(|_| AtomicU64::new(0))
-        .collect();
-    let counts: Vec<(usize, usize)> = chunks
-        .par_iter()
-        .map(|cells| {
-            let (mut triangles, mut centres) = (0, 0);
-            for_each_case(cubes, n, table, cells, |idx, case| {
-                triangles += case.triangles.len();
-                centres += centres_used(case).count_ones() as usize;
-                for tri in &case.triangles {
-                    for &v in tri.iter().filter(|&&v| v < CENTRE) {
-                        let key = edge_key(idx, v);
-                        let (word, bit) = (&used[key / 64], 1u64 << (key % 64));
-                        if word.load(Ordering::Relaxed) & bit == 0 {
-                            word.fetch_or(bit, Ordering::Relaxed);
-                        }
-                    }
-                }
-            });
-            (triangles, centres)
-        })
-        .collect();
-    let used: Vec<u64> = used.into_iter().map(AtomicU64::into_inner).collect();
+    let (counts, used) = count_cases(cubes, n, table, &chunks);
     // Rank of each bitmap word: crossing points are numbered in edge-key order.
     let mut rank = Vec::with_capacity(used.len());
     let mut edge_points = 0u32;
@@ -133,6 +109,43 @@ pub fn extract(cubes: &SparseCubes) -> TriMesh {
     TriMesh::new(positions, triangles)
 }
 
+/// Pass 1 of [`extract`]: the triangles and used centres of each chunk of cells, and a bitmap
+/// (by edge key) of the crossed edges some triangle uses.
+fn count_cases(
+    cubes: &SparseCubes,
+    n: usize,
+    table: &Table,
+    chunks: &[&[[u16; 3]]],
+) -> (Vec<(usize, usize)>, Vec<u64>) {
+    let used: Vec<AtomicU64> = (0..(3 * n).div_ceil(64))
+        .map(|_| AtomicU64::new(0))
+        .collect();
+    let counts: Vec<(usize, usize)> = chunks
+        .par_iter()
+        .map(|cells| {
+            let (mut triangles, mut centres) = (0, 0);
+            for_each_case(cubes, n, table, cells, |idx, case| {
+                triangles += case.triangles.len();
+                centres += centres_used(case).count_ones() as usize;
+                for tri in &case.triangles {
+                    for &v in tri.iter().filter(|&&v| v < CENTRE) {
+                        let key = edge_key(idx, v);
+                        let (word, bit) = (&used[key / 64], 1u64 << (key % 64));
+                        if word.load(Ordering::Relaxed) & bit == 0 {
+                            word.fetch_or(bit, Ordering::Relaxed);
+                        }
+                    }
+                }
+            });
+            (triangles, centres)
+        })
+        .collect();
+    (
+        counts,
+        used.into_iter().map(AtomicU64::into_inner).collect(),
+    )
+}
+
 /// [`extract`], mapped to the source frame with `cubes.normalization`.
 pub fn extract_to_source(cubes: &SparseCubes) -> TriMesh {
     let mut mesh = extract(cubes);
@@ -203,25 +216,53 @@ fn for_each_case(
         if !ok {
             continue;
         }
-        let mut mask = 0u8;
-        for (c, &i) in idx.iter().enumerate() {
-            if sdf[i] < 0.0 {
-                mask |= 1 << c;
-            }
+        if let Some(case) = case_of(sdf, table, &idx) {
+            f(&idx, case);
         }
-        if mask == 0 || mask == 0xff {
-            continue;
+    }
+}
+
+/// The marching-cubes case of the cell whose corners are the vertices `idx` (corner `c` at
+/// `(c & 1, c >> 1 & 1, c >> 2)`), or `None` when it has no sign change.
+#[inline]
+fn case_of<'t>(sdf: &[f32], table: &'t Table, idx: &[usize; 8]) -> Option<&'t Case> {
+    let mut mask = 0u8;
+    for (c, &i) in idx.iter().enumerate() {
+        if sdf[i] < 0.0 {
+            mask |= 1 << c;
         }
-        let mut bits = 0u8;
-        let ambiguous = mc_table::ambiguous_faces(mask);
-        for (face, fc) in FACE_CORNERS.iter().enumerate() {
-            if ambiguous >> face & 1 == 1
-                && mc_table::inside_joined(fc.map(|c| sdf[idx[c as usize]]))
-            {
-                bits |= 1 << face;
-            }
+    }
+    if mask == 0 || mask == 0xff {
+        return None;
+    }
+    let mut bits = 0u8;
+    let ambiguous = mc_table::ambiguous_faces(mask);
+    for (face, fc) in FACE_CORNERS.iter().enumerate() {
+        if ambiguous >> face & 1 == 1 && mc_table::inside_joined(fc.map(|c| sdf[idx[c as usize]])) {
+            bits |= 1 << face;
         }
-        f(&idx, table.case(mask, bits));
+    }
+    Some(table.case(mask, bits))
+}
+
+/// Appends to `out` the triangles that [`extract`] emits for one cell, given the indices in
+/// `cubes.coords` of its eight corners (corner `c` at `(c & 1, c >> 1 & 1, c >> 2)`), with
+/// the same positions (grid coordinates, deformation applied, rounded to `f32` as in the
+/// extracted mesh) and orientation. A cell without a sign change adds nothing.
+pub fn cell_triangles(cubes: &SparseCubes, idx: &[usize; 8], out: &mut Vec<[[f64; 3]; 3]>) {
+    let Some(case) = case_of(&cubes.sdf, mc_table::table(), idx) else {
+        return;
+    };
+    let point = |v: u8| {
+        let p = if v < CENTRE {
+            edge_point(cubes, idx, v)
+        } else {
+            centre_point(cubes, idx, &case.centres[(v - CENTRE) as usize])
+        };
+        to_f32(p).map(f64::from)
+    };
+    for tri in &case.triangles {
+        out.push(tri.map(point));
     }
 }
 
@@ -259,7 +300,7 @@ fn position(cubes: &SparseCubes, i: usize) -> [f64; 3] {
 /// Crossing point of the zero level set on cube edge `e` (linear interpolation of φ between
 /// the edge's two vertices, which alone decide it).
 #[inline]
-fn edge_point(cubes: &SparseCubes, idx: &[usize; 8], e: u8) -> [f64; 3] {
+pub(crate) fn edge_point(cubes: &SparseCubes, idx: &[usize; 8], e: u8) -> [f64; 3] {
     let (a, b, _) = EDGES[e as usize];
     let (ia, ib) = (idx[a as usize], idx[b as usize]);
     let (sa, sb) = (cubes.sdf[ia] as f64, cubes.sdf[ib] as f64);

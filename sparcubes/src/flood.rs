@@ -46,74 +46,20 @@ pub fn grow_within(out: &mut BrickMask, wall: &BrickMask) {
 /// Floods the outside over non-wall cells, starting from every cell on the border of the
 /// brick space. The result is the unique least fixpoint, so it does not depend on order.
 pub fn flood_outside(walls: &BrickSet) -> Flood {
-    let index = &walls.index;
-    let dims = index.dims;
-    let nb = index.slots.len();
-    let mut empty_outside = vec![false; nb];
-    let mut wall_outside = vec![[0u64; 8]; walls.masks.len()];
-    let mut queued = vec![false; walls.masks.len()];
-    let mut queue: VecDeque<usize> = VecDeque::new();
-
-    // Seeds: every brick on the border of the brick space.
-    for key in 0..nb {
-        let b = index.coord(key);
-        let on_border: Vec<(usize, bool)> = (0..3)
-            .flat_map(|a| {
-                let mut v = Vec::new();
-                if b[a] == 0 {
-                    v.push((a, false));
-                }
-                if b[a] == dims[a] - 1 {
-                    v.push((a, true));
-                }
-                v
-            })
-            .collect();
-        if on_border.is_empty() {
-            continue;
-        }
-        let slot = index.slots[key];
-        if slot == NO_BRICK {
-            empty_outside[key] = true;
-            queue.push_back(key);
-        } else {
-            let s = slot as usize;
-            let mut seed = [0u64; 8];
-            for (axis, high) in on_border {
-                // The face at local 0 (or 7) of this brick: carry a full face from the
-                // opposite side onto it.
-                or_assign(&mut seed, &face_carry(&FULL, axis, !high));
-            }
-            for z in 0..8 {
-                seed[z] &= !walls.masks[s][z];
-            }
-            or_assign(&mut wall_outside[s], &seed);
-            queued[s] = true;
-            queue.push_back(key);
-        }
-    }
-
-    while let Some(key) = queue.pop_front() {
-        let b = index.coord(key);
-        let slot = index.slots[key];
-        let carries: [BrickMask; 6] = if slot == NO_BRICK {
-            let mut c = [[0u64; 8]; 6];
-            for (i, &(axis, high)) in DIRS.iter().enumerate() {
-                c[i] = face_carry(&FULL, axis, high);
-            }
-            c
-        } else {
-            let s = slot as usize;
-            queued[s] = false;
-            let mut out = wall_outside[s];
-            grow_within(&mut out, &walls.masks[s]);
-            wall_outside[s] = out;
-            let mut c = [[0u64; 8]; 6];
-            for (i, &(axis, high)) in DIRS.iter().enumerate() {
-                c[i] = face_carry(&out, axis, high);
-            }
-            c
-        };
+    let mut state = FloodState {
+        walls,
+        flood: Flood {
+            empty_outside: vec![false; walls.index.slots.len()],
+            wall_outside: vec![[0u64; 8]; walls.masks.len()],
+        },
+        queued: vec![false; walls.masks.len()],
+        queue: VecDeque::new(),
+    };
+    state.seed_border();
+    while let Some(key) = state.queue.pop_front() {
+        let carries = state.outgoing_carries(key);
+        let b = walls.index.coord(key);
+        let dims = walls.index.dims;
         for (i, &(axis, high)) in DIRS.iter().enumerate() {
             if carries[i].iter().all(|&w| w == 0) {
                 continue;
@@ -123,33 +69,107 @@ pub fn flood_outside(walls: &BrickSet) -> Flood {
             if nbr[axis] < 0 || nbr[axis] >= dims[axis] as i64 {
                 continue;
             }
-            let nkey = index.key([nbr[0] as u32, nbr[1] as u32, nbr[2] as u32]);
-            let nslot = index.slots[nkey];
-            if nslot == NO_BRICK {
-                if !empty_outside[nkey] {
-                    empty_outside[nkey] = true;
-                    queue.push_back(nkey);
-                }
-            } else {
-                let t = nslot as usize;
-                let mut changed = false;
-                for z in 0..8 {
-                    let incoming = carries[i][z] & !walls.masks[t][z] & !wall_outside[t][z];
-                    if incoming != 0 {
-                        wall_outside[t][z] |= incoming;
-                        changed = true;
-                    }
-                }
-                if changed && !queued[t] {
-                    queued[t] = true;
-                    queue.push_back(nkey);
-                }
-            }
+            let nkey = walls
+                .index
+                .key([nbr[0] as u32, nbr[1] as u32, nbr[2] as u32]);
+            state.carry_into(nkey, &carries[i]);
         }
     }
-    Flood {
-        empty_outside,
-        wall_outside,
+    state.flood
+}
+
+/// The flood in progress: its result so far and the queue of bricks to advance from.
+struct FloodState<'a> {
+    walls: &'a BrickSet,
+    flood: Flood,
+    /// Per wall brick: whether it is in the queue.
+    queued: Vec<bool>,
+    queue: VecDeque<usize>,
+}
+
+impl FloodState<'_> {
+    /// Seeds every brick on the border of the brick space: an empty one is outside whole, a
+    /// wall brick gets its non-wall cells on the border faces.
+    fn seed_border(&mut self) {
+        let index = &self.walls.index;
+        let dims = index.dims;
+        for key in 0..index.slots.len() {
+            let b = index.coord(key);
+            let mut border = DIRS
+                .into_iter()
+                .filter(|&(axis, high)| b[axis] == if high { dims[axis] - 1 } else { 0 })
+                .peekable();
+            if border.peek().is_none() {
+                continue;
+            }
+            let slot = index.slots[key];
+            if slot == NO_BRICK {
+                self.flood.empty_outside[key] = true;
+                self.queue.push_back(key);
+                continue;
+            }
+            let s = slot as usize;
+            let mut seed = [0u64; 8];
+            for (axis, high) in border {
+                // The face at local 0 (or 7) of this brick: carry a full face from the
+                // opposite side onto it.
+                or_assign(&mut seed, &face_carry(&FULL, axis, !high));
+            }
+            for z in 0..8 {
+                seed[z] &= !self.walls.masks[s][z];
+            }
+            or_assign(&mut self.flood.wall_outside[s], &seed);
+            self.queued[s] = true;
+            self.queue.push_back(key);
+        }
+    }
+
+    /// Grows brick `key`'s outside within its walls and returns what it carries across each
+    /// of its six faces (in `DIRS` order); an empty outside brick carries full faces.
+    fn outgoing_carries(&mut self, key: usize) -> [BrickMask; 6] {
+        let slot = self.walls.index.slots[key];
+        let mut c = [[0u64; 8]; 6];
+        if slot == NO_BRICK {
+            for (i, &(axis, high)) in DIRS.iter().enumerate() {
+                c[i] = face_carry(&FULL, axis, high);
+            }
+            return c;
+        }
+        let s = slot as usize;
+        self.queued[s] = false;
+        let mut out = self.flood.wall_outside[s];
+        grow_within(&mut out, &self.walls.masks[s]);
+        self.flood.wall_outside[s] = out;
+        for (i, &(axis, high)) in DIRS.iter().enumerate() {
+            c[i] = face_carry(&out, axis, high);
+        }
+        c
+    }
+
+    /// Carries a face of outside cells into brick `nkey`, queueing it when that reaches
+    /// cells (or, for an empty brick, the brick) not yet known to be outside.
+    fn carry_into(&mut self, nkey: usize, carry: &BrickMask) {
+        let nslot = self.walls.index.slots[nkey];
+        if nslot == NO_BRICK {
+            if !self.flood.empty_outside[nkey] {
+                self.flood.empty_outside[nkey] = true;
+                self.queue.push_back(nkey);
+            }
+            return;
+        }
+        let t = nslot as usize;
+        let mut changed = false;
+        for z in 0..8 {
+            let incoming = carry[z] & !self.walls.masks[t][z] & !self.flood.wall_outside[t][z];
+            if incoming != 0 {
+                self.flood.wall_outside[t][z] |= incoming;
+                changed = true;
+            }
+        }
+        if changed && !self.queued[t] {
+            self.queued[t] = true;
+            self.queue.push_back(nkey);
+        }
     }
 }
 

@@ -168,6 +168,40 @@ fn ear_is_empty(
     true
 }
 
+/// The Newell normal of a closed loop of points: the hole's mean orientation (its length is
+/// twice the loop's projected area; zero for a degenerate loop).
+fn newell_normal(pts: &[[f64; 3]]) -> [f64; 3] {
+    let k = pts.len();
+    let mut normal = [0.0; 3];
+    for i in 0..k {
+        let (a, b) = (pts[i], pts[(i + 1) % k]);
+        normal[0] += (a[1] - b[1]) * (a[2] + b[2]);
+        normal[1] += (a[2] - b[2]) * (a[0] + b[0]);
+        normal[2] += (a[0] - b[0]) * (a[1] + b[1]);
+    }
+    normal
+}
+
+/// The points in 2-D coordinates of the plane normal to `normal` (empty when the normal is
+/// zero: the loop has no plane).
+fn project_to_plane(pts: &[[f64; 3]], normal: [f64; 3]) -> Vec<[f64; 2]> {
+    let nn = dot(normal, normal).sqrt();
+    if nn.is_nan() || nn <= 0.0 {
+        return Vec::new();
+    }
+    let n = normal.map(|x| x / nn);
+    let t = if n[0].abs() < 0.6 {
+        [1.0, 0.0, 0.0]
+    } else {
+        [0.0, 1.0, 0.0]
+    };
+    let u = cross(n, t);
+    let lu = dot(u, u).sqrt();
+    let u = u.map(|x| x / lu);
+    let v = cross(n, u);
+    pts.iter().map(|&q| [dot(q, u), dot(q, v)]).collect()
+}
+
 /// Ear-fills one loop; returns whether it was closed completely.
 fn fill_loop(mesh: &mut TriMesh, lp: &[u32], edges: &mut HashSet<(u32, u32)>) -> bool {
     let k = lp.len();
@@ -176,14 +210,7 @@ fn fill_loop(mesh: &mut TriMesh, lp: &[u32], edges: &mut HashSet<(u32, u32)>) ->
     }
     let p = |v: u32| mesh.positions[v as usize].map(f64::from);
     let pts: Vec<[f64; 3]> = lp.iter().map(|&v| p(v)).collect();
-    // Newell normal of the loop: the hole's mean orientation.
-    let mut normal = [0.0; 3];
-    for i in 0..k {
-        let (a, b) = (pts[i], pts[(i + 1) % k]);
-        normal[0] += (a[1] - b[1]) * (a[2] + b[2]);
-        normal[1] += (a[2] - b[2]) * (a[0] + b[0]);
-        normal[2] += (a[0] - b[0]) * (a[1] + b[1]);
-    }
+    let normal = newell_normal(&pts);
     let mut prev: Vec<usize> = (0..k).map(|i| (i + k - 1) % k).collect();
     let mut next: Vec<usize> = (0..k).map(|i| (i + 1) % k).collect();
     let mut alive = vec![true; k];
@@ -204,24 +231,8 @@ fn fill_loop(mesh: &mut TriMesh, lp: &[u32], edges: &mut HashSet<(u32, u32)>) ->
         ang
     };
     let mut angles: Vec<f64> = (0..k).map(|i| angle(i, &prev, &next, edges)).collect();
-    // A plane basis for the "no other loop vertex inside the ear" test.
-    let nn = dot(normal, normal).sqrt();
-    let basis = (nn > 0.0).then(|| {
-        let n = normal.map(|x| x / nn);
-        let t = if n[0].abs() < 0.6 {
-            [1.0, 0.0, 0.0]
-        } else {
-            [0.0, 1.0, 0.0]
-        };
-        let u = cross(n, t);
-        let lu = dot(u, u).sqrt();
-        let u = u.map(|x| x / lu);
-        (u, cross(n, u))
-    });
-    let flat: Vec<[f64; 2]> = match basis {
-        Some((u, v)) => pts.iter().map(|&q| [dot(q, u), dot(q, v)]).collect(),
-        None => Vec::new(),
-    };
+    // The loop in its plane, for the "no other loop vertex inside the ear" test.
+    let flat = project_to_plane(&pts, normal);
     let mut remaining = k;
     let mut blocked = vec![false; k];
     let mut tried = Vec::new();

@@ -17,31 +17,39 @@
 //! 7. [`extract`] — marching cubes over the active cells → closed manifold mesh.
 //!
 //! The crate knows nothing of jobs or file formats beyond loading and saving meshes ([`io`]).
+//! Quality metrics and preview pictures are crates of their own (`sparc3d-metrics`,
+//! `sparc3d-render`, ARCHITECTURE.md says why); the generated test meshes of `shapes` are built
+//! only with the `test-shapes` feature, which tests turn on through `[dev-dependencies]`.
 #![deny(missing_docs)]
 // Geometry code indexes several arrays by the same axis or word number; iterator chains would
 // hide that parallel structure.
 #![allow(clippy::needless_range_loop)]
 
 pub mod band;
+pub mod close_grid;
+pub mod closest;
 pub mod convert;
 pub mod cubes;
 pub mod deform;
+pub mod duplicate_faces;
 pub mod error;
 pub mod extract;
 pub mod flood;
 pub mod grid;
 pub mod holes;
 pub mod io;
+pub mod layouts;
 pub mod mc_table;
 pub mod mesh;
-pub mod metrics;
 pub mod normalize;
 pub mod params;
 pub mod regions;
-pub mod render;
 pub mod ring;
+pub mod samples;
 pub mod sanitize;
+#[cfg(feature = "test-shapes")]
 pub mod shapes;
+pub mod sides;
 pub mod sign;
 pub mod topology;
 pub mod vec3;

@@ -4,7 +4,9 @@
 //! vertices unless the mesh is [`weld`]ed first.
 
 use crate::mesh::TriMesh;
+use rayon::prelude::*;
 use std::collections::HashMap;
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
 /// What [`check`] found. A mesh is watertight when it has no boundary and no non-manifold
 /// edge, and manifold when, in addition, every vertex has a single fan of triangles.
@@ -52,100 +54,226 @@ fn is_degenerate(t: &[u32; 3]) -> bool {
     t[0] == t[1] || t[1] == t[2] || t[0] == t[2]
 }
 
+/// Triangles (or vertices) per parallel work item.
+const CHUNK: usize = 1 << 14;
+
 /// Checks the half-edge structure of `mesh`. Triangles with an out-of-range index count as
 /// degenerate.
+///
+/// Every count is local: each vertex looks at the triangles around it (its link), counts the
+/// edges to its higher-numbered neighbours by direction and checks that its fan is one piece,
+/// so the vertices are checked in parallel with no global edge list to sort. Two passes over
+/// the triangles (degrees and face checks; links), one for [`component_count`], one over
+/// the vertices. All results are counts, the same whatever the thread count or the order the
+/// links are filled in.
 pub fn check(mesh: &TriMesh) -> TopologyReport {
     let nv = mesh.positions.len();
-    let mut report = TopologyReport::default();
-    let mut good: Vec<[u32; 3]> = Vec::with_capacity(mesh.triangles.len());
-    for (ti, t) in mesh.triangles.iter().enumerate() {
-        if is_degenerate(t) || t.iter().any(|&v| v as usize >= nv) {
-            report.degenerate_faces += 1;
-            continue;
-        }
-        if zero_area(mesh.triangle(ti)) {
-            report.zero_area_faces += 1;
-        }
-        good.push(*t);
-    }
+    let in_range = |t: &[u32; 3]| t.iter().all(|&v| (v as usize) < nv);
+    let good = |t: &[u32; 3]| in_range(t) && !is_degenerate(t);
 
-    // Edges: (lo, hi, forward) sorted, then grouped.
-    let mut edges: Vec<(u32, u32, bool)> = Vec::with_capacity(good.len() * 3);
-    for t in &good {
-        for i in 0..3 {
-            let (a, b) = (t[i], t[(i + 1) % 3]);
-            edges.push((a.min(b), a.max(b), a < b));
-        }
+    // Pass 1: link sizes, degenerate (or out-of-range) and zero-area faces.
+    let degree: Vec<AtomicU32> = (0..nv).map(|_| AtomicU32::new(0)).collect();
+    let [degenerate_faces, zero_area_faces] = mesh
+        .triangles
+        .par_chunks(CHUNK)
+        .enumerate()
+        .map(|(c, tris)| {
+            let mut n = [0u64; 2];
+            for (k, t) in tris.iter().enumerate() {
+                if !good(t) {
+                    n[0] += 1;
+                    continue;
+                }
+                for &v in t {
+                    degree[v as usize].fetch_add(1, Ordering::Relaxed);
+                }
+                n[1] += u64::from(zero_area(mesh.triangle(c * CHUNK + k)));
+            }
+            n
+        })
+        .reduce(|| [0; 2], |a, b| [a[0] + b[0], a[1] + b[1]]);
+
+    // Pass 2: the links.
+    let links = VertexLinks::fill(&mesh.triangles, degree, good);
+
+    let counts = (0..nv)
+        .into_par_iter()
+        .with_min_len(CHUNK)
+        .fold(
+            || (LinkCounts::default(), Scratch::default()),
+            |(mut counts, mut scratch), v| {
+                counts.add_vertex(v as u32, links.of(v), &mut scratch);
+                (counts, scratch)
+            },
+        )
+        .map(|(counts, _)| counts)
+        .reduce(LinkCounts::default, LinkCounts::sum);
+
+    TopologyReport {
+        boundary_edges: counts.boundary_edges,
+        non_manifold_edges: counts.non_manifold_edges,
+        non_manifold_vertices: counts.non_manifold_vertices,
+        inconsistently_oriented_edges: counts.inconsistently_oriented_edges,
+        components: component_count(mesh),
+        degenerate_faces,
+        zero_area_faces,
     }
-    edges.sort_unstable();
-    let mut i = 0;
-    while i < edges.len() {
-        let mut j = i;
-        while j < edges.len() && edges[j].0 == edges[i].0 && edges[j].1 == edges[i].1 {
-            j += 1;
+}
+
+/// For every vertex, the triangles around it as the two other corners in winding order: a
+/// triangle `(v, a, b)` puts `[a, b]` in the link of `v` (and `[b, v]` in that of `a`, …).
+/// Compressed rows: the link of `v` is `link[start[v]..start[v + 1]]`, its entries in no
+/// particular order.
+struct VertexLinks {
+    start: Vec<u32>,
+    link: Vec<[u32; 2]>,
+}
+
+impl VertexLinks {
+    /// The links of the triangles of `triangles` that pass `keep`, given each vertex's number
+    /// of kept triangles (`degree`).
+    fn fill(
+        triangles: &[[u32; 3]],
+        degree: Vec<AtomicU32>,
+        keep: impl Fn(&[u32; 3]) -> bool + Sync,
+    ) -> Self {
+        // Exclusive prefix sum; `degree` becomes each row's fill cursor.
+        let mut start = Vec::with_capacity(degree.len() + 1);
+        let mut sum = 0u32;
+        for d in &degree {
+            start.push(sum);
+            sum += d.swap(sum, Ordering::Relaxed);
         }
-        match j - i {
-            1 => report.boundary_edges += 1,
-            2 => {
-                if edges[i].2 == edges[i + 1].2 {
-                    report.inconsistently_oriented_edges += 1;
+        start.push(sum);
+        let link: Vec<[AtomicU32; 2]> = (0..sum)
+            .map(|_| [AtomicU32::new(0), AtomicU32::new(0)])
+            .collect();
+        triangles.par_chunks(CHUNK).for_each(|tris| {
+            for t in tris {
+                if !keep(t) {
+                    continue;
+                }
+                for i in 0..3 {
+                    let slot = degree[t[i] as usize].fetch_add(1, Ordering::Relaxed) as usize;
+                    link[slot][0].store(t[(i + 1) % 3], Ordering::Relaxed);
+                    link[slot][1].store(t[(i + 2) % 3], Ordering::Relaxed);
                 }
             }
-            _ => report.non_manifold_edges += 1,
-        }
-        i = j;
+        });
+        let link = link
+            .into_iter()
+            .map(|[a, b]| [a.into_inner(), b.into_inner()])
+            .collect();
+        Self { start, link }
     }
 
-    // Vertex fans: the link of each vertex (the opposite edges of its triangles) must be
-    // connected.
-    let mut start = vec![0u32; nv + 1];
-    for t in &good {
-        for &v in t {
-            start[v as usize + 1] += 1;
+    /// The link of vertex `v`.
+    fn of(&self, v: usize) -> &[[u32; 2]] {
+        &self.link[self.start[v] as usize..self.start[v + 1] as usize]
+    }
+}
+
+/// Whether `link` is one closed fan, consistently oriented: following each triangle to the
+/// one that continues it (whose first corner is this one's second) visits every triangle once
+/// and comes back. Then every edge at the vertex has one triangle on each side, in opposite
+/// directions, and there is nothing to count. Only for small links (the common case); larger
+/// or broken ones take the general path.
+fn is_closed_fan(link: &[[u32; 2]]) -> bool {
+    let k = link.len();
+    if !(3..=64).contains(&k) {
+        return false;
+    }
+    let (mut at, mut seen) = (0usize, 0u64);
+    for _ in 0..k {
+        if seen >> at & 1 == 1 {
+            return false;
+        }
+        seen |= 1 << at;
+        let b = link[at][1];
+        match link.iter().position(|e| e[0] == b) {
+            Some(next) => at = next,
+            None => return false,
         }
     }
-    for v in 0..nv {
-        start[v + 1] += start[v];
-    }
-    let mut fill = start.clone();
-    let mut link = vec![[0u32; 2]; good.len() * 3];
-    for t in &good {
-        for i in 0..3 {
-            let v = t[i] as usize;
-            link[fill[v] as usize] = [t[(i + 1) % 3], t[(i + 2) % 3]];
-            fill[v] += 1;
+    // k steps over k distinct triangles, back at the first: one cycle through all of them,
+    // so the map to the continuing triangle is one-to-one and no corner repeats.
+    at == 0 && seen.count_ones() as usize == k
+}
+
+/// Reused buffers of [`LinkCounts::add_vertex`].
+#[derive(Default)]
+struct Scratch {
+    /// The distinct neighbours of the vertex, sorted.
+    neighbours: Vec<u32>,
+    /// Per neighbour: triangles with the edge leaving the vertex towards it, and arriving.
+    out_in: Vec<[u32; 2]>,
+    /// Union-find over the neighbours, for the fan.
+    parent: Vec<usize>,
+}
+
+/// Edge and vertex defects counted over some vertices; each edge is counted at its lower
+/// vertex.
+#[derive(Debug, Default, Clone, Copy)]
+struct LinkCounts {
+    boundary_edges: u64,
+    non_manifold_edges: u64,
+    inconsistently_oriented_edges: u64,
+    non_manifold_vertices: u64,
+}
+
+impl LinkCounts {
+    fn sum(self, o: Self) -> Self {
+        Self {
+            boundary_edges: self.boundary_edges + o.boundary_edges,
+            non_manifold_edges: self.non_manifold_edges + o.non_manifold_edges,
+            inconsistently_oriented_edges: self.inconsistently_oriented_edges
+                + o.inconsistently_oriented_edges,
+            non_manifold_vertices: self.non_manifold_vertices + o.non_manifold_vertices,
         }
     }
-    let mut local: Vec<u32> = Vec::new();
-    let mut parent: Vec<usize> = Vec::new();
-    for v in 0..nv {
-        let l = &link[start[v] as usize..start[v + 1] as usize];
-        if l.len() < 2 {
-            continue;
+
+    /// Counts the edges from `v` to its higher neighbours and whether its fan is one piece.
+    fn add_vertex(&mut self, v: u32, link: &[[u32; 2]], s: &mut Scratch) {
+        if link.is_empty() || is_closed_fan(link) {
+            return;
         }
-        local.clear();
-        local.extend(l.iter().flatten());
-        local.sort_unstable();
-        local.dedup();
-        parent.clear();
-        parent.extend(0..local.len());
-        let mut groups = local.len();
-        for e in l {
-            let a = find(&mut parent, local.binary_search(&e[0]).unwrap_or(0));
-            let b = find(&mut parent, local.binary_search(&e[1]).unwrap_or(0));
-            if a != b {
-                parent[a] = b;
+        s.neighbours.clear();
+        s.neighbours.extend(link.iter().flatten());
+        s.neighbours.sort_unstable();
+        s.neighbours.dedup();
+        s.out_in.clear();
+        s.out_in.resize(s.neighbours.len(), [0, 0]);
+        s.parent.clear();
+        s.parent.extend(0..s.neighbours.len());
+        let mut groups = s.neighbours.len();
+        for &[a, b] in link {
+            // Triangle (v, a, b): the edge v→a leaves v, the edge b→v arrives.
+            let ia = s.neighbours.binary_search(&a).unwrap_or(0);
+            let ib = s.neighbours.binary_search(&b).unwrap_or(0);
+            s.out_in[ia][0] += 1;
+            s.out_in[ib][1] += 1;
+            let (ra, rb) = (find(&mut s.parent, ia), find(&mut s.parent, ib));
+            if ra != rb {
+                s.parent[ra] = rb;
                 groups -= 1;
             }
         }
-        if groups > 1 {
-            report.non_manifold_vertices += 1;
+        if link.len() >= 2 && groups > 1 {
+            self.non_manifold_vertices += 1;
+        }
+        let first_higher = s.neighbours.partition_point(|&w| w < v);
+        for &[out, arrive] in &s.out_in[first_higher..] {
+            match out + arrive {
+                1 => self.boundary_edges += 1,
+                2 => {
+                    if out != 1 {
+                        self.inconsistently_oriented_edges += 1;
+                    }
+                }
+                _ => self.non_manifold_edges += 1,
+            }
         }
     }
-
-    let ids = components(mesh);
-    report.components = ids.iter().map(|&c| c as u64 + 1).max().unwrap_or(0);
-    report
 }
 
 fn zero_area([a, b, c]: [[f64; 3]; 3]) -> bool {
@@ -160,6 +288,79 @@ fn find(parent: &mut [usize], mut x: usize) -> usize {
         x = parent[x];
     }
     x
+}
+
+/// Number of connected components of triangles (through shared vertices), as
+/// [`components`] numbers them: a triangle with an out-of-range index is a component of its
+/// own. Union-find in parallel (lock-free: a root is only ever linked under a smaller index,
+/// by compare-and-swap), so the count does not depend on the thread count.
+pub fn component_count(mesh: &TriMesh) -> u64 {
+    let nv = mesh.positions.len();
+    let parent: Vec<AtomicU32> = (0..nv as u32).map(AtomicU32::new).collect();
+    let used: Vec<AtomicBool> = (0..nv).map(|_| AtomicBool::new(false)).collect();
+    let bad: u64 = mesh
+        .triangles
+        .par_chunks(CHUNK)
+        .map(|tris| {
+            let mut bad = 0;
+            for t in tris {
+                if t.iter().any(|&v| v as usize >= nv) {
+                    bad += 1;
+                    continue;
+                }
+                used[t[0] as usize].store(true, Ordering::Relaxed);
+                for &v in &t[1..] {
+                    used[v as usize].store(true, Ordering::Relaxed);
+                    unite(&parent, t[0], v);
+                }
+            }
+            bad
+        })
+        .sum();
+    let roots: u64 = (0..nv)
+        .into_par_iter()
+        .with_min_len(CHUNK)
+        .filter(|&v| {
+            used[v].load(Ordering::Relaxed) && parent[v].load(Ordering::Relaxed) == v as u32
+        })
+        .count() as u64;
+    roots + bad
+}
+
+/// The root of `x`, halving the path on the way.
+fn find_shared(parent: &[AtomicU32], mut x: u32) -> u32 {
+    loop {
+        let p = parent[x as usize].load(Ordering::Acquire);
+        if p == x {
+            return x;
+        }
+        let g = parent[p as usize].load(Ordering::Acquire);
+        if g != p {
+            // Only ever points `x` higher up its own tree; losing the race is harmless.
+            let _ = parent[x as usize].compare_exchange(p, g, Ordering::AcqRel, Ordering::Relaxed);
+        }
+        x = g;
+    }
+}
+
+/// Joins the sets of `a` and `b`: the larger root goes under the smaller one, so no cycle can
+/// form whatever the interleaving.
+fn unite(parent: &[AtomicU32], a: u32, b: u32) {
+    let (mut a, mut b) = (a, b);
+    loop {
+        let (ra, rb) = (find_shared(parent, a), find_shared(parent, b));
+        if ra == rb {
+            return;
+        }
+        let (hi, lo) = if ra > rb { (ra, rb) } else { (rb, ra) };
+        if parent[hi as usize]
+            .compare_exchange(hi, lo, Ordering::AcqRel, Ordering::Acquire)
+            .is_ok()
+        {
+            return;
+        }
+        (a, b) = (ra, rb);
+    }
 }
 
 /// Component id (`0..count`, in order of first triangle) of every triangle, where triangles
@@ -282,6 +483,36 @@ mod tests {
         let mut m = tetra();
         m.triangles.push([1, 1, 2]);
         assert_eq!(check(&m).degenerate_faces, 1);
+
+        // A degenerate face on vertices of its own is still a component.
+        m.positions.extend([[5.0, 0.0, 0.0], [6.0, 0.0, 0.0]]);
+        m.triangles.push([4, 5, 5]);
+        let r = check(&m);
+        assert_eq!((r.degenerate_faces, r.components), (2, 2));
+        assert_eq!(component_count(&m), 2);
+    }
+
+    #[test]
+    fn large_meshes_are_counted_across_chunks() {
+        // Two tori (closed, 2 × 2 × 200² triangles, more than one parallel chunk) and an open
+        // cylinder whose rims are boundary edges.
+        let torus = crate::shapes::torus([0.0; 3], 2.0, 0.5, 200);
+        let far = crate::shapes::torus([10.0, 0.0, 0.0], 2.0, 0.5, 200);
+        let tube = crate::shapes::open_cylinder([0.0, 20.0], 1.0, 0.0, 1.0, 64);
+        let both = crate::shapes::merge(&[torus.clone(), far]);
+        let r = check(&both);
+        assert!(r.is_closed_oriented_manifold(), "{r:?}");
+        assert_eq!((r.components, component_count(&both)), (2, 2));
+        let r = check(&tube);
+        assert_eq!(r.boundary_edges, 2 * 64, "{r:?}");
+        assert_eq!((r.non_manifold_edges, r.components), (0, 1));
+
+        // Flipping one triangle of the torus breaks the orientation of its three edges.
+        let mut m = torus;
+        m.triangles[17_000].swap(1, 2);
+        let r = check(&m);
+        assert_eq!(r.inconsistently_oriented_edges, 3);
+        assert!(r.is_watertight() && r.is_manifold());
     }
 
     #[test]

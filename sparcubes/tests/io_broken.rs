@@ -359,6 +359,23 @@ fn points_and_lines_are_counted() {
     assert!(e.to_string().contains("line"), "{e}");
 }
 
+#[test]
+fn repeated_faces_are_dropped_and_counted() {
+    // A quad listed as one polygon that goes round its corners three times (as in a parser
+    // test of long face lines), then the same triangle again in the other winding: the fan
+    // repeats the quad's two triangles, and fans out triangles with a repeated corner.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let obj = b"v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4 1 2 3 4 1 2 3 4\nf 3 2 1\n";
+    let loaded = load(&write(dir.path(), "repeated.obj", obj)).expect("load");
+    let kept = &loaded.mesh.triangles;
+    // Fan of 12 corners: 10 triangles with 4 distinct corner sets, {1,2,3}, {1,3,4}, and the
+    // degenerate {1,4,1}, {1,1,2} (kept here; the conversion skips them); the other 6 repeat
+    // them, and `f 3 2 1` repeats the first.
+    assert_eq!(kept[..2], [[0, 1, 2], [0, 2, 3]]);
+    assert_eq!(kept.len(), 4, "{kept:?}");
+    assert_eq!(loaded.stats.faces_duplicate, 7);
+}
+
 /// A minimal glTF with one triangle whose buffer comes from `uri`.
 fn gltf_with_uri(uri: &str) -> String {
     format!(

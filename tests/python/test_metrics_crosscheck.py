@@ -1,5 +1,6 @@
 """Checks `sparc3d eval` against an independent implementation (trimesh + scipy) of the
-metrics of DESIGN.md §6: Chamfer distance, absolute normal consistency and F1.
+metrics of docs/QUALITY.md ("How we measure"): Chamfer distance, absolute normal consistency
+and F1.
 
 Both sides sample `N` points uniformly by area on each mesh, in the frame where the source's
 bounding box is centred and its longest side is 1, pair every point with its nearest neighbour

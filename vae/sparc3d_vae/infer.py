@@ -159,8 +159,10 @@ def safe_name(item_id: str) -> str:
 
 
 def extract(binary: str, cubes_file: Path, item_id: str, out: Path, fill_holes: bool) -> Dict[str, Any]:
-    """`sparc3d extract` of one item of a tensor file; its JSON summary."""
-    args = ["extract", cubes_file, "--id", item_id, "-o", out]
+    """`sparc3d extract --close` of one item of a tensor file (a decoded grid may end where the
+    surface does not; closing gives every grid vertex a sign, so the mesh is closed); its JSON
+    summary."""
+    args = ["extract", cubes_file, "--id", item_id, "-o", out, "--close"]
     if fill_holes:
         args.append("--fill-holes")
     return run_sparc3d(binary, *args)

@@ -23,21 +23,6 @@ pub struct ChildOptions {
     pub parent_pid: u32,
 }
 
-fn set_memory_limit(bytes: u64) -> std::io::Result<()> {
-    if bytes == 0 {
-        return Ok(());
-    }
-    let lim = libc::rlimit {
-        rlim_cur: bytes as libc::rlim_t,
-        rlim_max: bytes as libc::rlim_t,
-    };
-    // SAFETY: setrlimit reads a valid rlimit struct.
-    if unsafe { libc::setrlimit(libc::RLIMIT_AS, &lim) } != 0 {
-        return Err(std::io::Error::last_os_error());
-    }
-    Ok(())
-}
-
 /// Takes fd 1 for the protocol and points fd 1 at stderr, so stray prints cannot corrupt it.
 fn protocol_stdout() -> std::io::Result<std::fs::File> {
     // SAFETY: dup/dup2 on the process's own standard descriptors.
@@ -122,7 +107,7 @@ pub fn main(opts: ChildOptions) -> i32 {
             return 2;
         }
     };
-    if let Err(e) = set_memory_limit(opts.memory_bytes) {
+    if let Err(e) = crate::process::set_memory_limit(opts.memory_bytes) {
         eprintln!("item worker: cannot set the memory limit: {e}");
         return 2;
     }

@@ -1,82 +1,269 @@
-//! The one function that touches geometry: load an item, convert it with the job's
-//! parameters, extract the mesh when asked, and encode the row. It runs inside the isolated
-//! item worker process ([`crate::child`]); every error becomes a `failed` row.
+//! The one conversion path: load a mesh file, convert it with Sparcubes, extract the mesh,
+//! encode the tensors, timing each stage ([`convert_file`]). The item worker ([`convert_item`],
+//! run inside the isolated process of [`crate::child`]), `sparc3d convert` and `sparc3d bench`
+//! all go through it; each asks only for the steps it needs ([`Steps`]).
 
 use sparc3d_schema::{
     EncodedTensor, ErrorClass, FrozenItem, ItemStatus, JobConfig, RowCounts, RowTensors,
-    RowTimings, ShardRow,
+    RowTimings, SampleTensors, SchemaError, ShardRow,
 };
+use sparcubes::io::LoadStats;
+use sparcubes::samples::{Precision, SampleParams, Samples};
+use sparcubes::{Conversion, Params, TriMesh};
 use std::path::Path;
 use std::time::Instant;
 
+/// What [`convert_file`] does beyond load and convert.
+#[derive(Debug, Clone, Copy)]
+pub struct Steps<'a> {
+    /// Conversion parameters.
+    pub params: &'a Params,
+    /// Count the input's connected components (welded), timed as part of `load`.
+    pub input_components: bool,
+    /// Extract the watertight mesh from the cubes.
+    pub extract: bool,
+    /// Draw vector-set samples from the extracted mesh (a job with `[samples]`); the mesh is
+    /// then extracted whatever [`Steps::extract`] says.
+    pub samples: Option<&'a SampleParams>,
+    /// Hand the extracted mesh back ([`Converted::mesh`]); otherwise it is dropped as soon as
+    /// it is no longer needed, so that it does not count in the peak memory of later stages.
+    pub keep_mesh: bool,
+    /// Encode the tensors, and how.
+    pub encode: Option<Encoding>,
+}
+
+/// How [`convert_file`] encodes the tensors.
+#[derive(Debug, Clone, Copy)]
+pub struct Encoding {
+    /// zstd level of the tensor blobs.
+    pub zstd_level: i32,
+    /// Also store the extracted mesh (when it was extracted).
+    pub store_mesh: bool,
+}
+
+/// Seconds of each stage, both as a shard row stores them and in order as they ran.
+#[derive(Debug, Clone, Default)]
+pub struct StageSeconds {
+    /// The row's timings (`total_s` is the supervisor's to fill in).
+    pub timings: RowTimings,
+    /// `load`, the conversion stages, then `extract` and `encode` when they ran.
+    pub in_order: Vec<(String, f64)>,
+}
+
+impl StageSeconds {
+    fn add(&mut self, name: &str, seconds: f64) {
+        self.in_order.push((name.to_string(), seconds));
+    }
+}
+
+/// A mesh file through the steps asked for.
+#[derive(Debug)]
+pub struct Converted {
+    /// What loading skipped or repaired.
+    pub load_stats: LoadStats,
+    /// Triangles of the loaded mesh.
+    pub input_faces: u64,
+    /// Vertices of the loaded mesh.
+    pub input_vertices: u64,
+    /// Connected components of the welded input, when asked for.
+    pub input_components: Option<u64>,
+    /// The sparse cubes and the conversion's counts and stage times.
+    pub conversion: Conversion,
+    /// Triangles of the extracted mesh, when extracted.
+    pub output_faces: Option<u64>,
+    /// The extracted mesh in grid coordinates, when extracted and [`Steps::keep_mesh`].
+    pub mesh: Option<TriMesh>,
+    /// The encoded tensors, when encoded.
+    pub tensors: Option<RowTensors>,
+    /// Seconds per stage.
+    pub seconds: StageSeconds,
+}
+
+/// The stage that failed, with the library's error (shown as that error).
+#[derive(Debug, thiserror::Error)]
+pub enum StageError {
+    /// Reading or parsing the file.
+    #[error(transparent)]
+    Load(sparcubes::Error),
+    /// The conversion.
+    #[error(transparent)]
+    Convert(sparcubes::Error),
+    /// Drawing the samples.
+    #[error("samples: {0}")]
+    Samples(sparcubes::Error),
+    /// Encoding the tensors.
+    #[error(transparent)]
+    Encode(SchemaError),
+}
+
+impl StageError {
+    /// The error class a failed row records.
+    pub fn class(&self) -> ErrorClass {
+        match self {
+            StageError::Load(e) | StageError::Convert(e) | StageError::Samples(e) => {
+                e.class().into()
+            }
+            StageError::Encode(_) => ErrorClass::EncodeError,
+        }
+    }
+}
+
+/// A failed [`convert_file`]: the error and the seconds of the stages that ran before it.
+#[derive(Debug)]
+pub struct Failed {
+    /// What failed.
+    pub error: StageError,
+    /// Seconds of the stages that finished.
+    pub seconds: StageSeconds,
+}
+
+/// Loads the mesh at `path` and takes it through `steps`.
+pub fn convert_file(path: &Path, steps: Steps) -> Result<Converted, Box<Failed>> {
+    let mut seconds = StageSeconds::default();
+    let fail = |error, seconds| Box::new(Failed { error, seconds });
+    let t = Instant::now();
+    let (source, load_stats) = match sparcubes::io::load(path) {
+        Ok(loaded) => (loaded.mesh, loaded.stats),
+        Err(e) => return Err(fail(StageError::Load(e), seconds)),
+    };
+    let input_components = steps
+        .input_components
+        .then(|| sparcubes::topology::component_count(&sparcubes::topology::weld(&source)));
+    seconds.timings.load_s = t.elapsed().as_secs_f64();
+    seconds.add("load", seconds.timings.load_s);
+
+    let t = Instant::now();
+    let conversion = match sparcubes::convert(&source, steps.params) {
+        Ok(c) => c,
+        Err(e) => return Err(fail(StageError::Convert(e), seconds)),
+    };
+    seconds.timings.convert_s = t.elapsed().as_secs_f64();
+    let stages = conversion.stats.stage_seconds.iter();
+    seconds.timings.stages = stages.map(|(k, v)| (k.to_string(), *v)).collect();
+    seconds
+        .in_order
+        .extend(seconds.timings.stages.iter().cloned());
+    let input_faces = source.triangles.len() as u64;
+    let input_vertices = source.positions.len() as u64;
+    drop(source);
+
+    let t = Instant::now();
+    let extract = steps.extract || steps.samples.is_some();
+    let mut mesh = extract.then(|| sparcubes::extract(&conversion.cubes));
+    seconds.timings.extract_s = t.elapsed().as_secs_f64();
+    if extract {
+        seconds.add("extract", seconds.timings.extract_s);
+    }
+    let output_faces = mesh
+        .as_ref()
+        .filter(|_| steps.extract)
+        .map(|m| m.triangles.len() as u64);
+    let samples = match (steps.samples, &mesh) {
+        (Some(params), Some(m)) => {
+            let t = Instant::now();
+            match sparcubes::samples::sample(&conversion.cubes, m, params) {
+                Ok(s) => {
+                    let s_seconds = t.elapsed().as_secs_f64();
+                    seconds
+                        .timings
+                        .stages
+                        .push(("samples".to_string(), s_seconds));
+                    seconds.add("samples", s_seconds);
+                    Some(s)
+                }
+                Err(e) => return Err(fail(StageError::Samples(e), seconds)),
+            }
+        }
+        _ => None,
+    };
+    let store_mesh = steps.encode.is_some_and(|e| e.store_mesh);
+    if !(steps.keep_mesh || store_mesh) {
+        mesh = None;
+    }
+
+    let tensors = match steps.encode {
+        None => None,
+        Some(encoding) => {
+            let t = Instant::now();
+            let drawn = samples
+                .as_ref()
+                .zip(steps.samples)
+                .map(|(s, p)| (s, p.dtype));
+            match encode(&conversion, mesh.as_ref(), drawn, encoding) {
+                Ok(tensors) => {
+                    seconds.timings.encode_s = t.elapsed().as_secs_f64();
+                    seconds.add("encode", seconds.timings.encode_s);
+                    Some(tensors)
+                }
+                Err(e) => return Err(fail(StageError::Encode(e), seconds)),
+            }
+        }
+    };
+    Ok(Converted {
+        load_stats,
+        input_faces,
+        input_vertices,
+        input_components,
+        conversion,
+        output_faces,
+        mesh: if steps.keep_mesh { mesh } else { None },
+        tensors,
+        seconds,
+    })
+}
+
+/// The cubes' tensors, with the mesh's when it is to be stored.
+fn encode(
+    conversion: &Conversion,
+    mesh: Option<&TriMesh>,
+    samples: Option<(&Samples, Precision)>,
+    encoding: Encoding,
+) -> Result<RowTensors, SchemaError> {
+    let level = encoding.zstd_level;
+    let mut tensors = RowTensors::from_cubes(&conversion.cubes, level)?;
+    if let (true, Some(m)) = (encoding.store_mesh, mesh) {
+        tensors.mesh_vertices = Some(EncodedTensor::from_f32x3(&m.positions, level)?);
+        tensors.mesh_faces = Some(EncodedTensor::from_u32x3(&m.triangles, level)?);
+    }
+    if let Some((s, dtype)) = samples {
+        tensors.samples = Some(SampleTensors::from_samples(s, dtype, level)?);
+    }
+    Ok(tensors)
+}
+
 /// Converts one item into its shard row (timings `total_s` and `attempts` are filled in by
-/// the supervisor).
+/// the supervisor); every error becomes a `failed` row.
 pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
     let params = &config.params;
     let path = Path::new(&item.record.uri);
-    let fail = |class: ErrorClass, message: String, timings: RowTimings| {
-        let mut row = ShardRow::failed(
-            item.index,
-            &item.record.id,
-            &item.record.uri,
-            params.resolution,
-            class,
-            message,
-        );
-        row.source_sha256 = item.record.sha256.clone();
-        row.timings = timings;
-        row
-    };
-    let mut timings = RowTimings::default();
-    let t = Instant::now();
     let sha = item
         .record
         .sha256
         .clone()
         .or_else(|| crate::fsutil::file_sha256(path).ok());
-    let loaded = match sparcubes::io::load(path) {
-        Ok(l) => l,
-        Err(e) => return fail(e.class().into(), e.to_string(), timings),
+    let steps = Steps {
+        params,
+        input_components: true,
+        extract: config.extract_mesh,
+        samples: config.samples.enabled.then_some(&config.samples.params),
+        keep_mesh: false,
+        encode: Some(Encoding {
+            zstd_level: config.zstd_level,
+            store_mesh: config.store_mesh,
+        }),
     };
-    let input_components =
-        sparcubes::topology::check(&sparcubes::topology::weld(&loaded.mesh)).components;
-    timings.load_s = t.elapsed().as_secs_f64();
-
-    let t = Instant::now();
-    let conversion = match sparcubes::convert(&loaded.mesh, params) {
-        Ok(c) => c,
-        Err(e) => return fail(e.class().into(), e.to_string(), timings),
-    };
-    timings.convert_s = t.elapsed().as_secs_f64();
-    timings.stages = conversion
-        .stats
-        .stage_seconds
-        .iter()
-        .map(|(k, v)| (k.to_string(), *v))
-        .collect();
-
-    let t = Instant::now();
-    let mesh = config
-        .extract_mesh
-        .then(|| sparcubes::extract(&conversion.cubes));
-    timings.extract_s = t.elapsed().as_secs_f64();
-
-    let t = Instant::now();
-    let level = config.zstd_level;
-    let encoded = RowTensors::from_cubes(&conversion.cubes, level).and_then(|mut tensors| {
-        if let (true, Some(m)) = (config.store_mesh, &mesh) {
-            tensors.mesh_vertices = Some(EncodedTensor::from_f32x3(&m.positions, level)?);
-            tensors.mesh_faces = Some(EncodedTensor::from_u32x3(&m.triangles, level)?);
+    let done = match convert_file(path, steps) {
+        Ok(done) => done,
+        Err(failed) => {
+            let Failed { error, seconds } = *failed;
+            let class = error.class();
+            let mut row = ShardRow::failed_item(item, params.resolution, class, error.to_string());
+            row.timings = seconds.timings;
+            return row;
         }
-        Ok(tensors)
-    });
-    let tensors = match encoded {
-        Ok(t) => t,
-        Err(e) => return fail(ErrorClass::EncodeError, e.to_string(), timings),
     };
-    timings.encode_s = t.elapsed().as_secs_f64();
-
-    let stats = &conversion.stats;
+    let cubes = &done.conversion.cubes;
+    let stats = &done.conversion.stats;
     ShardRow {
         item_index: item.index,
         id: item.record.id.clone(),
@@ -88,18 +275,89 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
         stderr_tail: None,
         attempts: 1,
         resolution: params.resolution,
-        normalization: Some(conversion.cubes.normalization),
+        normalization: Some(cubes.normalization),
         counts: Some(RowCounts {
-            input_faces: loaded.mesh.triangles.len() as u64,
-            input_vertices: loaded.mesh.positions.len() as u64,
-            input_components: Some(input_components),
-            active_vertices: conversion.cubes.coords.len() as u64,
-            active_cells: conversion.cubes.cells.len() as u64,
-            output_faces: mesh.as_ref().map(|m| m.triangles.len() as u64),
+            input_faces: done.input_faces,
+            input_vertices: done.input_vertices,
+            input_components: done.input_components,
+            active_vertices: cubes.coords.len() as u64,
+            active_cells: cubes.cells.len() as u64,
+            output_faces: done.output_faces,
             shell_vertices: stats.shell_vertices,
             wall_cells: stats.wall_cells,
         }),
-        timings,
-        tensors: Some(tensors),
+        timings: done.seconds.timings,
+        tensors: done.tensors,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn example(name: &str) -> std::path::PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../examples")
+            .join(name)
+    }
+
+    #[test]
+    fn the_path_runs_the_steps_asked_for_in_order() -> Result<(), Box<dyn std::error::Error>> {
+        let params = Params::with_resolution(32);
+        let mut steps = Steps {
+            params: &params,
+            input_components: true,
+            extract: true,
+            samples: None,
+            keep_mesh: false,
+            encode: Some(Encoding {
+                zstd_level: 3,
+                store_mesh: true,
+            }),
+        };
+        let done = convert_file(&example("cube.off"), steps).map_err(|f| f.error)?;
+        let names: Vec<&str> = done
+            .seconds
+            .in_order
+            .iter()
+            .map(|(k, _)| k.as_str())
+            .collect();
+        assert_eq!(names.first(), Some(&"load"));
+        assert_eq!(names[names.len() - 2..], ["extract", "encode"]);
+        assert_eq!(names.len() - 3, done.conversion.stats.stage_seconds.len());
+        assert_eq!((done.input_faces, done.input_components), (12, Some(1)));
+        assert!(done.mesh.is_none(), "not kept");
+        let tensors = done.tensors.ok_or("no tensors")?;
+        assert!(tensors.mesh_faces.is_some(), "stored although not kept");
+        assert!(done.output_faces.is_some_and(|n| n > 0));
+
+        steps.encode = None;
+        steps.keep_mesh = true;
+        let kept = convert_file(&example("cube.off"), steps).map_err(|f| f.error)?;
+        assert_eq!(
+            kept.mesh.map(|m| m.triangles.len() as u64),
+            done.output_faces
+        );
+        assert_eq!(kept.conversion.cubes.coords, done.conversion.cubes.coords);
+        Ok(())
+    }
+
+    #[test]
+    fn a_failure_names_its_stage_and_class() {
+        let params = Params::with_resolution(32);
+        let steps = Steps {
+            params: &params,
+            input_components: false,
+            extract: false,
+            samples: None,
+            keep_mesh: false,
+            encode: None,
+        };
+        let Err(failed) = convert_file(&example("missing.obj"), steps) else {
+            panic!("a missing file converted")
+        };
+        assert!(matches!(failed.error, StageError::Load(_)));
+        assert_eq!(failed.error.class(), ErrorClass::IoError);
+        assert!(failed.seconds.in_order.is_empty());
     }
 }

@@ -49,6 +49,30 @@ pub enum WorkerError {
     /// Encoding or decoding a contract type failed.
     #[error(transparent)]
     Schema(#[from] sparc3d_schema::SchemaError),
+    /// A shard file could not be read back; `stage` says what was being done.
+    #[error("{stage} {}: {reason}", path.display())]
+    ReadShard {
+        /// What was being done ("opening", "reading", "decoding").
+        stage: &'static str,
+        /// The shard file.
+        path: PathBuf,
+        /// What went wrong.
+        reason: String,
+    },
+    /// A finished shard no longer matches its completion record.
+    #[error(
+        "shard {shard} of {root} is damaged: {why}; `sparc3d verify {root}` moves damaged \
+         shards aside and `sparc3d run {root}` converts them again",
+        root = root.display()
+    )]
+    Damaged {
+        /// Shard index.
+        shard: u64,
+        /// The job folder.
+        root: PathBuf,
+        /// What does not match.
+        why: String,
+    },
     /// Writing Parquet failed.
     #[error("writing parquet {}: {source}{}", path.display(), parquet_hint(source))]
     Parquet {

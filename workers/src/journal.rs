@@ -448,4 +448,52 @@ mod tests {
         ));
         Ok(())
     }
+
+    /// The counts the shard loop decides retries and give-ups by: a crash and an abort end
+    /// an attempt, a start with neither is a killed worker, a result clears the item.
+    #[test]
+    fn replay_counts_crashes_aborts_and_interrupted_starts() -> Result<()> {
+        let dir = tempfile::tempdir().map_err(|e| WorkerError::io("tmp", "/tmp", e))?;
+        let path = dir.path().join("j");
+        let mut j = Journal::open(&path, 3, "fp")?;
+        let start = |index, attempt| Record::Start {
+            index,
+            attempt,
+            at: 1.0,
+        };
+        j.append(&start(0, 1))?;
+        j.append(&Record::Crash {
+            index: 0,
+            class: ErrorClass::Crashed,
+            message: "killed by signal 9".into(),
+            at: 2.0,
+        })?;
+        j.append(&start(0, 2))?;
+        j.append(&Record::Abort { index: 0, at: 3.0 })?;
+        j.append(&start(0, 3))?; // the worker itself was killed here
+        j.append(&start(1, 1))?;
+        let row = ShardRow::failed(1, "b", "/b", 8, ErrorClass::EmptyMesh, "empty".into());
+        j.append(&Record::Done {
+            row: Box::new(row),
+            at: 4.0,
+        })?;
+        drop(j);
+        let state = replay(&path)?;
+        assert_eq!(state.header, Some((3, "fp".to_string())));
+        let a = &state.attempts[&0];
+        assert_eq!((a.started, a.crashes, a.aborted), (3, 1, 1));
+        assert_eq!(a.interrupted(), 1);
+        assert_eq!(
+            a.last_crash,
+            Some((ErrorClass::Crashed, "killed by signal 9".to_string()))
+        );
+        assert!(!state.attempts.contains_key(&1), "a result clears the item");
+        assert_eq!(state.done[&1].class, Some(ErrorClass::EmptyMesh));
+        assert_eq!(
+            state.in_flight, None,
+            "item 1 finished after item 0's start"
+        );
+        assert!(!state.torn);
+        Ok(())
+    }
 }

@@ -3,10 +3,11 @@
 //!
 //! Roles, one module each: [`job`] (read a job folder), [`lease`] (who works on a shard),
 //! [`journal`] (finished items, appended and fsynced), [`convert`] (the one function that
-//! touches geometry), [`child`] (the isolated process that runs it), [`supervisor`] (runs
-//! items in a child, with a watchdog, and classifies its deaths), [`writer`] (tmp → fsync →
-//! rename → completion record), [`shard`] (the loop over a shard's items), [`state`] (is a
-//! shard done, running or pending), [`events`] (progress reports).
+//! touches geometry), [`child`] (the isolated process that runs it), [`process`] (the one
+//! child-process supervisor: stderr tail, parent-death signal, time limit, resource use),
+//! [`supervisor`] (runs items in a child, with a watchdog, and classifies its deaths),
+//! [`shard`] (the loop over a shard's items), [`store`] (shards on disk: write, check against
+//! their completion records, read back), [`events`] (progress reports).
 #![deny(missing_docs)]
 
 pub mod child;
@@ -19,10 +20,10 @@ pub mod job;
 pub mod journal;
 pub mod lease;
 pub mod parent;
+pub mod process;
 pub mod shard;
-pub mod state;
+pub mod store;
 pub mod supervisor;
-pub mod writer;
 
 pub use error::{Result, WorkerError};
 pub use job::Job;

@@ -8,9 +8,9 @@ use crate::frame::Record;
 use crate::job::Job;
 use crate::journal::Journal;
 use crate::lease::{self, Acquired};
-use crate::state::{self, Check, Completion};
+use crate::store::state::{self, Check, Completion};
 use crate::supervisor::{ChildCommand, ItemOutcome, ItemRunner};
-use sparc3d_schema::{CompletionRecord, ErrorClass, ItemStatus, Limits, ShardRow};
+use sparc3d_schema::{CompletionRecord, ErrorClass, FrozenItem, ItemStatus, Limits, ShardRow};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
@@ -49,6 +49,7 @@ pub fn process_shard(job: &Job, shard: u64, opts: &mut WorkOptions) -> Result<Sh
     let layout = &job.layout;
     let fp = job.fingerprint().to_string();
     if let Completion::Done(r) = state::completion(layout, shard, &fp, Check::Quick)? {
+        clear_leftovers(job, shard, opts.lease_ttl_s)?;
         (opts.events)(Event::ShardSkipped {
             shard,
             reason: "already done".into(),
@@ -79,6 +80,23 @@ pub fn process_shard(job: &Job, shard: u64, opts: &mut WorkOptions) -> Result<Sh
     let result = run_leased(job, shard, opts, &held, &owner);
     held.release();
     result
+}
+
+/// A worker killed after writing a shard's completion record but before removing its journal
+/// and lease leaves both behind. The shard holds every row, so the journal is redundant: take
+/// the lease (unless a live worker still holds it, which then cleans up itself), remove the
+/// journal, release the lease.
+pub fn clear_leftovers(job: &Job, shard: u64, lease_ttl_s: f64) -> Result<()> {
+    let layout = &job.layout;
+    let (journal, lease_file) = (layout.journal(shard), layout.lease(shard));
+    if !journal.exists() && !lease_file.exists() {
+        return Ok(());
+    }
+    if let Acquired::Held(held) = lease::acquire(&lease_file, &lease::owner_name(), lease_ttl_s)? {
+        let _ = std::fs::remove_file(&journal);
+        held.release();
+    }
+    Ok(())
 }
 
 fn run_leased(
@@ -120,97 +138,18 @@ fn run_leased(
             continue;
         }
         loop {
-            if opts.stop.load(Ordering::SeqCst) {
-                return Ok(ShardOutcome::Stopped);
-            }
-            if let Some(new_owner) = held.lost_to() {
-                return Err(WorkerError::LeaseLost {
-                    shard,
-                    owner: new_owner,
-                });
-            }
-            let attempts = journal
-                .state
-                .attempts
-                .get(&item.index)
-                .cloned()
-                .unwrap_or_default();
-            let id = &item.record.id;
-            let uri = &item.record.uri;
-            if attempts.interrupted() >= opts.limits.max_interrupted_attempts {
-                let mut row = ShardRow::failed(
-                    item.index,
-                    id,
-                    uri,
-                    resolution,
-                    ErrorClass::Crashed,
-                    format!(
-                        "the worker was killed {} times while converting this item",
-                        attempts.interrupted()
-                    ),
-                );
-                row.attempts = attempts.started;
-                row.source_sha256 = item.record.sha256.clone();
-                finish(&mut journal, opts, shard, row)?;
-                break;
-            }
-            journal.append(&Record::Start {
-                index: item.index,
-                attempt: attempts.started + 1,
-                at: crate::now(),
-            })?;
-            (opts.events)(Event::ItemStarted {
+            match attempt(
+                &mut journal,
+                opts,
                 shard,
-                index: item.index,
-                id: id.clone(),
-                uri: uri.clone(),
-            });
-            let t = std::time::Instant::now();
-            let outcome = runner.run(item, &opts.stop)?;
-            let seconds = t.elapsed().as_secs_f64();
-            match outcome {
-                ItemOutcome::Finished(mut row) => {
-                    row.attempts = attempts.started + 1;
-                    row.timings.total_s = seconds;
-                    finish(&mut journal, opts, shard, *row)?;
-                    break;
-                }
-                ItemOutcome::Stopped => {
-                    journal.append(&Record::Abort {
-                        index: item.index,
-                        at: crate::now(),
-                    })?;
-                    return Ok(ShardOutcome::Stopped);
-                }
-                ItemOutcome::Died {
-                    class,
-                    message,
-                    stderr_tail,
-                } => {
-                    if class.is_crash() && attempts.crashes < opts.limits.max_crash_retries {
-                        journal.append(&Record::Crash {
-                            index: item.index,
-                            class,
-                            message,
-                            at: crate::now(),
-                        })?;
-                        (opts.events)(Event::ItemFinished {
-                            shard,
-                            index: item.index,
-                            status: "retry".into(),
-                            class: Some(class.as_str().into()),
-                            seconds,
-                        });
-                        continue;
-                    }
-                    let mut row = ShardRow::failed(item.index, id, uri, resolution, class, message);
-                    row.source_sha256 = item.record.sha256.clone();
-                    row.stderr_tail = (!stderr_tail.is_empty()).then_some(stderr_tail);
-                    row.attempts = attempts.started + 1;
-                    row.timings.total_s = seconds;
-                    finish(&mut journal, opts, shard, row)?;
-                    break;
-                }
+                held,
+                &mut runner,
+                item,
+                resolution,
+            )? {
+                Attempt::Finished => break,
+                Attempt::Retry => continue,
+                Attempt::Stopped => return Ok(ShardOutcome::Stopped),
             }
         }
     }
@@ -218,7 +157,7 @@ fn run_leased(
     (opts.events)(Event::ShardWriting { shard });
     // Every result on disk (and any failed background flush reported) before the shard.
     journal.sync()?;
-    let record = crate::writer::write_shard(job, shard, &journal, owner, started_at)?;
+    let record = crate::store::write::write_shard(job, shard, &journal, owner, started_at)?;
     let journal_path = journal.path().to_path_buf();
     drop(journal);
     let _ = std::fs::remove_file(&journal_path);
@@ -229,6 +168,112 @@ fn run_leased(
         failed: record.failed,
     });
     Ok(ShardOutcome::Done(record))
+}
+
+/// How one attempt at an item ended, for the loop over a shard's items.
+enum Attempt {
+    /// The item has its final row in the journal.
+    Finished,
+    /// It crashed and is to be tried again.
+    Retry,
+    /// A stop was requested; the attempt is recorded as aborted.
+    Stopped,
+}
+
+/// One attempt at `item`: give it up when it killed its worker too often, else journal its
+/// start, run it in the item worker, and journal the result, the crash to retry, or the abort.
+fn attempt(
+    journal: &mut Journal,
+    opts: &mut WorkOptions,
+    shard: u64,
+    held: &lease::Lease,
+    runner: &mut ItemRunner,
+    item: &FrozenItem,
+    resolution: u32,
+) -> Result<Attempt> {
+    if opts.stop.load(Ordering::SeqCst) {
+        return Ok(Attempt::Stopped);
+    }
+    if let Some(new_owner) = held.lost_to() {
+        return Err(WorkerError::LeaseLost {
+            shard,
+            owner: new_owner,
+        });
+    }
+    let attempts = journal
+        .state
+        .attempts
+        .get(&item.index)
+        .cloned()
+        .unwrap_or_default();
+    if attempts.interrupted() >= opts.limits.max_interrupted_attempts {
+        let message = format!(
+            "the worker was killed {} times while converting this item",
+            attempts.interrupted()
+        );
+        let class = ErrorClass::Crashed;
+        let mut row = ShardRow::failed_item(item, resolution, class, message);
+        row.attempts = attempts.started;
+        finish(journal, opts, shard, row)?;
+        return Ok(Attempt::Finished);
+    }
+    journal.append(&Record::Start {
+        index: item.index,
+        attempt: attempts.started + 1,
+        at: crate::now(),
+    })?;
+    (opts.events)(Event::ItemStarted {
+        shard,
+        index: item.index,
+        id: item.record.id.clone(),
+        uri: item.record.uri.clone(),
+    });
+    let t = std::time::Instant::now();
+    let outcome = runner.run(item, &opts.stop)?;
+    let seconds = t.elapsed().as_secs_f64();
+    match outcome {
+        ItemOutcome::Finished(mut row) => {
+            row.attempts = attempts.started + 1;
+            row.timings.total_s = seconds;
+            finish(journal, opts, shard, *row)?;
+            Ok(Attempt::Finished)
+        }
+        ItemOutcome::Stopped => {
+            journal.append(&Record::Abort {
+                index: item.index,
+                at: crate::now(),
+            })?;
+            Ok(Attempt::Stopped)
+        }
+        ItemOutcome::Died {
+            class,
+            message,
+            stderr_tail,
+        } => {
+            if class.is_crash() && attempts.crashes < opts.limits.max_crash_retries {
+                journal.append(&Record::Crash {
+                    index: item.index,
+                    class,
+                    message,
+                    at: crate::now(),
+                })?;
+                (opts.events)(Event::ItemFinished {
+                    shard,
+                    index: item.index,
+                    status: "retry".into(),
+                    class: Some(class.as_str().into()),
+                    seconds,
+                });
+                return Ok(Attempt::Retry);
+            }
+            let mut row = ShardRow::failed_item(item, resolution, class, message);
+            row.stderr_tail = (!stderr_tail.is_empty()).then_some(stderr_tail);
+            row.attempts = attempts.started + 1;
+            row.timings.total_s = seconds;
+            finish(journal, opts, shard, row)?;
+            Ok(Attempt::Finished)
+        }
+    }
 }
 
 fn finish(journal: &mut Journal, opts: &mut WorkOptions, shard: u64, row: ShardRow) -> Result<()> {

@@ -5,15 +5,14 @@
 
 use crate::error::{Result, WorkerError};
 use crate::frame::{self, ReadFrame, Record};
+use crate::process::{Process, ProcessOptions};
 use sparc3d_schema::{ErrorClass, FrozenItem, JobConfig, Limits, ShardRow};
-use std::io::{BufReader, Read, Write};
-use std::os::unix::process::{CommandExt, ExitStatusExt};
+use std::io::{BufReader, Write};
+use std::os::unix::process::ExitStatusExt;
 use std::path::PathBuf;
-use std::process::{Child, ChildStdin, Command, ExitStatus, Stdio};
+use std::process::{ChildStdin, Command, ExitStatus, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
-use std::sync::{Arc, Mutex};
-use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 /// Bytes of stderr kept per item.
@@ -57,38 +56,18 @@ enum Msg {
 }
 
 struct ChildProc {
-    child: Child,
+    process: Process,
     stdin: ChildStdin,
     rx: Receiver<Msg>,
-    tail: Arc<Mutex<Vec<u8>>>,
-    stderr_thread: Option<JoinHandle<()>>,
 }
 
 impl ChildProc {
     fn kill(&mut self) -> Option<ExitStatus> {
-        let _ = self.child.kill();
-        self.reap()
-    }
-
-    fn reap(&mut self) -> Option<ExitStatus> {
-        let status = self.child.wait().ok();
-        if let Some(h) = self.stderr_thread.take() {
-            let _ = h.join();
-        }
-        status
+        self.process.kill()
     }
 
     fn tail(&self) -> String {
-        let bytes = self.tail.lock().map(|g| g.clone()).unwrap_or_default();
-        let start = bytes.len().saturating_sub(ROW_TAIL_BYTES);
-        String::from_utf8_lossy(&bytes[start..]).into_owned()
-    }
-}
-
-impl Drop for ChildProc {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
+        self.process.stderr_tail(ROW_TAIL_BYTES)
     }
 }
 
@@ -178,24 +157,24 @@ impl ItemRunner {
     }
 
     fn spawn(&self) -> Result<ChildProc> {
-        let mut child = Command::new(&self.cmd.program)
-            .args(&self.cmd.args)
+        let mut cmd = Command::new(&self.cmd.program);
+        cmd.args(&self.cmd.args)
             .arg("--memory-bytes")
             .arg(self.limits.item_memory_bytes.to_string())
             .arg("--parent-pid")
             .arg(std::process::id().to_string())
             .envs(self.cmd.env.iter().map(|(k, v)| (k, v)))
             .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .process_group(0)
-            .spawn()
-            .map_err(|e| {
-                WorkerError::Child(format!("starting {}: {e}", self.cmd.program.display()))
-            })?;
-        let (Some(mut stdin), Some(stdout), Some(mut stderr)) =
-            (child.stdin.take(), child.stdout.take(), child.stderr.take())
-        else {
+            .stdout(Stdio::piped());
+        let options = ProcessOptions {
+            own_process_group: true,
+            stderr_tail_bytes: TAIL_BYTES,
+            ..Default::default()
+        };
+        let mut process = Process::spawn(&mut cmd, &options).map_err(|e| {
+            WorkerError::Child(format!("starting {}: {e}", self.cmd.program.display()))
+        })?;
+        let (Some(mut stdin), Some(stdout)) = (process.take_stdin(), process.take_stdout()) else {
             return Err(WorkerError::Child("no pipes to the item worker".into()));
         };
         let (tx, rx) = std::sync::mpsc::channel();
@@ -210,10 +189,6 @@ impl ItemRunner {
                                 return;
                             }
                         }
-                        Ok(ReadFrame::End) => {
-                            let _ = tx.send(Msg::Closed);
-                            return;
-                        }
                         Ok(_) | Err(_) => {
                             let _ = tx.send(Msg::Closed);
                             return;
@@ -222,35 +197,9 @@ impl ItemRunner {
                 }
             })
             .map_err(|e| WorkerError::Child(format!("starting a reader thread: {e}")))?;
-        let tail = Arc::new(Mutex::new(Vec::new()));
-        let t = tail.clone();
-        let stderr_thread = std::thread::Builder::new()
-            .name("item-stderr".into())
-            .spawn(move || {
-                let mut buf = [0u8; 4096];
-                while let Ok(n) = stderr.read(&mut buf) {
-                    if n == 0 {
-                        break;
-                    }
-                    if let Ok(mut g) = t.lock() {
-                        g.extend_from_slice(&buf[..n]);
-                        if g.len() > TAIL_BYTES {
-                            let cut = g.len() - TAIL_BYTES;
-                            g.drain(..cut);
-                        }
-                    }
-                }
-            })
-            .ok();
         writeln!(stdin, "{}", self.config_line)
             .map_err(|e| WorkerError::Child(format!("sending the config: {e}")))?;
-        Ok(ChildProc {
-            child,
-            stdin,
-            rx,
-            tail,
-            stderr_thread,
-        })
+        Ok(ChildProc { process, stdin, rx })
     }
 
     fn died(&mut self, mut proc: ChildProc, timeout: bool) -> ItemOutcome {
@@ -280,9 +229,7 @@ impl ItemRunner {
             Some(p) => p,
             None => self.spawn()?,
         };
-        if let Ok(mut g) = proc.tail.lock() {
-            g.clear();
-        }
+        proc.process.clear_stderr_tail();
         let line = serde_json::to_string(item)
             .map_err(|e| WorkerError::Child(format!("encoding item {}: {e}", item.index)))?;
         if writeln!(proc.stdin, "{line}")

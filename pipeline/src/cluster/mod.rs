@@ -3,3 +3,4 @@
 //! `sparc3d work` directly (see `ops/k8s/` and `ops/ray/`).
 
 pub mod slurm;
+pub mod slurm_submit;

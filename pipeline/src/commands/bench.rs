@@ -10,9 +10,10 @@ use crate::manifest_io;
 use crate::units::parse_duration;
 use anyhow::{bail, Context, Result};
 use serde::Serialize;
+use sparc3d_workers::process::{Process, ProcessOptions};
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, ExitCode, Stdio};
+use std::process::{Command, ExitCode, Stdio};
 use std::time::{Duration, Instant};
 
 /// Arguments of `sparc3d bench`.
@@ -22,7 +23,8 @@ pub struct Args {
     /// .parquet with a `uri` or `path` column) or a single mesh.
     pub input: PathBuf,
     /// Grid resolutions, comma-separated.
-    #[arg(long, value_delimiter = ',', default_value = "512")]
+    #[arg(long, value_delimiter = ',',
+          default_values_t = [crate::resolution_arg::default_resolution()])]
     pub resolution: Vec<u32>,
     /// Print every row and the summary as one JSON document instead of tables.
     #[arg(long)]
@@ -71,11 +73,7 @@ impl Spread {
         }
         v.sort_by(f64::total_cmp);
         let n = v.len();
-        let median = if n % 2 == 1 {
-            v[n / 2]
-        } else {
-            (v[n / 2 - 1] + v[n / 2]) / 2.0
-        };
+        let median = crate::stats::median(&v).unwrap_or_default();
         let rank = ((0.95 * n as f64).ceil() as usize).clamp(1, n);
         Self {
             median,
@@ -134,7 +132,7 @@ struct Report<'a> {
 fn collect_inputs(input: &Path) -> Result<Vec<PathBuf>> {
     let mut files = Vec::new();
     if input.is_dir() {
-        super::manifest::scan(input, &mut files)?;
+        crate::folder_scan::scan(input, &mut files)?;
     } else if sparcubes::io::Format::from_extension(input).is_some() {
         files.push(input.to_path_buf());
     } else if input.is_file() {
@@ -152,57 +150,8 @@ fn collect_inputs(input: &Path) -> Result<Vec<PathBuf>> {
     Ok(files)
 }
 
-/// How a waited-for subprocess ended, with its resource use.
-struct Waited {
-    /// Raw wait status; `None` when the wait itself failed.
-    status: Option<i32>,
-    timed_out: bool,
-    user_seconds: f64,
-    sys_seconds: f64,
-    max_rss_bytes: Option<u64>,
-}
-
-fn seconds(tv: libc::timeval) -> f64 {
-    tv.tv_sec as f64 + tv.tv_usec as f64 * 1e-6
-}
-
-/// Waits for `child` (killing it after `timeout`) with `wait4`, which reports the CPU time
-/// and peak RSS of that one process, even when it was killed.
-fn wait_with_usage(child: &mut Child, timeout: Duration) -> Waited {
-    let pid = child.id() as libc::pid_t;
-    let start = Instant::now();
-    let mut timed_out = false;
-    let mut status: libc::c_int = 0;
-    // SAFETY: rusage is plain old data; all-zero is a valid value.
-    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
-    let reaped = loop {
-        let flags = if timed_out { 0 } else { libc::WNOHANG };
-        // SAFETY: wait4 writes into the status and rusage we own; pid is our own child.
-        let r = unsafe { libc::wait4(pid, &mut status, flags, &mut usage) };
-        if r == pid {
-            break true;
-        }
-        if r < 0 {
-            if std::io::Error::last_os_error().kind() == std::io::ErrorKind::Interrupted {
-                continue;
-            }
-            break false;
-        }
-        if !timed_out && start.elapsed() >= timeout {
-            timed_out = true;
-            let _ = child.kill();
-            continue;
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    };
-    Waited {
-        status: reaped.then_some(status),
-        timed_out,
-        user_seconds: seconds(usage.ru_utime),
-        sys_seconds: seconds(usage.ru_stime),
-        max_rss_bytes: (reaped && usage.ru_maxrss > 0).then_some(usage.ru_maxrss as u64 * 1024),
-    }
-}
+/// Bytes of a failed mesh's stderr kept to name the failure (its last lines).
+const STDERR_TAIL_BYTES: usize = 16 << 10;
 
 fn describe_status(status: Option<i32>) -> String {
     match status {
@@ -245,54 +194,36 @@ fn bench_mesh(exe: &Path, path: &Path, resolution: u32, args: &Args) -> BenchRow
         .arg("--zstd-level")
         .arg(args.zstd_level.to_string())
         .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped());
+        .stdout(Stdio::piped());
     if args.deform.enabled() {
         cmd.arg("--deform");
     }
     if let Some(t) = args.threads {
         cmd.env("RAYON_NUM_THREADS", t.to_string());
     }
-    #[cfg(target_os = "linux")]
-    {
-        use std::os::unix::process::CommandExt;
-        // SAFETY: the closure only calls prctl, which is async-signal-safe, between fork and
-        // exec. The conversion dies with the benchmark instead of running on as an orphan.
-        unsafe {
-            cmd.pre_exec(|| {
-                libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL);
-                Ok(())
-            });
-        }
-    }
+    // The conversion dies with the benchmark instead of running on as an orphan.
+    let options = ProcessOptions {
+        parent_death_signal: Some(libc::SIGKILL),
+        ..Default::default()
+    };
     let start = Instant::now();
-    let mut child = match cmd.spawn() {
+    let mut child = match Process::spawn(&mut cmd, &options) {
         Ok(c) => c,
         Err(e) => return failed(format!("starting {}: {e}", exe.display())),
     };
-    let readers = [
-        child.stdout.take().map(|mut s| {
-            std::thread::spawn(move || {
-                let mut buf = String::new();
-                let _ = s.read_to_string(&mut buf);
-                buf
-            })
-        }),
-        child.stderr.take().map(|mut s| {
-            std::thread::spawn(move || {
-                let mut buf = String::new();
-                let _ = s.read_to_string(&mut buf);
-                buf
-            })
-        }),
-    ];
-    let waited = wait_with_usage(&mut child, Duration::from_secs_f64(args.timeout));
+    let stdout = child.take_stdout().map(|mut s| {
+        std::thread::spawn(move || {
+            let mut buf = String::new();
+            let _ = s.read_to_string(&mut buf);
+            buf
+        })
+    });
+    let waited = child.wait_with_usage(Duration::from_secs_f64(args.timeout));
     let process_seconds = start.elapsed().as_secs_f64();
-    let [stdout, stderr] = readers.map(|r| r.and_then(|h| h.join().ok()).unwrap_or_default());
+    let stdout = stdout.and_then(|h| h.join().ok()).unwrap_or_default();
+    let stderr = child.stderr_tail(STDERR_TAIL_BYTES);
 
-    let exited_ok = waited
-        .status
-        .is_some_and(|s| libc::WIFEXITED(s) && libc::WEXITSTATUS(s) == 0);
+    let exited_ok = waited.success();
     let parsed = stdout
         .lines()
         .rev()

@@ -4,22 +4,20 @@
 //! RSS of this process. `sparc3d bench` runs it once per mesh in a subprocess, so that the
 //! peak RSS is per mesh and a crash of one mesh is one failed row.
 
-use super::convert::peak_rss_bytes;
+use crate::memory::peak_rss_bytes;
 use anyhow::Context;
 use serde::{Deserialize, Serialize};
-use sparc3d_schema::RowTensors;
+use sparc3d_workers::convert::{convert_file, Encoding, Failed, StageError, Steps};
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::time::Instant;
 
 /// Arguments of `sparc3d bench-one`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Input mesh (OBJ, PLY, STL, OFF, glTF, GLB).
     pub input: PathBuf,
-    /// Grid resolution N (cells per axis).
-    #[arg(long, default_value_t = 512)]
-    pub resolution: u32,
+    #[command(flatten)]
+    pub resolution: crate::resolution_arg::ResolutionArg,
     #[command(flatten)]
     pub deform: super::deform_args::DeformArgs,
     /// zstd level of the encoded tensors (the job default is 3).
@@ -112,7 +110,7 @@ pub struct BenchRow {
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let mut row = BenchRow {
         path: args.input.display().to_string(),
-        resolution: args.resolution,
+        resolution: args.resolution.get(),
         ..Default::default()
     };
     if let Err(e) = measure(&args, &mut row) {
@@ -128,35 +126,43 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
 
 fn measure(args: &Args, row: &mut BenchRow) -> anyhow::Result<()> {
     let name = args.input.display();
-    let t = Instant::now();
-    let loaded = sparcubes::io::load(&args.input).with_context(|| format!("load {name}"))?;
-    row.stages.push(("load".into(), t.elapsed().as_secs_f64()));
-    row.input_faces = loaded.mesh.triangles.len() as u64;
-    row.input_vertices = loaded.mesh.positions.len() as u64;
-
-    let mut params = sparcubes::Params::with_resolution(args.resolution);
+    let mut params = sparcubes::Params::with_resolution(args.resolution.get());
     params.deform = args.deform.enabled();
-    let conversion = sparcubes::convert(&loaded.mesh, &params)
-        .with_context(|| format!("convert {name} at {}", args.resolution))?;
-    drop(loaded);
-    let s = &conversion.stats;
-    row.stages
-        .extend(s.stage_seconds.iter().map(|(k, v)| ((*k).to_string(), *v)));
+    let steps = Steps {
+        params: &params,
+        input_components: false,
+        extract: true,
+        samples: None,
+        keep_mesh: false,
+        encode: Some(Encoding {
+            zstd_level: args.zstd_level,
+            store_mesh: false,
+        }),
+    };
+    let done = match convert_file(&args.input, steps) {
+        Ok(done) => done,
+        Err(failed) => {
+            let Failed { error, seconds } = *failed;
+            row.stages = seconds.in_order;
+            let context = match error {
+                StageError::Load(_) => format!("load {name}"),
+                StageError::Convert(_) => format!("convert {name} at {}", args.resolution.get()),
+                StageError::Samples(_) => format!("sample {name}"),
+                StageError::Encode(_) => format!("encode {name}"),
+            };
+            return Err(anyhow::Error::new(error).context(context));
+        }
+    };
+    row.stages = done.seconds.in_order;
+    row.input_faces = done.input_faces;
+    row.input_vertices = done.input_vertices;
+    let s = &done.conversion.stats;
     row.active_vertices = s.active_vertices;
     row.active_cells = s.active_cells;
-
-    let t = Instant::now();
-    let mesh = sparcubes::extract(&conversion.cubes);
-    row.stages
-        .push(("extract".into(), t.elapsed().as_secs_f64()));
-    row.output_faces = mesh.triangles.len() as u64;
-    drop(mesh);
-
-    let t = Instant::now();
-    let tensors = RowTensors::from_cubes(&conversion.cubes, args.zstd_level)
-        .with_context(|| format!("encode {name}"))?;
-    row.stages
-        .push(("encode".into(), t.elapsed().as_secs_f64()));
+    row.output_faces = done.output_faces.unwrap_or(0);
+    let Some(tensors) = done.tensors else {
+        anyhow::bail!("encode {name}: the conversion path returned no tensors");
+    };
     row.tensor_bytes = TensorBytes {
         coords: tensors.coords.blob.len() as u64,
         sdf: tensors.sdf.blob.len() as u64,

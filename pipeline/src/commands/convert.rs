@@ -3,7 +3,9 @@
 //! peak memory).
 
 use anyhow::Context;
-use serde_json::json;
+use serde_json::{json, Value};
+use sparc3d_workers::convert::{convert_file, StageError, Steps};
+use sparcubes::io::LoadStats;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
@@ -16,9 +18,8 @@ pub struct Args {
     /// Output mesh (.ply, .obj, .stl, .glb), in the source's coordinate frame.
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Grid resolution N (cells per axis, up to 4096).
-    #[arg(long, default_value_t = 512)]
-    pub resolution: u32,
+    #[command(flatten)]
+    pub resolution: crate::resolution_arg::ResolutionArg,
     #[command(flatten)]
     pub deform: super::deform_args::DeformArgs,
     /// Write the output in grid coordinates (voxels) instead of the source frame.
@@ -27,14 +28,6 @@ pub struct Args {
     /// Print the summary as JSON.
     #[arg(long)]
     pub json: bool,
-}
-
-/// Peak resident set size of this process in bytes (Linux `VmHWM`), if known.
-pub fn peak_rss_bytes() -> Option<u64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
 }
 
 /// Why an output can have more components than its input, when it has: read without it, the
@@ -50,18 +43,30 @@ pub fn components_note(input: u64, output: u64) -> Option<&'static str> {
 /// Runs `sparc3d convert`.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let start = Instant::now();
-    let loaded = sparcubes::io::load(&args.input)
-        .with_context(|| format!("loading {}", args.input.display()))?;
-    let load_seconds = start.elapsed().as_secs_f64();
-    let mut params = sparcubes::Params::with_resolution(args.resolution);
+    let mut params = sparcubes::Params::with_resolution(args.resolution.get());
     params.deform = args.deform.enabled();
-    let conversion = sparcubes::convert(&loaded.mesh, &params)
-        .with_context(|| format!("converting {}", args.input.display()))?;
+    let steps = Steps {
+        params: &params,
+        input_components: true,
+        extract: true,
+        samples: None,
+        keep_mesh: true,
+        encode: None,
+    };
+    let done = convert_file(&args.input, steps).map_err(|failed| {
+        let context = match failed.error {
+            StageError::Load(_) => "loading",
+            _ => "converting",
+        };
+        anyhow::Error::new(failed.error).context(format!("{context} {}", args.input.display()))
+    })?;
+    let cubes = &done.conversion.cubes;
+    let (Some(mut mesh), Some(input_components)) = (done.mesh, done.input_components) else {
+        anyhow::bail!("the conversion path returned no mesh or component count");
+    };
     let t = Instant::now();
-    let cubes = &conversion.cubes;
-    let mut mesh = sparcubes::extract(cubes);
-    let extract_seconds = t.elapsed().as_secs_f64();
     let topo = sparcubes::topology::check(&mesh);
+    let check_seconds = t.elapsed().as_secs_f64();
     if !args.grid_frame {
         sparcubes::extract::to_source(&mut mesh, &cubes.normalization, cubes.resolution);
     }
@@ -69,27 +74,25 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     sparcubes::io::save(&mesh, &args.output)
         .with_context(|| format!("writing {}", args.output.display()))?;
     let save_seconds = t.elapsed().as_secs_f64();
-    let input_components =
-        sparcubes::topology::check(&sparcubes::topology::weld(&loaded.mesh)).components;
 
-    let s = &conversion.stats;
-    let mut stages: Vec<(&str, f64)> = vec![("load", load_seconds)];
-    stages.extend(s.stage_seconds.iter().cloned());
-    stages.push(("extract", extract_seconds));
-    stages.push(("save", save_seconds));
+    let s = &done.conversion.stats;
+    let mut stages = done.seconds.in_order;
+    stages.push(("check".into(), check_seconds));
+    stages.push(("save".into(), save_seconds));
     let total = start.elapsed().as_secs_f64();
-    let peak = peak_rss_bytes();
+    let peak = crate::memory::peak_rss_bytes();
     let summary = json!({
         "input": args.input.display().to_string(),
         "output": args.output.display().to_string(),
-        "resolution": args.resolution,
+        "resolution": args.resolution.get(),
         "deform": params.deform,
         "input_faces": s.input_faces,
         "input_vertices": s.input_vertices,
         "input_components": input_components,
         "degenerate_faces": s.degenerate_faces,
-        "dropped_faces_bad_index": loaded.stats.faces_bad_index,
-        "dropped_faces_non_finite": loaded.stats.faces_non_finite,
+        "dropped_faces_bad_index": done.load_stats.faces_bad_index,
+        "dropped_faces_non_finite": done.load_stats.faces_non_finite,
+        "dropped_faces_duplicate": done.load_stats.faces_duplicate,
         "wall_cells": s.wall_cells,
         "active_vertices": s.active_vertices,
         "active_cells": s.active_cells,
@@ -112,62 +115,70 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     if args.json {
         println!("{summary}");
     } else {
-        println!(
-            "{} → {} at {}³{}",
-            args.input.display(),
-            args.output.display(),
-            args.resolution,
-            if params.deform {
-                ""
-            } else {
-                " (no deformation)"
-            }
-        );
-        println!(
-            "  faces        {} in ({} components) → {} out ({} components)",
-            s.input_faces,
-            input_components,
-            mesh.triangles.len(),
-            topo.components
-        );
-        if let Some(note) = components_note(input_components, topo.components) {
-            println!("  note         {note}");
-        }
-        let st = &loaded.stats;
-        if st.faces_bad_index + st.faces_non_finite > 0 {
-            println!(
-                "  dropped      {} faces with a bad vertex index{}, {} with a non-finite coordinate",
-                st.faces_bad_index,
-                st.first_bad_face
-                    .as_deref()
-                    .map(|p| format!(" (first: {p})"))
-                    .unwrap_or_default(),
-                st.faces_non_finite
-            );
-        }
-        println!(
-            "  active       {} vertices, {} cells ({} in thin shells)",
-            s.active_vertices, s.active_cells, s.shell_vertices
-        );
-        println!(
-            "  inside test  {} enclosed regions ({} air, {} ambiguous kept solid); thin closed parts: {} kept, {} as shells",
-            s.enclosed_regions, s.air_regions, s.ambiguous_regions, s.thin_parts, s.shelled_thin_parts
-        );
-        println!(
-            "  watertight   {}, manifold {}",
-            topo.is_watertight(),
-            topo.is_manifold()
-        );
-        let parts: Vec<String> = stages
-            .iter()
-            .map(|(k, v)| format!("{k} {:.3}s", v))
-            .collect();
-        println!("  time         {:.3}s: {}", total, parts.join(", "));
-        if let Some(p) = peak {
-            println!("  peak memory  {:.1} MB", p as f64 / 1e6);
-        }
+        print_text(&summary, &done.load_stats, &stages);
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Prints `convert`'s JSON summary for a reader, with the first dropped face from `load`.
+fn print_text(v: &Value, load: &LoadStats, stages: &[(String, f64)]) {
+    let text = |key: &str| v[key].as_str().unwrap_or_default().to_string();
+    let deform = if v["deform"] == true {
+        ""
+    } else {
+        " (no deformation)"
+    };
+    println!(
+        "{} → {} at {}³{deform}",
+        text("input"),
+        text("output"),
+        v["resolution"]
+    );
+    println!(
+        "  faces        {} in ({} components) → {} out ({} components)",
+        v["input_faces"], v["input_components"], v["output_faces"], v["output_components"]
+    );
+    if let Some(note) = v["components_note"].as_str() {
+        println!("  note         {note}");
+    }
+    if load.faces_bad_index + load.faces_non_finite > 0 {
+        println!(
+            "  dropped      {} faces with a bad vertex index{}, {} with a non-finite coordinate",
+            load.faces_bad_index,
+            load.first_bad_face
+                .as_deref()
+                .map(|p| format!(" (first: {p})"))
+                .unwrap_or_default(),
+            load.faces_non_finite
+        );
+    }
+    if load.faces_duplicate > 0 {
+        println!(
+            "  duplicates   {} faces dropped: each repeats an earlier face's vertices",
+            load.faces_duplicate
+        );
+    }
+    println!(
+        "  active       {} vertices, {} cells ({} in thin shells)",
+        v["active_vertices"], v["active_cells"], v["shell_vertices"]
+    );
+    println!(
+        "  inside test  {} enclosed regions ({} air, {} ambiguous kept solid); thin closed parts: {} kept, {} as shells",
+        v["enclosed_regions"], v["air_regions"], v["ambiguous_regions"], v["thin_parts"], v["shelled_thin_parts"]
+    );
+    println!(
+        "  watertight   {}, manifold {}",
+        v["watertight"], v["manifold"]
+    );
+    let parts: Vec<String> = stages
+        .iter()
+        .map(|(k, v)| format!("{k} {:.3}s", v))
+        .collect();
+    let total = v["total_seconds"].as_f64().unwrap_or_default();
+    println!("  time         {:.3}s: {}", total, parts.join(", "));
+    if let Some(p) = v["peak_rss_bytes"].as_u64() {
+        println!("  peak memory  {:.1} MB", p as f64 / 1e6);
+    }
 }
 
 #[cfg(test)]

@@ -1,22 +1,20 @@
 //! `sparc3d eval SOURCE OUTPUT`: quality of an extracted mesh against its source
-//! (Chamfer distance, normal consistency, F1, components kept, offset; DESIGN.md §6).
+//! (Chamfer distance, normal consistency, F1, components kept, offset; docs/QUALITY.md,
+//! "How we measure").
 //!
 //! `sparc3d eval JOB --sample N`: the same for a reproducible sample of a job's `ok` items
 //! (the sampler of `sparc3d validate`): each row is decoded, its mesh extracted in the source
 //! frame and measured against the source file of its `uri`; per-item rows, then medians.
 
-use crate::commands::validate::median;
 use crate::sample::{self, SampleSize};
+use crate::stats::median;
 use anyhow::{bail, Context};
 use serde_json::{json, Value};
+use sparc3d_metrics::{evaluate, EvalOptions, QualityReport};
 use sparc3d_schema::ShardRow;
 use sparc3d_workers::Job;
-use sparcubes::metrics::{evaluate, EvalOptions, QualityReport};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-
-/// Resolution that voxel units refer to when none is given and there is no job to take it from.
-const DEFAULT_RESOLUTION: u32 = 512;
 
 /// Items evaluated from a job when `--sample` is not given.
 const DEFAULT_JOB_SAMPLE: SampleSize = SampleSize::Count(10);
@@ -30,9 +28,9 @@ pub struct Args {
     /// The mesh to measure against it, in the same frame (e.g. the output of `convert`).
     pub output: Option<PathBuf>,
     /// Grid resolution N that voxel units refer to (a voxel is 1/N of the source's longest
-    /// side). Default: 512, or each item's resolution for a job.
-    #[arg(long)]
-    pub resolution: Option<u32>,
+    /// side); for a job, each item's unless given.
+    #[command(flatten)]
+    pub resolution: crate::resolution_arg::ResolutionArg,
     /// For a job: how many `ok` items to measure, a count (`20`) or a percentage (`2%`);
     /// default 10.
     #[arg(long)]
@@ -80,7 +78,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let options = EvalOptions {
         samples: args.samples,
         seed: args.seed,
-        resolution: args.resolution.unwrap_or(DEFAULT_RESOLUTION),
+        resolution: args.resolution.get(),
     };
     let report = evaluate(&source, &output, &options).with_context(|| {
         format!(
@@ -107,7 +105,7 @@ fn eval_row(row: &ShardRow, args: &Args) -> anyhow::Result<QualityReport> {
     let options = EvalOptions {
         samples: args.samples,
         seed: args.seed,
-        resolution: args.resolution.unwrap_or(row.resolution),
+        resolution: args.resolution.or(row.resolution),
     };
     evaluate(&source, &output, &options)
         .with_context(|| format!("item {:?}: evaluating against {}", row.id, row.uri))
@@ -240,7 +238,7 @@ fn medians(reports: &[QualityReport]) -> Value {
         "offset_voxels": m(&|r| r.offset_voxels),
         "output_to_source_voxels": m(&|r| Some(r.output_to_source_voxels)),
     });
-    for (i, t) in sparcubes::metrics::F1_THRESHOLDS.iter().enumerate() {
+    for (i, t) in sparc3d_metrics::F1_THRESHOLDS.iter().enumerate() {
         v[format!("f1_{t}")] = json!(m(&|r| r.f1.get(i).map(|f| f.f1)));
     }
     v

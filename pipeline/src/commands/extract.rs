@@ -5,9 +5,9 @@
 //! normalization and cube tensor columns in the shard encoding (docs/FORMAT.md, "Tensor files").
 
 use crate::commands::fill_holes;
-use crate::shard_io::for_each_batch;
 use anyhow::{bail, Context, Result};
 use serde_json::{json, Map, Value};
+use sparc3d_workers::store::read::for_each_batch;
 use sparcubes::SparseCubes;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -23,6 +23,12 @@ pub struct Args {
     /// Output mesh (.ply, .obj, .stl, .glb).
     #[arg(short, long)]
     pub output: PathBuf,
+    /// Complete the grid first, so that the mesh is closed by construction: missing vertices
+    /// next to active ones get the sign of their region (outside when it reaches the grid's
+    /// border, else that of most of its active neighbours) and φ = ±0.5 voxel. For grids whose
+    /// active set may end where the surface does not, e.g. a VAE's decoded grid.
+    #[arg(long)]
+    pub close: bool,
     /// Close the mesh's holes by smallest-angle ear filling (paper §3.4, as `fill-holes`).
     #[arg(long)]
     pub fill_holes: bool,
@@ -49,7 +55,7 @@ fn find_cubes(args: &Args) -> Result<(String, SparseCubes)> {
                 found = Some((id, cubes));
             }
         }
-        Ok(())
+        anyhow::Ok(())
     })?;
     if args.id.is_none() && rows > 1 {
         bail!("{} holds {rows} rows: choose one with --id", path.display());
@@ -70,12 +76,24 @@ fn find_cubes(args: &Args) -> Result<(String, SparseCubes)> {
     Ok((id, cubes))
 }
 
+/// |φ| of the vertices `--close` adds, in voxels: the surface between an active vertex and an
+/// added one then lies within their edge, nearer the active one when its |φ| is small.
+const CLOSE_FILL: f32 = 0.5;
+
 /// Runs `sparc3d extract`.
 pub fn run(args: Args) -> Result<ExitCode> {
-    let (id, cubes) = find_cubes(&args)?;
+    let (id, mut cubes) = find_cubes(&args)?;
+    let mut summary = Map::new();
+    if args.close {
+        let (closed, stats) = sparcubes::close_grid::close_grid(&cubes, CLOSE_FILL);
+        summary.insert("close_added_vertices".into(), json!(stats.added_vertices));
+        summary.insert("close_added_inside".into(), json!(stats.added_inside));
+        summary.insert("close_border_clamped".into(), json!(stats.border_clamped));
+        summary.insert("cells_before_close".into(), json!(cubes.cells.len()));
+        cubes = closed;
+    }
     let mut mesh = sparcubes::extract(&cubes);
     let before = sparcubes::topology::check(&mesh);
-    let mut summary = Map::new();
     summary.insert("id".into(), json!(id));
     summary.insert("output".into(), json!(args.output.display().to_string()));
     summary.insert("active_cells".into(), json!(cubes.cells.len()));

@@ -1,9 +1,9 @@
 //! `sparc3d failures JOB [--json]`: every failed item with its class and message.
 
-use crate::shard_io::shard_rows;
 use anyhow::Result;
 use serde::Serialize;
 use sparc3d_schema::ItemStatus;
+use sparc3d_workers::store::read::shard_rows;
 use sparc3d_workers::Job;
 use std::io::Write;
 use std::path::PathBuf;
@@ -39,7 +39,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let mut n = 0;
     let mut out = std::io::stdout().lock();
     for shard in 0..job.file.shards {
-        for row in shard_rows(&job, shard, sparc3d_workers::state::Check::Quick)? {
+        for row in shard_rows(&job, shard, sparc3d_workers::store::state::Check::Quick)? {
             if row.status != ItemStatus::Failed {
                 continue;
             }

@@ -26,12 +26,9 @@ pub struct Args {
 /// The flags that make a job's config (shared by `init` and `run --job`).
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct ConfigArgs {
-    /// Grid resolution N (overrides the config file).
-    #[arg(long, help = with_default(
-        "Grid resolution N (overrides the config file)",
-        JobConfig::default().params.resolution,
-    ))]
-    pub resolution: Option<u32>,
+    /// `--resolution N`.
+    #[command(flatten)]
+    pub resolution: crate::resolution_arg::ResolutionArg,
     /// Items per shard (overrides the config file).
     #[arg(long, help = with_default(
         "Items per shard (overrides the config file)",
@@ -46,11 +43,11 @@ pub struct ConfigArgs {
 impl ConfigArgs {
     /// Whether any flag was given.
     pub fn any(&self) -> bool {
-        self.resolution.is_some() || self.shard_size.is_some() || self.config.is_some()
+        self.resolution.given.is_some() || self.shard_size.is_some() || self.config.is_some()
     }
 }
 
-/// The job config from defaults, the config file and the flags.
+/// The job config from defaults, the config file and the flags (typed, set over the file's).
 pub fn build_config(args: &ConfigArgs) -> Result<JobConfig> {
     let mut overrides = serde_json::json!({});
     if let Some(path) = &args.config {
@@ -60,18 +57,15 @@ pub fn build_config(args: &ConfigArgs) -> Result<JobConfig> {
             toml::from_str(&text).with_context(|| format!("parsing config {}", path.display()))?;
         overrides = serde_json::to_value(t)?;
     }
-    if let Some(obj) = overrides.as_object_mut() {
-        if let Some(r) = args.resolution {
-            let params = obj.entry("params").or_insert_with(|| serde_json::json!({}));
-            if let Some(p) = params.as_object_mut() {
-                p.insert("resolution".into(), r.into());
-            }
-        }
-        if let Some(s) = args.shard_size {
-            obj.insert("shard_size".into(), s.into());
-        }
+    let mut config = JobConfig::overlaid(&overrides).context("invalid job config")?;
+    if let Some(r) = args.resolution.given {
+        config.params.resolution = r;
     }
-    JobConfig::from_overrides(&overrides).context("invalid job config")
+    if let Some(s) = args.shard_size {
+        config.shard_size = s;
+    }
+    config.validate().context("invalid job config")?;
+    Ok(config)
 }
 
 fn freeze(records: Vec<manifest_io::RawRecord>, shard_size: u32) -> Result<Vec<FrozenItem>> {

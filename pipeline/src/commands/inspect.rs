@@ -5,12 +5,12 @@
 //! alone, when its record lies beside it): a damaged shard is named and the command fails
 //! instead of reporting fewer rows or another digest.
 
-use crate::shard_io::{self, for_each_row, read_meta};
 use crate::summary::shard_states;
 use anyhow::{bail, Context, Result};
 use serde::Serialize;
 use sparc3d_schema::{digest, meta_keys, ItemStatus};
-use sparc3d_workers::state::{check_file, Check, ShardState};
+use sparc3d_workers::store::read::{self, for_each_row, read_meta};
+use sparc3d_workers::store::state::{check_file, Check, ShardState};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -90,7 +90,7 @@ fn shard_files(target: &Path) -> Result<Vec<PathBuf>> {
         match state {
             ShardState::Done(_) => files.push(job.layout.shard_file(shard)),
             ShardState::Damaged(why) => {
-                damaged.push(format!("{:#}", shard_io::damaged(&job, shard, &why)))
+                damaged.push(format!("{:#}", read::damaged(&job, shard, &why)))
             }
             ShardState::Running(_) | ShardState::Pending => {}
         }
@@ -111,66 +111,25 @@ fn shard_files(target: &Path) -> Result<Vec<PathBuf>> {
 /// Runs `sparc3d inspect`.
 pub fn run(args: Args) -> Result<ExitCode> {
     let files = shard_files(&args.target)?;
+    let report = build_report(&files, args.target.is_file())?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print_text(&report);
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Reads every row of `files` into one report; `single_file` keeps that file's own digest
+/// (the digest of a job is the combination of its shards' digests).
+fn build_report(files: &[PathBuf], single_file: bool) -> Result<Report> {
     let mut r = Report::default();
     let mut values: BTreeMap<&str, Vec<f64>> = STATS.iter().map(|s| (*s, Vec::new())).collect();
     let mut digests = Vec::new();
-    for file in &files {
-        let meta = read_meta(file)?;
-        r.shards += 1;
-        let v = meta
-            .kv
-            .get(meta_keys::SCHEMA_VERSION)
-            .cloned()
-            .unwrap_or_else(|| "?".into());
-        if !r.schema_versions.contains(&v) {
-            r.schema_versions.push(v);
-        }
-        r.rows += meta.rows;
-        r.row_groups += meta.row_groups;
-        r.file_bytes += meta.file_bytes;
-        for (c, b) in meta.column_bytes {
-            *r.column_bytes.entry(c).or_default() += b;
-        }
-        let mut h = sha2::Sha256::default();
-        for_each_row(file, |row| {
-            digest::update_row(&mut h, &row);
-            match row.status {
-                ItemStatus::Ok => r.ok += 1,
-                _ => r.failed += 1,
-            }
-            if let Some(k) = &row.counts {
-                let push = |m: &mut BTreeMap<&str, Vec<f64>>, key: &str, x: f64| {
-                    if let Some(v) = m.get_mut(key) {
-                        v.push(x);
-                    }
-                };
-                push(&mut values, "active_vertices", k.active_vertices as f64);
-                push(&mut values, "active_cells", k.active_cells as f64);
-                push(&mut values, "input_faces", k.input_faces as f64);
-                if let Some(f) = k.output_faces {
-                    push(&mut values, "output_faces", f as f64);
-                }
-                push(&mut values, "time_convert_s", row.timings.convert_s);
-            }
-            let t = &row.timings;
-            for (k, x) in [
-                ("time_load_s", t.load_s),
-                ("time_convert_s", t.convert_s),
-                ("time_extract_s", t.extract_s),
-                ("time_encode_s", t.encode_s),
-                ("time_total_s", t.total_s),
-            ] {
-                *r.time_sums.entry(k.to_string()).or_default() += x;
-            }
-            if let Some(v) = values.get_mut("time_total_s") {
-                v.push(row.timings.total_s);
-            }
-            Ok(())
-        })?;
-        use sha2::Digest;
-        digests.push(sparc3d_schema::config::hex(&h.finalize()));
+    for file in files {
+        digests.push(add_shard(&mut r, &mut values, file)?);
     }
-    r.content_digest = if digests.len() == 1 && args.target.is_file() {
+    r.content_digest = if digests.len() == 1 && single_file {
         digests[0].clone()
     } else {
         digest::combine(&digests)
@@ -184,10 +143,68 @@ pub fn run(args: Args) -> Result<ExitCode> {
         m.insert("n".into(), v.len() as f64);
         r.percentiles.insert(name.to_string(), m);
     }
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&r)?);
-        return Ok(ExitCode::SUCCESS);
+    Ok(r)
+}
+
+/// Adds one shard file's metadata, counts and timings to the report and returns its content
+/// digest (hex).
+fn add_shard(r: &mut Report, values: &mut BTreeMap<&str, Vec<f64>>, file: &Path) -> Result<String> {
+    let meta = read_meta(file)?;
+    r.shards += 1;
+    let v = meta
+        .kv
+        .get(meta_keys::SCHEMA_VERSION)
+        .cloned()
+        .unwrap_or_else(|| "?".into());
+    if !r.schema_versions.contains(&v) {
+        r.schema_versions.push(v);
     }
+    r.rows += meta.rows;
+    r.row_groups += meta.row_groups;
+    r.file_bytes += meta.file_bytes;
+    for (c, b) in meta.column_bytes {
+        *r.column_bytes.entry(c).or_default() += b;
+    }
+    let mut push = |key: &str, x: f64| {
+        if let Some(v) = values.get_mut(key) {
+            v.push(x);
+        }
+    };
+    let mut h = sha2::Sha256::default();
+    for_each_row(file, |row| {
+        digest::update_row(&mut h, &row);
+        match row.status {
+            ItemStatus::Ok => r.ok += 1,
+            _ => r.failed += 1,
+        }
+        if let Some(k) = &row.counts {
+            push("active_vertices", k.active_vertices as f64);
+            push("active_cells", k.active_cells as f64);
+            push("input_faces", k.input_faces as f64);
+            if let Some(f) = k.output_faces {
+                push("output_faces", f as f64);
+            }
+            push("time_convert_s", row.timings.convert_s);
+        }
+        let t = &row.timings;
+        for (k, x) in [
+            ("time_load_s", t.load_s),
+            ("time_convert_s", t.convert_s),
+            ("time_extract_s", t.extract_s),
+            ("time_encode_s", t.encode_s),
+            ("time_total_s", t.total_s),
+        ] {
+            *r.time_sums.entry(k.to_string()).or_default() += x;
+        }
+        push("time_total_s", row.timings.total_s);
+        anyhow::Ok(())
+    })?;
+    use sha2::Digest;
+    Ok(sparc3d_schema::config::hex(&h.finalize()))
+}
+
+/// Prints the report as aligned text.
+fn print_text(r: &Report) {
     println!("shards:         {}", r.shards);
     println!("schema version: {}", r.schema_versions.join(", "));
     println!(
@@ -217,5 +234,4 @@ pub fn run(args: Args) -> Result<ExitCode> {
             g("max")
         );
     }
-    Ok(ExitCode::SUCCESS)
 }

@@ -4,11 +4,11 @@
 //! from.
 
 use crate::hints;
-use crate::shard_io::shard_rows;
 use anyhow::Result;
 use serde::Serialize;
 use sparc3d_schema::ItemStatus;
-use sparc3d_workers::state::Check;
+use sparc3d_workers::store::read::shard_rows;
+use sparc3d_workers::store::state::Check;
 use sparc3d_workers::Job;
 use std::collections::HashMap;
 use std::io::Write;

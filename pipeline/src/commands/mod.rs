@@ -6,6 +6,7 @@ pub mod bench_one;
 pub mod convert;
 pub mod deform_args;
 pub mod eval;
+pub mod export;
 pub mod extract;
 pub mod failures;
 pub mod fill_holes;
@@ -69,10 +70,13 @@ enum Command {
     Inspect(inspect::Args),
     /// Decode one item of a job and write its mesh.
     Show(show::Args),
+    /// Write per-item .npz files in another codebase's layout: vector-set samples, Direct3D-S2
+    /// sparse SDF, TRELLIS.2 flexible dual grid, cubvh sparse voxels.
+    Export(export::Args),
     /// Hash every finished shard against its completion record; move damaged ones aside.
     Verify(verify::Args),
     /// Check a reproducible sample of a job's outputs with pymeshlab; writes a report.
-    #[command(after_help = validate::PYTHON_HELP)]
+    #[command(after_help = crate::validation::PYTHON_HELP)]
     Validate(validate::Args),
     /// Render a mesh (or a job's item) and its converted output side by side to a PNG.
     Preview(preview::Args),
@@ -106,6 +110,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Retry(args) => retry::run(args),
         Command::Inspect(args) => inspect::run(args),
         Command::Show(args) => show::run(args),
+        Command::Export(args) => export::run(args),
         Command::Verify(args) => verify::run(args),
         Command::Validate(args) => validate::run(args),
         Command::Preview(args) => preview::run(args),

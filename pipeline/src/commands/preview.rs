@@ -7,12 +7,11 @@
 //! item's row is decoded (as `sparc3d show` does) and the source is loaded from the row's uri.
 
 use crate::item_lookup;
-use anyhow::{bail, Context, Result};
-use sparc3d_schema::ShardRow;
+use crate::pictures::{preview_mesh, preview_row, write_png};
+use anyhow::{bail, Result};
+use sparc3d_render::CompareOptions;
 use sparc3d_workers::Job;
-use sparcubes::render::{compare, CompareOptions, Image};
-use sparcubes::TriMesh;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 /// Arguments of `sparc3d preview`.
@@ -36,9 +35,8 @@ pub struct Args {
     /// Camera elevation in degrees.
     #[arg(long, default_value_t = 30.0, allow_negative_numbers = true)]
     pub elevation: f32,
-    /// Grid resolution N for a mesh (a job uses its own).
-    #[arg(long, default_value_t = 256)]
-    pub resolution: u32,
+    #[command(flatten)]
+    pub resolution: crate::resolution_arg::ResolutionArg,
 }
 
 /// Runs `sparc3d preview`.
@@ -65,7 +63,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 );
             }
             (
-                preview_mesh(&args.input, args.resolution, &options)?,
+                preview_mesh(&args.input, args.resolution.get(), &options)?,
                 args.input.display().to_string(),
             )
         }
@@ -77,57 +75,4 @@ pub fn run(args: Args) -> Result<ExitCode> {
         args.output.display()
     );
     Ok(ExitCode::SUCCESS)
-}
-
-/// Converts the mesh at `path` at `resolution` and renders source above output.
-pub fn preview_mesh(path: &Path, resolution: u32, options: &CompareOptions) -> Result<Image> {
-    let source = load(path)?;
-    let params = sparcubes::Params::with_resolution(resolution);
-    let conversion = sparcubes::convert(&source, &params)
-        .with_context(|| format!("converting {}", path.display()))?;
-    let output = sparcubes::extract::extract_to_source(&conversion.cubes);
-    Ok(source_above_output(&source, &output, options))
-}
-
-/// Decodes a row's cubes, extracts them in the source frame, loads the source from the row's
-/// uri, and renders source above output.
-pub fn preview_row(row: &ShardRow, options: &CompareOptions) -> Result<Image> {
-    let cubes = row.cubes().with_context(|| {
-        format!(
-            "item {:?}: {}",
-            row.id,
-            row.error_message.clone().unwrap_or_default()
-        )
-    })?;
-    let output = sparcubes::extract::extract_to_source(&cubes);
-    let source = load(Path::new(&row.uri))
-        .with_context(|| format!("loading the source of item {:?}", row.id))?;
-    Ok(source_above_output(&source, &output, options))
-}
-
-/// Renders `source` above `output`, each row labelled in its top-left corner (when the
-/// tiles are large enough to hold the label).
-fn source_above_output(source: &TriMesh, output: &TriMesh, options: &CompareOptions) -> Image {
-    let mut image = compare(&[source, output], options);
-    if options.tile >= 64 {
-        let scale = (options.tile / 128).clamp(1, 3);
-        // Rows are `tile` high with a 2-pixel line between them (`compare`).
-        for (row, text) in [(0, "SOURCE"), (1, "OUTPUT")] {
-            crate::label::draw(&mut image, 4, row * (options.tile + 2) + 4, text, scale);
-        }
-    }
-    image
-}
-
-/// Loads a mesh, naming the file in the error.
-fn load(path: &Path) -> Result<TriMesh> {
-    Ok(sparcubes::io::load(path)
-        .with_context(|| format!("loading {}", path.display()))?
-        .mesh)
-}
-
-/// Writes a picture as PNG.
-pub fn write_png(image: &Image, path: &Path) -> Result<()> {
-    let bytes = image.encode_png().context("encoding PNG")?;
-    std::fs::write(path, bytes).with_context(|| format!("writing {}", path.display()))
 }

@@ -7,16 +7,16 @@
 //! Every `<img>` carries `onload`/`onerror` attributes marking it `data-loaded` or
 //! `data-broken`, so a headless browser's dump of the page shows whether each picture decoded.
 
-use crate::commands::preview::preview_row;
 use crate::item_lookup;
-use crate::shard_io::shard_rows;
+use crate::pictures::preview_row;
 use crate::summary::{summarize, JobSummary};
 use crate::units::format_seconds;
 use anyhow::{Context, Result};
 use base64::Engine;
+use sparc3d_render::CompareOptions;
 use sparc3d_schema::{ItemStatus, ShardRow};
+use sparc3d_workers::store::read::shard_rows;
 use sparc3d_workers::Job;
-use sparcubes::render::CompareOptions;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -94,7 +94,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
 fn read_columns(job: &Job, max_failures: usize) -> Result<Columns> {
     let mut c = Columns::default();
     for shard in 0..job.file.shards {
-        let mut rows = shard_rows(job, shard, sparc3d_workers::state::Check::Quick)?;
+        let mut rows = shard_rows(job, shard, sparc3d_workers::store::state::Check::Quick)?;
         rows.sort_by_key(|r| r.item_index);
         for row in rows {
             add_row(&mut c, row, max_failures);

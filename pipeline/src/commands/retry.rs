@@ -2,10 +2,10 @@
 //! again. A finished shard keeps its other rows in a fresh journal and loses its completion
 //! record, so the next `run` or `work` converts only the retried items and rewrites it.
 
-use crate::shard_io::read_rows;
 use anyhow::{bail, Result};
 use sparc3d_schema::{ErrorClass, ItemStatus, ShardRow};
-use sparc3d_workers::state::{shard_state, Check, ShardState};
+use sparc3d_workers::store::read::read_rows;
+use sparc3d_workers::store::state::{shard_state, Check, ShardState};
 use sparc3d_workers::Job;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -31,9 +31,11 @@ pub fn run(args: Args) -> Result<ExitCode> {
     for shard in 0..job.file.shards {
         let rows = match shard_state(&job.layout, shard, job.fingerprint(), Check::Quick)? {
             ShardState::Done(_) => read_rows(&job.layout.shard_file(shard))?,
-            ShardState::Damaged(why) => return Err(crate::shard_io::damaged(&job, shard, &why)),
+            ShardState::Damaged(why) => {
+                return Err(sparc3d_workers::store::read::damaged(&job, shard, &why).into())
+            }
             ShardState::Running(l) => {
-                if crate::shard_io::shard_rows(&job, shard, Check::Quick)?
+                if sparc3d_workers::store::read::shard_rows(&job, shard, Check::Quick)?
                     .iter()
                     .any(matches)
                 {
@@ -44,7 +46,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 }
                 continue;
             }
-            ShardState::Pending => crate::shard_io::shard_rows(&job, shard, Check::Quick)?,
+            ShardState::Pending => {
+                sparc3d_workers::store::read::shard_rows(&job, shard, Check::Quick)?
+            }
         };
         let n = rows.iter().filter(|r| matches(r)).count();
         if n == 0 {

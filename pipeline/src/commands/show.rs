@@ -33,13 +33,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let item = item_lookup::find(&job, &args.id)?;
     // The shard is hashed against its completion record before its row is trusted.
     let row = item_lookup::row(&job, item)?;
-    let cubes = row.cubes().with_context(|| {
-        format!(
-            "item {:?}: {}",
-            row.id,
-            row.error_message.clone().unwrap_or_default()
-        )
-    })?;
+    let cubes = item_lookup::cubes(&row)?;
     if let Some(path) = &args.tensors_json {
         let v = serde_json::json!({
             "id": row.id,

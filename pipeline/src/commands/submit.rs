@@ -3,12 +3,12 @@
 //! shards that are not complete (by their completion records) and not already queued by an
 //! earlier submission, split under the cluster's `MaxArraySize`. Prints the job ids.
 
-use crate::cluster::slurm::{self, ArrayPlan, ScriptOptions, Submission};
+use crate::cluster::slurm::{self, ScriptOptions};
+use crate::cluster::slurm_submit::{self as submit, SubmitPlan};
 use crate::commands::work::LimitArgs;
 use anyhow::{bail, Context, Result};
-use sparc3d_workers::state::{shard_state, Check, ShardState};
 use sparc3d_workers::Job;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 /// Arguments of `sparc3d submit`.
@@ -80,56 +80,45 @@ fn submit_slurm(args: SlurmArgs) -> Result<ExitCode> {
     let root = std::fs::canonicalize(&args.job)
         .with_context(|| format!("job folder {}", args.job.display()))?;
     let job = Job::open(&root)?;
-    let previous = slurm::read_submissions(&root)?;
-    let queue = if previous.is_empty() {
-        Vec::new()
-    } else {
-        match slurm::squeue() {
-            Ok(q) => q,
-            Err(e) if args.dry_run => {
-                eprintln!("note: cannot read the queue ({e:#}); assuming it is empty");
-                Vec::new()
-            }
-            Err(e) => return Err(e.context("reading the queue to skip shards already queued")),
-        }
-    };
-    let queued = slurm::queued_shards(&previous, &queue);
-    let (mut todo, mut held_queued, mut held_live, mut done) = (Vec::new(), 0u64, 0u64, 0u64);
-    for shard in 0..job.file.shards {
-        match shard_state(&job.layout, shard, job.fingerprint(), Check::Quick)? {
-            ShardState::Done(_) => done += 1,
-            _ if queued.contains(&shard) && !args.force => held_queued += 1,
-            ShardState::Running(_) if !args.force => held_live += 1,
-            _ => todo.push(shard),
-        }
-    }
+    let queued = submit::queued_shards_now(&root, args.dry_run)?;
+    let tally = submit::tally_shards(&job, &queued, args.force)?;
     eprintln!(
-        "{}: {} shards, {done} complete, {held_queued} queued in Slurm, {held_live} held by a live worker, {} to submit",
+        "{}: {} shards, {} complete, {} queued in Slurm, {} held by a live worker, {} to submit",
         root.display(),
         job.file.shards,
-        todo.len()
+        tally.done,
+        tally.queued,
+        tally.live,
+        tally.todo.len()
     );
-    if held_live > 0 {
+    if tally.live > 0 {
         eprintln!("note: shards held by a live worker are left to it; submit again once it stops (or --force)");
     }
-    if todo.is_empty() {
+    if tally.todo.is_empty() {
         return Ok(ExitCode::SUCCESS);
     }
-    let max_array_size = match args.max_array_size {
-        Some(n) => n.max(1),
-        None => match slurm::max_array_size() {
-            Ok(n) => n,
-            Err(e) if args.dry_run => {
-                eprintln!(
-                    "note: {e:#}; assuming MaxArraySize={}",
-                    slurm::DEFAULT_MAX_ARRAY_SIZE
-                );
-                slurm::DEFAULT_MAX_ARRAY_SIZE
-            }
-            Err(e) => return Err(e),
-        },
-    };
-    let plans = slurm::plan_arrays(&todo, args.shards_per_task, max_array_size);
+    let plan = build_plan(&args, &root, &tally.todo)?;
+    if args.dry_run {
+        println!("# {}", plan.script_path.display());
+        print!("{}", plan.script);
+        for line in plan.command_lines() {
+            println!("{line}");
+        }
+        return Ok(ExitCode::SUCCESS);
+    }
+    for sub in submit::write_and_submit(&root, &plan)? {
+        eprintln!(
+            "submitted job {}: {} tasks (--array={}, offset {})",
+            sub.job_id, sub.tasks, sub.array, sub.offset
+        );
+        println!("{}", sub.job_id);
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The batch script and the arrays covering `todo`, from the command's options.
+fn build_plan(args: &SlurmArgs, root: &Path, todo: &[u64]) -> Result<SubmitPlan> {
+    let max_array_size = submit::array_size_limit(args.max_array_size, args.dry_run)?;
     let sparc3d = match &args.sparc3d {
         Some(p) => p.clone(),
         None => std::env::current_exe().context("locating the sparc3d binary")?,
@@ -140,7 +129,7 @@ fn submit_slurm(args: SlurmArgs) -> Result<ExitCode> {
         .unwrap_or_else(|| "job".into());
     let script = slurm::batch_script(&ScriptOptions {
         sparc3d,
-        job: root.clone(),
+        job: root.to_path_buf(),
         name: format!("sparc3d-{name}"),
         partition: args.partition.clone(),
         time: args.time.clone(),
@@ -148,60 +137,26 @@ fn submit_slurm(args: SlurmArgs) -> Result<ExitCode> {
         cpus_per_task: args.cpus_per_task,
         work_args: args.limits.to_args(),
     });
-    let dir = slurm::slurm_dir(&root);
-    let script_path = dir.join("convert.sbatch");
-    let sbatch_args = |p: &ArrayPlan| {
-        let mut a = vec![format!(
-            "--array={}",
-            slurm::array_spec(&p.tasks, args.max_concurrent)
-        )];
-        a.extend(args.sbatch_args.iter().cloned());
-        a.push(script_path.to_string_lossy().into_owned());
-        a.extend([
-            "--shards-per-task".into(),
-            args.shards_per_task.to_string(),
-            "--offset".into(),
-            p.offset.to_string(),
-        ]);
-        a
-    };
-    if args.dry_run {
-        println!("# {}", script_path.display());
-        print!("{script}");
-        for p in &plans {
-            let words: Vec<String> = sbatch_args(p)
-                .iter()
-                .map(|w| slurm::shell_quote(w))
-                .collect();
-            println!("sbatch --parsable {}", words.join(" "));
-        }
-        return Ok(ExitCode::SUCCESS);
-    }
-    std::fs::create_dir_all(dir.join("logs"))
-        .with_context(|| format!("creating {}", dir.join("logs").display()))?;
-    let tmp = dir.join(".convert.sbatch.tmp");
-    std::fs::write(&tmp, &script).with_context(|| format!("writing {}", tmp.display()))?;
-    std::fs::rename(&tmp, &script_path)
-        .with_context(|| format!("renaming {} to {}", tmp.display(), script_path.display()))?;
-    for p in &plans {
-        let a = sbatch_args(p);
-        let id = slurm::sbatch(&a)?;
-        let sub = Submission {
-            job_id: id.clone(),
-            submitted_at: sparc3d_workers::now(),
-            array: slurm::array_spec(&p.tasks, args.max_concurrent),
-            offset: p.offset,
-            shards_per_task: args.shards_per_task,
-            tasks: p.tasks.len() as u64,
-            partition: args.partition.clone(),
-        };
-        slurm::append_submission(&root, &sub)
-            .with_context(|| format!("recording Slurm job {id} (it is submitted)"))?;
-        eprintln!(
-            "submitted job {id}: {} tasks (--array={}, offset {})",
-            sub.tasks, sub.array, sub.offset
-        );
-        println!("{id}");
-    }
-    Ok(ExitCode::SUCCESS)
+    let script_path = slurm::slurm_dir(root).join("convert.sbatch");
+    let arrays = slurm::plan_arrays(todo, args.shards_per_task, max_array_size)
+        .into_iter()
+        .map(|p| {
+            let a = submit::sbatch_args(
+                &p,
+                &script_path,
+                args.shards_per_task,
+                args.max_concurrent,
+                &args.sbatch_args,
+            );
+            (p, a)
+        })
+        .collect();
+    Ok(SubmitPlan {
+        script_path,
+        script,
+        arrays,
+        max_concurrent: args.max_concurrent,
+        shards_per_task: args.shards_per_task,
+        partition: args.partition.clone(),
+    })
 }

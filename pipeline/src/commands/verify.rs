@@ -6,7 +6,7 @@
 use anyhow::Result;
 use rayon::prelude::*;
 use serde::Serialize;
-use sparc3d_workers::state::{verify_shard, Verified};
+use sparc3d_workers::store::state::{verify_shard, Verified};
 use sparc3d_workers::Job;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -67,11 +67,27 @@ struct Report {
 /// Runs `sparc3d verify`.
 pub fn run(args: Args) -> Result<ExitCode> {
     let job = Job::open(&args.job)?;
+    let report = verify_job(&job, !args.dry_run)?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print_text(&report, &args.job.display().to_string());
+    }
+    Ok(if report.damaged > 0 {
+        ExitCode::FAILURE
+    } else {
+        ExitCode::SUCCESS
+    })
+}
+
+/// Hashes every finished shard of `job` against its completion record (in parallel) and
+/// tallies the results; with `move_damaged`, damaged shards are moved into quarantine.
+fn verify_job(job: &Job, move_damaged: bool) -> Result<Report> {
     let start = Instant::now();
     let results: Vec<(u64, Verified)> = (0..job.file.shards)
         .into_par_iter()
         .map(|shard| {
-            let v = verify_shard(&job.layout, shard, job.fingerprint(), !args.dry_run)?;
+            let v = verify_shard(&job.layout, shard, job.fingerprint(), move_damaged)?;
             Ok((shard, v))
         })
         .collect::<Result<_>>()?;
@@ -119,50 +135,45 @@ pub fn run(args: Args) -> Result<ExitCode> {
         }
     }
     r.seconds = start.elapsed().as_secs_f64();
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&r)?);
-    } else {
-        let root = args.job.display();
-        for p in &r.problems {
-            let reason = p.reason.as_deref().unwrap_or_default();
-            match (&p.moved_to, p.state) {
-                (Some(to), _) => println!(
-                    "shard {}: damaged: {reason}; moved aside to {to}; `sparc3d run {root}` \
-                     converts its {} items again",
-                    p.shard,
-                    p.items.unwrap_or(0)
-                ),
-                (None, "damaged") => println!(
-                    "shard {}: damaged: {reason}; `sparc3d verify {root}` (without --dry-run) \
-                     moves it aside and `sparc3d run {root}` converts its {} items again",
-                    p.shard,
-                    p.items.unwrap_or(0)
-                ),
-                _ => println!("shard {}: {reason}", p.shard),
-            }
+    Ok(r)
+}
+
+/// Prints one line per damaged or busy shard, with what to run next, and the tally.
+fn print_text(r: &Report, root: &str) {
+    for p in &r.problems {
+        let reason = p.reason.as_deref().unwrap_or_default();
+        match (&p.moved_to, p.state) {
+            (Some(to), _) => println!(
+                "shard {}: damaged: {reason}; moved aside to {to}; `sparc3d run {root}` \
+                 converts its {} items again",
+                p.shard,
+                p.items.unwrap_or(0)
+            ),
+            (None, "damaged") => println!(
+                "shard {}: damaged: {reason}; `sparc3d verify {root}` (without --dry-run) \
+                 moves it aside and `sparc3d run {root}` converts its {} items again",
+                p.shard,
+                p.items.unwrap_or(0)
+            ),
+            _ => println!("shard {}: {reason}", p.shard),
         }
-        println!(
-            "{} of {} shards finished: {} good, {} damaged, {} busy; {:.1} MB hashed in {:.2} s{}",
-            r.finished,
-            r.shards,
-            r.good,
-            r.damaged,
-            r.busy,
-            r.bytes_hashed as f64 / 1e6,
-            r.seconds,
-            if r.restamped > 0 {
-                format!(
-                    " ({} touched but unchanged: stamps re-recorded)",
-                    r.restamped
-                )
-            } else {
-                String::new()
-            }
-        );
     }
-    Ok(if r.damaged > 0 {
-        ExitCode::FAILURE
+    let restamped = if r.restamped > 0 {
+        format!(
+            " ({} touched but unchanged: stamps re-recorded)",
+            r.restamped
+        )
     } else {
-        ExitCode::SUCCESS
-    })
+        String::new()
+    };
+    println!(
+        "{} of {} shards finished: {} good, {} damaged, {} busy; {:.1} MB hashed in {:.2} s{restamped}",
+        r.finished,
+        r.shards,
+        r.good,
+        r.damaged,
+        r.busy,
+        r.bytes_hashed as f64 / 1e6,
+        r.seconds,
+    );
 }

@@ -277,6 +277,45 @@ fn clip(s: &str) -> String {
     s.chars().take(60).collect()
 }
 
+/// Counts the points or line segments of a primitive that is not made of triangles (they are
+/// skipped) and says whether it was one.
+fn count_non_triangles(mode: Mode, n: usize, stats: &mut LoadStats) -> bool {
+    match mode {
+        Mode::Points => stats.points_skipped += n as u64,
+        Mode::Lines => stats.lines_skipped += (n / 2) as u64,
+        Mode::LineStrip => stats.lines_skipped += n.saturating_sub(1) as u64,
+        Mode::LineLoop => stats.lines_skipped += n as u64,
+        Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan => return false,
+    }
+    true
+}
+
+/// Appends the triangles of a triangle list, strip or fan of `n` indices (`idx(k)`: the mesh
+/// vertex of the k-th index), strips with every other triangle flipped to keep the winding.
+fn push_triangles(mode: Mode, n: usize, idx: impl Fn(usize) -> u32, out: &mut Vec<[u32; 3]>) {
+    match mode {
+        Mode::Triangles => {
+            for k in 0..n / 3 {
+                out.push([idx(3 * k), idx(3 * k + 1), idx(3 * k + 2)]);
+            }
+        }
+        Mode::TriangleStrip => {
+            for k in 0..n.saturating_sub(2) {
+                if k % 2 == 0 {
+                    out.push([idx(k), idx(k + 1), idx(k + 2)]);
+                } else {
+                    out.push([idx(k + 1), idx(k), idx(k + 2)]);
+                }
+            }
+        }
+        _ => {
+            for k in 1..n.saturating_sub(1) {
+                out.push([idx(0), idx(k), idx(k + 1)]);
+            }
+        }
+    }
+}
+
 fn read_primitive(
     prim: &gltf::Primitive,
     mesh_index: usize,
@@ -307,24 +346,8 @@ fn read_primitive(
         None => None,
     };
     let n = indices.as_ref().map_or(n_vertices, Vec::len);
-    match mode {
-        Mode::Points => {
-            stats.points_skipped += n as u64;
-            return Ok(());
-        }
-        Mode::Lines => {
-            stats.lines_skipped += (n / 2) as u64;
-            return Ok(());
-        }
-        Mode::LineStrip => {
-            stats.lines_skipped += n.saturating_sub(1) as u64;
-            return Ok(());
-        }
-        Mode::LineLoop => {
-            stats.lines_skipped += n as u64;
-            return Ok(());
-        }
-        Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan => {}
+    if count_non_triangles(mode, n, stats) {
+        return Ok(());
     }
 
     let positions = read_accessor(&pos_acc, buffers, path)?;
@@ -346,28 +369,7 @@ fn read_primitive(
         }
     };
     let before = mesh.triangles.len();
-    match mode {
-        Mode::Triangles => {
-            for k in 0..n / 3 {
-                mesh.triangles
-                    .push([idx(3 * k), idx(3 * k + 1), idx(3 * k + 2)]);
-            }
-        }
-        Mode::TriangleStrip => {
-            for k in 0..n.saturating_sub(2) {
-                if k % 2 == 0 {
-                    mesh.triangles.push([idx(k), idx(k + 1), idx(k + 2)]);
-                } else {
-                    mesh.triangles.push([idx(k + 1), idx(k), idx(k + 2)]);
-                }
-            }
-        }
-        _ => {
-            for k in 1..n.saturating_sub(1) {
-                mesh.triangles.push([idx(0), idx(k), idx(k + 1)]);
-            }
-        }
-    }
+    push_triangles(mode, n, idx, &mut mesh.triangles);
     // Triangles with a bad vertex index are dropped and counted.
     if mesh.triangles[before..]
         .iter()

@@ -10,8 +10,9 @@
 //! Every format follows one rule for faces whose vertex index is bad (out of range, negative,
 //! not a number): the face is dropped and counted in [`LoadStats::faces_bad_index`], the first
 //! one's place (format and line or element) is kept in [`LoadStats::first_bad_face`], and the
-//! file fails ([`Error::EmptyMesh`]) only when no face is left. [`save`] writes to a temporary
-//! file beside the target and renames it.
+//! file fails ([`Error::EmptyMesh`]) only when no face is left. A triangle that repeats an
+//! earlier one (same vertex indices) is dropped and counted in [`LoadStats::faces_duplicate`].
+//! [`save`] writes to a temporary file beside the target and renames it.
 
 mod gltf;
 mod obj;
@@ -20,6 +21,7 @@ mod ply;
 mod stl;
 mod write;
 
+use crate::duplicate_faces::drop_duplicate_faces;
 use crate::error::{Error, Result};
 use crate::mesh::TriMesh;
 use crate::sanitize::drop_invalid;
@@ -49,6 +51,9 @@ pub struct LoadStats {
     pub faces_non_finite: u64,
     /// Vertices dropped because no kept face used them.
     pub vertices_unused: u64,
+    /// Triangles dropped because an earlier one has the same three vertex indices (in any
+    /// order): [`crate::duplicate_faces`].
+    pub faces_duplicate: u64,
 }
 
 /// A loaded, sanitised mesh and what loading did to it.
@@ -342,7 +347,8 @@ pub fn load_bytes(bytes: &[u8], format: Format, path: &Path) -> Result<LoadedMes
     check_count(path, "triangles", raw.triangles.len())?;
     let context = path.display().to_string();
     let vertices = raw.positions.len();
-    let (mesh, s) = drop_invalid(raw);
+    let (mut mesh, s) = drop_invalid(raw);
+    stats.faces_duplicate = drop_duplicate_faces(&mut mesh.triangles);
     // Loaders drop faces with bad indices themselves; what sanitising finds adds to that.
     stats.faces_bad_index += s.faces_bad_index;
     stats.faces_non_finite += s.faces_non_finite;

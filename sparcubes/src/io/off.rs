@@ -123,26 +123,7 @@ fn canonicalise(
         }
         indices.clear();
         indices.extend(w.take(n));
-        let bad = if n == usize::MAX {
-            Some(format!(
-                "the face's vertex count `{}` is not a number",
-                clip(first)
-            ))
-        } else if indices.len() < n {
-            Some(format!(
-                "the face has {} of its {n} vertex indices",
-                indices.len()
-            ))
-        } else {
-            indices.iter().find_map(|x| match x.parse::<usize>() {
-                Ok(i) if i < nv => None,
-                Ok(i) => Some(format!(
-                    "vertex index {i} is out of range (the file has {nv} vertices)"
-                )),
-                Err(_) => Some(format!("vertex index `{}` is not a valid index", clip(x))),
-            })
-        };
-        if let Some(why) = bad {
+        if let Some(why) = face_problem(first, n, &indices, nv) {
             bad_face(stats, || format!("OFF line {no}: {why}"));
             kept_faces -= 1;
             continue;
@@ -157,6 +138,30 @@ fn canonicalise(
     let header = format!("OFF\n{nv} {kept_faces} 0\n");
     out.insert_str(0, &header);
     Ok((out, (nv, nf)))
+}
+
+/// What is wrong with an OFF face line (its vertex count word `first`, parsed as `n`, and
+/// the index words after it), if anything, for a file of `nv` vertices.
+fn face_problem(first: &str, n: usize, indices: &[&str], nv: usize) -> Option<String> {
+    if n == usize::MAX {
+        return Some(format!(
+            "the face's vertex count `{}` is not a number",
+            clip(first)
+        ));
+    }
+    if indices.len() < n {
+        return Some(format!(
+            "the face has {} of its {n} vertex indices",
+            indices.len()
+        ));
+    }
+    indices.iter().find_map(|x| match x.parse::<usize>() {
+        Ok(i) if i < nv => None,
+        Ok(i) => Some(format!(
+            "vertex index {i} is out of range (the file has {nv} vertices)"
+        )),
+        Err(_) => Some(format!("vertex index `{}` is not a valid index", clip(x))),
+    })
 }
 
 /// The start of a string, for error messages.

@@ -3,6 +3,7 @@
 
 use crate::error::{Error, Result};
 use crate::mesh::TriMesh;
+use rayon::prelude::*;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -104,15 +105,46 @@ fn write_ply(mesh: &TriMesh, w: &mut impl Write) -> std::io::Result<()> {
         mesh.positions.len(),
         mesh.triangles.len()
     )?;
-    for p in &mesh.positions {
+    write_in_chunks(w, &mesh.positions, 12, |p, out| {
         for c in p {
-            w.write_all(&c.to_le_bytes())?;
+            out.extend_from_slice(&c.to_le_bytes());
         }
-    }
-    for t in &mesh.triangles {
-        w.write_all(&[3u8])?;
+    })?;
+    write_in_chunks(w, &mesh.triangles, 13, |t, out| {
+        out.push(3u8);
         for i in t {
-            w.write_all(&i.to_le_bytes())?;
+            out.extend_from_slice(&i.to_le_bytes());
+        }
+    })
+}
+
+/// Elements encoded per parallel work item by [`write_in_chunks`].
+const WRITE_CHUNK: usize = 1 << 16;
+/// Work items encoded before they are written, bounding the memory held at once.
+const WRITE_BATCH: usize = 16;
+
+/// Writes `items` through `encode` (which appends `bytes_each` bytes per item): chunks of
+/// [`WRITE_CHUNK`] are encoded in parallel, a batch at a time, and written in order, so the
+/// bytes are those of a plain loop.
+fn write_in_chunks<T: Sync>(
+    w: &mut impl Write,
+    items: &[T],
+    bytes_each: usize,
+    encode: impl Fn(&T, &mut Vec<u8>) + Sync,
+) -> std::io::Result<()> {
+    for batch in items.chunks(WRITE_CHUNK * WRITE_BATCH) {
+        let encoded: Vec<Vec<u8>> = batch
+            .par_chunks(WRITE_CHUNK)
+            .map(|chunk| {
+                let mut out = Vec::with_capacity(chunk.len() * bytes_each);
+                for item in chunk {
+                    encode(item, &mut out);
+                }
+                out
+            })
+            .collect();
+        for bytes in &encoded {
+            w.write_all(bytes)?;
         }
     }
     Ok(())
@@ -220,4 +252,45 @@ fn write_glb(mesh: &TriMesh, w: &mut impl Write) -> std::io::Result<()> {
     }
     w.write_all(&[0u8; 3][..bin_padded - bin_len])?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The PLY body, element by element, as the writer wrote it before chunking.
+    fn plain_ply_body(mesh: &TriMesh) -> Vec<u8> {
+        let mut out = Vec::new();
+        for p in &mesh.positions {
+            for c in p {
+                out.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+        for t in &mesh.triangles {
+            out.push(3);
+            for i in t {
+                out.extend_from_slice(&i.to_le_bytes());
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn chunked_ply_is_the_plain_bytes() {
+        // More elements than one batch of chunks, and not a multiple of a chunk.
+        let n = WRITE_CHUNK * WRITE_BATCH + 12_345;
+        let positions = (0..n)
+            .map(|i| [i as f32, -(i as f32) * 0.5, (i % 977) as f32 * 1e-3])
+            .collect();
+        let triangles = (0..n as u32)
+            .map(|i| [i, (i * 7 + 1) % n as u32, (i * 13 + 2) % n as u32])
+            .collect();
+        let mesh = TriMesh::new(positions, triangles);
+        let mut written = Vec::new();
+        write_ply(&mesh, &mut written).unwrap();
+        let body = plain_ply_body(&mesh);
+        assert!(written.ends_with(&body));
+        let header = &written[..written.len() - body.len()];
+        assert!(header.ends_with(b"end_header\n"));
+    }
 }

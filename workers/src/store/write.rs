@@ -14,6 +14,7 @@ use sha2::{Digest, Sha256};
 use sparc3d_schema::{columns, meta_keys, CompletionRecord, ItemStatus, ShardRow};
 use std::collections::BTreeMap;
 use std::fs::File;
+use std::path::Path;
 
 /// Bytes of tensor blobs per row group (row groups stay well under 256 MB).
 const ROW_GROUP_BYTES: usize = 64 << 20;
@@ -46,7 +47,7 @@ pub fn writer_properties(job: &Job, shard: u64) -> Result<WriterProperties> {
     let mut b = WriterProperties::builder()
         .set_compression(Compression::ZSTD(level))
         .set_key_value_metadata(Some(kv));
-    for stem in columns::TENSORS {
+    for stem in columns::tensors() {
         let col = ColumnPath::from(stem);
         b = b
             .set_column_compression(col.clone(), Compression::UNCOMPRESSED)
@@ -97,85 +98,8 @@ pub fn write_shard(
 ) -> Result<CompletionRecord> {
     let layout = &job.layout;
     let tmp = layout.shard_tmp(shard, writer_id);
-    let final_path = layout.shard_file(shard);
-    let pq_err = |source| WorkerError::Parquet {
-        path: tmp.clone(),
-        source,
-    };
     let file = File::create(&tmp).map_err(|e| WorkerError::io("creating shard", &tmp, e))?;
-    let result = (|| {
-        let mut writer = ArrowWriter::try_new(
-            HashingFile {
-                file,
-                hash: Sha256::new(),
-            },
-            sparc3d_schema::arrow::schema(),
-            Some(writer_properties(job, shard)?),
-        )
-        .map_err(pq_err)?;
-        let mut digest = Sha256::new();
-        let (mut ok, mut failed, mut item_seconds) = (0u64, 0u64, 0.0f64);
-        let mut classes: BTreeMap<String, u64> = BTreeMap::new();
-        let mut pending: Vec<ShardRow> = Vec::new();
-        let mut pending_bytes = 0usize;
-        let flush =
-            |writer: &mut ArrowWriter<HashingFile>, rows: &mut Vec<ShardRow>| -> Result<()> {
-                if rows.is_empty() {
-                    return Ok(());
-                }
-                let batch = sparc3d_schema::arrow::rows_to_batch(rows)?;
-                writer.write(&batch).map_err(pq_err)?;
-                writer.flush().map_err(pq_err)?;
-                rows.clear();
-                Ok(())
-            };
-        for done in journal.state.done.values() {
-            let row = journal.read_row(done)?;
-            sparc3d_schema::digest::update_row(&mut digest, &row);
-            match row.status {
-                ItemStatus::Ok => ok += 1,
-                _ => failed += 1,
-            }
-            if let Some(c) = row.error_class {
-                *classes.entry(c.as_str().to_string()).or_default() += 1;
-            }
-            item_seconds += row.timings.total_s;
-            pending_bytes += blob_bytes(&row);
-            pending.push(row);
-            if pending_bytes >= ROW_GROUP_BYTES {
-                flush(&mut writer, &mut pending)?;
-                pending_bytes = 0;
-            }
-        }
-        flush(&mut writer, &mut pending)?;
-        let HashingFile { file, hash } = writer.into_inner().map_err(pq_err)?;
-        let file_sha256 = sparc3d_schema::config::hex(&hash.finalize());
-        file.sync_all()
-            .map_err(|e| WorkerError::io("syncing shard", &tmp, e))?;
-        drop(file);
-        std::fs::rename(&tmp, &final_path)
-            .map_err(|e| WorkerError::io("renaming shard", &final_path, e))?;
-        sync_dir(&layout.shards_dir())?;
-        let meta = std::fs::metadata(&final_path)
-            .map_err(|e| WorkerError::io("reading shard size", &final_path, e))?;
-        let bytes = meta.len();
-        Ok(CompletionRecord {
-            shard,
-            schema_version: sparc3d_schema::SCHEMA_VERSION,
-            fingerprint: job.file.fingerprint.clone(),
-            rows: ok + failed,
-            ok,
-            failed,
-            error_classes: classes,
-            bytes,
-            sha256: file_sha256,
-            stamp: Some(crate::fsutil::file_stamp(&meta)),
-            content_digest: sparc3d_schema::config::hex(&digest.finalize()),
-            item_seconds,
-            started_at,
-            finished_at: crate::now(),
-        })
-    })();
+    let result = write_parquet(job, shard, journal, file, &tmp, started_at);
     let record = match result {
         Ok(r) => r,
         Err(e) => {
@@ -193,4 +117,92 @@ pub fn write_shard(
         "writing completion record",
     )?;
     Ok(record)
+}
+
+/// The rows of the journal into Parquet at `tmp` (through `file`), fsynced and renamed to the
+/// shard's name; the completion record that describes it (not yet written).
+fn write_parquet(
+    job: &Job,
+    shard: u64,
+    journal: &Journal,
+    file: File,
+    tmp: &Path,
+    started_at: f64,
+) -> Result<CompletionRecord> {
+    let layout = &job.layout;
+    let final_path = layout.shard_file(shard);
+    let pq_err = |source| WorkerError::Parquet {
+        path: tmp.to_path_buf(),
+        source,
+    };
+    let mut writer = ArrowWriter::try_new(
+        HashingFile {
+            file,
+            hash: Sha256::new(),
+        },
+        sparc3d_schema::arrow::schema(),
+        Some(writer_properties(job, shard)?),
+    )
+    .map_err(pq_err)?;
+    let mut digest = Sha256::new();
+    let (mut ok, mut failed, mut item_seconds) = (0u64, 0u64, 0.0f64);
+    let mut classes: BTreeMap<String, u64> = BTreeMap::new();
+    let mut pending: Vec<ShardRow> = Vec::new();
+    let mut pending_bytes = 0usize;
+    let flush = |writer: &mut ArrowWriter<HashingFile>, rows: &mut Vec<ShardRow>| -> Result<()> {
+        if rows.is_empty() {
+            return Ok(());
+        }
+        let batch = sparc3d_schema::arrow::rows_to_batch(rows)?;
+        writer.write(&batch).map_err(pq_err)?;
+        writer.flush().map_err(pq_err)?;
+        rows.clear();
+        Ok(())
+    };
+    for done in journal.state.done.values() {
+        let row = journal.read_row(done)?;
+        sparc3d_schema::digest::update_row(&mut digest, &row);
+        match row.status {
+            ItemStatus::Ok => ok += 1,
+            _ => failed += 1,
+        }
+        if let Some(c) = row.error_class {
+            *classes.entry(c.as_str().to_string()).or_default() += 1;
+        }
+        item_seconds += row.timings.total_s;
+        pending_bytes += blob_bytes(&row);
+        pending.push(row);
+        if pending_bytes >= ROW_GROUP_BYTES {
+            flush(&mut writer, &mut pending)?;
+            pending_bytes = 0;
+        }
+    }
+    flush(&mut writer, &mut pending)?;
+    let HashingFile { file, hash } = writer.into_inner().map_err(pq_err)?;
+    let file_sha256 = sparc3d_schema::config::hex(&hash.finalize());
+    file.sync_all()
+        .map_err(|e| WorkerError::io("syncing shard", tmp, e))?;
+    drop(file);
+    std::fs::rename(tmp, &final_path)
+        .map_err(|e| WorkerError::io("renaming shard", &final_path, e))?;
+    sync_dir(&layout.shards_dir())?;
+    let meta = std::fs::metadata(&final_path)
+        .map_err(|e| WorkerError::io("reading shard size", &final_path, e))?;
+    let bytes = meta.len();
+    Ok(CompletionRecord {
+        shard,
+        schema_version: sparc3d_schema::SCHEMA_VERSION,
+        fingerprint: job.file.fingerprint.clone(),
+        rows: ok + failed,
+        ok,
+        failed,
+        error_classes: classes,
+        bytes,
+        sha256: file_sha256,
+        stamp: Some(crate::fsutil::file_stamp(&meta)),
+        content_digest: sparc3d_schema::config::hex(&digest.finalize()),
+        item_seconds,
+        started_at,
+        finished_at: crate::now(),
+    })
 }

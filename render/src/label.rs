@@ -1,7 +1,7 @@
 //! Text labels burnt into preview pictures ("SOURCE", "OUTPUT"), drawn with a built-in 5×7
 //! pixel font of the few capital letters they need, white on a dark box.
 
-use sparcubes::render::Image;
+use crate::Image;
 
 /// Letter colour.
 const INK: [u8; 3] = [255, 255, 255];

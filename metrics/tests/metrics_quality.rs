@@ -1,6 +1,7 @@
-//! Quality metrics (DESIGN.md §6) on meshes whose answers are known in closed form.
+//! Quality metrics (docs/QUALITY.md, "How we measure") on meshes whose answers are known in
+//! closed form.
 
-use sparcubes::metrics::{evaluate, EvalOptions, QualityReport};
+use sparc3d_metrics::{evaluate, EvalOptions, QualityReport};
 use sparcubes::TriMesh;
 
 /// An axis-aligned cube of side `side` centred at `c`, every face with its own four corners

@@ -1,7 +1,7 @@
 //! Small vector helpers and the closest point on a triangle (Ericson, "Real-Time Collision
 //! Detection", §5.1.5), which also says which feature (face, edge, corner) it lies on.
 
-pub use crate::vec3::{add, cross, dist2, dot, norm, scale, sub, Vec3};
+pub use sparcubes::vec3::{add, cross, dist2, dot, norm, scale, sub, Vec3};
 
 /// Where on a triangle its closest point to a query lies.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -1,7 +1,7 @@
 //! Preview rendering: a sphere covers the disc it should, back faces are coloured apart,
 //! the bytes do not depend on the number of threads, and the PNG round-trips.
 
-use sparcubes::render::{compare, render, Camera, CompareOptions, Image, Scene, BACK, BACKGROUND};
+use sparc3d_render::{compare, render, Camera, CompareOptions, Image, Scene, BACK, BACKGROUND};
 use sparcubes::shapes::{quad, sphere};
 
 /// Share of pixels that are not background.

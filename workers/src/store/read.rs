@@ -1,21 +1,35 @@
-//! Reading finished shards and journals back: rows, key-value metadata, column sizes.
+//! Reading shards back: record batches and rows of a finished shard or a tensor file (its
+//! schema version checked), the facts of its footer, and the rows of a shard whether
+//! finished or still in its journal.
 
-use anyhow::{Context, Result};
+use super::state::{completion, Check, Completion};
+use crate::error::{Result, WorkerError};
+use crate::job::Job;
 use arrow_array::RecordBatch;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use parquet::file::reader::{FileReader, SerializedFileReader};
-use sparc3d_schema::{JobLayout, ShardRow};
-use sparc3d_workers::state::{completion, Check, Completion};
-use sparc3d_workers::Job;
+use sparc3d_schema::ShardRow;
 use std::collections::BTreeMap;
 use std::path::Path;
 
+/// An error reading the shard file at `path`; `stage` says what was being done.
+fn unreadable(stage: &'static str, path: &Path, e: impl std::fmt::Display) -> WorkerError {
+    WorkerError::ReadShard {
+        stage,
+        path: path.to_path_buf(),
+        reason: e.to_string(),
+    }
+}
+
 /// Calls `f` on every record batch of a shard file or a tensor file (docs/FORMAT.md), after
-/// checking its schema version.
-pub fn for_each_batch(path: &Path, mut f: impl FnMut(RecordBatch) -> Result<()>) -> Result<()> {
-    let file = std::fs::File::open(path).with_context(|| format!("opening {}", path.display()))?;
+/// checking its schema version: a file of another version is an error that says so.
+pub fn for_each_batch<E: From<WorkerError>>(
+    path: &Path,
+    mut f: impl FnMut(RecordBatch) -> std::result::Result<(), E>,
+) -> std::result::Result<(), E> {
+    let file = std::fs::File::open(path).map_err(|e| unreadable("opening", path, e))?;
     let builder = ParquetRecordBatchReaderBuilder::try_new(file)
-        .with_context(|| format!("reading {}", path.display()))?;
+        .map_err(|e| unreadable("reading", path, e))?;
     let version = builder
         .metadata()
         .file_metadata()
@@ -27,29 +41,35 @@ pub fn for_each_batch(path: &Path, mut f: impl FnMut(RecordBatch) -> Result<()>)
         });
     let expected = sparc3d_schema::SCHEMA_VERSION.to_string();
     if version.as_deref() != Some(expected.as_str()) {
-        anyhow::bail!(
-            "{}: shard schema version {}, this sparc3d reads version {expected} \
-             (docs/FORMAT.md); convert the job again with this version",
-            path.display(),
-            version.as_deref().unwrap_or("missing")
-        );
+        return Err(WorkerError::BadFile {
+            path: path.to_path_buf(),
+            reason: format!(
+                "shard schema version {}, this sparc3d reads version {expected} \
+                 (docs/FORMAT.md); convert the job again with this version",
+                version.as_deref().unwrap_or("missing")
+            ),
+        }
+        .into());
     }
     let reader = builder
         .with_batch_size(64)
         .build()
-        .with_context(|| format!("reading {}", path.display()))?;
+        .map_err(|e| unreadable("reading", path, e))?;
     for batch in reader {
-        f(batch.with_context(|| format!("reading {}", path.display()))?)?;
+        f(batch.map_err(|e| unreadable("reading", path, e))?)?;
     }
     Ok(())
 }
 
 /// Calls `f` on every row of a shard file, batch by batch.
-pub fn for_each_row(path: &Path, mut f: impl FnMut(ShardRow) -> Result<()>) -> Result<()> {
+pub fn for_each_row<E: From<WorkerError>>(
+    path: &Path,
+    mut f: impl FnMut(ShardRow) -> std::result::Result<(), E>,
+) -> std::result::Result<(), E> {
     for_each_batch(path, |batch| {
-        for row in sparc3d_schema::arrow::batch_to_rows(&batch)
-            .with_context(|| format!("decoding {}", path.display()))?
-        {
+        let rows = sparc3d_schema::arrow::batch_to_rows(&batch)
+            .map_err(|e| unreadable("decoding", path, e))?;
+        for row in rows {
             f(row)?;
         }
         Ok(())
@@ -61,7 +81,7 @@ pub fn read_rows(path: &Path) -> Result<Vec<ShardRow>> {
     let mut rows = Vec::new();
     for_each_row(path, |r| {
         rows.push(r);
-        Ok(())
+        Ok::<(), WorkerError>(())
     })?;
     Ok(rows)
 }
@@ -83,10 +103,9 @@ pub struct ShardMeta {
 
 /// Reads a shard file's footer.
 pub fn read_meta(path: &Path) -> Result<ShardMeta> {
-    let file = std::fs::File::open(path).with_context(|| format!("opening {}", path.display()))?;
+    let file = std::fs::File::open(path).map_err(|e| unreadable("opening", path, e))?;
     let file_bytes = file.metadata().map(|m| m.len()).unwrap_or(0);
-    let reader =
-        SerializedFileReader::new(file).with_context(|| format!("reading {}", path.display()))?;
+    let reader = SerializedFileReader::new(file).map_err(|e| unreadable("reading", path, e))?;
     let md = reader.metadata();
     let fmd = md.file_metadata();
     let kv = fmd
@@ -119,18 +138,18 @@ pub fn read_meta(path: &Path) -> Result<ShardMeta> {
 
 /// The error for a finished shard that no longer matches its completion record, saying how
 /// to get it converted again.
-pub fn damaged(job: &Job, shard: u64, why: &str) -> anyhow::Error {
-    let root = job.layout.root.display();
-    anyhow::anyhow!(
-        "shard {shard} of {root} is damaged: {why}; `sparc3d verify {root}` moves damaged \
-         shards aside and `sparc3d run {root}` converts them again"
-    )
+pub fn damaged(job: &Job, shard: u64, why: &str) -> WorkerError {
+    WorkerError::Damaged {
+        shard,
+        root: job.layout.root.clone(),
+        why: why.to_string(),
+    }
 }
 
 /// Rows of a shard whether finished (Parquet, its record checked with `check`) or in progress
 /// (journal), in item order. A damaged shard is an error.
 pub fn shard_rows(job: &Job, shard: u64, check: Check) -> Result<Vec<ShardRow>> {
-    let layout: &JobLayout = &job.layout;
+    let layout = &job.layout;
     match completion(layout, shard, job.fingerprint(), check)? {
         Completion::Done(_) => return read_rows(&layout.shard_file(shard)),
         Completion::Damaged(why) => return Err(damaged(job, shard, &why)),
@@ -140,10 +159,10 @@ pub fn shard_rows(job: &Job, shard: u64, check: Check) -> Result<Vec<ShardRow>> 
     if !jpath.exists() {
         return Ok(Vec::new());
     }
-    let state = sparc3d_workers::journal::replay(&jpath)?;
+    let state = crate::journal::replay(&jpath)?;
     state
         .done
         .values()
-        .map(|d| Ok(sparc3d_workers::journal::read_row_at(&jpath, d.offset)?))
+        .map(|d| crate::journal::read_row_at(&jpath, d.offset))
         .collect()
 }

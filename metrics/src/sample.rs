@@ -54,11 +54,6 @@ impl Faces {
         self.corners.len()
     }
 
-    /// Whether there is no triangle.
-    pub fn is_empty(&self) -> bool {
-        self.corners.is_empty()
-    }
-
     /// Total area of the triangles listed in `subset`.
     pub fn subset_area(&self, subset: &[u32]) -> f64 {
         subset.iter().map(|&t| self.areas[t as usize]).sum()

@@ -9,9 +9,12 @@
 //!
 //! Rows are rendered in parallel (rayon); every pixel depends only on its own ray, so the bytes
 //! are the same for any number of threads. [`compare`] lays out a source row above an output
-//! row, one tile per view, and [`Image::encode_png`] writes the picture as PNG.
+//! row, one tile per view, [`label::draw`] burns a caption into it, and [`Image::encode_png`]
+//! writes the picture as PNG.
+#![deny(missing_docs)]
 
-use crate::TriMesh;
+pub mod label;
+
 use glam::Vec3A;
 use obvhs::bvh2::builder::build_bvh2_from_tris;
 use obvhs::bvh2::Bvh2;
@@ -19,6 +22,7 @@ use obvhs::ray::{Ray, RayHit};
 use obvhs::triangle::Triangle;
 use obvhs::BvhBuildParams;
 use rayon::prelude::*;
+use sparcubes::TriMesh;
 use std::time::Duration;
 
 /// Background colour (white).

@@ -1,4 +1,5 @@
-//! Quality of an extracted mesh against its source (DESIGN.md §6, "How we measure").
+//! Quality of an extracted mesh against its source, as docs/QUALITY.md ("How we measure")
+//! defines it; `sparc3d eval` prints it.
 //!
 //! Both meshes are put in the frame where the source's bounding box is centred and its longest
 //! side is 1, and points are sampled uniformly by area on each. From those:
@@ -22,20 +23,20 @@
 //! Random numbers come from a counter-based hash of the seed and the sample index, and every
 //! sum is taken in index order, so the numbers are the same whatever the thread count. The
 //! same seed gives the same samples on identical meshes.
+#![deny(missing_docs)]
 
 mod geom;
-mod kdtree;
 mod sample;
 mod tri_bvh;
 mod weld;
 
-use crate::error::{Error, Result};
-use crate::mesh::TriMesh;
-use geom::{dot, Vec3};
-use kdtree::KdTree;
+use geom::{dist2, dot, Vec3};
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 use sample::{sample_subset, Faces, Samples};
 use serde::{Deserialize, Serialize};
+use sparcubes::error::{Error, Result};
+use sparcubes::TriMesh;
 use tri_bvh::TriBvh;
 
 /// Distance thresholds of the F1 scores, in units of the source's longest side.
@@ -56,7 +57,7 @@ pub const MIN_COMPONENT_SAMPLES: usize = 64;
 /// Welding tolerance as a fraction of the source's bounding box diagonal.
 pub const WELD_TOLERANCE: f64 = 1e-7;
 
-/// How to evaluate. `Copy`, with the defaults of DESIGN.md §6.
+/// How to evaluate. `Copy`, with the defaults of docs/QUALITY.md ("How we measure").
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct EvalOptions {
     /// Points sampled on each mesh.
@@ -195,19 +196,24 @@ pub fn evaluate(
         .iter()
         .map(|&t| f1_score(t, &to_src, &to_out))
         .collect();
-    let src_bvh = TriBvh::new(&src.faces);
-    let out_bvh = TriBvh::new(&out.faces);
-    let out_to_surface = surface_distances(&out_bvh, &src_samples.points);
+    // One triangle hierarchy at a time: each is dropped before the other is built.
+    let (out_to_surface, topo) = {
+        let out_bvh = TriBvh::new(&out.faces);
+        let distances = surface_distances(&out_bvh, &src_samples.points);
+        (
+            distances,
+            source_topology(source, &src, &welded, options, &out_bvh),
+        )
+    };
     let (src_to_surface, signs) = signed_surface_distances(
         source,
         &src,
-        &src_bvh,
+        &TriBvh::new(&src.faces),
         &out_samples,
         closed.then_some(&welded[..]),
     );
     let cd_surface =
         0.5 * (mean(out_to_surface.iter().copied()) + mean(src_to_surface.iter().copied()));
-    let topo = source_topology(source, &src, &welded, options, &out_bvh);
     let source_area = src.faces.subset_area(&all_src);
     Ok(QualityReport {
         options: *options,
@@ -287,14 +293,21 @@ fn to_frame(mesh: &TriMesh, center: Vec3, inv: f64, what: &str) -> Result<Framed
 }
 
 /// For every point of `from`, the distance to its nearest point of `to` and `|n·n′|`.
+///
+/// Exact nearest neighbours from a kd-tree (`kiddo`'s immutable tree, which copes with many
+/// points sharing a coordinate, as samples on a flat face do). The distance is recomputed from
+/// the point found, so it does not depend on how the tree sums its squares.
 fn nearest_pairs(from: &Samples, to: &Samples) -> Vec<(f64, f64)> {
-    let tree = KdTree::new(&to.points);
+    if to.points.is_empty() {
+        return vec![(f64::INFINITY, 0.0); from.points.len()];
+    }
+    let tree: ImmutableKdTree<f64, 3> = ImmutableKdTree::new_from_slice(&to.points);
     from.points
         .par_iter()
         .zip(&from.normals)
-        .map(|(&p, &n)| match tree.nearest(p) {
-            Some((j, d2)) => (d2.sqrt(), dot(n, to.normals[j as usize]).abs()),
-            None => (f64::INFINITY, 0.0),
+        .map(|(&p, &n)| {
+            let j = tree.nearest_one::<SquaredEuclidean>(&p).item as usize;
+            (dist2(p, to.points[j]).sqrt(), dot(n, to.normals[j]).abs())
         })
         .collect()
 }
@@ -430,5 +443,48 @@ fn mean(values: impl Iterator<Item = f64>) -> f64 {
         0.0
     } else {
         sum / n as f64
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use sparcubes::shapes;
+
+    /// Seeded samples on a mesh of `shapes`, in `f64`.
+    fn samples_on(mesh: &TriMesh, n: usize, seed: u64) -> Samples {
+        let Ok(framed) = to_frame(mesh, [0.0; 3], 1.0, "test") else {
+            panic!("a generated mesh has only valid indices");
+        };
+        let all: Vec<u32> = (0..framed.faces.len() as u32).collect();
+        sample_subset(&framed.faces, &all, n, seed, 0)
+    }
+
+    #[test]
+    fn nearest_pairs_are_the_exact_nearest_points() {
+        // Many samples on flat faces share a coordinate: the case a kd-tree must get right.
+        let cube = shapes::cuboid([0.0; 3], [1.0; 3], &[]);
+        let torus = shapes::torus([0.5, 0.5, 0.5], 0.4, 0.1, 16);
+        let (from, to) = (samples_on(&torus, 3000, 1), samples_on(&cube, 2000, 2));
+        let pairs = nearest_pairs(&from, &to);
+        assert_eq!(pairs.len(), from.points.len());
+        for ((p, n), &(d, c)) in from.points.iter().zip(&from.normals).zip(&pairs) {
+            let best = (0..to.points.len())
+                .min_by(|&i, &j| dist2(*p, to.points[i]).total_cmp(&dist2(*p, to.points[j])));
+            let Some(j) = best else {
+                panic!("no sample on the cube");
+            };
+            assert_eq!(d, dist2(*p, to.points[j]).sqrt(), "point {p:?}");
+            assert_eq!(c, dot(*n, to.normals[j]).abs(), "point {p:?}");
+        }
+    }
+
+    #[test]
+    fn nothing_to_pair_with_is_infinitely_far() {
+        let from = samples_on(&shapes::cuboid([0.0; 3], [1.0; 3], &[]), 10, 1);
+        let to = Samples::default();
+        assert!(nearest_pairs(&from, &to)
+            .iter()
+            .all(|&(d, c)| d == f64::INFINITY && c == 0.0));
     }
 }

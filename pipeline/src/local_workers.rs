@@ -1,0 +1,108 @@
+//! The workers of `sparc3d run`: `sparc3d work JOB --shard-index I --events --parent-pid P`
+//! processes on this machine, started and watched through the one child-process supervisor
+//! (`sparc3d_workers::process`), their JSON-line events read into the pool's channel.
+
+use crate::pool::{Launcher, Worker};
+use anyhow::{Context, Result};
+use sparc3d_workers::events::Event;
+use sparc3d_workers::process::{Process, ProcessOptions};
+use sparc3d_workers::store::state::{shard_state, Check, ShardState};
+use sparc3d_workers::Job;
+use std::io::{BufRead, BufReader};
+use std::path::PathBuf;
+use std::process::{Command, ExitStatus, Stdio};
+use std::sync::mpsc::Sender;
+use std::time::Duration;
+
+/// Bytes of a worker's stderr kept to say why it failed.
+const STDERR_TAIL_BYTES: usize = 8192;
+
+/// Starts `work` processes for one job.
+pub struct LocalWorkers<'a> {
+    /// The job.
+    pub job: &'a Job,
+    /// Its folder, as given to the workers.
+    pub job_dir: PathBuf,
+    /// Extra arguments of every worker (the per-run limits).
+    pub limit_args: Vec<String>,
+    /// Threads per worker (`RAYON_NUM_THREADS`, unless the environment sets it).
+    pub threads: usize,
+}
+
+/// A `work` process.
+pub struct WorkProcess(Process);
+
+impl Worker for WorkProcess {
+    fn try_wait(&mut self) -> Option<ExitStatus> {
+        self.0.try_wait()
+    }
+
+    fn terminate(&mut self) {
+        self.0.signal(libc::SIGTERM);
+    }
+
+    /// Waits (briefly) until its stderr is read to the end, so that the reason a worker
+    /// failed is never lost.
+    fn error_tail(&mut self) -> String {
+        self.0.wait_stderr_end(Some(Duration::from_secs(5)));
+        self.0.stderr_tail(STDERR_TAIL_BYTES).trim().to_string()
+    }
+}
+
+impl Launcher for LocalWorkers<'_> {
+    type Worker = WorkProcess;
+
+    fn spawn(
+        &mut self,
+        shard: u64,
+        slot: usize,
+        events: &Sender<(usize, Event)>,
+    ) -> Result<WorkProcess> {
+        let exe = std::env::current_exe().context("locating the sparc3d binary")?;
+        let mut cmd = Command::new(exe);
+        cmd.arg("work")
+            .arg(&self.job_dir)
+            .arg("--shard-index")
+            .arg(shard.to_string())
+            .arg("--events")
+            .arg("--parent-pid")
+            .arg(std::process::id().to_string())
+            .args(&self.limit_args)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped());
+        if std::env::var_os("RAYON_NUM_THREADS").is_none() {
+            cmd.env("RAYON_NUM_THREADS", self.threads.to_string());
+        }
+        // A worker still running when `run` leaves (an error) is stopped as on Ctrl-C; the
+        // worker itself asks to die with `run` (`--parent-pid`).
+        let options = ProcessOptions {
+            stderr_tail_bytes: STDERR_TAIL_BYTES,
+            stop_signal: libc::SIGTERM,
+            ..Default::default()
+        };
+        let mut process = Process::spawn(&mut cmd, &options)
+            .with_context(|| format!("starting a worker for shard {shard}"))?;
+        if let Some(out) = process.take_stdout() {
+            let tx = events.clone();
+            std::thread::spawn(move || {
+                for line in BufReader::new(out).lines().map_while(Result::ok) {
+                    if let Ok(e) = serde_json::from_str::<Event>(&line) {
+                        if tx.send((slot, e)).is_err() {
+                            return;
+                        }
+                    }
+                }
+            });
+        }
+        Ok(WorkProcess(process))
+    }
+
+    fn shard_state(&mut self, shard: u64) -> Result<ShardState> {
+        Ok(shard_state(
+            &self.job.layout,
+            shard,
+            self.job.fingerprint(),
+            Check::Quick,
+        )?)
+    }
+}

@@ -1,0 +1,138 @@
+//! Where the time of vector-set samples goes on one real mesh: conversion, extraction, the
+//! closest-point tree, the near and volume distance queries, the grid sides, `sample` as a
+//! whole (default parameters except the counts: 250k surface, near and volume points, no
+//! sharp ones, as `ops/bench/samples_overhead.sh`), and the Direct3D-S2 layout. Wall and
+//! CPU seconds of each step:
+//!
+//!     cargo run --release -p sparcubes --example samples_bench -- MESH [RESOLUTION]
+
+use sparcubes::closest::TriangleIndex;
+use sparcubes::samples::rng::Draw;
+use sparcubes::samples::{sample, SampleParams};
+use sparcubes::sides::GridSides;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Instant;
+
+/// CPU seconds of this process so far (every thread).
+fn cpu() -> f64 {
+    let mut t = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `t` is a valid timespec for clock_gettime to fill.
+    unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut t) };
+    t.tv_sec as f64 + t.tv_nsec as f64 * 1e-9
+}
+
+/// Wall and CPU seconds since `(wall, cpu)`.
+struct Clock(Instant, f64);
+
+impl Clock {
+    fn start() -> Self {
+        Clock(Instant::now(), cpu())
+    }
+    fn secs(&self) -> String {
+        format!(
+            "{:.2} s ({:.2} s CPU)",
+            self.0.elapsed().as_secs_f64(),
+            cpu() - self.1
+        )
+    }
+}
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let Some(input) = args.first() else {
+        eprintln!("usage: samples_bench MESH [RESOLUTION]");
+        return ExitCode::FAILURE;
+    };
+    let resolution = args.get(1).and_then(|r| r.parse().ok()).unwrap_or(512u32);
+    let t = Clock::start();
+    let loaded = match sparcubes::io::load(&PathBuf::from(input)) {
+        Ok(l) => l,
+        Err(e) => {
+            eprintln!("{e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let params = sparcubes::Params::with_resolution(resolution);
+    let conversion = match sparcubes::convert(&loaded.mesh, &params) {
+        Ok(c) => c,
+        Err(e) => {
+            eprintln!("{e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let convert_s = t.secs();
+    let t = Clock::start();
+    let mesh = sparcubes::extract(&conversion.cubes);
+    let extract_s = t.secs();
+    let n = resolution as f64;
+    let count = 250_000u64;
+    // Near: mesh vertices moved by N(0, σ) per axis, σ = 0.005 and 0.05 in normalized units;
+    // volume: uniform in [-1.05, 1.05]³. Both in grid units, as `sample` queries them.
+    let near: Vec<[f64; 3]> = (0..count)
+        .map(|i| {
+            let d = Draw::new(1, 3, i);
+            let v = mesh.positions[(i as usize * 7919) % mesh.positions.len()];
+            let sigma = if i % 2 == 0 { 0.005 } else { 0.05 } * n / 2.0;
+            [0, 1, 2].map(|a| v[a] as f64 + sigma * d.normal(a as u64))
+        })
+        .collect();
+    let volume: Vec<[f64; 3]> = (0..count)
+        .map(|i| {
+            let d = Draw::new(1, 4, i);
+            [0, 1, 2].map(|k| (2.1 * d.uniform(k) - 1.05 + 1.0) * 0.5 * n)
+        })
+        .collect();
+    let t = Clock::start();
+    let index = TriangleIndex::new(&mesh);
+    let build_s = t.secs();
+    let t = Clock::start();
+    let a = index.closest_batch(&near);
+    let near_s = t.secs();
+    let t = Clock::start();
+    let b = index.closest_batch(&volume);
+    let volume_s = t.secs();
+    let t = Clock::start();
+    let sides = GridSides::new(&conversion.cubes);
+    let inside = sides.inside_batch(&near).len() + sides.inside_batch(&volume).len();
+    let sides_s = t.secs();
+    let samples = SampleParams {
+        surface: count as usize,
+        sharp: 0,
+        near: count as usize,
+        volume: count as usize,
+        ..SampleParams::default()
+    };
+    let t = Clock::start();
+    let drawn = match sample(&conversion.cubes, &mesh, &samples) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("{e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let sample_s = t.secs();
+    let t = Clock::start();
+    let sdf = sparcubes::layouts::direct3d_s2::sparse_sdf(
+        &conversion.cubes,
+        sparcubes::layouts::direct3d_s2::TRUNCATION,
+    );
+    let d3_s = t.secs();
+    let check: f64 = a.iter().chain(&b).map(|c| c.distance).sum();
+    println!(
+        "{input} at {resolution}: {} triangles, {} threads; convert {convert_s}, \
+         extract {extract_s}; tree {build_s}, {count} near queries {near_s}, \
+         {count} volume queries {volume_s}, sides {sides_s} ({inside}); \
+         sample() {sample_s} ({} volume points; checksum {check:.3}); \
+         direct3d-s2 layout {d3_s} ({} points, checksum {:.3})",
+        mesh.triangles.len(),
+        rayon::current_num_threads(),
+        drawn.volume_sdf.len(),
+        sdf.sdf.len(),
+        sdf.sdf.iter().map(|&v| v as f64).sum::<f64>(),
+    );
+    ExitCode::SUCCESS
+}

@@ -1,0 +1,209 @@
+//! The rules of one shard, tested on the `sparc3d-workers` library alone (no CLI): resume from
+//! a journal, retries of crashed items, giving up on an item that keeps killing its worker,
+//! timeouts, stops, busy and finished shards. The item worker is a small shell script that
+//! dies the way a real one can (killed by a signal, out of time), so every outcome here is
+//! the supervisor's and the shard loop's.
+
+use sparc3d_schema::{
+    ErrorClass, FrozenItem, ItemStatus, JobConfig, JobFile, JobLayout, Limits, ManifestRecord,
+    ShardRow,
+};
+use sparc3d_workers::frame::Record;
+use sparc3d_workers::journal::Journal;
+use sparc3d_workers::lease::{self, Acquired};
+use sparc3d_workers::store;
+use sparc3d_workers::supervisor::ChildCommand;
+use sparc3d_workers::{process_shard, Job, ShardOutcome, WorkOptions};
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+
+type TestResult = Result<(), Box<dyn std::error::Error>>;
+
+/// A job of `items` items (files that need not exist: the script never reads them), one
+/// shard.
+fn job(root: &Path, items: u64) -> Result<Job, Box<dyn std::error::Error>> {
+    let config = JobConfig::default();
+    let items: Vec<FrozenItem> = (0..items)
+        .map(|i| FrozenItem {
+            index: i,
+            shard: 0,
+            record: ManifestRecord {
+                id: format!("item{i}"),
+                uri: root
+                    .join(format!("m{i}.obj"))
+                    .to_string_lossy()
+                    .into_owned(),
+                sha256: Some(format!("{i:064x}")),
+                format: Some("obj".into()),
+            },
+        })
+        .collect();
+    let file = JobFile {
+        schema_version: sparc3d_schema::SCHEMA_VERSION,
+        tool_version: sparc3d_schema::TOOL_VERSION.into(),
+        fingerprint: config.fingerprint()?,
+        items: items.len() as u64,
+        shards: 1,
+        manifest_sha256: String::new(),
+        config,
+    };
+    Ok(Job {
+        layout: JobLayout::new(root),
+        file,
+        items,
+    })
+}
+
+/// Options whose item worker runs `script` with `sh` (after reading the config and the
+/// item lines the supervisor sends).
+fn options(script: &str, limits: Limits, stop: bool) -> WorkOptions {
+    WorkOptions {
+        child: ChildCommand {
+            program: "/bin/sh".into(),
+            args: vec![
+                "-c".into(),
+                format!("read config; read item; {script}"),
+                "sh".into(),
+            ],
+            env: Vec::new(),
+        },
+        limits,
+        lease_ttl_s: 60.0,
+        stop: Arc::new(AtomicBool::new(stop)),
+        events: Box::new(|_| {}),
+    }
+}
+
+/// Dies by SIGKILL, as an item that takes its worker down does.
+const KILLED: &str = "echo 'about to die' >&2; kill -9 $$";
+
+fn rows(job: &Job) -> Result<Vec<ShardRow>, Box<dyn std::error::Error>> {
+    Ok(store::read::read_rows(&job.layout.shard_file(0))?)
+}
+
+#[test]
+fn a_crashing_item_is_retried_then_recorded_with_its_stderr() -> TestResult {
+    let dir = tempfile::tempdir()?;
+    let job = job(dir.path(), 1)?;
+    let limits = Limits {
+        max_crash_retries: 2,
+        ..Limits::default()
+    };
+    let outcome = process_shard(&job, 0, &mut options(KILLED, limits, false))?;
+    assert!(matches!(outcome, ShardOutcome::Done(_)), "{outcome:?}");
+    let rows = rows(&job)?;
+    assert_eq!(rows.len(), 1);
+    let row = &rows[0];
+    assert_eq!(row.status, ItemStatus::Failed);
+    assert_eq!(row.error_class, Some(ErrorClass::Crashed));
+    assert_eq!(row.attempts, 3, "one try and two retries");
+    let message = row.error_message.as_deref().unwrap_or_default();
+    assert!(message.contains("signal 9"), "{message}");
+    assert!(row
+        .stderr_tail
+        .as_deref()
+        .is_some_and(|t| t.contains("about to die")));
+    assert_eq!(row.source_sha256, job.items[0].record.sha256);
+    // The journal is gone once the shard is written; the shard checks against its record.
+    assert!(!job.layout.journal(0).exists());
+    assert!(matches!(
+        process_shard(&job, 0, &mut options(KILLED, limits, false))?,
+        ShardOutcome::AlreadyDone(_)
+    ));
+    Ok(())
+}
+
+#[test]
+fn an_item_out_of_time_is_failed_without_retry() -> TestResult {
+    let dir = tempfile::tempdir()?;
+    let job = job(dir.path(), 1)?;
+    let limits = Limits {
+        item_timeout_s: 0.3,
+        ..Limits::default()
+    };
+    process_shard(&job, 0, &mut options("exec sleep 30", limits, false))?;
+    let row = &rows(&job)?[0];
+    assert_eq!(row.error_class, Some(ErrorClass::Timeout));
+    assert_eq!(row.attempts, 1, "timeouts are not retried");
+    Ok(())
+}
+
+#[test]
+fn resume_keeps_finished_items_and_gives_up_on_items_that_kill_their_worker() -> TestResult {
+    let dir = tempfile::tempdir()?;
+    let job = job(dir.path(), 2)?;
+    let limits = Limits::default();
+    std::fs::create_dir_all(job.layout.state_dir())?;
+    // A worker finished item 0, then was killed `max_interrupted_attempts` times on item 1.
+    let mut journal = Journal::open(&job.layout.journal(0), 0, job.fingerprint())?;
+    let first = ShardRow::failed_item(
+        &job.items[0],
+        64,
+        ErrorClass::ParseError,
+        "from the journal".into(),
+    );
+    let start = |index, attempt| Record::Start {
+        index,
+        attempt,
+        at: 1.0,
+    };
+    journal.append(&start(0, 1))?;
+    journal.append(&Record::Done {
+        row: Box::new(first.clone()),
+        at: 2.0,
+    })?;
+    for attempt in 1..=limits.max_interrupted_attempts {
+        journal.append(&start(1, attempt))?;
+    }
+    drop(journal);
+    // Nothing may run: the script would turn item 1 into a crash.
+    process_shard(&job, 0, &mut options(KILLED, limits, false))?;
+    let rows = rows(&job)?;
+    assert_eq!(rows[0], first, "the journaled row is written as it was");
+    assert_eq!(rows[1].error_class, Some(ErrorClass::Crashed));
+    assert_eq!(rows[1].attempts, limits.max_interrupted_attempts);
+    let message = rows[1].error_message.as_deref().unwrap_or_default();
+    assert!(message.contains("killed 5 times"), "{message}");
+    Ok(())
+}
+
+#[test]
+fn a_stop_during_an_item_leaves_the_journal_for_a_resume() -> TestResult {
+    let dir = tempfile::tempdir()?;
+    let job = job(dir.path(), 1)?;
+    let mut opts = options("exec sleep 30", Limits::default(), false);
+    let stop = opts.stop.clone();
+    let ctrl_c = std::thread::spawn(move || {
+        std::thread::sleep(std::time::Duration::from_millis(300));
+        stop.store(true, std::sync::atomic::Ordering::SeqCst);
+    });
+    let outcome = process_shard(&job, 0, &mut opts)?;
+    let _ = ctrl_c.join();
+    assert_eq!(outcome, ShardOutcome::Stopped);
+    assert!(!job.layout.shard_file(0).exists());
+    let state = sparc3d_workers::journal::replay(&job.layout.journal(0))?;
+    let attempts = &state.attempts[&0];
+    assert_eq!((attempts.started, attempts.aborted), (1, 1));
+    assert_eq!(
+        attempts.interrupted(),
+        0,
+        "a stop is not held against the item"
+    );
+    Ok(())
+}
+
+#[test]
+fn a_shard_leased_by_a_live_worker_is_left_alone() -> TestResult {
+    let dir = tempfile::tempdir()?;
+    let job = job(dir.path(), 1)?;
+    std::fs::create_dir_all(job.layout.state_dir())?;
+    let Acquired::Held(held) = lease::acquire(&job.layout.lease(0), "elsewhere", 60.0)? else {
+        panic!("a free lease is taken")
+    };
+    let outcome = process_shard(&job, 0, &mut options(KILLED, Limits::default(), false))?;
+    assert_eq!(outcome, ShardOutcome::Busy("elsewhere".into()));
+    assert!(!job.layout.journal(0).exists());
+    held.release();
+    Ok(())
+}
