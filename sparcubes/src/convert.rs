@@ -13,7 +13,7 @@ use crate::grid::{
 use crate::mesh::TriMesh;
 use crate::normalize::Normalization;
 use crate::params::Params;
-use crate::regions::{classify_regions, decide_sealed, mark_air};
+use crate::regions::{classify_regions, decide_sealed, mark_air, Nesting};
 use crate::ring::ring_cells;
 use crate::sign::{compute_signs, ring_signs, vertex_sides};
 use crate::voxelize::{voxelize, GridMesh};
@@ -297,28 +297,29 @@ pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
     st.done("voxelize");
     let mut flood = flood_outside(&vox.walls);
     st.done("flood");
+    let planes = triangle_planes(&grid);
+    let core_verts = dilate(&vox.walls, n, Dilation::Corners);
+    let band = compute_band(&grid, &planes, core_verts, CORE_REACH);
+    st.done("band");
     // The inside test (stage "inside"): enclosed regions decided solid or air by the winding
     // number, air added to the outside; later, the vertices sealed inside thin parts.
     let tree = LazyWindingTree::new(&grid, winding_piece(n));
-    let regions = classify_regions(&vox.walls, &flood, &tree);
+    let regions = classify_regions(&vox.walls, &flood, &band, &tree);
     mark_air(&mut flood, &vox.walls, &regions);
     let counts = regions.counts();
     st.stats.enclosed_regions = counts.regions;
     st.stats.air_regions = counts.air;
     st.stats.ambiguous_regions = counts.ambiguous;
     st.done("inside");
-    let planes = triangle_planes(&grid);
-    let core_verts = dilate(&vox.walls, n, Dilation::Corners);
-    let band = compute_band(&grid, &planes, core_verts, CORE_REACH);
-    st.done("band");
     let (touches, mut side) = vertex_sides(&band, &vox, &flood);
     st.done("sign");
     let sealed = decide_sealed(&band, &vox, &mut side, &tree, n);
     st.stats.thin_parts = sealed.thin_parts;
     st.stats.shelled_thin_parts = sealed.shelled_parts;
     drop(tree);
+    let nesting = Nesting::new(&band, &vox, &side, &regions);
     st.done("inside");
-    let core_signs = compute_signs(&band, &vox, touches, side, &regions);
+    let core_signs = compute_signs(&band, &vox, touches, side, &nesting);
     let signs = &core_signs.signs;
     st.done("sign");
     let field = compute_field(&band, signs, params);

@@ -157,6 +157,14 @@ impl Regions {
     /// edges no triangle crosses within [`REGION_SEARCH`] steps (a vertex whose cells all
     /// touch the surface); `None` if there is none.
     pub fn region_at(&self, band: &Band, vox: &Voxelization, c: [i64; 3]) -> Option<u32> {
+        // Most vertices are a corner of an enclosed cell: no search, no allocation.
+        let first = (0..8i64)
+            .map(|d| [c[0] - (d & 1), c[1] - ((d >> 1) & 1), c[2] - (d >> 2)])
+            .filter_map(|cell| self.region_of(&vox.walls, cell))
+            .min();
+        if first.is_some() {
+            return first;
+        }
         let mut seen = vec![c];
         let mut frontier = vec![c];
         for _ in 0..=REGION_SEARCH {
@@ -188,22 +196,6 @@ impl Regions {
         None
     }
 
-    /// Whether the grid edge from `v` to `u` (both inside) joins two enclosed regions nested
-    /// one in the other: different solid regions (an ambiguous one keeps what the grid alone
-    /// says) whose winding numbers differ by at least [`NESTED_STEP`]. A surface between them wraps one solid inside another and bounds no
-    /// material. Two solids that only touch or sit less than a cell apart have equal winding
-    /// numbers (an even number of surfaces between them) and are not nested.
-    pub fn nested(&self, band: &Band, vox: &Voxelization, v: [i64; 3], u: [i64; 3]) -> bool {
-        match (self.region_at(band, vox, v), self.region_at(band, vox, u)) {
-            (Some(a), Some(b)) if a != b => {
-                self.verdicts[a as usize] == Verdict::Solid
-                    && self.verdicts[b as usize] == Verdict::Solid
-                    && (self.winding[a as usize] - self.winding[b as usize]).abs() >= NESTED_STEP
-            }
-            _ => false,
-        }
-    }
-
     /// Whether region `r` is air.
     #[inline]
     pub fn is_air(&self, r: u32) -> bool {
@@ -218,6 +210,136 @@ impl Regions {
             air: of(Verdict::Air),
             ambiguous: of(Verdict::Ambiguous),
         }
+    }
+}
+
+/// The rule for surfaces between two solid regions, prepared once per conversion: which
+/// inside band vertices lie in which enclosed region, and which regions are *wholly nested*.
+///
+/// A region is wholly nested when the surfaces around it separate it from exactly one other
+/// solid region, of a winding number lower by at least [`NESTED_STEP`], and from nothing else
+/// (no blocked edge leads from it to an outside vertex): a solid modelled entirely inside
+/// another (a sphere in a sphere), whose surface bounds no material and is not kept. Where
+/// two closed parts only overlap (a leg pushed into a body), the overlap is separated from
+/// two regions (the leg's own inside and the body's), and the surfaces inside it are the
+/// parts' own: they stay, as thin sheets inside the solid, as without the rule — removing
+/// them cut each part back to what shows outside the other, which lost parts and recall on
+/// the dev corpus (docs/ALGORITHM.md §2b).
+#[derive(Debug, Clone, Default)]
+pub struct Nesting {
+    /// Per core band vertex: its enclosed region if it is inside and the rule can apply,
+    /// else [`NO_REGION`]. Empty when no two solid regions differ enough to be nested.
+    region: Vec<u32>,
+    /// Per region: wholly nested in another.
+    wholly: Vec<bool>,
+    /// Per region: its winding number, and whether it is solid.
+    winding: Vec<(f64, bool)>,
+}
+
+impl Nesting {
+    /// Finds the region of every inside band vertex and the wholly nested regions, from the
+    /// grid edges that triangles cross (`side`: every band vertex's side, none `Unknown`).
+    pub fn new(band: &Band, vox: &Voxelization, side: &[Side], regions: &Regions) -> Self {
+        let winding: Vec<(f64, bool)> = regions
+            .winding
+            .iter()
+            .zip(&regions.verdicts)
+            .map(|(&w, &v)| (w, v == Verdict::Solid))
+            .collect();
+        let solid = winding.iter().filter(|w| w.1).map(|w| w.0);
+        let (lo, hi) = solid.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), w| {
+            (lo.min(w), hi.max(w))
+        });
+        if !(hi - lo >= NESTED_STEP) {
+            return Self::default();
+        }
+        let coords = band
+            .verts
+            .coords_of(&(0..side.len() as u32).collect::<Vec<_>>());
+        let region: Vec<u32> = coords
+            .par_iter()
+            .zip(side)
+            .map(|(c, &s)| {
+                if s != Side::Inside {
+                    return NO_REGION;
+                }
+                regions
+                    .region_at(band, vox, c.map(|v| v as i64))
+                    .filter(|&r| winding[r as usize].1)
+                    .unwrap_or(NO_REGION)
+            })
+            .collect();
+        // Per blocked edge from a region: (higher region, what is across: a lower region, or
+        // NO_REGION for an outside vertex).
+        let mut across: Vec<(u32, u32)> = vox
+            .blocked
+            .par_iter()
+            .enumerate()
+            .flat_map(|(axis, set)| {
+                (0..set.keys.len())
+                    .into_par_iter()
+                    .map(move |s| (axis, set, s))
+            })
+            .flat_map_iter(|(axis, set, s)| {
+                let b = set.index.coord(set.keys[s] as usize);
+                let mut out = Vec::new();
+                for_each_bit(&set.masks[s], |x, y, z| {
+                    let v = [
+                        (b[0] * 8 + x) as i64,
+                        (b[1] * 8 + y) as i64,
+                        (b[2] * 8 + z) as i64,
+                    ];
+                    let mut u = v;
+                    u[axis] += 1;
+                    let (Some(i), Some(j)) = (band.verts.id(v), band.verts.id(u)) else {
+                        return;
+                    };
+                    let (ri, rj) = (region[i as usize], region[j as usize]);
+                    for (r, q, other) in [(ri, j, rj), (rj, i, ri)] {
+                        if r == NO_REGION {
+                            continue;
+                        }
+                        if side[q as usize] == Side::Outside {
+                            out.push((r, NO_REGION));
+                        } else if other != NO_REGION
+                            && winding[r as usize].0 - winding[other as usize].0 >= NESTED_STEP
+                        {
+                            out.push((r, other));
+                        }
+                    }
+                });
+                out.sort_unstable();
+                out.dedup();
+                out
+            })
+            .collect();
+        across.par_sort_unstable();
+        across.dedup();
+        let mut wholly = vec![false; winding.len()];
+        for group in across.chunk_by(|a, b| a.0 == b.0) {
+            wholly[group[0].0 as usize] = group.len() == 1 && group[0].1 != NO_REGION;
+        }
+        Self {
+            region,
+            wholly,
+            winding,
+        }
+    }
+
+    /// Whether the blocked grid edge between band vertices `i` and `j` (both inside) crosses
+    /// the surface of a wholly nested region where it meets the one region it is nested in.
+    #[inline]
+    pub fn separates(&self, i: u32, j: u32) -> bool {
+        if self.region.is_empty() {
+            return false;
+        }
+        let (a, b) = (self.region[i as usize], self.region[j as usize]);
+        if a == NO_REGION || b == NO_REGION || a == b {
+            return false;
+        }
+        let (wa, wb) = (self.winding[a as usize].0, self.winding[b as usize].0);
+        let inner = if wa > wb { a } else { b };
+        (wa - wb).abs() >= NESTED_STEP && self.wholly[inner as usize]
     }
 }
 
@@ -275,8 +397,88 @@ impl Sets {
     }
 }
 
+/// Distance, in voxels, past a wall's closest point at which [`across_walls`] reads the
+/// winding number: far above the rounding of the stored closest points (f32), far below any
+/// wall a mesh models with two surfaces.
+pub const ACROSS: f64 = 0.01;
+
+/// Per region to check (`wanted`), the median |w| just across its wall: at up to [`SAMPLES`]
+/// band vertices at corners of its cells (first found in part order, each farther than 10⁻³
+/// voxel from the surface), the point [`ACROSS`] voxel past the vertex's closest surface
+/// point, away from the vertex. Regions without such a vertex get `None`.
+fn across_walls(
+    band: &Band,
+    parts: &[(BrickMask, u32)],
+    part_keys: &dyn Fn(u32) -> u32,
+    index: &crate::grid::BrickIndex,
+    wanted: &[bool],
+    tree: &WindingTree,
+) -> Vec<Option<f64>> {
+    let mut found: Vec<Vec<u32>> = vec![Vec::new(); wanted.len()];
+    for (p, (mask, r)) in parts.iter().enumerate() {
+        let r = *r as usize;
+        if !wanted[r] || found[r].len() >= SAMPLES {
+            continue;
+        }
+        let b = index.coord(part_keys(p as u32) as usize);
+        let list = &mut found[r];
+        for_each_bit(mask, |x, y, z| {
+            for d in 0..8u32 {
+                if list.len() >= SAMPLES {
+                    return;
+                }
+                let c = [
+                    (b[0] * 8 + x + (d & 1)) as i64,
+                    (b[1] * 8 + y + ((d >> 1) & 1)) as i64,
+                    (b[2] * 8 + z + (d >> 2)) as i64,
+                ];
+                if let Some(i) = band.verts.id(c) {
+                    if band.nearest[i as usize].udf > 1e-3 && !list.contains(&i) {
+                        list.push(i);
+                    }
+                }
+            }
+        });
+    }
+    found
+        .par_iter()
+        .map_init(
+            || Vec::with_capacity(64),
+            |stack, ids| {
+                if ids.is_empty() {
+                    return None;
+                }
+                let coords = band.verts.coords_of(ids);
+                let points: Vec<[f64; 3]> = ids
+                    .iter()
+                    .zip(&coords)
+                    .map(|(&i, c)| {
+                        let near = &band.nearest[i as usize];
+                        let q = near.point.map(|v| v as f64);
+                        let away: [f64; 3] = std::array::from_fn(|a| q[a] - c[a] as f64);
+                        let len = crate::vec3::dot(away, away).sqrt();
+                        std::array::from_fn(|a| q[a] + ACROSS * away[a] / len)
+                    })
+                    .collect();
+                Some(median_winding(tree, &points, stack))
+            },
+        )
+        .collect()
+}
+
 /// Finds the enclosed regions of `flood` (over `walls`) and decides each with `tree`.
-pub fn classify_regions(walls: &BrickSet, flood: &Flood, tree: &LazyWindingTree) -> Regions {
+///
+/// A region that reads as air (|w| ≤ [`AIR_UP_TO`]) is air only if there is material across
+/// its wall: |w| just past the wall ([`across_walls`]) at least [`SOLID_FROM`]. Where it is
+/// not, the wall is a surface modelled two-sided as coincident faces of both orientations (a
+/// box of double faces: the copies cancel, so |w| is 0 inside and out), and the region is
+/// ambiguous: solid, as reachability says.
+pub fn classify_regions(
+    walls: &BrickSet,
+    flood: &Flood,
+    band: &Band,
+    tree: &LazyWindingTree,
+) -> Regions {
     let index = &walls.index;
     let (part_starts, masks) = wall_parts(walls, flood);
     let empty_keys: Vec<u32> = (0..index.slots.len() as u32)
@@ -375,13 +577,23 @@ pub fn classify_regions(walls: &BrickSet, flood: &Flood, tree: &LazyWindingTree)
             |stack, pts| median_winding(tree, pts, stack),
         )
         .collect();
-    let verdicts = winding.iter().map(|&w| verdict(w)).collect();
+    let mut verdicts: Vec<Verdict> = winding.iter().map(|&w| verdict(w)).collect();
+    let parts: Vec<(BrickMask, u32)> = masks
+        .into_iter()
+        .zip(&region_of_part)
+        .map(|(m, &r)| (m, r))
+        .collect();
+    let air: Vec<bool> = verdicts.iter().map(|&v| v == Verdict::Air).collect();
+    if air.contains(&true) {
+        let across = across_walls(band, &parts, &key_of, index, &air, tree);
+        for (v, a) in verdicts.iter_mut().zip(across) {
+            if a.is_some_and(|a| a < SOLID_FROM) {
+                *v = Verdict::Ambiguous;
+            }
+        }
+    }
     Regions {
-        parts: masks
-            .into_iter()
-            .zip(&region_of_part)
-            .map(|(m, &r)| (m, r))
-            .collect(),
+        parts,
         empty: empty_keys
             .iter()
             .enumerate()

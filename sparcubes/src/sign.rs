@@ -17,7 +17,7 @@
 use crate::band::Band;
 use crate::flood::{CellSide, Flood};
 use crate::grid::{for_each_bit, split, test, BrickMask, BrickSet};
-use crate::regions::Regions;
+use crate::regions::Nesting;
 use crate::voxelize::Voxelization;
 use rayon::prelude::*;
 
@@ -185,15 +185,14 @@ fn resolve_enclosed(band: &Band, vox: &Voxelization, side: &mut [Side]) {
 
 /// Evidence per wall cell, dense per wall brick (local index x + 8y + 64z): +1 for each crossed
 /// edge of the cell whose ends are on the same side, −1 for each whose ends differ — or lie in
-/// two enclosed regions nested one in the other ([`Regions::nested`]): a closed surface
-/// between two solid regions (a solid inside a solid) bounds no material, so it is neither a
-/// sheet nor kept. Two solids apart by less than a cell (an air gap no grid vertex falls
+/// a wholly nested region and the one it is nested in ([`Nesting::separates`]): the surface of
+/// a solid modelled inside a solid bounds no material, so it is neither a sheet nor kept. Two solids apart by less than a cell (an air gap no grid vertex falls
 /// into) have the same winding number and vote +1: the gap stays a thin sheet, as before.
 fn edge_evidence(
     band: &Band,
     vox: &Voxelization,
     side: &[Side],
-    regions: &Regions,
+    nesting: &Nesting,
 ) -> Vec<[i8; 512]> {
     let walls = &vox.walls;
     let mut evidence = vec![[0i8; 512]; walls.keys.len()];
@@ -207,10 +206,7 @@ fn edge_evidence(
                     continue;
                 };
                 let (si, sj) = (side[i as usize], side[j as usize]);
-                let separate = si != sj
-                    || (si == Side::Inside
-                        && regions.verdicts.len() > 1
-                        && regions.nested(band, vox, v, u));
+                let separate = si != sj || (si == Side::Inside && nesting.separates(i, j));
                 let vote: i8 = if separate { -1 } else { 1 };
                 for d in 0..4i64 {
                     let mut cell = v;
@@ -341,9 +337,9 @@ pub fn compute_signs(
     vox: &Voxelization,
     touches: Vec<u8>,
     side: Vec<Side>,
-    regions: &Regions,
+    nesting: &Nesting,
 ) -> CoreSigns {
-    let evidence = edge_evidence(band, vox, &side, regions);
+    let evidence = edge_evidence(band, vox, &side, nesting);
     let thin_cells = thin_cells(&vox.walls, &evidence);
     let thin = thin_flags(band, &vox.walls, &thin_cells);
     CoreSigns {

@@ -123,6 +123,54 @@ fn a_solid_inside_a_solid_is_one_solid() {
 }
 
 #[test]
+fn overlapping_parts_keep_the_surfaces_inside_each_other() {
+    // A box pushed halfway into another: their overlap (w = 2) is separated from two regions
+    // of w = 1 (each box's own inside), so it is not wholly nested and the faces inside the
+    // other box stay, as thin sheets inside the solid.
+    let a = shapes::cuboid([-0.8, -0.5, -0.5], [0.2, 0.5, 0.5], &[]);
+    let b = shapes::cuboid([-0.2, -0.3, -0.3], [0.8, 0.3, 0.3], &[]);
+    let (c, stats, out) = convert_extract(&shapes::merge(&[a, b]), N);
+    assert_closed_manifold("overlapping boxes", &out);
+    assert!(stats.enclosed_regions >= 3, "{stats:?}");
+    // The middles of b's face inside a (x = −0.2) and of a's face inside b (x = 0.2).
+    for probe in [[-0.2, 0.0, 0.0], [0.2, 0.0, 0.0]] {
+        let g = c.normalization.source_to_grid(probe, c.resolution);
+        let nearest = out
+            .positions
+            .iter()
+            .map(|p| {
+                (0..3)
+                    .map(|k| (p[k] as f64 - g[k]).powi(2))
+                    .sum::<f64>()
+                    .sqrt()
+            })
+            .fold(f64::INFINITY, f64::min);
+        assert!(
+            nearest < 1.0,
+            "no output within {nearest} voxels of {probe:?}"
+        );
+    }
+}
+
+#[test]
+fn a_box_of_two_sided_faces_stays_a_solid() {
+    // Every face twice, once per side, with vertices of their own (as some models do it): the
+    // copies cancel, so |w| is 0 inside as outside, but nothing is across the wall. The region
+    // is ambiguous and kept solid: the box keeps its exact surface, not a 1.8-voxel shell.
+    let one = shapes::cuboid([-0.6; 3], [0.6; 3], &[]);
+    let mesh = shapes::merge(&[one.clone(), shapes::flipped(&one)]);
+    let (c, stats, out) = convert_extract(&mesh, N);
+    assert_eq!(assert_closed_manifold("two-sided box", &out), 1);
+    assert_eq!(
+        (stats.air_regions, stats.ambiguous_regions),
+        (0, 1),
+        "{stats:?}"
+    );
+    let d = nearest_part_distances(&c, &[one], &out);
+    assert!(d[0].0 <= 0.1, "mean offset {} voxels", d[0].0);
+}
+
+#[test]
 fn a_cavity_keeps_its_surface_facing_inward() {
     let cube = shapes::cuboid([-1.0; 3], [1.0; 3], &[]);
     let cavity = shapes::flipped(&shapes::sphere([0.0; 3], 0.5, 24));
