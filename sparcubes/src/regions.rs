@@ -214,110 +214,130 @@ impl Regions {
 }
 
 /// The rule for surfaces between two solid regions, prepared once per conversion: which
-/// inside band vertices lie in which enclosed region, and which regions are *wholly nested*.
+/// enclosed region each end of a crossed grid edge between two inside vertices lies in, and
+/// which regions are *wholly nested*.
 ///
-/// A region is wholly nested when the surfaces around it separate it from exactly one other
-/// solid region, of a winding number lower by at least [`NESTED_STEP`], and from nothing else
-/// (no blocked edge leads from it to an outside vertex): a solid modelled entirely inside
-/// another (a sphere in a sphere), whose surface bounds no material and is not kept. Where
-/// two closed parts only overlap (a leg pushed into a body), the overlap is separated from
-/// two regions (the leg's own inside and the body's), and the surfaces inside it are the
-/// parts' own: they stay, as thin sheets inside the solid, as without the rule — removing
-/// them cut each part back to what shows outside the other, which lost parts and recall on
-/// the dev corpus (docs/ALGORITHM.md §2b).
+/// A region is wholly nested when the surfaces around it separate it (through crossed grid
+/// edges between inside vertices) from exactly one other solid region, of a winding number
+/// lower by at least [`NESTED_STEP`]: a solid modelled entirely inside another (a sphere in a
+/// sphere), whose surface bounds no material and is not kept. Where two closed parts only
+/// overlap (a leg pushed into a body), the overlap is separated from two regions (the leg's
+/// own inside and the body's), and the surfaces inside it are the parts' own: they stay, as
+/// thin sheets inside the solid, as without the rule. Removing them cut each part back to what
+/// shows outside the other, which lost parts and recall on the dev corpus (docs/ALGORITHM.md
+/// §2b).
 #[derive(Debug, Clone, Default)]
 pub struct Nesting {
-    /// Per core band vertex: its enclosed region if it is inside and the rule can apply,
-    /// else [`NO_REGION`]. Empty when no two solid regions differ enough to be nested.
+    /// Per core band vertex: its solid enclosed region if it is an inside end of a crossed
+    /// edge between two inside vertices, else [`NO_REGION`]. Empty when no two solid regions
+    /// differ enough to be nested.
     region: Vec<u32>,
     /// Per region: wholly nested in another.
     wholly: Vec<bool>,
-    /// Per region: its winding number, and whether it is solid.
-    winding: Vec<(f64, bool)>,
+    /// Per region: its median |w|.
+    winding: Vec<f64>,
+}
+
+/// Calls `f(v, u)` for every crossed grid edge (from `v` to `u` = `v` + one step along an
+/// axis) of the bricks of `vox.blocked`, brick by brick in parallel, and gathers what it
+/// returns.
+fn map_blocked_edges<T: Send>(
+    vox: &Voxelization,
+    f: impl Fn([i64; 3], [i64; 3], &mut Vec<T>) + Sync,
+) -> Vec<T> {
+    vox.blocked
+        .par_iter()
+        .enumerate()
+        .flat_map(|(axis, set)| {
+            (0..set.keys.len())
+                .into_par_iter()
+                .map(move |s| (axis, set, s))
+        })
+        .flat_map_iter(|(axis, set, s)| {
+            let b = set.index.coord(set.keys[s] as usize);
+            let mut out = Vec::new();
+            for_each_bit(&set.masks[s], |x, y, z| {
+                let v = [
+                    (b[0] * 8 + x) as i64,
+                    (b[1] * 8 + y) as i64,
+                    (b[2] * 8 + z) as i64,
+                ];
+                let mut u = v;
+                u[axis] += 1;
+                f(v, u, &mut out);
+            });
+            out
+        })
+        .collect()
 }
 
 impl Nesting {
-    /// Finds the region of every inside band vertex and the wholly nested regions, from the
-    /// grid edges that triangles cross (`side`: every band vertex's side, none `Unknown`).
+    /// Finds the regions at the ends of crossed edges between inside vertices and the wholly
+    /// nested regions (`side`: every band vertex's side, none `Unknown`). Costs nothing unless
+    /// two solid regions differ by [`NESTED_STEP`] or more.
     pub fn new(band: &Band, vox: &Voxelization, side: &[Side], regions: &Regions) -> Self {
-        let winding: Vec<(f64, bool)> = regions
-            .winding
-            .iter()
-            .zip(&regions.verdicts)
-            .map(|(&w, &v)| (w, v == Verdict::Solid))
-            .collect();
-        let solid = winding.iter().filter(|w| w.1).map(|w| w.0);
-        let (lo, hi) = solid.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), w| {
-            (lo.min(w), hi.max(w))
-        });
+        let solid = |r: u32| regions.verdicts[r as usize] == Verdict::Solid;
+        let (lo, hi) = (0..regions.verdicts.len() as u32)
+            .filter(|&r| solid(r))
+            .map(|r| regions.winding[r as usize])
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), w| {
+                (lo.min(w), hi.max(w))
+            });
         if !(hi - lo >= NESTED_STEP) {
             return Self::default();
         }
-        let coords = band
-            .verts
-            .coords_of(&(0..side.len() as u32).collect::<Vec<_>>());
-        let region: Vec<u32> = coords
-            .par_iter()
-            .zip(side)
-            .map(|(c, &s)| {
-                if s != Side::Inside {
-                    return NO_REGION;
+        // The crossed edges between two inside vertices, as band vertex numbers, and their
+        // ends with coordinates.
+        let edges: Vec<(u32, u32, [i64; 3], [i64; 3])> = map_blocked_edges(vox, |v, u, out| {
+            if let (Some(i), Some(j)) = (band.verts.id(v), band.verts.id(u)) {
+                if side[i as usize] == Side::Inside && side[j as usize] == Side::Inside {
+                    out.push((i, j, v, u));
                 }
+            }
+        });
+        let mut ends: Vec<(u32, [i64; 3])> = edges
+            .par_iter()
+            .flat_map_iter(|&(i, j, v, u)| [(i, v), (j, u)])
+            .collect();
+        ends.par_sort_unstable();
+        ends.dedup();
+        let found: Vec<u32> = ends
+            .par_iter()
+            .map(|&(_, c)| {
                 regions
-                    .region_at(band, vox, c.map(|v| v as i64))
-                    .filter(|&r| winding[r as usize].1)
+                    .region_at(band, vox, c)
+                    .filter(|&r| solid(r))
                     .unwrap_or(NO_REGION)
             })
             .collect();
-        // Per blocked edge from a region: (higher region, what is across: a lower region, or
-        // NO_REGION for an outside vertex).
-        let mut across: Vec<(u32, u32)> = vox
-            .blocked
+        let mut region = vec![NO_REGION; side.len()];
+        for (&(i, _), &r) in ends.iter().zip(&found) {
+            region[i as usize] = r;
+        }
+        let winding = regions.winding.clone();
+        // (higher region, lower region) for every edge between regions nested one in the other.
+        let mut pairs: Vec<(u32, u32)> = edges
             .par_iter()
-            .enumerate()
-            .flat_map(|(axis, set)| {
-                (0..set.keys.len())
-                    .into_par_iter()
-                    .map(move |s| (axis, set, s))
-            })
-            .flat_map_iter(|(axis, set, s)| {
-                let b = set.index.coord(set.keys[s] as usize);
-                let mut out = Vec::new();
-                for_each_bit(&set.masks[s], |x, y, z| {
-                    let v = [
-                        (b[0] * 8 + x) as i64,
-                        (b[1] * 8 + y) as i64,
-                        (b[2] * 8 + z) as i64,
-                    ];
-                    let mut u = v;
-                    u[axis] += 1;
-                    let (Some(i), Some(j)) = (band.verts.id(v), band.verts.id(u)) else {
-                        return;
-                    };
-                    let (ri, rj) = (region[i as usize], region[j as usize]);
-                    for (r, q, other) in [(ri, j, rj), (rj, i, ri)] {
-                        if r == NO_REGION {
-                            continue;
-                        }
-                        if side[q as usize] == Side::Outside {
-                            out.push((r, NO_REGION));
-                        } else if other != NO_REGION
-                            && winding[r as usize].0 - winding[other as usize].0 >= NESTED_STEP
-                        {
-                            out.push((r, other));
-                        }
-                    }
-                });
-                out.sort_unstable();
-                out.dedup();
-                out
+            .filter_map(|&(i, j, _, _)| {
+                let (a, b) = (region[i as usize], region[j as usize]);
+                if a == NO_REGION || b == NO_REGION {
+                    return None;
+                }
+                let (wa, wb) = (winding[a as usize], winding[b as usize]);
+                if wa - wb >= NESTED_STEP {
+                    Some((a, b))
+                } else if wb - wa >= NESTED_STEP {
+                    Some((b, a))
+                } else {
+                    None
+                }
             })
             .collect();
-        across.par_sort_unstable();
-        across.dedup();
+        pairs.par_sort_unstable();
+        pairs.dedup();
         let mut wholly = vec![false; winding.len()];
-        for group in across.chunk_by(|a, b| a.0 == b.0) {
-            wholly[group[0].0 as usize] = group.len() == 1 && group[0].1 != NO_REGION;
+        for group in pairs.chunk_by(|a, b| a.0 == b.0) {
+            wholly[group[0].0 as usize] = group.len() == 1;
         }
         Self {
             region,
@@ -326,8 +346,8 @@ impl Nesting {
         }
     }
 
-    /// Whether the blocked grid edge between band vertices `i` and `j` (both inside) crosses
-    /// the surface of a wholly nested region where it meets the one region it is nested in.
+    /// Whether the crossed grid edge between band vertices `i` and `j` (both inside) is on
+    /// the surface of a wholly nested region, where it meets the one region it is nested in.
     #[inline]
     pub fn separates(&self, i: u32, j: u32) -> bool {
         if self.region.is_empty() {
@@ -337,7 +357,7 @@ impl Nesting {
         if a == NO_REGION || b == NO_REGION || a == b {
             return false;
         }
-        let (wa, wb) = (self.winding[a as usize].0, self.winding[b as usize].0);
+        let (wa, wb) = (self.winding[a as usize], self.winding[b as usize]);
         let inner = if wa > wb { a } else { b };
         (wa - wb).abs() >= NESTED_STEP && self.wholly[inner as usize]
     }
@@ -701,13 +721,19 @@ pub fn decide_sealed(
     n: u32,
 ) -> SealedCounts {
     let unknown: Vec<u32> = (0..side.len() as u32)
+        .into_par_iter()
         .filter(|&i| side[i as usize] == Side::Unknown)
         .collect();
     if unknown.is_empty() {
         return SealedCounts::default();
     }
+    // Per band vertex, its position in `unknown` (or NOT_SEALED): O(1) look-ups below.
+    let mut position = vec![NOT_SEALED; side.len()];
+    for (q, &id) in unknown.iter().enumerate() {
+        position[id as usize] = q as u32;
+    }
     let coords = band.verts.coords_of(&unknown);
-    let (group_of, members, starts) = sealed_groups(band, vox, &unknown, &coords);
+    let (group_of, members, starts) = sealed_groups(band, vox, &position, &coords);
     let groups = starts.len() - 1;
     let tree = tree.get();
     let verdicts: Vec<Verdict> = (0..groups)
@@ -733,10 +759,14 @@ pub fn decide_sealed(
         .iter()
         .map(|&g| verdicts[g as usize] == Verdict::Solid)
         .collect();
-    let (part_of, parts) = thin_parts(band, &unknown, &coords, &found);
-    let too_thin = parts_with_gaps(
-        band, vox, side, &unknown, &coords, &found, &part_of, parts, n,
-    );
+    let (part_of, parts) = thin_parts(band, &position, &coords, &found);
+    let sealed = Sealed {
+        position: &position,
+        coords: &coords,
+        found: &found,
+        part_of: &part_of,
+    };
+    let too_thin = parts_with_gaps(band, vox, side, &sealed, parts, n);
     for (q, &id) in unknown.iter().enumerate() {
         side[id as usize] = if found[q] && !too_thin[part_of[q] as usize] {
             Side::Inside
@@ -756,39 +786,65 @@ pub fn decide_sealed(
     }
 }
 
-/// Groups of the sealed vertices (positions in `unknown`) through grid edges no triangle
-/// crosses, by breadth-first search in number order: each position's group, and the groups'
-/// members as CSR (members, starts).
+/// Marker of a band vertex that is not sealed, in [`decide_sealed`]'s position list.
+const NOT_SEALED: u32 = u32::MAX;
+
+/// Union–find over `len` items joined by `pairs`; each item's component, numbered in the
+/// order of the components' smallest items, and the number of components. The same result
+/// whatever the order of `pairs`.
+fn components(len: usize, pairs: &[(u32, u32)], keep: impl Fn(usize) -> bool) -> (Vec<u32>, usize) {
+    let mut sets = Sets((0..len as u32).collect());
+    for &(a, b) in pairs {
+        sets.union(a, b);
+    }
+    let mut label = vec![u32::MAX; len];
+    let mut count = 0u32;
+    for q in 0..len {
+        if !keep(q) {
+            continue;
+        }
+        let root = sets.find(q as u32) as usize;
+        if root == q {
+            label[q] = count;
+            count += 1;
+        } else {
+            label[q] = label[root];
+        }
+    }
+    (label, count as usize)
+}
+
+/// Groups of the sealed vertices (positions in `unknown`, `position` per band vertex) through
+/// grid edges no triangle crosses: each position's group (numbered by smallest position), and
+/// the groups' members as CSR (members, starts). The neighbour look-ups run in parallel.
 fn sealed_groups(
     band: &Band,
     vox: &Voxelization,
-    unknown: &[u32],
+    position: &[u32],
     coords: &[[u32; 3]],
 ) -> (Vec<u32>, Vec<u32>, Vec<u32>) {
-    let mut group_of = vec![u32::MAX; unknown.len()];
-    let mut members: Vec<u32> = Vec::with_capacity(unknown.len());
-    let mut starts = vec![0u32];
-    for first in 0..unknown.len() {
-        if group_of[first] != u32::MAX {
-            continue;
-        }
-        let g = starts.len() as u32 - 1;
-        group_of[first] = g;
-        let mut next = members.len();
-        members.push(first as u32);
-        while next < members.len() {
-            let at = members[next] as usize;
-            next += 1;
-            for (j, _) in open_neighbours(band, vox, coords[at]) {
-                if let Ok(q) = unknown.binary_search(&j) {
-                    if group_of[q] == u32::MAX {
-                        group_of[q] = g;
-                        members.push(q as u32);
-                    }
-                }
-            }
-        }
-        starts.push(members.len() as u32);
+    let pairs: Vec<(u32, u32)> = (0..coords.len())
+        .into_par_iter()
+        .flat_map_iter(|q| {
+            open_neighbours(band, vox, coords[q]).filter_map(move |(j, _)| {
+                let r = position[j as usize];
+                (r != NOT_SEALED && r != q as u32).then_some((q as u32, r))
+            })
+        })
+        .collect();
+    let (group_of, groups) = components(coords.len(), &pairs, |_| true);
+    let mut starts = vec![0u32; groups + 1];
+    for &g in &group_of {
+        starts[g as usize + 1] += 1;
+    }
+    for g in 0..groups {
+        starts[g + 1] += starts[g];
+    }
+    let mut fill = starts.clone();
+    let mut members = vec![0u32; coords.len()];
+    for (q, &g) in group_of.iter().enumerate() {
+        members[fill[g as usize] as usize] = q as u32;
+        fill[g as usize] += 1;
     }
     (group_of, members, starts)
 }
@@ -805,43 +861,35 @@ fn forward_neighbours() -> impl Iterator<Item = [i64; 3]> {
 /// found position's part (numbered by smallest position), and the number of parts.
 fn thin_parts(
     band: &Band,
-    unknown: &[u32],
+    position: &[u32],
     coords: &[[u32; 3]],
     found: &[bool],
 ) -> (Vec<u32>, usize) {
-    let mut sets = Sets((0..unknown.len() as u32).collect());
-    for q in 0..unknown.len() {
-        if !found[q] {
-            continue;
-        }
-        let c = coords[q].map(|v| v as i64);
-        for off in forward_neighbours() {
-            let u = [c[0] + off[0], c[1] + off[1], c[2] + off[2]];
-            let Some(j) = band.verts.id(u) else {
-                continue;
-            };
-            if let Ok(r) = unknown.binary_search(&j) {
-                if found[r] {
-                    sets.union(q as u32, r as u32);
-                }
-            }
-        }
-    }
-    let mut part_of = vec![u32::MAX; unknown.len()];
-    let mut parts = 0u32;
-    for q in 0..unknown.len() {
-        if !found[q] {
-            continue;
-        }
-        let root = sets.find(q as u32) as usize;
-        if root == q {
-            part_of[q] = parts;
-            parts += 1;
-        } else {
-            part_of[q] = part_of[root];
-        }
-    }
-    (part_of, parts as usize)
+    let pairs: Vec<(u32, u32)> = (0..coords.len())
+        .into_par_iter()
+        .filter(|&q| found[q])
+        .flat_map_iter(|q| {
+            let c = coords[q].map(|v| v as i64);
+            forward_neighbours().filter_map(move |off| {
+                let j = band
+                    .verts
+                    .id([c[0] + off[0], c[1] + off[1], c[2] + off[2]])?;
+                let r = position[j as usize];
+                (r != NOT_SEALED && found[r as usize]).then_some((q as u32, r))
+            })
+        })
+        .collect();
+    components(coords.len(), &pairs, |q| found[q])
+}
+
+/// The sealed vertices as [`decide_sealed`] found them: per band vertex its position among
+/// them ([`NOT_SEALED`] if none), and per position its coordinates, whether the winding
+/// number found it inside, and its thin part.
+struct Sealed<'a> {
+    position: &'a [u32],
+    coords: &'a [[u32; 3]],
+    found: &'a [bool],
+    part_of: &'a [u32],
 }
 
 /// Whether the grid edge from `v` to `u`, both outside and crossed by the surface, passes
@@ -866,18 +914,20 @@ fn crosses_a_sheet(band: &Band, v: [i64; 3], u: [i64; 3]) -> bool {
 /// Which thin parts a grid edge crosses through something thinner than itself with both ends
 /// outside ([`crosses_a_sheet`]) next to one of their vertices (`side` holds every other
 /// vertex's side; the sealed ones are still `Unknown`).
-#[allow(clippy::too_many_arguments)]
 fn parts_with_gaps(
     band: &Band,
     vox: &Voxelization,
     side: &[Side],
-    unknown: &[u32],
-    coords: &[[u32; 3]],
-    found: &[bool],
-    part_of: &[u32],
+    sealed: &Sealed,
     parts: usize,
     n: u32,
 ) -> Vec<bool> {
+    let Sealed {
+        position,
+        coords,
+        found,
+        part_of,
+    } = *sealed;
     let mut too_thin = vec![false; parts];
     if parts == 0 {
         return too_thin;
@@ -895,46 +945,65 @@ fn parts_with_gaps(
     let outside = |c: [i64; 3]| -> bool {
         band.verts.id(c).is_some_and(|i| match side[i as usize] {
             Side::Outside => true,
-            Side::Unknown => unknown.binary_search(&i).is_ok_and(|q| !found[q]),
+            Side::Unknown => !found[position[i as usize] as usize],
             Side::Inside => false,
         })
     };
-    for (axis, set) in vox.blocked.iter().enumerate() {
-        for (s, mask) in set.masks.iter().enumerate() {
-            let b = set.index.coord(set.keys[s] as usize);
-            for_each_bit(mask, |x, y, z| {
-                let v = [
+    // The crossed edges with an end in `near`, found from `near`'s side (it is far smaller
+    // than the crossed edges of the whole surface), brick by brick in parallel.
+    let marks: Vec<u32> = (0..near.keys.len())
+        .into_par_iter()
+        .flat_map_iter(|s| {
+            let b = near.index.coord(near.keys[s] as usize);
+            let mut out = Vec::new();
+            for_each_bit(&near.masks[s], |x, y, z| {
+                let w = [
                     (b[0] * 8 + x) as i64,
                     (b[1] * 8 + y) as i64,
                     (b[2] * 8 + z) as i64,
                 ];
-                let mut u = v;
-                u[axis] += 1;
-                if !(near.contains(v) || near.contains(u)) || !outside(v) || !outside(u) {
-                    return;
-                }
-                if !crosses_a_sheet(band, v, u) {
-                    return;
-                }
-                for end in [v, u] {
-                    for d in 0..27i64 {
-                        let w = [
-                            end[0] + d % 3 - 1,
-                            end[1] + (d / 3) % 3 - 1,
-                            end[2] + d / 9 - 1,
-                        ];
-                        let Some(j) = band.verts.id(w) else {
+                for axis in 0..3 {
+                    for lower in [true, false] {
+                        let (mut v, mut u) = (w, w);
+                        if lower {
+                            u[axis] += 1;
+                        } else {
+                            v[axis] -= 1;
+                        }
+                        // An edge with both ends in `near` is seen from its lower end only.
+                        if !lower && near.contains(v) {
                             continue;
-                        };
-                        if let Ok(q) = unknown.binary_search(&j) {
-                            if found[q] {
-                                too_thin[part_of[q] as usize] = true;
+                        }
+                        if !vox.blocked[axis].contains(v) || !outside(v) || !outside(u) {
+                            continue;
+                        }
+                        if !crosses_a_sheet(band, v, u) {
+                            continue;
+                        }
+                        for end in [v, u] {
+                            for d in 0..27i64 {
+                                let c = [
+                                    end[0] + d % 3 - 1,
+                                    end[1] + (d / 3) % 3 - 1,
+                                    end[2] + d / 9 - 1,
+                                ];
+                                let Some(j) = band.verts.id(c) else {
+                                    continue;
+                                };
+                                let q = position[j as usize];
+                                if q != NOT_SEALED && found[q as usize] {
+                                    out.push(part_of[q as usize]);
+                                }
                             }
                         }
                     }
                 }
             });
-        }
+            out
+        })
+        .collect();
+    for p in marks {
+        too_thin[p as usize] = true;
     }
     too_thin
 }

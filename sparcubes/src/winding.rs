@@ -357,22 +357,30 @@ impl WindingTree {
             });
         let (pieces, codes) = morton_order(pieces);
         let kinds = split_ranges(&codes);
-        // Moments from the last node back: a child's number is larger than its parent's.
-        let mut moments = vec![Moments::default(); kinds.len()];
-        let mut leaf = Vec::with_capacity(LEAF_TRIANGLES as usize);
+        // The leaves' moments in parallel, then the inner nodes' from the last node back (a
+        // child's number is larger than its parent's): the same sums in the same order.
+        let mut moments: Vec<Moments> = kinds
+            .par_iter()
+            .map_init(
+                || Vec::with_capacity(LEAF_TRIANGLES as usize),
+                |leaf, kind| match *kind {
+                    Kind::Inner(..) => Moments::default(),
+                    Kind::Leaf(start, count) => {
+                        leaf.clear();
+                        leaf.extend(
+                            pieces[start as usize..(start + count) as usize]
+                                .iter()
+                                .map(triangle_moments),
+                        );
+                        combine(leaf)
+                    }
+                },
+            )
+            .collect();
         for id in (0..kinds.len()).rev() {
-            moments[id] = match kinds[id] {
-                Kind::Inner(l, r) => combine(&[moments[l as usize], moments[r as usize]]),
-                Kind::Leaf(start, count) => {
-                    leaf.clear();
-                    leaf.extend(
-                        pieces[start as usize..(start + count) as usize]
-                            .iter()
-                            .map(triangle_moments),
-                    );
-                    combine(&leaf)
-                }
-            };
+            if let Kind::Inner(l, r) = kinds[id] {
+                moments[id] = combine(&[moments[l as usize], moments[r as usize]]);
+            }
         }
         let expansions = moments.par_iter().map(Moments::expansion).collect();
         Self {
