@@ -417,15 +417,23 @@ impl Sets {
     }
 }
 
-/// Distance, in voxels, past a wall's closest point at which [`across_walls`] reads the
-/// winding number: far above the rounding of the stored closest points (f32), far below any
-/// wall a mesh models with two surfaces.
-pub const ACROSS: f64 = 0.01;
+/// Distances, in voxels, past a wall's closest point at which [`across_walls`] reads the
+/// winding number: just past it (far above the rounding of the stored closest points, f32),
+/// and one cell deep. Material just past the wall tells a wall from a surface modelled
+/// two-sided as coincident faces (the copies cancel, so |w| is 0 on both sides). Material a
+/// cell deep tells a wall that holds grid vertices, whose surfaces both keep their exact
+/// position with the region as air, from a thinner one, which would come out as a thin shell
+/// around both surfaces (offset about 0.9 voxel), worse than the solid that reachability makes
+/// of it (on the dev corpus at 256³, `shippingContainer.obj`'s sub-voxel walls went from F1
+/// 81.6 to 61.2 with its inside as air). Either check alone fails on the dev corpus: the deep
+/// one can land in another part behind a two-sided wall (`painted-bench.obj`).
+pub const ACROSS: [f64; 2] = [0.01, 1.0];
 
-/// Per region to check (`wanted`), the median |w| just across its wall: at up to [`SAMPLES`]
+/// Per region to check (`wanted`), the median |w| across its wall: at up to [`SAMPLES`]
 /// band vertices at corners of its cells (first found in part order, each farther than 10⁻³
-/// voxel from the surface), the point [`ACROSS`] voxel past the vertex's closest surface
-/// point, away from the vertex. Regions without such a vertex get `None`.
+/// voxel from the surface), the points [`ACROSS`] voxel past the vertex's closest surface
+/// point, away from the vertex; the smaller of the two depths' medians. Regions without such
+/// a vertex get `None`.
 fn across_walls(
     band: &Band,
     parts: &[(BrickMask, u32)],
@@ -469,18 +477,21 @@ fn across_walls(
                     return None;
                 }
                 let coords = band.verts.coords_of(ids);
-                let points: Vec<[f64; 3]> = ids
-                    .iter()
-                    .zip(&coords)
-                    .map(|(&i, c)| {
-                        let near = &band.nearest[i as usize];
-                        let q = near.point.map(|v| v as f64);
-                        let away: [f64; 3] = std::array::from_fn(|a| q[a] - c[a] as f64);
-                        let len = crate::vec3::dot(away, away).sqrt();
-                        std::array::from_fn(|a| q[a] + ACROSS * away[a] / len)
-                    })
-                    .collect();
-                Some(median_winding(tree, &points, stack))
+                let depth = |d: f64| -> Vec<[f64; 3]> {
+                    ids.iter()
+                        .zip(&coords)
+                        .map(|(&i, c)| {
+                            let near = &band.nearest[i as usize];
+                            let q = near.point.map(|v| v as f64);
+                            let away: [f64; 3] = std::array::from_fn(|a| q[a] - c[a] as f64);
+                            let len = crate::vec3::dot(away, away).sqrt();
+                            std::array::from_fn(|a| q[a] + d * away[a] / len)
+                        })
+                        .collect()
+                };
+                let shallow = median_winding(tree, &depth(ACROSS[0]), stack);
+                let deep = median_winding(tree, &depth(ACROSS[1]), stack);
+                Some(shallow.min(deep))
             },
         )
         .collect()
@@ -489,10 +500,11 @@ fn across_walls(
 /// Finds the enclosed regions of `flood` (over `walls`) and decides each with `tree`.
 ///
 /// A region that reads as air (|w| ≤ [`AIR_UP_TO`]) is air only if there is material across
-/// its wall: |w| just past the wall ([`across_walls`]) at least [`SOLID_FROM`]. Where it is
-/// not, the wall is a surface modelled two-sided as coincident faces of both orientations (a
-/// box of double faces: the copies cancel, so |w| is 0 inside and out), and the region is
-/// ambiguous: solid, as reachability says.
+/// its wall, from just past it to a cell deep: |w| at both distances of [`ACROSS`] past the
+/// wall ([`across_walls`]) at least [`SOLID_FROM`]. Where it is not, the wall is thinner than a cell, or a surface modelled
+/// two-sided as coincident faces of both orientations (a box of double faces: the copies
+/// cancel, so |w| is 0 inside and out), and the region is ambiguous: solid, as reachability
+/// says.
 pub fn classify_regions(
     walls: &BrickSet,
     flood: &Flood,
