@@ -283,7 +283,7 @@ impl Nesting {
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), w| {
                 (lo.min(w), hi.max(w))
             });
-        if !(hi - lo >= NESTED_STEP) {
+        if hi - lo < NESTED_STEP {
             return Self::default();
         }
         // The crossed edges between two inside vertices, as band vertex numbers, and their
