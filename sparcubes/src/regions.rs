@@ -219,7 +219,8 @@ impl Regions {
 ///
 /// A region is wholly nested when the surfaces around it separate it (through crossed grid
 /// edges between inside vertices) from exactly one other solid region, of a winding number
-/// lower by at least [`NESTED_STEP`]: a solid modelled entirely inside another (a sphere in a
+/// lower by at least [`NESTED_STEP`], and from nothing else (no crossed edge leads from it to
+/// an outside vertex): a solid modelled entirely inside another (a sphere in a
 /// sphere), whose surface bounds no material and is not kept. Where two closed parts only
 /// overlap (a leg pushed into a body), the overlap is separated from two regions (the leg's
 /// own inside and the body's), and the surfaces inside it are the parts' own: they stay, as
@@ -338,6 +339,27 @@ impl Nesting {
         let mut wholly = vec![false; winding.len()];
         for group in pairs.chunk_by(|a, b| a.0 == b.0) {
             wholly[group[0].0 as usize] = group.len() == 1;
+        }
+        // A region with a crossed edge to an outside vertex is not wholly inside another.
+        if wholly.contains(&true) {
+            let touching: Vec<u32> = map_blocked_edges(vox, |v, u, out| {
+                let (Some(i), Some(j)) = (band.verts.id(v), band.verts.id(u)) else {
+                    return;
+                };
+                let inner = match (side[i as usize], side[j as usize]) {
+                    (Side::Inside, Side::Outside) => v,
+                    (Side::Outside, Side::Inside) => u,
+                    _ => return,
+                };
+                if let Some(r) = regions.region_at(band, vox, inner) {
+                    if wholly[r as usize] {
+                        out.push(r);
+                    }
+                }
+            });
+            for r in touching {
+                wholly[r as usize] = false;
+            }
         }
         Self {
             region,
