@@ -50,6 +50,7 @@ pub fn extract(cubes: &SparseCubes) -> TriMesh {
     let mut triangles = vec![[0u32; 3]; total_triangles];
     let mut centre_points = vec![[0f32; 3]; total_centres];
     let shared: Vec<[AtomicU32; 3]> = (0..edge_points)
+        .into_par_iter()
         .map(|_| [AtomicU32::new(0), AtomicU32::new(0), AtomicU32::new(0)])
         .collect();
     let mut work = Vec::with_capacity(chunks.len());
@@ -99,13 +100,14 @@ pub fn extract(cubes: &SparseCubes) -> TriMesh {
                 c += mask.count_ones() as usize;
             });
         });
-    let mut positions: Vec<[f32; 3]> = Vec::with_capacity(edge_points as usize + total_centres);
-    positions.extend(
-        shared
-            .into_iter()
-            .map(|p| p.map(|a| f32::from_bits(a.into_inner()))),
-    );
-    positions.extend(centre_points);
+    let positions: Vec<[f32; 3]> = shared
+        .par_iter()
+        .map(|p| {
+            p.each_ref()
+                .map(|a| f32::from_bits(a.load(Ordering::Relaxed)))
+        })
+        .chain(centre_points.par_iter().copied())
+        .collect();
     TriMesh::new(positions, triangles)
 }
 
@@ -118,6 +120,7 @@ fn count_cases(
     chunks: &[&[[u16; 3]]],
 ) -> (Vec<(usize, usize)>, Vec<u64>) {
     let used: Vec<AtomicU64> = (0..(3 * n).div_ceil(64))
+        .into_par_iter()
         .map(|_| AtomicU64::new(0))
         .collect();
     let counts: Vec<(usize, usize)> = chunks

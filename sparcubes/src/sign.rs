@@ -15,8 +15,8 @@
 //!   itself: closed parts are not dilated.
 
 use crate::band::Band;
-use crate::flood::{CellSide, Flood};
-use crate::grid::{for_each_bit, split, test, BrickMask, BrickSet};
+use crate::flood::Flood;
+use crate::grid::{face_carry, for_each_bit, shift, split, test, BrickMask, BrickSet, X0, Y0};
 use crate::voxelize::Voxelization;
 use rayon::prelude::*;
 
@@ -62,36 +62,63 @@ pub const TOUCHES_INSIDE: u8 = 2;
 
 const STEPS: [[i64; 3]; 3] = [[1, 0, 0], [0, 1, 0], [0, 0, 1]];
 
-fn brick_coords(set: &BrickSet, s: usize) -> Vec<[i64; 3]> {
-    let b = set.index.coord(set.keys[s] as usize);
-    let mut out = Vec::new();
-    for_each_bit(&set.masks[s], |x, y, z| {
-        out.push([
-            (b[0] * 8 + x) as i64,
-            (b[1] * 8 + y) as i64,
-            (b[2] * 8 + z) as i64,
-        ])
-    });
-    out
+/// Which surface-free cells each vertex touches, as [`CoreSigns::touches`] bits.
+///
+/// A brick of vertices at a time, with masks: a vertex `v` touches the cells `v − {0, 1}³`, so
+/// the vertices touching an outside (inside) cell are the outside (inside) cells of the brick
+/// and its seven lower neighbours grown by one towards +x, +y and +z ([`corners_of_cells`]).
+/// Cells beyond the brick space count as outside, as in [`Flood::cell`].
+fn touched_sides(band: &Band, walls: &BrickSet, flood: &Flood) -> Vec<u8> {
+    let dims = walls.index.dims;
+    let sides = |c: [i64; 3]| -> [BrickMask; 2] {
+        if (0..3).any(|a| c[a] < 0 || c[a] >= dims[a] as i64) {
+            return [[u64::MAX; 8], [0; 8]];
+        }
+        let key = walls.index.key([c[0] as u32, c[1] as u32, c[2] as u32]);
+        [
+            flood.outside_cells(walls, key),
+            flood.inside_cells(walls, key),
+        ]
+    };
+    let mut touches = vec![0u8; band.verts.len];
+    band.verts.par_fill(
+        &mut touches,
+        || (),
+        |_, _, b, mask, out| {
+            let [outside, inside] = corners_of_cells(&sides, b);
+            let mut i = 0;
+            for_each_bit(mask, |x, y, z| {
+                let (w, bit) = (z as usize, x + 8 * y);
+                out[i] = if test(&outside, w, bit) {
+                    TOUCHES_OUTSIDE
+                } else {
+                    0
+                } | if test(&inside, w, bit) {
+                    TOUCHES_INSIDE
+                } else {
+                    0
+                };
+                i += 1;
+            });
+        },
+    );
+    touches
 }
 
-/// Which surface-free cells each vertex touches, as [`CoreSigns::touches`] bits.
-fn touched_sides(band: &Band, walls: &BrickSet, flood: &Flood) -> Vec<u8> {
-    let mut touches = vec![0u8; band.verts.len];
-    band.verts.par_fill_each(&mut touches, |_, c| {
-        let v = [c[0] as i64, c[1] as i64, c[2] as i64];
-        let mut bits = 0;
-        for d in 0..8i64 {
-            let cell = [v[0] - (d & 1), v[1] - ((d >> 1) & 1), v[2] - (d >> 2)];
-            bits |= match flood.cell(walls, cell) {
-                CellSide::Outside => TOUCHES_OUTSIDE,
-                CellSide::Inside => TOUCHES_INSIDE,
-                CellSide::Wall => 0,
-            };
-        }
-        bits
-    });
-    touches
+/// The vertices of brick `b` that are corners of a member of each of two cell sets, given as
+/// masks per brick by `cells` (brick coordinate → masks): the sets grown by one towards +x,
+/// +y and +z, separably, with the faces carried in from the lower neighbours.
+fn corners_of_cells(cells: &impl Fn([i64; 3]) -> [BrickMask; 2], b: [u32; 3]) -> [BrickMask; 2] {
+    let grow = |m: [BrickMask; 2], lower: [BrickMask; 2], axis: usize| -> [BrickMask; 2] {
+        std::array::from_fn(|k| {
+            let (up, carry) = (shift(&m[k], axis, true), face_carry(&lower[k], axis, true));
+            std::array::from_fn(|z| m[k][z] | up[z] | carry[z])
+        })
+    };
+    let at = |d: [i64; 3]| [b[0] as i64 - d[0], b[1] as i64 - d[1], b[2] as i64 - d[2]];
+    let along_x = |d: [i64; 3]| grow(cells(at(d)), cells(at([d[0] + 1, d[1], d[2]])), 0);
+    let along_y = |dz: i64| grow(along_x([0, 0, dz]), along_x([0, 1, dz]), 1);
+    grow(along_y(0), along_y(1), 2)
 }
 
 /// Side of a vertex from the cells it touches: outside if any is outside, else inside if
@@ -188,41 +215,78 @@ fn resolve_enclosed(band: &Band, vox: &Voxelization, side: &mut [Side]) {
 
 /// Evidence per wall cell, dense per wall brick (local index x + 8y + 64z): +1 for each crossed
 /// edge of the cell whose ends are on the same side, −1 for each whose ends differ.
+///
+/// In parallel over wall bricks, each gathering the crossed edges around its own cells: an
+/// edge along `axis` from vertex `v` borders the cells `v − {0, 1}` along the two other axes,
+/// so a brick's cells see the edges of its own blocked brick and of the first layer of its
+/// three upper neighbours across those axes. A cell has at most 12 edges, so the sums never
+/// saturate and do not depend on the order they are added in.
 fn edge_evidence(band: &Band, vox: &Voxelization, side: &[Side]) -> Vec<[i8; 512]> {
     let walls = &vox.walls;
-    let mut evidence = vec![[0i8; 512]; walls.keys.len()];
-    for (axis, set) in vox.blocked.iter().enumerate() {
-        let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
-        for s in 0..set.keys.len() {
-            for v in brick_coords(set, s) {
-                let mut u = v;
-                u[axis] += 1;
-                let (Some(i), Some(j)) = (band.verts.id(v), band.verts.id(u)) else {
-                    continue;
-                };
-                let vote: i8 = if side[i as usize] == side[j as usize] {
-                    1
-                } else {
-                    -1
-                };
-                for d in 0..4i64 {
-                    let mut cell = v;
-                    cell[b] -= d & 1;
-                    cell[c] -= d >> 1;
-                    if cell.iter().any(|&x| x < 0) {
+    (0..walls.keys.len())
+        .into_par_iter()
+        .map(|s| {
+            let b = walls.index.coord(walls.keys[s] as usize);
+            let mut evidence = [0i8; 512];
+            for (axis, set) in vox.blocked.iter().enumerate() {
+                let (pb, pc) = ((axis + 1) % 3, (axis + 2) % 3);
+                for d in 0..4 {
+                    let (up_b, up_c) = (d & 1 == 1, d >> 1 == 1);
+                    let mut nb = [b[0] as i64, b[1] as i64, b[2] as i64];
+                    nb[pb] += i64::from(up_b);
+                    nb[pc] += i64::from(up_c);
+                    let Some(t) = set.index.slot(nb) else {
                         continue;
+                    };
+                    // In an upper neighbour only its first layer borders this brick's cells.
+                    let mut mask = set.masks[t];
+                    for (shifted, a) in [(up_b, pb), (up_c, pc)] {
+                        if shifted {
+                            mask = first_layer(&mask, a);
+                        }
                     }
-                    let (bk, w, bit) = split([cell[0] as u32, cell[1] as u32, cell[2] as u32]);
-                    if let Some(slot) = walls.index.slot([bk[0] as i64, bk[1] as i64, bk[2] as i64])
-                    {
-                        let local = w * 64 + bit as usize;
-                        evidence[slot][local] = evidence[slot][local].saturating_add(vote);
-                    }
+                    for_each_bit(&mask, |x, y, z| {
+                        let v = [
+                            nb[0] * 8 + x as i64,
+                            nb[1] * 8 + y as i64,
+                            nb[2] * 8 + z as i64,
+                        ];
+                        let mut u = v;
+                        u[axis] += 1;
+                        let (Some(i), Some(j)) = (band.verts.id(v), band.verts.id(u)) else {
+                            return;
+                        };
+                        let vote: i8 = if side[i as usize] == side[j as usize] {
+                            1
+                        } else {
+                            -1
+                        };
+                        for dd in 0..4i64 {
+                            let mut cell = v;
+                            cell[pb] -= dd & 1;
+                            cell[pc] -= dd >> 1;
+                            if (0..3).any(|a| cell[a] < 0 || cell[a] >> 3 != b[a] as i64) {
+                                continue;
+                            }
+                            let local = (cell[0] & 7) + 8 * (cell[1] & 7) + 64 * (cell[2] & 7);
+                            let e = &mut evidence[local as usize];
+                            *e = e.saturating_add(vote);
+                        }
+                    });
                 }
             }
-        }
+            evidence
+        })
+        .collect()
+}
+
+/// The bits of `m` whose local coordinate along `axis` is 0.
+fn first_layer(m: &BrickMask, axis: usize) -> BrickMask {
+    match axis {
+        0 => m.map(|w| w & X0),
+        1 => m.map(|w| w & Y0),
+        _ => std::array::from_fn(|z| if z == 0 { m[0] } else { 0 }),
     }
-    evidence
 }
 
 /// Wall cells that belong to a thin part: the evidence summed over the 3×3×3 cells around the
@@ -356,5 +420,106 @@ pub fn ring_signs(band: &Band, walls: &BrickSet, flood: &Flood, core: &CoreSigns
     Signs {
         side,
         thin: thin_flags(band, walls, &core.thin_cells),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::band::{compute_band, triangle_planes, CORE_REACH};
+    use crate::flood::{flood_outside, CellSide};
+    use crate::grid::{dilate, Dilation, Numbered};
+    use crate::normalize::Normalization;
+    use crate::shapes::{cube_with_hole, merge, open_cylinder, sphere};
+    use crate::voxelize::{voxelize, GridMesh};
+
+    const N: u32 = 48;
+
+    /// A closed sphere, an open tube and a cube with a hole, in grid coordinates at `N`.
+    fn fixture() -> (Voxelization, Flood, Band) {
+        let mesh = merge(&[
+            sphere([0.0; 3], 1.0, 24),
+            open_cylinder([2.5, 0.0], 0.6, -1.0, 1.0, 24),
+            cube_with_hole([-1.5, 1.5, -0.5], [-0.5, 2.5, 0.5], 0.3),
+        ]);
+        let norm = Normalization::fit(mesh.bounds().unwrap(), N, 2);
+        let grid = GridMesh {
+            verts: mesh
+                .positions
+                .iter()
+                .map(|p| norm.source_to_grid(p.map(f64::from), N))
+                .collect(),
+            tris: mesh.triangles.clone(),
+        };
+        let vox = voxelize(&grid, N);
+        let flood = flood_outside(&vox.walls);
+        let verts = dilate(&vox.walls, N, Dilation::Corners);
+        let band = compute_band(&grid, &triangle_planes(&grid), verts, CORE_REACH);
+        (vox, flood, band)
+    }
+
+    #[test]
+    fn touched_sides_match_the_cells_around_each_vertex() {
+        let (vox, flood, band) = fixture();
+        let touches = touched_sides(&band, &vox.walls, &flood);
+        let mut seen = 0;
+        for (i, c) in band.verts.coords().into_iter().enumerate() {
+            let mut want = 0;
+            for d in 0..8i64 {
+                let cell = [
+                    c[0] as i64 - (d & 1),
+                    c[1] as i64 - ((d >> 1) & 1),
+                    c[2] as i64 - (d >> 2),
+                ];
+                want |= match flood.cell(&vox.walls, cell) {
+                    CellSide::Outside => TOUCHES_OUTSIDE,
+                    CellSide::Inside => TOUCHES_INSIDE,
+                    CellSide::Wall => 0,
+                };
+            }
+            assert_eq!(touches[i], want, "vertex {c:?}");
+            seen |= want;
+        }
+        assert_eq!(seen, TOUCHES_OUTSIDE | TOUCHES_INSIDE, "both sides occur");
+    }
+
+    #[test]
+    fn edge_evidence_sums_the_votes_of_each_cells_crossed_edges() {
+        let (vox, flood, band) = fixture();
+        let touches = touched_sides(&band, &vox.walls, &flood);
+        let mut side: Vec<Side> = touches.iter().map(|&t| side_from_touches(t)).collect();
+        resolve_enclosed(&band, &vox, &mut side);
+        let got = edge_evidence(&band, &vox, &side);
+        // Each crossed edge adds its vote to the (up to) four cells around it.
+        let walls = &vox.walls;
+        let mut want = vec![[0i8; 512]; walls.keys.len()];
+        let mut votes = [0; 2];
+        for (axis, set) in vox.blocked.iter().enumerate() {
+            let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
+            for v in Numbered::new(set.clone()).coords() {
+                let v = v.map(i64::from);
+                let mut u = v;
+                u[axis] += 1;
+                let (Some(i), Some(j)) = (band.verts.id(v), band.verts.id(u)) else {
+                    continue;
+                };
+                let same = side[i as usize] == side[j as usize];
+                votes[usize::from(same)] += 1;
+                for d in 0..4i64 {
+                    let mut cell = v;
+                    cell[b] -= d & 1;
+                    cell[c] -= d >> 1;
+                    if cell.iter().any(|&x| x < 0) {
+                        continue;
+                    }
+                    let (bk, w, bit) = split(cell.map(|x| x as u32));
+                    if let Some(s) = walls.index.slot(bk.map(i64::from)) {
+                        want[s][w * 64 + bit as usize] += if same { 1 } else { -1 };
+                    }
+                }
+            }
+        }
+        assert!(votes[0] > 0 && votes[1] > 0, "both kinds of vote occur");
+        assert!(got == want);
     }
 }

@@ -72,7 +72,11 @@ pub fn check(mesh: &TriMesh) -> TopologyReport {
     let good = |t: &[u32; 3]| in_range(t) && !is_degenerate(t);
 
     // Pass 1: link sizes, degenerate (or out-of-range) and zero-area faces.
-    let degree: Vec<AtomicU32> = (0..nv).map(|_| AtomicU32::new(0)).collect();
+    let degree: Vec<AtomicU32> = (0..nv)
+        .into_par_iter()
+        .with_min_len(CHUNK)
+        .map(|_| AtomicU32::new(0))
+        .collect();
     let [degenerate_faces, zero_area_faces] = mesh
         .triangles
         .par_chunks(CHUNK)
@@ -146,6 +150,8 @@ impl VertexLinks {
         }
         start.push(sum);
         let link: Vec<[AtomicU32; 2]> = (0..sum)
+            .into_par_iter()
+            .with_min_len(CHUNK)
             .map(|_| [AtomicU32::new(0), AtomicU32::new(0)])
             .collect();
         triangles.par_chunks(CHUNK).for_each(|tris| {
@@ -296,8 +302,16 @@ fn find(parent: &mut [usize], mut x: usize) -> usize {
 /// by compare-and-swap), so the count does not depend on the thread count.
 pub fn component_count(mesh: &TriMesh) -> u64 {
     let nv = mesh.positions.len();
-    let parent: Vec<AtomicU32> = (0..nv as u32).map(AtomicU32::new).collect();
-    let used: Vec<AtomicBool> = (0..nv).map(|_| AtomicBool::new(false)).collect();
+    let parent: Vec<AtomicU32> = (0..nv as u32)
+        .into_par_iter()
+        .with_min_len(CHUNK)
+        .map(AtomicU32::new)
+        .collect();
+    let used: Vec<AtomicBool> = (0..nv)
+        .into_par_iter()
+        .with_min_len(CHUNK)
+        .map(|_| AtomicBool::new(false))
+        .collect();
     let bad: u64 = mesh
         .triangles
         .par_chunks(CHUNK)
