@@ -81,7 +81,9 @@ def main():
         # Components represented.
         tree = cKDTree(z["surface_points"].astype(float))
         kept = total = 0
-        for part in src.split(only_watertight=False):
+        # `repair=False`: trimesh's split otherwise fills the holes of open components, and
+        # points sampled on those patches lie nowhere near any surface.
+        for part in src.split(only_watertight=False, repair=False):
             if part.extents.max() < 2 * voxel or part.area <= 0:
                 continue
             total += 1

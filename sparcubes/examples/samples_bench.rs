@@ -4,7 +4,7 @@
 //! sharp ones, as `ops/bench/samples_overhead.sh`), and the Direct3D-S2 layout. Wall and
 //! CPU seconds of each step:
 //!
-//!     cargo run --release -p sparcubes --example samples_bench -- MESH [RESOLUTION]
+//!     cargo run --release -p sparcubes --example samples_bench -- MESH [RESOLUTION] [--no-layout]
 
 use sparcubes::closest::TriangleIndex;
 use sparcubes::samples::rng::Draw;
@@ -115,24 +115,31 @@ fn main() -> ExitCode {
         }
     };
     let sample_s = t.secs();
-    let t = Clock::start();
-    let sdf = sparcubes::layouts::direct3d_s2::sparse_sdf(
-        &conversion.cubes,
-        sparcubes::layouts::direct3d_s2::TRUNCATION,
-    );
-    let d3_s = t.secs();
+    // The Direct3D-S2 layout, unless `--no-layout` is given.
+    let layout = if args.get(2).is_some_and(|a| a == "--no-layout") {
+        String::new()
+    } else {
+        let t = Clock::start();
+        let sdf = sparcubes::layouts::direct3d_s2::sparse_sdf(
+            &conversion.cubes,
+            sparcubes::layouts::direct3d_s2::TRUNCATION,
+        );
+        format!(
+            "; direct3d-s2 layout {} ({} points, checksum {:.3})",
+            t.secs(),
+            sdf.sdf.len(),
+            sdf.sdf.iter().map(|&v| v as f64).sum::<f64>(),
+        )
+    };
     let check: f64 = a.iter().chain(&b).map(|c| c.distance).sum();
     println!(
         "{input} at {resolution}: {} triangles, {} threads; convert {convert_s}, \
          extract {extract_s}; tree {build_s}, {count} near queries {near_s}, \
          {count} volume queries {volume_s}, sides {sides_s} ({inside}); \
-         sample() {sample_s} ({} volume points; checksum {check:.3}); \
-         direct3d-s2 layout {d3_s} ({} points, checksum {:.3})",
+         sample() {sample_s} ({} volume points; checksum {check:.6}){layout}",
         mesh.triangles.len(),
         rayon::current_num_threads(),
         drawn.volume_sdf.len(),
-        sdf.sdf.len(),
-        sdf.sdf.iter().map(|&v| v as f64).sum::<f64>(),
     );
     ExitCode::SUCCESS
 }
