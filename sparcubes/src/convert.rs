@@ -13,9 +13,9 @@ use crate::grid::{
 use crate::mesh::TriMesh;
 use crate::normalize::Normalization;
 use crate::params::Params;
-use crate::regions::{classify_regions, decide_sealed, mark_air, Nesting};
+use crate::regions::{classify_regions, decide_sealed, mark_air, Nesting, Regions};
 use crate::ring::ring_cells;
-use crate::sign::{compute_signs, ring_signs, vertex_sides};
+use crate::sign::{compute_signs, ring_signs, sealed_to_outside, vertex_sides};
 use crate::voxelize::{voxelize, GridMesh};
 use crate::winding::LazyWindingTree;
 use rayon::prelude::*;
@@ -303,22 +303,41 @@ pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
     st.done("band");
     // The inside test (stage "inside"): enclosed regions decided solid or air by the winding
     // number, air added to the outside; later, the vertices sealed inside thin parts.
-    let tree = LazyWindingTree::new(&grid, winding_piece(n));
-    let regions = classify_regions(&vox.walls, &flood, &band, &tree);
-    mark_air(&mut flood, &vox.walls, &regions);
-    let counts = regions.counts();
-    st.stats.enclosed_regions = counts.regions;
-    st.stats.air_regions = counts.air;
-    st.stats.ambiguous_regions = counts.ambiguous;
-    st.done("inside");
+    // Off (the default, `Params::inside_test`): every enclosed region stays solid, no vertex
+    // is sealed and nothing is nested, which is the conversion without the test, bit for bit.
+    let tree = params
+        .inside_test
+        .then(|| LazyWindingTree::new(&grid, winding_piece(n)));
+    let regions = match &tree {
+        Some(tree) => {
+            let regions = classify_regions(&vox.walls, &flood, &band, tree);
+            mark_air(&mut flood, &vox.walls, &regions);
+            let counts = regions.counts();
+            st.stats.enclosed_regions = counts.regions;
+            st.stats.air_regions = counts.air;
+            st.stats.ambiguous_regions = counts.ambiguous;
+            st.done("inside");
+            regions
+        }
+        None => Regions::default(),
+    };
     let (touches, mut side) = vertex_sides(&band, &vox, &flood);
     st.done("sign");
-    let sealed = decide_sealed(&band, &vox, &mut side, &tree, n);
-    st.stats.thin_parts = sealed.thin_parts;
-    st.stats.shelled_thin_parts = sealed.shelled_parts;
-    drop(tree);
-    let nesting = Nesting::new(&band, &vox, &side, &regions);
-    st.done("inside");
+    let nesting = match tree {
+        Some(tree) => {
+            let sealed = decide_sealed(&band, &vox, &mut side, &tree, n);
+            st.stats.thin_parts = sealed.thin_parts;
+            st.stats.shelled_thin_parts = sealed.shelled_parts;
+            drop(tree);
+            let nesting = Nesting::new(&band, &vox, &side, &regions);
+            st.done("inside");
+            nesting
+        }
+        None => {
+            sealed_to_outside(&mut side);
+            Nesting::default()
+        }
+    };
     let core_signs = compute_signs(&band, &vox, touches, side, &nesting);
     let signs = &core_signs.signs;
     st.done("sign");

@@ -393,6 +393,14 @@ pub fn vertex_sides(band: &Band, vox: &Voxelization, flood: &Flood) -> (Vec<u8>,
     (touches, side)
 }
 
+/// Without the inside test: every vertex sealed in by triangles on every side (still
+/// `Unknown` after [`vertex_sides`]) is outside, as the conversion decided before the test.
+pub fn sealed_to_outside(side: &mut [Side]) {
+    for s in side.iter_mut().filter(|s| **s == Side::Unknown) {
+        *s = Side::Outside;
+    }
+}
+
 /// Decides which core vertices belong to thin shells, once every side is known (see
 /// [`vertex_sides`] and [`crate::regions::decide_sealed`]).
 pub fn compute_signs(

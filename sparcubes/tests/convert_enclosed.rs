@@ -1,13 +1,23 @@
 //! Parts inside closed hulls and closed parts thinner than two voxels (issue 15): enclosed
 //! regions decided solid or air by the winding number, sealed vertices decided by it too.
+//! The test is opt-in (`Params::inside_test`); every conversion here turns it on, and
+//! `default_keeps_the_conversion_without_the_test` checks that off means off.
 
 use sparcubes::band::closest_point_on_triangle;
 use sparcubes::{convert, extract, shapes, topology, ConvertStats, Params, SparseCubes, TriMesh};
 
 const N: u32 = 64;
 
+/// The default parameters at resolution `n` with the inside test on.
+fn inside_params(n: u32) -> Params {
+    Params {
+        inside_test: true,
+        ..Params::with_resolution(n)
+    }
+}
+
 fn convert_extract(mesh: &TriMesh, n: u32) -> (SparseCubes, ConvertStats, TriMesh) {
-    let conv = convert(mesh, &Params::with_resolution(n)).expect("convert");
+    let conv = convert(mesh, &inside_params(n)).expect("convert");
     let out = extract(&conv.cubes);
     (conv.cubes, conv.stats, out)
 }
@@ -254,11 +264,33 @@ fn same_cubes_whatever_the_thread_count() {
             .num_threads(threads)
             .build()
             .expect("pool")
-            .install(|| {
-                convert(&mesh, &Params::with_resolution(N))
-                    .expect("convert")
-                    .cubes
-            })
+            .install(|| convert(&mesh, &inside_params(N)).expect("convert").cubes)
     };
     assert_eq!(run(1), run(2));
+}
+
+#[test]
+fn default_keeps_the_conversion_without_the_test() {
+    // A sphere in a sphere: with the test the inner surface goes (one solid); by default it
+    // stays (as a thin sheet inside the solid), and the stats count no region decision.
+    let mesh = shapes::merge(&[
+        shapes::sphere([0.0; 3], 1.0, 48),
+        shapes::sphere([0.0; 3], 0.5, 32),
+    ]);
+    let off = convert(&mesh, &Params::with_resolution(N)).expect("convert");
+    let out = extract(&off.cubes);
+    let components = assert_closed_manifold("default", &out);
+    assert!(
+        components >= 2,
+        "inner sphere gone without the test: {components}"
+    );
+    assert_eq!(
+        (off.stats.enclosed_regions, off.stats.thin_parts),
+        (0, 0),
+        "{:?}",
+        off.stats
+    );
+    assert!(!off.stats.stage_seconds.iter().any(|(s, _)| *s == "inside"));
+    let (_, _, on) = convert_extract(&mesh, N);
+    assert_eq!(assert_closed_manifold("inside test", &on), 1);
 }

@@ -105,12 +105,9 @@ fn thin_closed_plate_is_kept_as_a_shell() {
     let t = 0.3 / 64.0 * 2.0;
     let mesh = shapes::cuboid([-1.0, -1.0, -t / 2.0], [1.0, 1.0, t / 2.0], &[]);
     let out = convert(&mesh, &params(64, false)).expect("convert");
-    // Either a thin shell, or (sealed vertices found inside by the winding number) a thin
-    // closed part at its own thickness.
     assert!(
-        out.stats.shell_vertices > 0 || out.stats.thin_parts > 0,
-        "thin plate neither a shell nor a thin part: {:?}",
-        out.stats
+        out.stats.shell_vertices > 0,
+        "thin plate treated as a shell"
     );
     assert!(
         out.cubes.cells.len() > 1000,
@@ -120,7 +117,7 @@ fn thin_closed_plate_is_kept_as_a_shell() {
 }
 
 #[test]
-fn nested_solids_are_one_solid() {
+fn nested_shells_both_present() {
     let outer = shapes::sphere([0.0; 3], 1.0, 48);
     let inner = shapes::sphere([0.0; 3], 0.5, 32);
     let out = convert(&shapes::merge(&[outer, inner]), &params(64, false)).expect("convert");
@@ -141,9 +138,8 @@ fn nested_solids_are_one_solid() {
             })
             .count()
     };
-    // A sphere inside a sphere is one solid: the inner surface bounds no material.
     assert!(
-        near(1.0) > 1000 && near(0.5) == 0,
+        near(1.0) > 1000 && near(0.5) > 300,
         "{} {}",
         near(1.0),
         near(0.5)
