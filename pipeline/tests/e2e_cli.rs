@@ -442,3 +442,40 @@ fn run_help_shows_the_defaults() {
         );
     }
 }
+
+/// `convert --inside-test` turns the inside test on (its counts and its `inside` stage in the
+/// JSON); without it the summary says it is off and no stage ran.
+#[test]
+fn convert_inside_test_is_opt_in() {
+    let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let mesh = examples().join("wuson.stl");
+    let run = |extra: &[&str]| -> serde_json::Value {
+        let out = tmp.path().join("o.ply");
+        let mut args = vec![
+            "convert",
+            s(&mesh),
+            "-o",
+            s(&out),
+            "--resolution",
+            "64",
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        serde_json::from_str(&ok(&args)).unwrap_or_else(|e| panic!("{e}"))
+    };
+    let off = run(&[]);
+    assert_eq!(off["inside_test"], false);
+    assert!(off["stage_seconds"].get("inside").is_none(), "{off}");
+    assert_eq!(off["enclosed_regions"], 0);
+    let on = run(&["--inside-test"]);
+    assert_eq!(on["inside_test"], true);
+    assert!(on["stage_seconds"].get("inside").is_some(), "{on}");
+    // wuson's 51 closed parts overlap: the flood leaves regions enclosed, which the test counts.
+    assert!(on["enclosed_regions"].as_u64().unwrap_or(0) > 0, "{on}");
+    for v in [&off, &on] {
+        assert_eq!(
+            (v["watertight"].clone(), v["manifold"].clone()),
+            (true.into(), true.into())
+        );
+    }
+}

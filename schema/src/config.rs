@@ -181,6 +181,10 @@ impl JobConfig {
                 }
             })?;
             m.insert("samples".into(), samples);
+            // So is the inside test while off (`Params::inside_test`); offer its key too.
+            if let Some(Value::Object(params)) = m.get_mut("params") {
+                params.entry("inside_test").or_insert(Value::Bool(false));
+            }
         }
         merge(&mut base, overrides, "")?;
         serde_json::from_value(base).map_err(|source| SchemaError::Json {
@@ -314,6 +318,21 @@ mod tests {
             vec!["limits.item_timeout_s", "params.resolution"]
         );
         assert_eq!(a.fingerprint()?.len(), 64);
+        Ok(())
+    }
+
+    #[test]
+    fn inside_test_is_left_out_while_off() -> Result<()> {
+        let off = JobConfig::default();
+        let text = serde_json::to_string(&off).map_err(|source| SchemaError::Json {
+            context: "test".into(),
+            source,
+        })?;
+        assert!(!text.contains("inside_test"), "{text}");
+        let on = JobConfig::overlaid(&serde_json::json!({"params": {"inside_test": true}}))?;
+        assert!(on.params.inside_test);
+        assert_ne!(off.fingerprint()?, on.fingerprint()?);
+        assert_eq!(off.diff_keys(&on)?, vec!["params.inside_test"]);
         Ok(())
     }
 

@@ -13,9 +13,11 @@ use crate::grid::{
 use crate::mesh::TriMesh;
 use crate::normalize::Normalization;
 use crate::params::Params;
+use crate::regions::{classify_regions, decide_sealed, mark_air, Nesting, Regions};
 use crate::ring::ring_cells;
-use crate::sign::{compute_signs, ring_signs};
+use crate::sign::{compute_signs, ring_signs, sealed_to_outside, vertex_sides};
 use crate::voxelize::{voxelize, GridMesh};
+use crate::winding::LazyWindingTree;
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -43,6 +45,19 @@ pub struct ConvertStats {
     pub active_cells: u64,
     /// Stored vertices that belong to a thin shell around an open part.
     pub shell_vertices: u64,
+    /// Enclosed regions: connected sets of surface-free cells the outside flood cannot reach
+    /// ([`crate::regions`]).
+    pub enclosed_regions: u64,
+    /// Enclosed regions the winding number found to be air (treated as outside).
+    pub air_regions: u64,
+    /// Enclosed regions whose winding number was ambiguous (kept solid).
+    pub ambiguous_regions: u64,
+    /// Closed parts thinner than about two cells, found inside by the winding number (groups
+    /// of sealed vertices joined with their 26 neighbours, [`crate::regions::decide_sealed`]).
+    pub thin_parts: u64,
+    /// Closed parts found inside by the winding number but too thin somewhere for the grid
+    /// (under a cell), left to the thin shell.
+    pub shelled_thin_parts: u64,
 }
 
 /// A conversion's result.
@@ -60,11 +75,19 @@ struct Stages {
 }
 
 impl Stages {
+    /// Books the time since the last call to stage `name` (added to it if it ran before).
     fn done(&mut self, name: &'static str) {
         let now = Instant::now();
-        self.stats
+        let seconds = (now - self.last).as_secs_f64();
+        match self
+            .stats
             .stage_seconds
-            .push((name, (now - self.last).as_secs_f64()));
+            .iter_mut()
+            .find(|(n, _)| *n == name)
+        {
+            Some(entry) => entry.1 += seconds,
+            None => self.stats.stage_seconds.push((name, seconds)),
+        }
         self.last = now;
     }
 }
@@ -149,6 +172,13 @@ fn sign_changes(cells: &BrickSet, core: Values, ring: Option<Values>) -> Vec<(u3
             },
         )
         .collect()
+}
+
+/// Longest piece, in voxels, the winding tree cuts triangles into ([`crate::winding`]): 8
+/// voxels, or 1/128 of the grid at resolutions above 1024, so the number of pieces does not
+/// grow with the resolution.
+fn winding_piece(n: u32) -> f64 {
+    (n as f64 / 128.0).max(8.0)
 }
 
 /// Checks that a mesh is sanitised (indices in range, finite coordinates, an extent the grid
@@ -265,13 +295,50 @@ pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
     let vox = voxelize(&grid, n);
     st.stats.wall_cells = vox.walls.len();
     st.done("voxelize");
-    let flood = flood_outside(&vox.walls);
+    let mut flood = flood_outside(&vox.walls);
     st.done("flood");
     let planes = triangle_planes(&grid);
     let core_verts = dilate(&vox.walls, n, Dilation::Corners);
     let band = compute_band(&grid, &planes, core_verts, CORE_REACH);
     st.done("band");
-    let core_signs = compute_signs(&band, &vox, &flood);
+    // The inside test (stage "inside"): enclosed regions decided solid or air by the winding
+    // number, air added to the outside; later, the vertices sealed inside thin parts.
+    // Off (the default, `Params::inside_test`): every enclosed region stays solid, no vertex
+    // is sealed and nothing is nested, which is the conversion without the test, bit for bit.
+    let tree = params
+        .inside_test
+        .then(|| LazyWindingTree::new(&grid, winding_piece(n)));
+    let regions = match &tree {
+        Some(tree) => {
+            let regions = classify_regions(&vox.walls, &flood, &band, tree);
+            mark_air(&mut flood, &vox.walls, &regions);
+            let counts = regions.counts();
+            st.stats.enclosed_regions = counts.regions;
+            st.stats.air_regions = counts.air;
+            st.stats.ambiguous_regions = counts.ambiguous;
+            st.done("inside");
+            regions
+        }
+        None => Regions::default(),
+    };
+    let (touches, mut side) = vertex_sides(&band, &vox, &flood);
+    st.done("sign");
+    let nesting = match tree {
+        Some(tree) => {
+            let sealed = decide_sealed(&band, &vox, &mut side, &tree, n);
+            st.stats.thin_parts = sealed.thin_parts;
+            st.stats.shelled_thin_parts = sealed.shelled_parts;
+            drop(tree);
+            let nesting = Nesting::new(&band, &vox, &side, &regions);
+            st.done("inside");
+            nesting
+        }
+        None => {
+            sealed_to_outside(&mut side);
+            Nesting::default()
+        }
+    };
+    let core_signs = compute_signs(&band, &vox, touches, side, &nesting);
     let signs = &core_signs.signs;
     st.done("sign");
     let field = compute_field(&band, signs, params);

@@ -15,7 +15,8 @@ pub struct Flood {
     pub wall_outside: Vec<BrickMask>,
 }
 
-const FULL: BrickMask = [u64::MAX; 8];
+/// A brick mask with every bit set.
+pub const FULL: BrickMask = [u64::MAX; 8];
 const DIRS: [(usize, bool); 6] = [
     (0, false),
     (0, true),
@@ -25,7 +26,8 @@ const DIRS: [(usize, bool); 6] = [
     (2, true),
 ];
 
-fn grow_within(out: &mut BrickMask, wall: &BrickMask) {
+/// Grows `out` by 6-connected steps within the brick until it stops, never into `wall`.
+pub fn grow_within(out: &mut BrickMask, wall: &BrickMask) {
     loop {
         let mut grown = *out;
         for (axis, plus) in DIRS {

@@ -658,28 +658,31 @@ impl Numbered {
                 s += 1;
             }
             let b = self.set.index.coord(self.set.keys[s] as usize);
-            let mut left = id - self.offsets[s];
-            let m = &self.set.masks[s];
-            for (z, &word) in m.iter().enumerate() {
-                let c = word.count_ones();
-                if left < c {
-                    let mut w = word;
-                    for _ in 0..left {
-                        w &= w - 1;
-                    }
-                    let bit = w.trailing_zeros();
-                    out.push([
-                        b[0] * 8 + (bit & 7),
-                        b[1] * 8 + (bit >> 3),
-                        b[2] * 8 + z as u32,
-                    ]);
-                    break;
-                }
-                left -= c;
-            }
+            let local = nth_bit(&self.set.masks[s], id - self.offsets[s]);
+            out.push([
+                b[0] * 8 + (local & 7),
+                b[1] * 8 + ((local >> 3) & 7),
+                b[2] * 8 + (local >> 6),
+            ]);
         }
         out
     }
+}
+
+/// Local index (x + 8y + 64z) of the `n`-th set bit of a mask (which has more than `n`).
+pub fn nth_bit(m: &BrickMask, mut n: u32) -> u32 {
+    for (z, &word) in m.iter().enumerate() {
+        let c = word.count_ones();
+        if n < c {
+            let mut w = word;
+            for _ in 0..n {
+                w &= w - 1;
+            }
+            return 64 * z as u32 + w.trailing_zeros();
+        }
+        n -= c;
+    }
+    0
 }
 
 impl BrickSet {

@@ -43,6 +43,7 @@ pub mod mc_table;
 pub mod mesh;
 pub mod normalize;
 pub mod params;
+pub mod regions;
 pub mod ring;
 pub mod samples;
 pub mod sanitize;
@@ -53,6 +54,7 @@ pub mod sign;
 pub mod topology;
 pub mod vec3;
 pub mod voxelize;
+pub mod winding;
 
 pub use convert::{convert, Conversion, ConvertStats};
 pub use cubes::SparseCubes;

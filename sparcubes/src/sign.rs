@@ -17,6 +17,7 @@
 use crate::band::Band;
 use crate::flood::Flood;
 use crate::grid::{face_carry, for_each_bit, shift, split, test, BrickMask, BrickSet, X0, Y0};
+use crate::regions::Nesting;
 use crate::voxelize::Voxelization;
 use rayon::prelude::*;
 
@@ -140,7 +141,7 @@ fn blocked(vox: &Voxelization, v: [i64; 3], axis: usize) -> bool {
 }
 
 /// Neighbours of vertex `c` through grid edges no triangle crosses: (number, coordinate).
-fn open_neighbours<'a>(
+pub fn open_neighbours<'a>(
     band: &'a Band,
     vox: &'a Voxelization,
     c: [u32; 3],
@@ -167,7 +168,8 @@ fn open_neighbours<'a>(
 /// level k sees only vertices decided before it, and one that sees both sides sides with
 /// inside. Each level only looks at the undecided neighbours of the previous level, so the
 /// work is linear in the vertices reached; the levels make the result independent of order.
-/// What stays unknown (fully enclosed by triangles) is outside.
+/// What stays unknown is sealed in by triangles on every side (inside a closed part thinner
+/// than a cell, or a pocket between sheets): [`crate::regions::decide_sealed`] decides it.
 fn resolve_enclosed(band: &Band, vox: &Voxelization, side: &mut [Side]) {
     let ids: Vec<u32> = (0..side.len() as u32)
         .filter(|&i| side[i as usize] == Side::Unknown)
@@ -206,22 +208,24 @@ fn resolve_enclosed(band: &Band, vox: &Voxelization, side: &mut [Side]) {
         candidates.sort_unstable_by_key(|&(j, _)| j);
         candidates.dedup_by_key(|&mut (j, _)| j);
     }
-    for s in side.iter_mut() {
-        if *s == Side::Unknown {
-            *s = Side::Outside;
-        }
-    }
 }
 
 /// Evidence per wall cell, dense per wall brick (local index x + 8y + 64z): +1 for each crossed
-/// edge of the cell whose ends are on the same side, −1 for each whose ends differ.
+/// edge of the cell whose ends are on the same side, −1 for each whose ends differ — or lie in
+/// a wholly nested region and the one it is nested in ([`Nesting::separates`]): the surface of
+/// a solid modelled inside a solid bounds no material, so it is neither a sheet nor kept.
 ///
 /// In parallel over wall bricks, each gathering the crossed edges around its own cells: an
 /// edge along `axis` from vertex `v` borders the cells `v − {0, 1}` along the two other axes,
 /// so a brick's cells see the edges of its own blocked brick and of the first layer of its
 /// three upper neighbours across those axes. A cell has at most 12 edges, so the sums never
 /// saturate and do not depend on the order they are added in.
-fn edge_evidence(band: &Band, vox: &Voxelization, side: &[Side]) -> Vec<[i8; 512]> {
+fn edge_evidence(
+    band: &Band,
+    vox: &Voxelization,
+    side: &[Side],
+    nesting: &Nesting,
+) -> Vec<[i8; 512]> {
     let walls = &vox.walls;
     (0..walls.keys.len())
         .into_par_iter()
@@ -256,11 +260,9 @@ fn edge_evidence(band: &Band, vox: &Voxelization, side: &[Side]) -> Vec<[i8; 512
                         let (Some(i), Some(j)) = (band.verts.id(v), band.verts.id(u)) else {
                             return;
                         };
-                        let vote: i8 = if side[i as usize] == side[j as usize] {
-                            1
-                        } else {
-                            -1
-                        };
+                        let (si, sj) = (side[i as usize], side[j as usize]);
+                        let separate = si != sj || (si == Side::Inside && nesting.separates(i, j));
+                        let vote: i8 = if separate { -1 } else { 1 };
                         for dd in 0..4i64 {
                             let mut cell = v;
                             cell[pb] -= dd & 1;
@@ -381,13 +383,34 @@ fn thin_at(walls: &BrickSet, thin_cells: &[BrickMask], p: [f32; 3]) -> bool {
         .unwrap_or(false)
 }
 
-/// Decides the side of every vertex of the core band (the corners of the wall cells) and
-/// which of them belong to thin shells.
-pub fn compute_signs(band: &Band, vox: &Voxelization, flood: &Flood) -> CoreSigns {
+/// The sides of the core band's vertices (the corners of the wall cells) as the flood and
+/// the unblocked edges give them, with the cells each touches ([`CoreSigns::touches`]).
+/// Vertices sealed in by triangles on every side stay `Unknown`.
+pub fn vertex_sides(band: &Band, vox: &Voxelization, flood: &Flood) -> (Vec<u8>, Vec<Side>) {
     let touches = touched_sides(band, &vox.walls, flood);
     let mut side: Vec<Side> = touches.iter().map(|&t| side_from_touches(t)).collect();
     resolve_enclosed(band, vox, &mut side);
-    let evidence = edge_evidence(band, vox, &side);
+    (touches, side)
+}
+
+/// Without the inside test: every vertex sealed in by triangles on every side (still
+/// `Unknown` after [`vertex_sides`]) is outside, as the conversion decided before the test.
+pub fn sealed_to_outside(side: &mut [Side]) {
+    for s in side.iter_mut().filter(|s| **s == Side::Unknown) {
+        *s = Side::Outside;
+    }
+}
+
+/// Decides which core vertices belong to thin shells, once every side is known (see
+/// [`vertex_sides`] and [`crate::regions::decide_sealed`]).
+pub fn compute_signs(
+    band: &Band,
+    vox: &Voxelization,
+    touches: Vec<u8>,
+    side: Vec<Side>,
+    nesting: &Nesting,
+) -> CoreSigns {
+    let evidence = edge_evidence(band, vox, &side, nesting);
     let thin_cells = thin_cells(&vox.walls, &evidence);
     let thin = thin_flags(band, &vox.walls, &thin_cells);
     CoreSigns {
@@ -489,7 +512,7 @@ mod tests {
         let touches = touched_sides(&band, &vox.walls, &flood);
         let mut side: Vec<Side> = touches.iter().map(|&t| side_from_touches(t)).collect();
         resolve_enclosed(&band, &vox, &mut side);
-        let got = edge_evidence(&band, &vox, &side);
+        let got = edge_evidence(&band, &vox, &side, &Nesting::default());
         // Each crossed edge adds its vote to the (up to) four cells around it.
         let walls = &vox.walls;
         let mut want = vec![[0i8; 512]; walls.keys.len()];

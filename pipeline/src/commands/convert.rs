@@ -22,6 +22,11 @@ pub struct Args {
     pub resolution: crate::resolution_arg::ResolutionArg,
     #[command(flatten)]
     pub deform: super::deform_args::DeformArgs,
+    /// Run the inside test (docs/ALGORITHM.md §2b): decide enclosed regions solid or air by
+    /// the source's winding number, keeping parts inside hollow hulls and thin closed parts.
+    /// Off by default (docs/QUALITY.md: better on some meshes, worse on others, slower).
+    #[arg(long)]
+    pub inside_test: bool,
     /// Write the output in grid coordinates (voxels) instead of the source frame.
     #[arg(long)]
     pub grid_frame: bool,
@@ -45,6 +50,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let start = Instant::now();
     let mut params = sparcubes::Params::with_resolution(args.resolution.get());
     params.deform = args.deform.enabled();
+    params.inside_test = args.inside_test;
     let steps = Steps {
         params: &params,
         input_components: true,
@@ -97,6 +103,12 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         "active_vertices": s.active_vertices,
         "active_cells": s.active_cells,
         "shell_vertices": s.shell_vertices,
+        "inside_test": params.inside_test,
+        "enclosed_regions": s.enclosed_regions,
+        "air_regions": s.air_regions,
+        "ambiguous_regions": s.ambiguous_regions,
+        "thin_parts": s.thin_parts,
+        "shelled_thin_parts": s.shelled_thin_parts,
         "output_faces": mesh.triangles.len(),
         "output_vertices": mesh.positions.len(),
         "output_components": topo.components,
@@ -157,6 +169,12 @@ fn print_text(v: &Value, load: &LoadStats, stages: &[(String, f64)]) {
         "  active       {} vertices, {} cells ({} in thin shells)",
         v["active_vertices"], v["active_cells"], v["shell_vertices"]
     );
+    if v["inside_test"] == true {
+        println!(
+            "  inside test  {} enclosed regions ({} air, {} ambiguous kept solid); thin closed parts: {} kept, {} as shells",
+            v["enclosed_regions"], v["air_regions"], v["ambiguous_regions"], v["thin_parts"], v["shelled_thin_parts"]
+        );
+    }
     println!(
         "  watertight   {}, manifold {}",
         v["watertight"], v["manifold"]
