@@ -163,6 +163,20 @@ pub struct BrickSet {
 }
 
 impl BrickSet {
+    /// Calls `f` with the grid coordinates of each member of the brick in slot `s`, in local
+    /// order.
+    #[inline]
+    pub fn for_each_member(&self, s: usize, mut f: impl FnMut([i64; 3])) {
+        let b = self.index.coord(self.keys[s] as usize);
+        for_each_bit(&self.masks[s], |x, y, z| {
+            f([
+                (b[0] * 8 + x) as i64,
+                (b[1] * 8 + y) as i64,
+                (b[2] * 8 + z) as i64,
+            ])
+        });
+    }
+
     /// Builds a set from sorted, deduplicated `(brick key, word, bit)`-packed entries
     /// (`key << 9 | local`), where `local = x + 8y + 64z`.
     pub fn from_sorted_packed(n: u32, packed: &[u64]) -> Self {

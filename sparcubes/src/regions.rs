@@ -255,14 +255,8 @@ fn map_blocked_edges<T: Send>(
                 .map(move |s| (axis, set, s))
         })
         .flat_map_iter(|(axis, set, s)| {
-            let b = set.index.coord(set.keys[s] as usize);
             let mut out = Vec::new();
-            for_each_bit(&set.masks[s], |x, y, z| {
-                let v = [
-                    (b[0] * 8 + x) as i64,
-                    (b[1] * 8 + y) as i64,
-                    (b[2] * 8 + z) as i64,
-                ];
+            set.for_each_member(s, |v| {
                 let mut u = v;
                 u[axis] += 1;
                 f(v, u, &mut out);
@@ -988,14 +982,8 @@ fn parts_with_gaps(
     let marks: Vec<u32> = (0..near.keys.len())
         .into_par_iter()
         .flat_map_iter(|s| {
-            let b = near.index.coord(near.keys[s] as usize);
             let mut out = Vec::new();
-            for_each_bit(&near.masks[s], |x, y, z| {
-                let w = [
-                    (b[0] * 8 + x) as i64,
-                    (b[1] * 8 + y) as i64,
-                    (b[2] * 8 + z) as i64,
-                ];
+            near.for_each_member(s, |w| {
                 for axis in 0..3 {
                     for lower in [true, false] {
                         let (mut v, mut u) = (w, w);
