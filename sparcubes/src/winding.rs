@@ -95,28 +95,59 @@ struct Expansion {
     cubic: [f64; 10],
 }
 
+/// [`PAIRS`] index of the pair (j, k), either order.
+const PAIR_OF: [[usize; 3]; 3] = [[0, 3, 4], [3, 1, 5], [4, 5, 2]];
+
+/// [`TRIPLES`] index of the sorted triple (i, j, k), any order: a table, so contracting a
+/// node's moments is a few hundred flops rather than a search per term (it was most of the
+/// tree's build time).
+const TRIPLE_OF: [[[usize; 3]; 3]; 3] = triple_table();
+
+const fn triple_table() -> [[[usize; 3]; 3]; 3] {
+    let mut table = [[[0; 3]; 3]; 3];
+    let mut i = 0;
+    while i < 3 {
+        let mut j = 0;
+        while j < 3 {
+            let mut k = 0;
+            while k < 3 {
+                // Sort (i, j, k) and find it in TRIPLES.
+                let (mut a, mut b, mut c) = (i, j, k);
+                if a > b {
+                    (a, b) = (b, a);
+                }
+                if b > c {
+                    (b, c) = (c, b);
+                }
+                if a > b {
+                    (a, b) = (b, a);
+                }
+                let mut t = 0;
+                while t < TRIPLES.len() {
+                    if TRIPLES[t].0 == a && TRIPLES[t].1 == b && TRIPLES[t].2 == c {
+                        table[i][j][k] = t;
+                    }
+                    t += 1;
+                }
+                k += 1;
+            }
+            j += 1;
+        }
+        i += 1;
+    }
+    table
+}
+
 impl Moments {
     /// The contracted form of these moments.
     fn expansion(&self) -> Expansion {
-        let full = |i: usize, j: usize, k: usize| -> f64 {
-            let s = PAIRS
-                .iter()
-                .position(|&(a, b)| (a, b) == (j.min(k), j.max(k)))
-                .unwrap_or(0);
-            self.p[i][s]
-        };
+        let full = |i: usize, j: usize, k: usize| -> f64 { self.p[i][PAIR_OF[j][k]] };
         let m = &self.m;
         let mut cubic = [0.0; 10];
         for i in 0..3 {
             for j in 0..3 {
                 for k in 0..3 {
-                    let mut key = [i, j, k];
-                    key.sort_unstable();
-                    let t = TRIPLES
-                        .iter()
-                        .position(|&(a, b, c)| [a, b, c] == key)
-                        .unwrap_or(0);
-                    cubic[t] += full(i, j, k);
+                    cubic[TRIPLE_OF[i][j][k]] += full(i, j, k);
                 }
             }
         }

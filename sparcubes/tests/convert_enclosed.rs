@@ -294,3 +294,27 @@ fn default_keeps_the_conversion_without_the_test() {
     let (_, _, on) = convert_extract(&mesh, N);
     assert_eq!(assert_closed_manifold("inside test", &on), 1);
 }
+
+#[test]
+fn an_air_pocket_smaller_than_the_grid_can_shape_stays_solid() {
+    // A cubic cavity two voxels wide holds one surface-free cell: air by the winding number,
+    // but too small to be air (`regions::AIR_MIN_CELLS`), so it stays solid: the same cubes
+    // as without the inside test (where the pocket's surface is a sheet inside the solid).
+    let margin = 2.0 * Params::with_resolution(N).margin_cells as f64;
+    let voxel = 2.0 / (N as f64 - margin);
+    let (c, h) = ([0.013, 0.021, 0.007], voxel);
+    let cavity = shapes::flipped(&shapes::cuboid(
+        [c[0] - h, c[1] - h, c[2] - h],
+        [c[0] + h, c[1] + h, c[2] + h],
+        &[],
+    ));
+    let mesh = shapes::merge(&[shapes::cuboid([-1.0; 3], [1.0; 3], &[]), cavity]);
+    let (_, stats, out) = convert_extract(&mesh, N);
+    assert!(stats.enclosed_regions >= 2, "{stats:?}");
+    assert_eq!(stats.air_regions, 0, "{stats:?}");
+    assert!(stats.ambiguous_regions >= 1, "{stats:?}");
+    assert_closed_manifold("pocket", &out);
+    let without = convert(&mesh, &Params::with_resolution(N)).expect("convert");
+    let with = convert(&mesh, &inside_params(N)).expect("convert");
+    assert_eq!(with.cubes, without.cubes);
+}
