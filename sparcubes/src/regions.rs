@@ -196,6 +196,36 @@ impl Regions {
         None
     }
 
+    /// Per brick key of `walls`' index: whether the brick, or one of its 26 neighbours, holds
+    /// cells of a region `marked`.
+    fn bricks_near(&self, walls: &BrickSet, marked: &[bool]) -> Vec<bool> {
+        let index = &walls.index;
+        let mut holds = vec![false; index.slots.len()];
+        for s in 0..walls.keys.len() {
+            let range = self.part_starts[s] as usize..self.part_starts[s + 1] as usize;
+            if self.parts[range].iter().any(|&(_, r)| marked[r as usize]) {
+                holds[walls.keys[s] as usize] = true;
+            }
+        }
+        for &(key, r) in &self.empty {
+            if marked[r as usize] {
+                holds[key as usize] = true;
+            }
+        }
+        let mut near = holds.clone();
+        for key in (0..holds.len()).filter(|&k| holds[k]) {
+            let b = index.coord(key);
+            for d in 0..27i64 {
+                let nb: [i64; 3] =
+                    std::array::from_fn(|a| b[a] as i64 + (d / 3i64.pow(a as u32)) % 3 - 1);
+                if (0..3).all(|a| nb[a] >= 0 && (nb[a] as u32) < index.dims[a]) {
+                    near[index.key(nb.map(|v| v as u32))] = true;
+                }
+            }
+        }
+        near
+    }
+
     /// Whether region `r` is air.
     #[inline]
     pub fn is_air(&self, r: u32) -> bool {
@@ -336,7 +366,19 @@ impl Nesting {
         }
         // A region with a crossed edge to an outside vertex is not wholly inside another.
         if wholly.contains(&true) {
+            // Only edges within a brick of a wholly nested region's cells can lead from it
+            // (`region_at` looks at most REGION_SEARCH + 1 < 8 cells away): most of the
+            // surface's crossed edges are skipped without a region look-up.
+            let near = regions.bricks_near(&vox.walls, &wholly);
+            let index = &vox.walls.index;
             let touching: Vec<u32> = map_blocked_edges(vox, |v, u, out| {
+                let brick = |c: [i64; 3]| -> Option<usize> {
+                    let b: [u32; 3] = std::array::from_fn(|a| (c[a].max(0) as u32) >> 3);
+                    (0..3).all(|a| b[a] < index.dims[a]).then(|| index.key(b))
+                };
+                if brick(v).is_none_or(|k| !near[k]) {
+                    return;
+                }
                 let (Some(i), Some(j)) = (band.verts.id(v), band.verts.id(u)) else {
                     return;
                 };

@@ -37,6 +37,10 @@ pub struct Args {
     pub elevation: f32,
     #[command(flatten)]
     pub resolution: crate::resolution_arg::ResolutionArg,
+    /// Convert a mesh with the inside test on (as `convert --inside-test`; docs/ALGORITHM.md
+    /// §2b). Not for a job's item, which is drawn as the job made it.
+    #[arg(long)]
+    pub inside_test: bool,
 }
 
 /// Runs `sparc3d preview`.
@@ -47,6 +51,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
         elevation_deg: args.elevation,
     };
     let (image, what) = match &args.id {
+        Some(_) if args.inside_test => {
+            bail!("--inside-test applies to a mesh; a job's item is drawn as the job made it")
+        }
         Some(id) => {
             let job = Job::open(&args.input)?;
             let row = item_lookup::row(&job, item_lookup::find(&job, id)?)?;
@@ -63,7 +70,12 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 );
             }
             (
-                preview_mesh(&args.input, args.resolution.get(), &options)?,
+                preview_mesh(
+                    &args.input,
+                    args.resolution.get(),
+                    args.inside_test,
+                    &options,
+                )?,
                 args.input.display().to_string(),
             )
         }
