@@ -479,3 +479,32 @@ fn convert_inside_test_is_opt_in() {
         );
     }
 }
+
+/// `preview --inside-test` draws a mesh converted with the inside test; a job's item is drawn
+/// as the job made it, so the flag is refused with `--id`.
+#[test]
+fn preview_inside_test_converts_a_mesh_with_it() {
+    let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let mesh = examples().join("wuson.stl");
+    let png = tmp.path().join("p.png");
+    let args = |extra: &[&'static str]| -> Vec<String> {
+        let mut a: Vec<String> = ["preview", s(&mesh), "-o", s(&png), "--views", "1"]
+            .iter()
+            .map(|x| x.to_string())
+            .collect();
+        a.extend(["--tile", "64", "--resolution", "64"].map(String::from));
+        a.extend(extra.iter().map(|x| x.to_string()));
+        a
+    };
+    let run = |extra: &[&'static str]| {
+        let a = args(extra);
+        sparc3d(&a.iter().map(String::as_str).collect::<Vec<_>>())
+    };
+    let out = run(&["--inside-test"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let on = std::fs::read(&png).unwrap_or_else(|e| panic!("{e}"));
+    assert!(on.starts_with(b"\x89PNG"), "not a PNG");
+    let out = run(&["--id", "x", "--inside-test"]);
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("--inside-test"), "{}", stderr(&out));
+}
