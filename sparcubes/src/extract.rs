@@ -57,13 +57,16 @@ pub fn extract(cubes: &SparseCubes) -> TriMesh {
     let mut work = Vec::with_capacity(chunks.len());
     let (mut tri_rest, mut centre_rest) = (&mut triangles[..], &mut centre_points[..]);
     let mut first_centre = edge_points;
-    for chunk in &chunks {
+    // Each chunk's kept cases move into its work item and are freed as soon as it is
+    // written, so they are gone before the final position list is built.
+    for chunk in chunks {
         let (tris, tail) = tri_rest.split_at_mut(chunk.triangles);
         tri_rest = tail;
         let (centres, tail) = centre_rest.split_at_mut(chunk.centres);
         centre_rest = tail;
+        let next_centre = first_centre + chunk.centres as u32;
         work.push((chunk, tris, centres, first_centre));
-        first_centre += chunk.centres as u32;
+        first_centre = next_centre;
     }
     work.into_par_iter()
         .for_each(|(chunk, tris, centres, first_centre)| {
