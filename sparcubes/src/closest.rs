@@ -38,8 +38,6 @@
 use crate::band::closest_point_on_triangle;
 use crate::mesh::TriMesh;
 use crate::vec3::{add, cross, dist2, dot, sub};
-use glam::Vec3A;
-use obvhs::triangle::Triangle;
 use rayon::prelude::*;
 
 /// Queries per chunk of a batch (fixed, so results never depend on the thread count).
@@ -82,8 +80,13 @@ struct Node {
 /// A BVH over the triangles of a mesh for exact closest-point queries (see the module docs).
 #[derive(Debug, Clone)]
 pub struct TriangleIndex {
-    /// Flattened nodes; the root is node 0.
-    nodes: Vec<Node>,
+    /// The root's bounds (`None` for an empty mesh).
+    root: Option<Node>,
+    /// Children or triangles of each node; the root is node 0, the children of a node are
+    /// nodes `first` and `first + 1` with `first` odd.
+    links: Vec<Link>,
+    /// The bounds of both children of each inner node, entry `(first − 1) / 2`.
+    pairs: Vec<Pair>,
     /// Triangle indices in leaf order.
     order: Vec<u32>,
     /// Corners of `order[i]`, in leaf order (contiguous per leaf).
@@ -100,51 +103,55 @@ impl TriangleIndex {
     /// Builds the tree over every triangle of `mesh` (indices must be in range; a mesh without
     /// triangles gives an index that answers `None`).
     pub fn new(mesh: &TriMesh) -> Self {
-        let point = |i: u32| {
-            let p = mesh.positions[i as usize];
-            Vec3A::new(p[0], p[1], p[2])
-        };
-        let tris: Vec<Triangle> = mesh
-            .triangles
-            .iter()
-            .map(|t| Triangle {
-                v0: point(t[0]),
-                v1: point(t[1]),
-                v2: point(t[2]),
-            })
-            .collect();
-        if tris.is_empty() {
+        if mesh.triangles.is_empty() {
             return Self {
-                nodes: Vec::new(),
+                root: None,
+                links: Vec::new(),
+                pairs: Vec::new(),
                 order: Vec::new(),
                 corners: Vec::new(),
                 normals: Vec::new(),
                 slots: Vec::new(),
             };
         }
-        let (nodes, order) = morton_tree(&tris);
-        // Triangles of a leaf are `order[first..first + count]`; store their corners in that
-        // order so a leaf's corners are contiguous.
-        let corners = order
-            .iter()
-            .map(|&t| {
-                let tri = mesh.triangles[t as usize];
-                tri.map(|i| {
-                    let p = mesh.positions[i as usize];
-                    [p[0] as f64, p[1] as f64, p[2] as f64]
-                })
+        let centroids: Vec<[f64; 3]> = mesh
+            .triangles
+            .par_iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
+                std::array::from_fn(|k| (a[k] as f64 + b[k] as f64 + c[k] as f64) / 3.0)
             })
             .collect();
-        let normals = order
-            .iter()
-            .map(|&t| plane_normal(area_vector(&tris[t as usize])))
+        let keyed = morton_keys(&centroids);
+        drop(centroids);
+        let (keys, order): (Vec<u64>, Vec<u32>) = keyed.into_iter().unzip();
+        // Triangles of a leaf are `order[first..first + count]`; their corners are stored in
+        // that order so that the build and the queries read them front to back.
+        let corners: Vec<[[f64; 3]; 3]> = order
+            .par_iter()
+            .map(|&t| mesh.triangles[t as usize].map(|i| mesh.positions[i as usize].map(f64::from)))
             .collect();
+        let normals = corners
+            .par_iter()
+            .map(|c| plane_normal(area_vector(c)))
+            .collect();
+        let nodes = morton_tree(mesh, &order, &keys, &corners);
         let mut slots = vec![u32::MAX; mesh.triangles.len()];
         for (s, &t) in order.iter().enumerate() {
             slots[t as usize] = s as u32;
         }
+        let links = nodes
+            .iter()
+            .map(|n| Link {
+                first: n.first,
+                count: n.count,
+            })
+            .collect();
+        let pairs = nodes[1..].chunks_exact(2).map(Pair::new).collect();
         Self {
-            nodes,
+            root: nodes.first().copied(),
+            links,
+            pairs,
             order,
             corners,
             normals,
@@ -220,21 +227,19 @@ impl TriangleIndex {
         hint: Option<u32>,
         stack: &mut Vec<(u32, f64)>,
     ) -> Option<ClosestPoint> {
-        if self.nodes.is_empty() {
-            return None;
-        }
+        let root = self.root.as_ref()?;
         let mut best = (f64::INFINITY, u32::MAX, q);
         if let Some(t) = hint.and_then(|t| self.slot_of(t)) {
             let p = closest_point_on_triangle(q, &self.corners[t]);
             best = (dist2(q, p), self.order[t], p);
         }
         stack.clear();
-        stack.push((0, self.box_dist2(0, q)));
+        stack.push((0, root.dist2(q)));
         while let Some((id, d)) = stack.pop() {
             if d >= best.0 {
                 continue;
             }
-            let node = self.nodes[id as usize];
+            let node = self.links[id as usize];
             if node.count > 0 {
                 let start = node.first as usize;
                 for s in start..start + node.count as usize {
@@ -253,7 +258,7 @@ impl TriangleIndex {
                 continue;
             }
             let (l, r) = (node.first, node.first + 1);
-            let (dl, dr) = (self.box_dist2(l, q), self.box_dist2(r, q));
+            let [dl, dr] = self.pairs[(l >> 1) as usize].dist2(q);
             // Push the farther child first so the nearer one is visited first; a child whose
             // bound is not below the best is never pushed.
             let (near, far) = if dl <= dr {
@@ -283,42 +288,108 @@ impl TriangleIndex {
             _ => None,
         }
     }
+}
 
-    /// A lower bound of the squared distance from `q` to the triangles of node `id`: the
-    /// larger of the squared distances to its box and to its oriented box (0 inside both).
-    #[inline]
-    fn box_dist2(&self, id: u32, q: [f64; 3]) -> f64 {
-        let n = &self.nodes[id as usize];
+impl Node {
+    /// A lower bound of the squared distance from `q` to the node's triangles: the larger of
+    /// the squared distances to its box and to its oriented box (0 inside both).
+    fn dist2(&self, q: [f64; 3]) -> f64 {
         let mut s = 0.0;
         let mut o = 0.0;
         for a in 0..3 {
-            let d = (n.lo[a] as f64 - q[a]).max(0.0).max(q[a] - n.hi[a] as f64);
+            let d = (self.lo[a] as f64 - q[a])
+                .max(0.0)
+                .max(q[a] - self.hi[a] as f64);
             s += d * d;
-            let f = n.frame[a].map(f64::from);
+            let f = self.frame[a].map(f64::from);
             let t = dot(f, q);
-            let g = (n.near[a] as f64 - t).max(0.0).max(t - n.far[a] as f64);
+            let g = (self.near[a] as f64 - t)
+                .max(0.0)
+                .max(t - self.far[a] as f64);
             o += g * g;
         }
         s.max(o)
     }
 }
 
+/// Where the children or triangles of a node are.
+#[derive(Debug, Clone, Copy)]
+struct Link {
+    /// Inner node: index of the first child. Leaf: first entry of `TriangleIndex::order`.
+    first: u32,
+    /// Number of triangles of a leaf; 0 for an inner node.
+    count: u32,
+}
+
+/// The bounds of two sibling nodes side by side (`[axis][child]`), so that both children's
+/// bounds are computed in one pass of two-lane arithmetic: the traversal always needs both,
+/// and one scalar pass per child was half of the queries' time.
+#[derive(Debug, Clone, Copy)]
+struct Pair {
+    lo: [[f32; 2]; 3],
+    hi: [[f32; 2]; 3],
+    /// `frame[row][axis][child]`.
+    frame: [[[f32; 2]; 3]; 3],
+    near: [[f32; 2]; 3],
+    far: [[f32; 2]; 3],
+}
+
+impl Pair {
+    /// The bounds of the two nodes of `siblings`.
+    fn new(siblings: &[Node]) -> Self {
+        let (l, r) = (&siblings[0], &siblings[1]);
+        let two = |a: [f32; 3], b: [f32; 3]| std::array::from_fn(|k| [a[k], b[k]]);
+        Self {
+            lo: two(l.lo, r.lo),
+            hi: two(l.hi, r.hi),
+            frame: std::array::from_fn(|row| two(l.frame[row], r.frame[row])),
+            near: two(l.near, r.near),
+            far: two(l.far, r.far),
+        }
+    }
+
+    /// [`Node::dist2`] of both nodes, with the same operations in the same order (the same
+    /// numbers).
+    #[inline]
+    fn dist2(&self, q: [f64; 3]) -> [f64; 2] {
+        let mut s = [0.0; 2];
+        let mut o = [0.0; 2];
+        for a in 0..3 {
+            for c in 0..2 {
+                let d = (self.lo[a][c] as f64 - q[a])
+                    .max(0.0)
+                    .max(q[a] - self.hi[a][c] as f64);
+                s[c] += d * d;
+            }
+        }
+        for row in 0..3 {
+            let f = &self.frame[row];
+            for c in 0..2 {
+                let t = f[0][c] as f64 * q[0] + f[1][c] as f64 * q[1] + f[2][c] as f64 * q[2];
+                let g = (self.near[row][c] as f64 - t)
+                    .max(0.0)
+                    .max(t - self.far[row][c] as f64);
+                o[c] += g * g;
+            }
+        }
+        [s[0].max(o[0]), s[1].max(o[1])]
+    }
+}
+
 /// Triangles per leaf of [`morton_tree`].
 const LEAF: usize = 8;
 
-/// A tree over triangles sorted by the Morton code of their centroids: each node splits its
-/// run where the highest differing code bit changes (halfway when all codes are equal), leaves
-/// hold up to [`LEAF`] triangles, children are adjacent. Returns the nodes and the triangle
-/// order.
-fn morton_tree(tris: &[Triangle]) -> (Vec<Node>, Vec<u32>) {
-    let centroids: Vec<[f64; 3]> = tris
-        .iter()
-        .map(|t| std::array::from_fn(|a| (t.v0[a] as f64 + t.v1[a] as f64 + t.v2[a] as f64) / 3.0))
-        .collect();
-    let codes = morton_keys(&centroids);
-    let order: Vec<u32> = codes.iter().map(|&(_, i)| i).collect();
-    let keys: Vec<u64> = codes.iter().map(|&(k, _)| k).collect();
-    let mut nodes = vec![Node {
+/// A tree over triangles sorted by the Morton code of their centroids (`order`, `keys`, and
+/// their `corners` in that order): each node splits its run where the highest differing code
+/// bit changes (halfway when all codes are equal), leaves hold up to [`LEAF`] triangles,
+/// children are adjacent. Returns the nodes.
+fn morton_tree(
+    mesh: &TriMesh,
+    order: &[u32],
+    keys: &[u64],
+    corners: &[[[f64; 3]; 3]],
+) -> Vec<Node> {
+    let blank = Node {
         lo: [0.0; 3],
         hi: [0.0; 3],
         first: 0,
@@ -326,92 +397,126 @@ fn morton_tree(tris: &[Triangle]) -> (Vec<Node>, Vec<u32>) {
         frame: [[0.0; 3]; 3],
         near: [0.0; 3],
         far: [0.0; 3],
-    }];
-    build_node(tris, &order, &keys, 0, 0, order.len(), &mut nodes);
-    (nodes, order)
+    };
+    let mut build = Build {
+        mesh,
+        order,
+        keys,
+        corners,
+        nodes: Vec::with_capacity(2 * order.len() / LEAF + 1),
+        points: Vec::with_capacity(order.len()),
+    };
+    build.nodes.push(blank);
+    build.node(0, 0, order.len());
+    build.nodes
 }
 
 /// Triangles up to which a node's oriented box is measured on its triangles' corners; above,
 /// on the corners of its children's boxes (looser, but such large nodes are rarely flat).
 const EXACT_FRAME: usize = 512;
 
-/// Fills node `id` with the run `start..end` of the sorted triangles (recursively); returns the
-/// run's area vector (sum of the triangles' edge cross products).
-fn build_node(
-    tris: &[Triangle],
-    order: &[u32],
-    keys: &[u64],
-    id: usize,
-    start: usize,
-    end: usize,
-    nodes: &mut Vec<Node>,
-) -> [f64; 3] {
-    let run = &order[start..end];
-    if end - start <= LEAF {
-        let mut lo = [f32::INFINITY; 3];
-        let mut hi = [f32::NEG_INFINITY; 3];
+/// The state of [`morton_tree`]'s recursion.
+struct Build<'a> {
+    mesh: &'a TriMesh,
+    order: &'a [u32],
+    keys: &'a [u64],
+    corners: &'a [[[f64; 3]; 3]],
+    nodes: Vec<Node>,
+    /// The distinct corners of each leaf, leaf after leaf: the corners of a node's triangles
+    /// are a run of them (a leaf's 8 triangles have about 3 times fewer distinct corners than
+    /// corners, and the oriented extents of every node up to [`EXACT_FRAME`] triangles are
+    /// measured on them).
+    points: Vec<[f64; 3]>,
+}
+
+impl Build<'_> {
+    /// Fills node `id` with the run `start..end` of the sorted triangles (recursively);
+    /// returns the run's area vector (sum of the triangles' edge cross products) and its run
+    /// of `points`.
+    fn node(&mut self, id: usize, start: usize, end: usize) -> ([f64; 3], usize, usize) {
+        if end - start <= LEAF {
+            return self.leaf(id, start, end);
+        }
+        let (a, b) = (self.keys[start], self.keys[end - 1]);
+        let mid = if a == b {
+            (start + end) / 2
+        } else {
+            let bit = 63 - (a ^ b).leading_zeros();
+            let split = start + self.keys[start..end].partition_point(|k| (k >> bit) & 1 == 0);
+            split.clamp(start + 1, end - 1)
+        };
+        let left = self.nodes.len();
+        let blank = self.nodes[0];
+        self.nodes.push(blank);
+        self.nodes.push(blank);
+        let (area_l, from, _) = self.node(left, start, mid);
+        let (area_r, _, to) = self.node(left + 1, mid, end);
+        let area = add(area_l, area_r);
+        let frame = frame(area);
+        let (l, r) = (self.nodes[left], self.nodes[left + 1]);
+        let (near, far) = if end - start <= EXACT_FRAME {
+            extents(&frame, self.points[from..to].iter().copied())
+        } else {
+            extents(&frame, box_corners(&l).chain(box_corners(&r)))
+        };
+        self.nodes[id] = Node {
+            lo: std::array::from_fn(|k| l.lo[k].min(r.lo[k])),
+            hi: std::array::from_fn(|k| l.hi[k].max(r.hi[k])),
+            first: left as u32,
+            count: 0,
+            frame,
+            near,
+            far,
+        };
+        (area, from, to)
+    }
+
+    /// Fills leaf `id` with the triangles `start..end` (see [`Build::node`]).
+    fn leaf(&mut self, id: usize, start: usize, end: usize) -> ([f64; 3], usize, usize) {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
         let mut area = [0.0; 3];
-        for &t in run {
-            let t = &tris[t as usize];
-            for p in [t.v0, t.v1, t.v2] {
+        let from = self.points.len();
+        let mut seen = [u32::MAX; 3 * LEAF];
+        let mut distinct = 0;
+        for s in start..end {
+            let c = &self.corners[s];
+            for p in c {
                 for a in 0..3 {
                     lo[a] = lo[a].min(p[a]);
                     hi[a] = hi[a].max(p[a]);
                 }
             }
-            area = add(area, area_vector(t));
+            area = add(area, area_vector(c));
+            let vertices = self.mesh.triangles[self.order[s] as usize];
+            for (v, p) in vertices.iter().zip(c) {
+                if !seen[..distinct].contains(v) {
+                    seen[distinct] = *v;
+                    distinct += 1;
+                    self.points.push(*p);
+                }
+            }
         }
         let frame = frame(area);
-        let (near, far) = extents(&frame, triangle_corners(tris, run));
-        nodes[id] = Node {
-            lo,
-            hi,
+        let to = self.points.len();
+        let (near, far) = extents(&frame, self.points[from..to].iter().copied());
+        // The corners are `f32` values, so their bounds are exact in `f32`.
+        self.nodes[id] = Node {
+            lo: lo.map(|v| v as f32),
+            hi: hi.map(|v| v as f32),
             first: start as u32,
             count: (end - start) as u32,
             frame,
             near,
             far,
         };
-        return area;
+        (area, from, to)
     }
-    let (a, b) = (keys[start], keys[end - 1]);
-    let mid = if a == b {
-        (start + end) / 2
-    } else {
-        let bit = 63 - (a ^ b).leading_zeros();
-        let split = start + keys[start..end].partition_point(|k| (k >> bit) & 1 == 0);
-        split.clamp(start + 1, end - 1)
-    };
-    let left = nodes.len();
-    let blank = nodes[0];
-    nodes.push(blank);
-    nodes.push(blank);
-    let area_l = build_node(tris, order, keys, left, start, mid, nodes);
-    let area_r = build_node(tris, order, keys, left + 1, mid, end, nodes);
-    let area = add(area_l, area_r);
-    let frame = frame(area);
-    let (l, r) = (nodes[left], nodes[left + 1]);
-    let (near, far) = if end - start <= EXACT_FRAME {
-        extents(&frame, triangle_corners(tris, run))
-    } else {
-        extents(&frame, box_corners(&l).chain(box_corners(&r)))
-    };
-    nodes[id] = Node {
-        lo: std::array::from_fn(|k| l.lo[k].min(r.lo[k])),
-        hi: std::array::from_fn(|k| l.hi[k].max(r.hi[k])),
-        first: left as u32,
-        count: 0,
-        frame,
-        near,
-        far,
-    };
-    area
 }
 
 /// Twice the area vector of a triangle (the cross product of two edges), in `f64`.
-fn area_vector(t: &Triangle) -> [f64; 3] {
-    let v = |p: Vec3A| [p[0] as f64, p[1] as f64, p[2] as f64];
-    let (a, b, c) = (v(t.v0), v(t.v1), v(t.v2));
+fn area_vector(c: &[[f64; 3]; 3]) -> [f64; 3] {
+    let [a, b, c] = *c;
     cross(sub(b, a), sub(c, a))
 }
 
@@ -450,30 +555,20 @@ fn frame(area: [f64; 3]) -> [[f32; 3]; 3] {
     [n, t, u].map(|v| v.map(|c| (c * (1.0 - 1e-5)) as f32))
 }
 
-/// The corners of the triangles `run`.
-fn triangle_corners<'a>(
-    tris: &'a [Triangle],
-    run: &'a [u32],
-) -> impl Iterator<Item = [f32; 3]> + 'a {
-    run.iter().flat_map(move |&t| {
-        let t = &tris[t as usize];
-        [t.v0, t.v1, t.v2].map(|p| [p[0], p[1], p[2]])
+/// The eight corners of a node's box.
+fn box_corners(node: &Node) -> impl Iterator<Item = [f64; 3]> {
+    let (lo, hi) = (node.lo, node.hi);
+    (0..8).map(move |c| {
+        std::array::from_fn(|a| f64::from(if c >> a & 1 == 0 { lo[a] } else { hi[a] }))
     })
 }
 
-/// The eight corners of a node's box.
-fn box_corners(node: &Node) -> impl Iterator<Item = [f32; 3]> {
-    let (lo, hi) = (node.lo, node.hi);
-    (0..8).map(move |c| std::array::from_fn(|a| if c >> a & 1 == 0 { lo[a] } else { hi[a] }))
-}
-
 /// `[min, max]` of `frame[k] · x` over `points`, rounded outward to `f32`.
-fn extents(frame: &[[f32; 3]; 3], points: impl Iterator<Item = [f32; 3]>) -> ([f32; 3], [f32; 3]) {
+fn extents(frame: &[[f32; 3]; 3], points: impl Iterator<Item = [f64; 3]>) -> ([f32; 3], [f32; 3]) {
     let axes = frame.map(|f| f.map(f64::from));
     let mut near = [f64::INFINITY; 3];
     let mut far = [f64::NEG_INFINITY; 3];
     for p in points {
-        let p = p.map(f64::from);
         for k in 0..3 {
             let d = dot(axes[k], p);
             near[k] = near[k].min(d);

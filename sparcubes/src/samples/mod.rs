@@ -235,12 +235,11 @@ pub fn sample(cubes: &SparseCubes, mesh: &TriMesh, params: &SampleParams) -> Res
     let mut out = Samples::default();
 
     // Surface: area-uniform points with their face normal.
-    (out.surface_points, out.surface_normals) = (0..params.surface as u64)
-        .into_par_iter()
-        .map(|i| {
-            let (p, normal) = areas.draw(mesh, &Draw::new(params.seed, SURFACE, i), 0);
-            (store(round3(to_norm(p))), store(round3(normal)))
+    (out.surface_points, out.surface_normals) = areas
+        .draw_batch(mesh, (params.seed, SURFACE), params.surface, |_, _, s| {
+            (store(round3(to_norm(s.point))), store(round3(s.normal)))
         })
+        .into_iter()
         .unzip();
 
     // Sharp edges.
@@ -262,18 +261,13 @@ pub fn sample(cubes: &SparseCubes, mesh: &TriMesh, params: &SampleParams) -> Res
 
     // Near and volume points: positions first (rounded), then exact distances and sides.
     let sigmas = &params.near_sigmas;
-    let near: Vec<[f64; 3]> = (0..params.near as u64)
-        .into_par_iter()
-        .map(|i| {
-            let d = Draw::new(params.seed, NEAR, i);
-            let (p, _) = areas.draw(mesh, &d, 0);
+    let near: Vec<[f64; 3]> =
+        areas.draw_batch(mesh, (params.seed, NEAR), params.near, |i, d, s| {
             let sigma = sigmas[(i % sigmas.len() as u64) as usize];
-            let p = to_norm(p);
-            round3(std::array::from_fn(|a| {
-                p[a] + d.truncated_normal(8 + 64 * a as u64, sigma, params.near_bound)
-            }))
-        })
-        .collect();
+            let p = to_norm(s.point);
+            let offset: [f64; 3] = d.truncated_normals(8, sigma, params.near_bound);
+            round3(std::array::from_fn(|a| p[a] + offset[a]))
+        });
     let b = params.volume_bound;
     let volume: Vec<[f64; 3]> = (0..params.volume as u64)
         .into_par_iter()
