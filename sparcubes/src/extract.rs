@@ -6,11 +6,13 @@
 //! (`lower vertex index × 3 + axis`) and computed from that edge's two vertices only, so the
 //! cells sharing an edge share one vertex and the mesh is indexed and watertight.
 //!
-//! Two passes over fixed chunks of cells, in parallel: the first counts each chunk's
-//! triangles and centre vertices and marks the crossed edges in a bitmap; the second writes
-//! the triangles straight into the output, numbering a crossing point by the rank of its edge
-//! in the bitmap and centres after them in cell order. No per-triangle key list is built or
-//! sorted, and the output is the same bytes whatever the thread count.
+//! Two passes over fixed chunks of cells, in parallel: the first finds each cell's corners
+//! and case once, keeps them per chunk (16 bytes of corner indices and 2 of case a cell),
+//! counts the chunk's triangles and centre vertices and marks the crossed edges in a bitmap;
+//! the second reads the kept cases back and writes the triangles straight into the output,
+//! numbering a crossing point by the rank of its edge in the bitmap and centres after them in
+//! cell order. No per-triangle key list is built or sorted, and the output is the same bytes
+//! whatever the thread count.
 
 use crate::cubes::SparseCubes;
 use crate::mc_table::{self, Case, Table, CENTRE, EDGES, FACE_CORNERS};
@@ -31,9 +33,7 @@ const CHUNK: usize = 4096;
 pub fn extract(cubes: &SparseCubes) -> TriMesh {
     let n = cubes.coords.len().min(cubes.sdf.len());
     let table = mc_table::table();
-    let chunks: Vec<&[[u16; 3]]> = cubes.cells.chunks(CHUNK).collect();
-
-    let (counts, used) = count_cases(cubes, n, table, &chunks);
+    let (chunks, used) = find_cases(cubes, n, table);
     // Rank of each bitmap word: crossing points are numbered in edge-key order.
     let mut rank = Vec::with_capacity(used.len());
     let mut edge_points = 0u32;
@@ -44,9 +44,10 @@ pub fn extract(cubes: &SparseCubes) -> TriMesh {
 
     // Pass 2: each chunk writes its triangles and centres into its own slices; crossing
     // points shared between chunks are stored through atomics (every writer stores the same
-    // value, computed from the edge's two vertices only).
-    let total_triangles: usize = counts.iter().map(|c| c.0).sum();
-    let total_centres: usize = counts.iter().map(|c| c.1).sum();
+    // value, computed from the edge's two vertices only, so a point already stored is not
+    // computed again).
+    let total_triangles: usize = chunks.iter().map(|c| c.triangles).sum();
+    let total_centres: usize = chunks.iter().map(|c| c.centres).sum();
     let mut triangles = vec![[0u32; 3]; total_triangles];
     let mut centre_points = vec![[0f32; 3]; total_centres];
     let shared: Vec<[AtomicU32; 3]> = (0..edge_points)
@@ -56,49 +57,62 @@ pub fn extract(cubes: &SparseCubes) -> TriMesh {
     let mut work = Vec::with_capacity(chunks.len());
     let (mut tri_rest, mut centre_rest) = (&mut triangles[..], &mut centre_points[..]);
     let mut first_centre = edge_points;
-    for (cells, &(t, c)) in chunks.iter().zip(&counts) {
-        let (tris, tail) = tri_rest.split_at_mut(t);
+    // Each chunk's kept cases move into its work item and are freed as soon as it is
+    // written, so they are gone before the final position list is built.
+    for chunk in chunks {
+        let (tris, tail) = tri_rest.split_at_mut(chunk.triangles);
         tri_rest = tail;
-        let (centres, tail) = centre_rest.split_at_mut(c);
+        let (centres, tail) = centre_rest.split_at_mut(chunk.centres);
         centre_rest = tail;
-        work.push((*cells, tris, centres, first_centre));
-        first_centre += c as u32;
+        let next_centre = first_centre + chunk.centres as u32;
+        work.push((chunk, tris, centres, first_centre));
+        first_centre = next_centre;
     }
     work.into_par_iter()
-        .for_each(|(cells, tris, centres, first_centre)| {
+        .for_each(|(chunk, tris, centres, first_centre)| {
             let (mut t, mut c) = (0, 0);
-            for_each_case(cubes, n, table, cells, |idx, case| {
+            for (corners, &[mask, bits]) in chunk.corners.iter().zip(&chunk.cases) {
+                let idx = corner_indices(corners);
+                let case = table.case(mask, bits);
                 // Centre k of this cell, numbered among the cell's used centres.
-                let mask = centres_used(case);
+                let used_centres = centres_used(case);
                 for k in 0..case.centres.len() {
-                    if mask >> k & 1 == 1 {
-                        let p = centre_point(cubes, idx, &case.centres[k]);
-                        centres[c + (mask & ((1 << k) - 1)).count_ones() as usize] = to_f32(p);
+                    if used_centres >> k & 1 == 1 {
+                        let p = centre_point(cubes, &idx, &case.centres[k]);
+                        let slot = (used_centres & ((1 << k) - 1)).count_ones() as usize;
+                        centres[c + slot] = to_f32(p);
                     }
                 }
+                let mut stored = 0u16;
                 for tri in &case.triangles {
                     let mut ids = [0u32; 3];
                     for (id, &v) in ids.iter_mut().zip(tri) {
                         *id = if v < CENTRE {
-                            let key = edge_key(idx, v);
+                            let key = edge_key(&idx, v);
                             let (w, bit) = (key / 64, key % 64);
                             let i = rank[w] + (used[w] & ((1u64 << bit) - 1)).count_ones();
-                            let p = to_f32(edge_point(cubes, idx, v));
-                            for a in 0..3 {
-                                shared[i as usize][a].store(p[a].to_bits(), Ordering::Relaxed);
+                            let point = &shared[i as usize];
+                            if stored >> v & 1 == 0
+                                && point.iter().all(|a| a.load(Ordering::Relaxed) == 0)
+                            {
+                                let p = to_f32(edge_point(cubes, &idx, v));
+                                for a in 0..3 {
+                                    point[a].store(p[a].to_bits(), Ordering::Relaxed);
+                                }
                             }
+                            stored |= 1 << v;
                             i
                         } else {
                             let k = v - CENTRE;
-                            first_centre
-                                + (c + (mask & ((1 << k) - 1)).count_ones() as usize) as u32
+                            let slot = (used_centres & ((1 << k) - 1)).count_ones() as usize;
+                            first_centre + (c + slot) as u32
                         };
                     }
                     tris[t] = ids;
                     t += 1;
                 }
-                c += mask.count_ones() as usize;
-            });
+                c += used_centres.count_ones() as usize;
+            }
         });
     let positions: Vec<[f32; 3]> = shared
         .par_iter()
@@ -111,25 +125,57 @@ pub fn extract(cubes: &SparseCubes) -> TriMesh {
     TriMesh::new(positions, triangles)
 }
 
-/// Pass 1 of [`extract`]: the triangles and used centres of each chunk of cells, and a bitmap
-/// (by edge key) of the crossed edges some triangle uses.
-fn count_cases(
-    cubes: &SparseCubes,
-    n: usize,
-    table: &Table,
-    chunks: &[&[[u16; 3]]],
-) -> (Vec<(usize, usize)>, Vec<u64>) {
+/// The cells of one chunk that have a case, in cell order, as pass 1 of [`extract`] found
+/// them, with the chunk's counts.
+#[derive(Default)]
+struct ChunkCases {
+    /// Per cell: the indices in `coords` of corners 0–3; corner `c + 4` is the vertex after
+    /// corner `c` (one step up in z).
+    corners: Vec<[u32; 4]>,
+    /// Per cell: its corner mask and face bits, the arguments of [`Table::case`].
+    cases: Vec<[u8; 2]>,
+    /// Triangles of the chunk's cells.
+    triangles: usize,
+    /// Centre vertices the chunk's triangles use.
+    centres: usize,
+}
+
+/// The eight corner indices of a cell kept by [`find_cases`].
+#[inline]
+fn corner_indices(corners: &[u32; 4]) -> [usize; 8] {
+    let c = corners.map(|i| i as usize);
+    [
+        c[0],
+        c[1],
+        c[2],
+        c[3],
+        c[0] + 1,
+        c[1] + 1,
+        c[2] + 1,
+        c[3] + 1,
+    ]
+}
+
+/// Pass 1 of [`extract`]: per fixed chunk of cells, the cells with a case, their triangles
+/// and used centres; and a bitmap (by edge key) of the crossed edges some triangle uses.
+fn find_cases(cubes: &SparseCubes, n: usize, table: &Table) -> (Vec<ChunkCases>, Vec<u64>) {
     let used: Vec<AtomicU64> = (0..(3 * n).div_ceil(64))
         .into_par_iter()
         .map(|_| AtomicU64::new(0))
         .collect();
-    let counts: Vec<(usize, usize)> = chunks
-        .par_iter()
+    let chunks: Vec<ChunkCases> = cubes
+        .cells
+        .par_chunks(CHUNK)
         .map(|cells| {
-            let (mut triangles, mut centres) = (0, 0);
-            for_each_case(cubes, n, table, cells, |idx, case| {
-                triangles += case.triangles.len();
-                centres += centres_used(case).count_ones() as usize;
+            let mut chunk = ChunkCases {
+                corners: Vec::with_capacity(cells.len()),
+                cases: Vec::with_capacity(cells.len()),
+                ..Default::default()
+            };
+            for_each_case(cubes, n, cells, |idx, mask, bits| {
+                let case = table.case(mask, bits);
+                chunk.triangles += case.triangles.len();
+                chunk.centres += centres_used(case).count_ones() as usize;
                 for tri in &case.triangles {
                     for &v in tri.iter().filter(|&&v| v < CENTRE) {
                         let key = edge_key(idx, v);
@@ -139,12 +185,16 @@ fn count_cases(
                         }
                     }
                 }
+                chunk
+                    .corners
+                    .push([idx[0], idx[1], idx[2], idx[3]].map(|i| i as u32));
+                chunk.cases.push([mask, bits]);
             });
-            (triangles, centres)
+            chunk
         })
         .collect();
     (
-        counts,
+        chunks,
         used.into_iter().map(AtomicU64::into_inner).collect(),
     )
 }
@@ -181,14 +231,14 @@ fn gallop(coords: &[[u16; 3]], from: usize, target: [u16; 3]) -> usize {
     lo + coords[lo..hi].partition_point(|c| *c < target)
 }
 
-/// Calls `f(corner indices, case)` for every cell of `cells` whose eight corners are active
-/// vertices and have a sign change, in order.
+/// Calls `f(corner indices, corner mask, face bits)` for every cell of `cells` whose eight
+/// corners are active vertices (below `n`, which fits a `u32` as the output's indices do) and
+/// have a sign change, in order.
 fn for_each_case(
     cubes: &SparseCubes,
     n: usize,
-    table: &Table,
     cells: &[[u16; 3]],
-    mut f: impl FnMut(&[usize; 8], &Case),
+    mut f: impl FnMut(&[usize; 8], u8, u8),
 ) {
     let coords = &cubes.coords[..n];
     let sdf = &cubes.sdf[..n];
@@ -219,16 +269,17 @@ fn for_each_case(
         if !ok {
             continue;
         }
-        if let Some(case) = case_of(sdf, table, &idx) {
-            f(&idx, case);
+        if let Some((mask, bits)) = case_bits(sdf, &idx) {
+            f(&idx, mask, bits);
         }
     }
 }
 
-/// The marching-cubes case of the cell whose corners are the vertices `idx` (corner `c` at
-/// `(c & 1, c >> 1 & 1, c >> 2)`), or `None` when it has no sign change.
+/// The corner mask and face bits ([`Table::case`]'s arguments) of the cell whose corners are
+/// the vertices `idx` (corner `c` at `(c & 1, c >> 1 & 1, c >> 2)`), or `None` when it has no
+/// sign change.
 #[inline]
-fn case_of<'t>(sdf: &[f32], table: &'t Table, idx: &[usize; 8]) -> Option<&'t Case> {
+fn case_bits(sdf: &[f32], idx: &[usize; 8]) -> Option<(u8, u8)> {
     let mut mask = 0u8;
     for (c, &i) in idx.iter().enumerate() {
         if sdf[i] < 0.0 {
@@ -245,7 +296,14 @@ fn case_of<'t>(sdf: &[f32], table: &'t Table, idx: &[usize; 8]) -> Option<&'t Ca
             bits |= 1 << face;
         }
     }
-    Some(table.case(mask, bits))
+    Some((mask, bits))
+}
+
+/// The marching-cubes case of the cell whose corners are the vertices `idx`, or `None` when it
+/// has no sign change.
+#[inline]
+fn case_of<'t>(sdf: &[f32], table: &'t Table, idx: &[usize; 8]) -> Option<&'t Case> {
+    case_bits(sdf, idx).map(|(mask, bits)| table.case(mask, bits))
 }
 
 /// Appends to `out` the triangles that [`extract`] emits for one cell, given the indices in

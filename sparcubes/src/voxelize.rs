@@ -78,6 +78,103 @@ pub fn triangle_box_overlap(tri: &[[f64; 3]; 3], center: [f64; 3], half: f64) ->
     true
 }
 
+/// [`triangle_box_overlap`] against unit cells for one triangle, with the triangle's side of
+/// the test set up once: for each of the 10 axes that are not a coordinate axis (the normal
+/// and the 9 edge cross products), the triangle's projection range and the cell's radius, so a
+/// cell costs one dot product per axis. Rounding makes these projections differ from the
+/// direct test's in the last bits, so a cell within `margin` of deciding on some axis falls
+/// back to [`triangle_box_overlap`] itself: the answer is always the direct test's, bit for
+/// bit.
+pub struct CellTest<'a> {
+    tri: &'a [[f64; 3]; 3],
+    origin: [f64; 3],
+    axis: [[f64; AXES]; 3],
+    lo: [f64; AXES],
+    hi: [f64; AXES],
+    /// Cell radius on the axis plus the margin: beyond it, surely separated.
+    outer: [f64; AXES],
+    /// Cell radius on the axis minus the margin: within it, surely overlapping.
+    inner: [f64; AXES],
+}
+
+/// Axes of [`CellTest`]: the normal and the 9 cross products of a coordinate axis with an edge.
+const AXES: usize = 10;
+
+impl<'a> CellTest<'a> {
+    /// Sets up the test of `tri` against unit cells whose centres lie in the triangle's
+    /// bounding box grown by one cell (the candidates [`for_each_touched_cell`] tests).
+    pub fn new(tri: &'a [[f64; 3]; 3]) -> Self {
+        let origin = tri[0];
+        let v = [[0.0; 3], sub(tri[1], origin), sub(tri[2], origin)];
+        let e = [v[1], sub(v[2], v[1]), sub(v[0], v[2])];
+        let mut axes = [cross(e[0], e[1]); AXES];
+        for (k, edge) in e.iter().enumerate() {
+            for a in 0..3 {
+                let mut unit = [0.0; 3];
+                unit[a] = 1.0;
+                axes[1 + 3 * k + a] = cross(unit, *edge);
+            }
+        }
+        // Rounding bound, far above the few ulps either computation can be off by: both work
+        // on coordinates up to `big` and differences up to `span` (the candidate cells'
+        // centres lie within one cell of the triangle's box).
+        let (mut big, mut span) = (0.0f64, 0.0f64);
+        for a in 0..3 {
+            let mn = tri[0][a].min(tri[1][a]).min(tri[2][a]);
+            let mx = tri[0][a].max(tri[1][a]).max(tri[2][a]);
+            big = big.max(mn.abs()).max(mx.abs());
+            span = span.max(mx - mn);
+        }
+        let (big, span) = (big + 2.0, span + 2.0);
+        let margin = 1e-12 * (big + span) * span * span;
+        let mut test = CellTest {
+            tri,
+            origin,
+            axis: [[0.0; AXES]; 3],
+            lo: [0.0; AXES],
+            hi: [0.0; AXES],
+            outer: [0.0; AXES],
+            inner: [0.0; AXES],
+        };
+        for (k, axis) in axes.iter().enumerate() {
+            let p = [0.0, dot(*axis, v[1]), dot(*axis, v[2])];
+            let r = 0.5 * (axis[0].abs() + axis[1].abs() + axis[2].abs());
+            for a in 0..3 {
+                test.axis[a][k] = axis[a];
+            }
+            test.lo[k] = p[0].min(p[1]).min(p[2]);
+            test.hi[k] = p[0].max(p[1]).max(p[2]);
+            test.outer[k] = r + margin;
+            test.inner[k] = r - margin;
+        }
+        test
+    }
+
+    /// Whether the triangle touches the closed unit cell `c` (the same answer as
+    /// [`triangle_box_overlap`] with its centre and half size 0.5). `c` must lie within one
+    /// cell of the triangle's bounding box on every axis, where the coordinate axes never
+    /// separate (see [`for_each_touched_cell`]).
+    #[inline]
+    pub fn touches(&self, c: [i64; 3]) -> bool {
+        let center = [c[0] as f64 + 0.5, c[1] as f64 + 0.5, c[2] as f64 + 0.5];
+        let d = sub(center, self.origin);
+        let (mut separated, mut sure) = (false, true);
+        for k in 0..AXES {
+            let s = self.axis[0][k] * d[0] + self.axis[1][k] * d[1] + self.axis[2][k] * d[2];
+            let (lo, hi) = (self.lo[k] - s, self.hi[k] - s);
+            separated |= (lo > self.outer[k]) | (hi < -self.outer[k]);
+            sure &= (lo < self.inner[k]) & (hi > -self.inner[k]);
+        }
+        if separated {
+            false
+        } else if sure {
+            true
+        } else {
+            triangle_box_overlap(self.tri, center, 0.5)
+        }
+    }
+}
+
 /// An inclusive range of integer coordinates per axis, `(lo, hi)`.
 pub type Clip = ([i64; 3], [i64; 3]);
 
@@ -96,13 +193,10 @@ pub fn for_each_touched_cell(tri: &[[f64; 3]; 3], clip: Clip, mut f: impl FnMut(
             return;
         }
     }
-    let test = |c: [i64; 3]| {
-        triangle_box_overlap(
-            tri,
-            [c[0] as f64 + 0.5, c[1] as f64 + 0.5, c[2] as f64 + 0.5],
-            0.5,
-        )
-    };
+    // Every cell of lo..=hi meets the triangle's bounding box (lo = ⌈min⌉ − 1, hi = ⌊max⌋),
+    // so the coordinate axes of the separating-axis test never separate it.
+    let cell_test = CellTest::new(tri);
+    let test = |c: [i64; 3]| cell_test.touches(c);
     let volume = (0..3).map(|a| (hi[a] - lo[a] + 1) as u64).product::<u64>();
     let nrm = cross(sub(tri[1], tri[0]), sub(tri[2], tri[0]));
     let w = (0..3)
@@ -324,6 +418,44 @@ mod tests {
         let diag = [[0.0, 0.0, 0.0], [3.0, 3.0, 0.0], [0.0, 0.0, 3.0]];
         assert!(triangle_box_overlap(&diag, [1.5, 1.5, 1.5], 0.5));
         assert!(!triangle_box_overlap(&diag, [2.5, 0.5, 0.5], 0.5));
+    }
+
+    #[test]
+    fn cell_test_answers_as_the_direct_test() {
+        // Triangles with corners on grid planes, lines and vertices (where the exact answer
+        // turns on the last bit), slivers, and large ones far from the origin.
+        let tris = [
+            [[1.0, 1.0, 1.0], [3.0, 1.0, 1.0], [1.0, 3.0, 1.0]],
+            [[2.0, 0.5, 0.0], [2.0, 4.5, 3.0], [2.0, 0.5, 4.0]],
+            [[1.3, 2.2, 3.7], [9.1, 4.4, 2.2], [4.5, 11.2, 8.9]],
+            [[0.1, 0.1, 0.1], [5.0, 5.0, 5.0], [5.0, 5.0, 5.000001]],
+            [[1000.25, 3.0, 7.0], [1003.0, 3.0, 8.5], [1001.0, 9.0, 7.0]],
+            [[0.0, 0.0, 3.0], [6.0, 6.0, 3.0], [0.0, 6.0, 3.0]],
+            [[2.0, 2.0, 2.0], [2.0, 2.0, 2.0], [4.0, 4.0, 4.0]],
+        ];
+        let mut touching = 0;
+        for tri in &tris {
+            let test = CellTest::new(tri);
+            let mut lo = [0i64; 3];
+            let mut hi = [0i64; 3];
+            for a in 0..3 {
+                let mn = tri[0][a].min(tri[1][a]).min(tri[2][a]);
+                let mx = tri[0][a].max(tri[1][a]).max(tri[2][a]);
+                lo[a] = mn.ceil() as i64 - 1;
+                hi[a] = mx.floor() as i64;
+            }
+            for z in lo[2]..=hi[2] {
+                for y in lo[1]..=hi[1] {
+                    for x in lo[0]..=hi[0] {
+                        let c = [x as f64 + 0.5, y as f64 + 0.5, z as f64 + 0.5];
+                        let direct = triangle_box_overlap(tri, c, 0.5);
+                        assert_eq!(test.touches([x, y, z]), direct, "{tri:?} cell {x} {y} {z}");
+                        touching += direct as usize;
+                    }
+                }
+            }
+        }
+        assert!(touching > 100);
     }
 
     #[test]
