@@ -58,6 +58,13 @@ pub fn is_empty(m: &BrickMask) -> bool {
     m.iter().all(|&w| w == 0)
 }
 
+/// The offsets of the cube `-r..=r` per axis around a point, x fastest, then y, then z
+/// (`r = 1`: the point and its 26 neighbours).
+pub fn cube_offsets(r: i64) -> impl Iterator<Item = [i64; 3]> {
+    let w = 2 * r + 1;
+    (0..w * w * w).map(move |d| [d % w - r, (d / w) % w - r, d / (w * w) - r])
+}
+
 /// Calls `f(local x, local y, local z)` for each set bit, in local order.
 #[inline]
 pub fn for_each_bit(m: &BrickMask, mut f: impl FnMut(u32, u32, u32)) {
@@ -332,6 +339,20 @@ pub fn or_assign(a: &mut BrickMask, b: &BrickMask) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn cube_offsets_cover_the_cube_once_x_fastest() {
+        let one: Vec<[i64; 3]> = cube_offsets(1).collect();
+        assert_eq!(one.len(), 27);
+        assert_eq!(one[0], [-1, -1, -1]);
+        assert_eq!(one[1], [0, -1, -1]);
+        assert_eq!(one[3], [-1, 0, -1]);
+        assert_eq!(one[13], [0, 0, 0]);
+        assert_eq!(one[26], [1, 1, 1]);
+        let four: std::collections::BTreeSet<[i64; 3]> = cube_offsets(4).collect();
+        assert_eq!(four.len(), 729);
+        assert!(four.iter().all(|o| o.iter().all(|v| v.abs() <= 4)));
+    }
 
     #[test]
     fn rank_counts_bits_before() {

@@ -24,8 +24,8 @@
 use crate::band::Band;
 use crate::flood::{grow_within, Flood, FULL};
 use crate::grid::{
-    count, dilate, face_carry, for_each_bit, is_empty, nth_bit, BrickMask, BrickSet, Dilation,
-    NO_BRICK,
+    count, cube_offsets, dilate, face_carry, for_each_bit, is_empty, nth_bit, BrickMask, BrickSet,
+    Dilation, NO_BRICK,
 };
 use crate::sign::{open_neighbours, Side};
 use crate::voxelize::Voxelization;
@@ -215,9 +215,8 @@ impl Regions {
         let mut near = holds.clone();
         for key in (0..holds.len()).filter(|&k| holds[k]) {
             let b = index.coord(key);
-            for d in 0..27i64 {
-                let nb: [i64; 3] =
-                    std::array::from_fn(|a| b[a] as i64 + (d / 3i64.pow(a as u32)) % 3 - 1);
+            for off in cube_offsets(1) {
+                let nb: [i64; 3] = std::array::from_fn(|a| b[a] as i64 + off[a]);
                 if (0..3).all(|a| nb[a] >= 0 && (nb[a] as u32) < index.dims[a]) {
                     near[index.key(nb.map(|v| v as u32))] = true;
                 }
@@ -290,7 +289,6 @@ fn near_outside(
     region: &[u32],
     wholly: &[bool],
 ) -> Vec<u32> {
-    let width = 2 * NESTED_CLEARANCE + 1;
     edges
         .par_iter()
         .flat_map_iter(|&(i, j, v, u)| [(i, v), (j, u)])
@@ -299,13 +297,9 @@ fn near_outside(
             if r == NO_REGION || !wholly[r as usize] {
                 return None;
             }
-            (0..width * width * width)
-                .any(|d| {
-                    let q = [
-                        c[0] + d % width - NESTED_CLEARANCE,
-                        c[1] + (d / width) % width - NESTED_CLEARANCE,
-                        c[2] + d / (width * width) - NESTED_CLEARANCE,
-                    ];
+            cube_offsets(NESTED_CLEARANCE)
+                .any(|off| {
+                    let q: [i64; 3] = std::array::from_fn(|a| c[a] + off[a]);
                     band.verts
                         .id(q)
                         .is_some_and(|k| side[k as usize] == Side::Outside)
@@ -1143,12 +1137,8 @@ fn parts_with_gaps(
                             continue;
                         }
                         for end in [v, u] {
-                            for d in 0..27i64 {
-                                let c = [
-                                    end[0] + d % 3 - 1,
-                                    end[1] + (d / 3) % 3 - 1,
-                                    end[2] + d / 9 - 1,
-                                ];
+                            for off in cube_offsets(1) {
+                                let c: [i64; 3] = std::array::from_fn(|a| end[a] + off[a]);
                                 let Some(j) = band.verts.id(c) else {
                                     continue;
                                 };

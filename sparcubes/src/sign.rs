@@ -16,7 +16,9 @@
 
 use crate::band::Band;
 use crate::flood::Flood;
-use crate::grid::{face_carry, for_each_bit, shift, split, test, BrickMask, BrickSet, X0, Y0};
+use crate::grid::{
+    cube_offsets, face_carry, for_each_bit, shift, split, test, BrickMask, BrickSet, X0, Y0,
+};
 use crate::regions::Nesting;
 use crate::voxelize::Voxelization;
 use rayon::prelude::*;
@@ -303,8 +305,7 @@ fn thin_cells(walls: &BrickSet, evidence: &[[i8; 512]]) -> Vec<BrickMask> {
             let b = walls.index.coord(walls.keys[s] as usize);
             let mut win = [0i16; 1000];
             let at = |x: usize, y: usize, z: usize| x + 10 * y + 100 * z;
-            for d in 0..27i64 {
-                let off = [d % 3 - 1, (d / 3) % 3 - 1, d / 9 - 1];
+            for off in cube_offsets(1) {
                 let nb = [
                     b[0] as i64 + off[0],
                     b[1] as i64 + off[1],
