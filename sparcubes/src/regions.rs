@@ -935,7 +935,15 @@ pub fn decide_sealed(
         .iter()
         .map(|&g| verdicts[g as usize] == Verdict::Solid)
         .collect();
-    let (part_of, parts) = thin_parts(band, &position, &coords, &found);
+    // Where every deep enough set was found inside whole (the common case), its parts are
+    // those sets: no second pass over the neighbours.
+    let whole = (0..coords.len())
+        .all(|q| found[q] == (reach_depth[reach_of[q] as usize] >= THIN_PART_DEPTH));
+    let (part_of, parts) = if whole {
+        renumbered(&reach_of, reaches, &found)
+    } else {
+        thin_parts(band, &position, &coords, &found)
+    };
     let sealed = Sealed {
         position: &position,
         coords: &coords,
@@ -1079,6 +1087,28 @@ fn thin_parts(
         })
         .collect();
     components(coords.len(), &pairs, |q| found[q])
+}
+
+/// `label` (of `count` labels) kept where `keep` holds, numbered again in the order of
+/// their first kept item (as [`components`] numbers them); `u32::MAX` elsewhere.
+fn renumbered(label: &[u32], count: usize, keep: &[bool]) -> (Vec<u32>, usize) {
+    let mut new = vec![u32::MAX; count];
+    let mut next = 0u32;
+    let out = label
+        .iter()
+        .zip(keep)
+        .map(|(&l, &k)| {
+            if !k {
+                return u32::MAX;
+            }
+            if new[l as usize] == u32::MAX {
+                new[l as usize] = next;
+                next += 1;
+            }
+            new[l as usize]
+        })
+        .collect();
+    (out, next as usize)
 }
 
 /// The sealed vertices as [`decide_sealed`] found them: per band vertex its position among
