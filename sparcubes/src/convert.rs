@@ -180,7 +180,7 @@ fn sign_changes(cells: &BrickSet, core: Values, ring: Option<Values>) -> Vec<(u3
 /// grow with the resolution. 8 voxels gave the same outputs on the dev corpus at 256³ but
 /// up to 50 times as many pieces as triangles (large flat faces), and cutting, sorting and
 /// summing them was most of the inside test's time on such meshes; 16, 32 and 64 gave the
-/// same bytes, 32 most of the gain (docs/QUALITY.md, issue 15).
+/// same bytes and about half the time of 8 (docs/QUALITY.md, issue 15).
 fn winding_piece(n: u32) -> f64 {
     (n as f64 / 32.0).max(32.0)
 }
