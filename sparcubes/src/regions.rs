@@ -1261,6 +1261,18 @@ mod tests {
     }
 
     #[test]
+    fn whole_components_renumbered_match_components_of_the_kept_items() {
+        // Items 0..8 in components {0, 3, 5}, {1, 4}, {2, 7}, {6}; keep {1, 4} and {6}.
+        let pairs = [(3, 0), (5, 3), (4, 1), (7, 2)];
+        let (label, count) = components(8, &pairs, |_| true);
+        assert_eq!(count, 4);
+        let keep: Vec<bool> = (0..8).map(|q| [1, 4, 6].contains(&q)).collect();
+        let direct = components(8, &pairs, |q| keep[q]);
+        assert_eq!(renumbered(&label, count, &keep), direct);
+        assert_eq!(direct.1, 2);
+    }
+
+    #[test]
     fn nth_bit_walks_words() {
         let mut m = [0u64; 8];
         m[0] = 0b1010;
