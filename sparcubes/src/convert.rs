@@ -59,6 +59,10 @@ pub struct ConvertStats {
     /// somewhere for the grid (under a cell), or nowhere 0.3 voxel deep (these are shelled
     /// without asking the winding number, so the count includes any such pocket).
     pub shelled_thin_parts: u64,
+    /// Groups of sealed vertices inside two closed surfaces or more: closed parts overlapping
+    /// by less than the grid resolves, left outside so both keep their surfaces
+    /// ([`crate::regions::OVERLAP_FROM`]).
+    pub overlap_groups: u64,
 }
 
 /// A conversion's result.
@@ -332,6 +336,7 @@ pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
             let sealed = decide_sealed(&band, &vox, &mut side, &tree, n);
             st.stats.thin_parts = sealed.thin_parts;
             st.stats.shelled_thin_parts = sealed.shelled_parts + sealed.shallow;
+            st.stats.overlap_groups = sealed.overlaps;
             drop(tree);
             let nesting = Nesting::new(&band, &vox, &side, &regions);
             st.done("inside");

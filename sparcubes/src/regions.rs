@@ -839,6 +839,9 @@ pub struct SealedCounts {
     pub groups: u64,
     /// Groups whose winding number was ambiguous (left outside).
     pub ambiguous: u64,
+    /// Groups inside two closed surfaces or more (|w| ≥ [`OVERLAP_FROM`]): where closed
+    /// parts overlap, left outside.
+    pub overlaps: u64,
     /// Thin closed parts kept at their thickness: sealed vertices found inside, joined with
     /// their 26 neighbours.
     pub thin_parts: u64,
@@ -906,9 +909,10 @@ pub fn decide_sealed(
     };
     let asked: Vec<usize> = (0..groups).filter(|&g| !shallow(g)).collect();
     let mut verdicts = vec![Verdict::Ambiguous; groups];
+    let mut overlap = vec![false; groups];
     if !asked.is_empty() {
         let tree = tree.get();
-        let found: Vec<Verdict> = asked
+        let found: Vec<f64> = asked
             .par_iter()
             .map_init(
                 || Vec::with_capacity(64),
@@ -923,17 +927,20 @@ pub fn decide_sealed(
                         .take(SAMPLES)
                         .map(|&q| coords[q as usize].map(|v| v as f64))
                         .collect();
-                    verdict(median_winding(tree, &points, stack))
+                    median_winding(tree, &points, stack)
                 },
             )
             .collect();
-        for (&g, v) in asked.iter().zip(found) {
-            verdicts[g] = v;
+        for (&g, w) in asked.iter().zip(found) {
+            verdicts[g] = verdict(w);
+            overlap[g] = w >= OVERLAP_FROM;
         }
     }
+    // A group inside two closed surfaces or more is where closed parts overlap (or one lies
+    // inside another), not a thin part of its own: outside, as the grid alone has it.
     let found: Vec<bool> = group_of
         .iter()
-        .map(|&g| verdicts[g as usize] == Verdict::Solid)
+        .map(|&g| verdicts[g as usize] == Verdict::Solid && !overlap[g as usize])
         .collect();
     // Where every deep enough set was found inside whole (the common case), its parts are
     // those sets: no second pass over the neighbours.
@@ -978,6 +985,7 @@ pub fn decide_sealed(
             .iter()
             .filter(|&&g| verdicts[g] == Verdict::Ambiguous)
             .count() as u64,
+        overlaps: overlap.iter().filter(|&&o| o).count() as u64,
         shallow: shallow_reaches,
         thin_parts: parts as u64 - shelled,
         shelled_parts: shelled,
@@ -992,6 +1000,17 @@ pub fn decide_sealed(
 /// 65.6 → 65.2, `left_finger.STL` 95.8 → 95.1). Plates of 1.2 voxels and more have vertices
 /// about 0.6 deep and keep their surface (tests/convert_enclosed.rs).
 pub const THIN_PART_DEPTH: f32 = 0.3;
+
+/// |w| at or above which a sealed group is inside two closed surfaces or more: halfway
+/// between one surface and two, as [`NESTED_STEP`] is half a surface's step.
+///
+/// Such a group is where closed parts overlap by less than the grid resolves (a screw in a
+/// hole narrower than its shaft), not a thin part of its own. Inside, it would leave both
+/// parts' surfaces with inside on each side, as sheets inside the solid, and each would
+/// become a thin cavity 0.9 voxel off its place (§5 of docs/ALGORITHM.md); outside, as the
+/// grid alone has it, the sliver is a thin gap whose walls are the parts' exact surfaces.
+/// Overlap regions the flood encloses keep the parts' surfaces too (the nested rule).
+pub const OVERLAP_FROM: f64 = 1.5;
 
 /// Marker of a band vertex that is not sealed, in [`decide_sealed`]'s position list.
 const NOT_SEALED: u32 = u32::MAX;

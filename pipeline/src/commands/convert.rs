@@ -109,6 +109,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         "ambiguous_regions": s.ambiguous_regions,
         "thin_parts": s.thin_parts,
         "shelled_thin_parts": s.shelled_thin_parts,
+        "overlap_groups": s.overlap_groups,
         "output_faces": mesh.triangles.len(),
         "output_vertices": mesh.positions.len(),
         "output_components": topo.components,
@@ -171,8 +172,8 @@ fn print_text(v: &Value, load: &LoadStats, stages: &[(String, f64)]) {
     );
     if v["inside_test"] == true {
         println!(
-            "  inside test  {} enclosed regions ({} air, {} ambiguous kept solid); thin closed parts: {} kept, {} as shells",
-            v["enclosed_regions"], v["air_regions"], v["ambiguous_regions"], v["thin_parts"], v["shelled_thin_parts"]
+            "  inside test  {} enclosed regions ({} air, {} ambiguous kept solid); thin closed parts: {} kept, {} as shells; {} sealed overlaps of parts",
+            v["enclosed_regions"], v["air_regions"], v["ambiguous_regions"], v["thin_parts"], v["shelled_thin_parts"], v["overlap_groups"]
         );
     }
     println!(
