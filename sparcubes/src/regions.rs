@@ -839,8 +839,8 @@ pub struct SealedCounts {
     pub groups: u64,
     /// Groups whose winding number was ambiguous (left outside).
     pub ambiguous: u64,
-    /// Groups inside two closed surfaces or more (|w| ≥ [`OVERLAP_FROM`]): where closed
-    /// parts overlap, left outside.
+    /// Groups inside two closed surfaces or more (|w| ≥ [`OVERLAP_FROM`]) and joined to no
+    /// thin part: where closed parts overlap, left outside.
     pub overlaps: u64,
     /// Thin closed parts kept at their thickness: sealed vertices found inside, joined with
     /// their 26 neighbours.
@@ -861,7 +861,9 @@ pub struct SealedCounts {
 /// inside of a closed part thinner than about two cells, or a pocket between sheets. They are
 /// grouped through grid edges no triangle crosses (a group has one side), and each group is
 /// inside if the winding number at its [`SAMPLES`] vertices farthest from the surface (median)
-/// says solid; otherwise outside, as the grid alone would have it (air or ambiguous).
+/// says solid; otherwise outside, as the grid alone would have it (air or ambiguous). A group
+/// inside two closed surfaces or more ([`OVERLAP_FROM`]) is where closed parts overlap, not a
+/// thin part: outside too, unless joined to a thin part ([`without_lone_overlaps`]).
 ///
 /// A part found inside keeps its own surface (φ = ±UDF) only where the grid can hold it: a
 /// part thinner than a cell has places no grid vertex falls into, where a grid edge crosses
@@ -936,12 +938,13 @@ pub fn decide_sealed(
             overlap[g] = w >= OVERLAP_FROM;
         }
     }
-    // A group inside two closed surfaces or more is where closed parts overlap (or one lies
-    // inside another), not a thin part of its own: outside, as the grid alone has it.
-    let found: Vec<bool> = group_of
+    let solid: Vec<bool> = group_of
         .iter()
-        .map(|&g| verdicts[g as usize] == Verdict::Solid && !overlap[g as usize])
+        .map(|&g| verdicts[g as usize] == Verdict::Solid)
         .collect();
+    let found = without_lone_overlaps(band, &position, &coords, &solid, |q| {
+        overlap[group_of[q] as usize]
+    });
     // Where every deep enough set was found inside whole (the common case), its parts are
     // those sets: no second pass over the neighbours.
     let whole = (0..coords.len())
@@ -985,7 +988,9 @@ pub fn decide_sealed(
             .iter()
             .filter(|&&g| verdicts[g] == Verdict::Ambiguous)
             .count() as u64,
-        overlaps: overlap.iter().filter(|&&o| o).count() as u64,
+        overlaps: (0..groups)
+            .filter(|&g| overlap[g] && !found[members[starts[g] as usize] as usize])
+            .count() as u64,
         shallow: shallow_reaches,
         thin_parts: parts as u64 - shelled,
         shelled_parts: shelled,
@@ -1106,6 +1111,36 @@ fn thin_parts(
         })
         .collect();
     components(coords.len(), &pairs, |q| found[q])
+}
+
+/// The `solid` sealed vertices less those of overlaps ([`OVERLAP_FROM`]) that are not joined,
+/// through their 26 neighbours, to a solid vertex that is no overlap.
+///
+/// A group inside two closed surfaces or more is where closed parts overlap (or one lies
+/// inside another), not a thin part of its own: outside, as the grid alone has it — unless it
+/// is joined to a thin part found inside (thin parts that cross or lap over each other, the
+/// boards of a hut): there the sliver is the thin part's own inside as the grid sees it, and
+/// outside it would cut the part through (the gap check would then shell all of it).
+fn without_lone_overlaps(
+    band: &Band,
+    position: &[u32],
+    coords: &[[u32; 3]],
+    solid: &[bool],
+    overlap: impl Fn(usize) -> bool,
+) -> Vec<bool> {
+    if !(0..coords.len()).any(|q| solid[q] && overlap(q)) {
+        return solid.to_vec();
+    }
+    let (part_of, parts) = thin_parts(band, position, coords, solid);
+    let mut thin = vec![false; parts];
+    for q in 0..coords.len() {
+        if solid[q] && !overlap(q) {
+            thin[part_of[q] as usize] = true;
+        }
+    }
+    (0..coords.len())
+        .map(|q| solid[q] && (!overlap(q) || thin[part_of[q] as usize]))
+        .collect()
 }
 
 /// `label` (of `count` labels) kept where `keep` holds, numbered again in the order of

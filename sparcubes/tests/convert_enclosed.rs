@@ -200,29 +200,41 @@ fn a_cavity_keeps_its_surface_facing_inward() {
     );
 }
 
-/// A square plate `thickness` voxels thick at resolution `n`, tilted off the grid's axes.
-fn tilted_plate(thickness: f64, n: u32) -> TriMesh {
-    let make = |t: f64| {
-        let mut m = shapes::cuboid([-0.7, -0.7, -t / 2.0], [0.7, 0.7, t / 2.0], &[]);
-        for (a, b, angle) in [(1usize, 2usize, 0.5f64), (0, 2, 0.3)] {
-            let (s, c) = angle.sin_cos();
-            for p in &mut m.positions {
-                let (y, z) = (p[a] as f64, p[b] as f64);
-                p[a] = (c * y - s * z) as f32;
-                p[b] = (s * y + c * z) as f32;
-            }
+/// `m` turned off the grid's axes (about x by 0.5 rad, then about y by 0.3 rad).
+fn tilted(mut m: TriMesh) -> TriMesh {
+    for (a, b, angle) in [(1usize, 2usize, 0.5f64), (0, 2, 0.3)] {
+        let (s, c) = angle.sin_cos();
+        for p in &mut m.positions {
+            let (y, z) = (p[a] as f64, p[b] as f64);
+            p[a] = (c * y - s * z) as f32;
+            p[b] = (s * y + c * z) as f32;
         }
-        m
-    };
-    // The voxel is the longest extent over N minus the margins; solve for t by iteration.
+    }
+    m
+}
+
+/// `make(t)` with `t` (source units) chosen so that it is `voxels` voxels at resolution `n`:
+/// the voxel is the longest extent over N minus the margins, so solve for t by iteration.
+fn in_voxels(voxels: f64, n: u32, make: impl Fn(f64) -> TriMesh) -> TriMesh {
     let margin = 2.0 * Params::with_resolution(n).margin_cells as f64;
-    let mut t = thickness * 1.4 / (n as f64 - margin);
+    let mut t = voxels * 1.4 / (n as f64 - margin);
     for _ in 0..6 {
         let (lo, hi) = make(t).bounds().expect("bounds");
         let extent = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
-        t = thickness * extent / (n as f64 - margin);
+        t = voxels * extent / (n as f64 - margin);
     }
     make(t)
+}
+
+/// A square plate `thickness` voxels thick at resolution `n`, tilted off the grid's axes.
+fn tilted_plate(thickness: f64, n: u32) -> TriMesh {
+    in_voxels(thickness, n, |t| {
+        tilted(shapes::cuboid(
+            [-0.7, -0.7, -t / 2.0],
+            [0.7, 0.7, t / 2.0],
+            &[],
+        ))
+    })
 }
 
 #[test]
@@ -248,6 +260,49 @@ fn thin_closed_plates_keep_their_thickness() {
             );
         }
     }
+}
+
+#[test]
+fn parts_overlapping_by_less_than_a_voxel_keep_both_surfaces() {
+    // A box pushed 0.9 voxel into a wider one (tilted): their overlap is a slab thinner than
+    // a cell inside both (w = 2), whose grid vertices are sealed in. It is no thin part of
+    // its own (`regions::OVERLAP_FROM`): inside, both boxes' faces in it would be sheets
+    // inside the solid and turn into a cavity 0.9 voxel off each; left outside, it is a thin
+    // gap whose walls are the exact faces, the same cubes as without the inside test.
+    let mesh = in_voxels(0.9, N, |t| {
+        tilted(shapes::merge(&[
+            shapes::cuboid([-0.8, -0.8, -0.8], [0.8, 0.8, t / 2.0], &[]),
+            shapes::cuboid([-0.5, -0.5, -t / 2.0], [0.5, 0.5, 0.8], &[]),
+        ]))
+    });
+    let (_, stats, out) = convert_extract(&mesh, N);
+    assert!(stats.overlap_groups >= 1, "{stats:?}");
+    assert_eq!(stats.thin_parts, 0, "{stats:?}");
+    assert_closed_manifold("overlapping boxes", &out);
+    let without = convert(&mesh, &Params::with_resolution(N)).expect("convert");
+    let with = convert(&mesh, &inside_params(N)).expect("convert");
+    assert_eq!(with.cubes, without.cubes);
+}
+
+#[test]
+fn thin_plates_crossing_each_other_keep_their_thickness() {
+    // Two 1.2-voxel plates crossing at right angles (tilted): where they cross, the sealed
+    // vertices are inside both (w = 2), but joined to the plates' own: that sliver is the
+    // plates' inside as the grid sees it, and stays inside (outside it would cut them through
+    // and the gap check would shell them).
+    let mesh = in_voxels(1.2, N, |t| {
+        tilted(shapes::merge(&[
+            shapes::cuboid([-0.7, -0.7, -t / 2.0], [0.7, 0.7, t / 2.0], &[]),
+            shapes::cuboid([-0.7, -t / 2.0, -0.7], [0.7, t / 2.0, 0.7], &[]),
+        ]))
+    });
+    let (c, stats, out) = convert_extract(&mesh, N);
+    println!("crossing plates: {stats:?}");
+    assert_eq!(stats.overlap_groups, 0, "{stats:?}");
+    assert!(stats.thin_parts >= 1, "{stats:?}");
+    assert_closed_manifold("crossing plates", &out);
+    let (mean, _) = nearest_part_distances(&c, std::slice::from_ref(&mesh), &out)[0];
+    assert!(mean <= 0.25, "mean offset {mean} voxels");
 }
 
 #[test]
