@@ -54,6 +54,14 @@ pub fn grow_within(out: &mut BrickMask, wall: &BrickMask) {
 /// snapshot, and the bricks the growth reaches are the next round's. Each round only adds cells
 /// the outside reaches, and it ends when nothing changes: the least fixpoint.
 pub fn flood_outside(walls: &BrickSet) -> Flood {
+    // One entry into the thread pool for the whole flood: its rounds (often hundreds) then
+    // split their work among the pool's threads without handing each round over from the
+    // calling thread and waiting for it to come back.
+    rayon::scope(|_| flood_in_pool(walls))
+}
+
+/// [`flood_outside`]'s rounds, run on a thread of the pool.
+fn flood_in_pool(walls: &BrickSet) -> Flood {
     let mut bricks = PaddedBricks::new(walls);
     let mut wall_outside = vec![[0u64; 8]; walls.masks.len()];
     let pos: Vec<usize> = walls
@@ -71,6 +79,7 @@ pub fn flood_outside(walls: &BrickSet) -> Flood {
         active.dedup();
         let grown: Vec<(u32, BrickMask)> = active
             .par_iter()
+            .with_min_len(ROUND_PIECE)
             .filter_map(|&s| {
                 let out = pulled(walls, &bricks, &wall_outside, &pos, s as usize)?;
                 Some((s, out))
@@ -81,6 +90,7 @@ pub fn flood_outside(walls: &BrickSet) -> Flood {
         }
         let reached: Vec<Reached> = grown
             .par_iter()
+            .with_min_len(ROUND_PIECE)
             .flat_map_iter(|&(s, out)| reached_from(walls, &bricks, &wall_outside, pos[s as usize], out))
             .collect();
         active.clear();
@@ -96,6 +106,10 @@ pub fn flood_outside(walls: &BrickSet) -> Flood {
         wall_outside,
     }
 }
+
+/// Wall bricks a thread takes at least at once in a round: most rounds reach only a few, and
+/// those are not worth splitting.
+const ROUND_PIECE: usize = 64;
 
 /// Wall brick `s`'s outside after pulling the faces its six neighbours carry into it and
 /// growing within its walls, or `None` when that adds nothing (its outside is always grown
