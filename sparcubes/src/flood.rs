@@ -91,7 +91,9 @@ fn flood_in_pool(walls: &BrickSet) -> Flood {
         let reached: Vec<Reached> = grown
             .par_iter()
             .with_min_len(ROUND_PIECE)
-            .flat_map_iter(|&(s, out)| reached_from(walls, &bricks, &wall_outside, pos[s as usize], out))
+            .flat_map_iter(|&(s, out)| {
+                reached_from(walls, &bricks, &wall_outside, pos[s as usize], out)
+            })
             .collect();
         active.clear();
         for r in reached {
@@ -288,7 +290,12 @@ impl PaddedBricks {
 
     /// Floods the empty bricks from the outside ones on `stack` until it is empty; the wall
     /// bricks next to them (which pull full faces from them) go to `walls_reached` (slots).
-    fn flood_empty(&mut self, walls: &BrickSet, stack: &mut Vec<usize>, walls_reached: &mut Vec<u32>) {
+    fn flood_empty(
+        &mut self,
+        walls: &BrickSet,
+        stack: &mut Vec<usize>,
+        walls_reached: &mut Vec<u32>,
+    ) {
         while let Some(p) = stack.pop() {
             for (axis, high) in DIRS {
                 let q = self.step(p, axis, high);

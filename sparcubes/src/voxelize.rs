@@ -583,7 +583,10 @@ mod tests {
             }
             mixed += (seen[0] && seen[1]) as usize;
         }
-        assert!(touching > 10_000 && cells > 2 * touching, "{touching} of {cells}");
+        assert!(
+            touching > 10_000 && cells > 2 * touching,
+            "{touching} of {cells}"
+        );
         assert!(mixed > 1000, "triangles with cells on both sides: {mixed}");
     }
 
