@@ -54,9 +54,9 @@ pub fn grow_within(out: &mut BrickMask, wall: &BrickMask) {
 /// snapshot, and the bricks the growth reaches are the next round's. Each round only adds cells
 /// the outside reaches, and it ends when nothing changes: the least fixpoint.
 pub fn flood_outside(walls: &BrickSet) -> Flood {
-    // One entry into the thread pool for the whole flood: its rounds (often hundreds) then
-    // split their work among the pool's threads without handing each round over from the
-    // calling thread and waiting for it to come back.
+    // One entry into the thread pool for the whole flood: its rounds (many where the outside
+    // travels from wall brick to wall brick) then split their work among the pool's threads
+    // without handing each round over from the calling thread and waiting for it to return.
     rayon::scope(|_| flood_in_pool(walls))
 }
 
@@ -452,7 +452,7 @@ mod tests {
                     state ^= state >> 7;
                     state ^= state << 17;
                     let maze = x % 3 == 1 && (y + 7 * (x / 3)) % 11 != 0;
-                    if state % 3 == 0 && z < n / 2 || maze && z >= n / 2 {
+                    if state.is_multiple_of(3) && z < n / 2 || maze && z >= n / 2 {
                         cells.push([x, y, z]);
                     }
                 }
@@ -508,7 +508,7 @@ mod tests {
                     } else {
                         CellSide::Inside
                     };
-                    assert_eq!(flood.cell(&walls, c), want, "cell {c:?}");
+                    assert_eq!(flood.cell(walls, c), want, "cell {c:?}");
                     counts[want as usize] += 1;
                 }
             }

@@ -477,29 +477,38 @@ mod tests {
             [[0.0, 0.0, 3.0], [6.0, 6.0, 3.0], [0.0, 6.0, 3.0]],
             [[2.0, 2.0, 2.0], [2.0, 2.0, 2.0], [4.0, 4.0, 4.0]],
         ];
-        let mut touching = 0;
-        for tri in &tris {
-            let test = CellTest::new(tri);
-            let mut lo = [0i64; 3];
-            let mut hi = [0i64; 3];
-            for a in 0..3 {
-                let mn = tri[0][a].min(tri[1][a]).min(tri[2][a]);
-                let mx = tri[0][a].max(tri[1][a]).max(tri[2][a]);
-                lo[a] = mn.ceil() as i64 - 1;
-                hi[a] = mx.floor() as i64;
-            }
-            for z in lo[2]..=hi[2] {
-                for y in lo[1]..=hi[1] {
-                    for x in lo[0]..=hi[0] {
-                        let c = [x as f64 + 0.5, y as f64 + 0.5, z as f64 + 0.5];
-                        let direct = triangle_box_overlap(tri, c, 0.5);
-                        assert_eq!(test.touches([x, y, z]), direct, "{tri:?} cell {x} {y} {z}");
-                        touching += direct as usize;
-                    }
+        let touching: usize = tris
+            .iter()
+            .map(|tri| answers_as_the_direct_test(tri)[1])
+            .sum();
+        assert!(touching > 100);
+    }
+
+    /// Asserts that [`CellTest::touches`] answers as [`triangle_box_overlap`] on every
+    /// candidate cell of `tri` (its bounding box grown by one cell); returns how many cells
+    /// it does not and does touch.
+    fn answers_as_the_direct_test(tri: &[[f64; 3]; 3]) -> [usize; 2] {
+        let test = CellTest::new(tri);
+        let mut lo = [0i64; 3];
+        let mut hi = [0i64; 3];
+        for a in 0..3 {
+            let mn = tri[0][a].min(tri[1][a]).min(tri[2][a]);
+            let mx = tri[0][a].max(tri[1][a]).max(tri[2][a]);
+            lo[a] = mn.ceil() as i64 - 1;
+            hi[a] = mx.floor() as i64;
+        }
+        let mut counts = [0; 2];
+        for z in lo[2]..=hi[2] {
+            for y in lo[1]..=hi[1] {
+                for x in lo[0]..=hi[0] {
+                    let c = [x as f64 + 0.5, y as f64 + 0.5, z as f64 + 0.5];
+                    let direct = triangle_box_overlap(tri, c, 0.5);
+                    assert_eq!(test.touches([x, y, z]), direct, "{tri:?} cell {x} {y} {z}");
+                    counts[direct as usize] += 1;
                 }
             }
         }
-        assert!(touching > 100);
+        counts
     }
 
     #[test]
@@ -559,29 +568,10 @@ mod tests {
                 3 => tri[2] = tri[1],
                 _ => {}
             }
-            let test = CellTest::new(&tri);
-            let mut lo = [0i64; 3];
-            let mut hi = [0i64; 3];
-            for a in 0..3 {
-                let mn = tri[0][a].min(tri[1][a]).min(tri[2][a]);
-                let mx = tri[0][a].max(tri[1][a]).max(tri[2][a]);
-                lo[a] = mn.ceil() as i64 - 1;
-                hi[a] = mx.floor() as i64;
-            }
-            let mut seen = [false; 2];
-            for z in lo[2]..=hi[2] {
-                for y in lo[1]..=hi[1] {
-                    for x in lo[0]..=hi[0] {
-                        let c = [x as f64 + 0.5, y as f64 + 0.5, z as f64 + 0.5];
-                        let direct = triangle_box_overlap(&tri, c, 0.5);
-                        assert_eq!(test.touches([x, y, z]), direct, "{tri:?} cell {x} {y} {z}");
-                        seen[direct as usize] = true;
-                        touching += direct as usize;
-                        cells += 1;
-                    }
-                }
-            }
-            mixed += (seen[0] && seen[1]) as usize;
+            let [apart, touched] = answers_as_the_direct_test(&tri);
+            touching += touched;
+            cells += apart + touched;
+            mixed += (apart > 0 && touched > 0) as usize;
         }
         assert!(
             touching > 10_000 && cells > 2 * touching,
