@@ -47,7 +47,7 @@
 
 use crate::band::closest_point_on_triangle;
 use crate::mesh::TriMesh;
-use crate::vec3::{add, cross, dist2, dot, sub};
+use crate::vec3::{add, cross, dist2, dot, scale, sub};
 use rayon::prelude::*;
 
 /// Queries per chunk of a batch (fixed, so results never depend on the thread count).
@@ -288,6 +288,32 @@ impl TriangleIndex {
             distance: best.0.sqrt(),
             triangle: best.1,
         })
+    }
+
+    /// The side of `q` read from its closest triangle (`c`, this index's answer for `q`) when
+    /// that is exact: the closest point lies strictly inside the triangle's face (every
+    /// sub-triangle of its projection above 10⁻⁷ of the area) and `q` is clear of its plane
+    /// (by more than 10⁻⁹ of its largest coordinate, plus 10⁻⁹). Then the open segment from
+    /// the closest point to `q` meets no other part of the mesh (that part would be nearer),
+    /// so for a closed mesh with outward-facing triangles `q` is inside exactly when it lies
+    /// behind the face. `None` otherwise (the closest point on an edge or a corner, or `q` on
+    /// the plane): the caller asks another test.
+    pub fn face_side(&self, q: [f64; 3], c: &ClosestPoint) -> Option<bool> {
+        let [a, b, k] = self.corners[self.slot_of(c.triangle)?];
+        let n = cross(sub(b, a), sub(k, a));
+        let nn = dot(n, n);
+        if !(nn > 0.0 && nn.is_finite()) {
+            return None;
+        }
+        let d = dot(sub(q, a), n);
+        let big = q.iter().fold(1.0f64, |m, x| m.max(x.abs()));
+        if !(d.abs() > 1e-9 * big * nn.sqrt()) {
+            return None;
+        }
+        let p = sub(q, scale(n, d / nn));
+        let margin = 1e-7 * nn;
+        let inside_edge = |u: [f64; 3], v: [f64; 3]| dot(cross(sub(v, u), sub(p, u)), n) > margin;
+        (inside_edge(a, b) && inside_edge(b, k) && inside_edge(k, a)).then_some(d < 0.0)
     }
 
     /// Position in leaf order of original triangle `t`.
