@@ -307,7 +307,8 @@ impl TriangleIndex {
         }
         let d = dot(sub(q, a), n);
         let big = q.iter().fold(1.0f64, |m, x| m.max(x.abs()));
-        if !(d.abs() > 1e-9 * big * nn.sqrt()) {
+        let clear = d.abs() > 1e-9 * big * nn.sqrt();
+        if !clear {
             return None;
         }
         let p = sub(q, scale(n, d / nn));
