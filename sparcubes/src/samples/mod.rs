@@ -16,7 +16,7 @@
 //! from the closest triangle's face where the closest point lies strictly inside it
 //! ([`TriangleIndex::face_side`], exact for the closed output mesh of the sparse grid), else
 //! from the sparse grid ([`crate::sides`]). Where both answer they differ on about one near
-//! point in 1000 (storage-rounded points on the grid's dyadic planes, where the grid's
+//! point in 2000 (storage-rounded points on the grid's dyadic planes, where the grid's
 //! crossing count meets a triangle edge), and there the face is right by the winding number
 //! (docs/PERFORMANCE.md, issue 13 section). Query points are rounded to the storage
 //! precision first, so a stored point and its stored distance belong together; a distance
