@@ -55,8 +55,9 @@ pub struct ConvertStats {
     /// Closed parts thinner than about two cells, found inside by the winding number (groups
     /// of sealed vertices joined with their 26 neighbours, [`crate::regions::decide_sealed`]).
     pub thin_parts: u64,
-    /// Closed parts found inside by the winding number but too thin somewhere for the grid
-    /// (under a cell), left to the thin shell.
+    /// Sealed parts left to the thin shell: found inside by the winding number but too thin
+    /// somewhere for the grid (under a cell), or nowhere 0.3 voxel deep (these are shelled
+    /// without asking the winding number, so the count includes any such pocket).
     pub shelled_thin_parts: u64,
 }
 
@@ -174,11 +175,14 @@ fn sign_changes(cells: &BrickSet, core: Values, ring: Option<Values>) -> Vec<(u3
         .collect()
 }
 
-/// Longest piece, in voxels, the winding tree cuts triangles into ([`crate::winding`]): 8
-/// voxels, or 1/128 of the grid at resolutions above 1024, so the number of pieces does not
-/// grow with the resolution.
+/// Longest piece, in voxels, the winding tree cuts triangles into ([`crate::winding`]): 32
+/// voxels, or 1/32 of the grid at resolutions above 1024, so the number of pieces does not
+/// grow with the resolution. 8 voxels gave the same outputs on the dev corpus at 256³ but
+/// up to 50 times as many pieces as triangles (large flat faces), and cutting, sorting and
+/// summing them was most of the inside test's time on such meshes; 16, 32 and 64 gave the
+/// same bytes and about half the time of 8 (docs/QUALITY.md, issue 15).
 fn winding_piece(n: u32) -> f64 {
-    (n as f64 / 128.0).max(8.0)
+    (n as f64 / 32.0).max(32.0)
 }
 
 /// Checks that a mesh is sanitised (indices in range, finite coordinates, an extent the grid
@@ -327,7 +331,7 @@ pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
         Some(tree) => {
             let sealed = decide_sealed(&band, &vox, &mut side, &tree, n);
             st.stats.thin_parts = sealed.thin_parts;
-            st.stats.shelled_thin_parts = sealed.shelled_parts;
+            st.stats.shelled_thin_parts = sealed.shelled_parts + sealed.shallow;
             drop(tree);
             let nesting = Nesting::new(&band, &vox, &side, &regions);
             st.done("inside");

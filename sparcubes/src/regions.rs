@@ -310,18 +310,24 @@ fn near_outside(
 }
 
 /// Calls `f(v, u)` for every crossed grid edge (from `v` to `u` = `v` + one step along an
-/// axis) of the bricks of `vox.blocked`, brick by brick in parallel, and gathers what it
-/// returns.
+/// axis) whose lower end `v` lies in a brick `near` holds (indexed by `walls`' brick keys),
+/// brick by brick in parallel, and gathers what it returns.
 fn map_blocked_edges<T: Send>(
     vox: &Voxelization,
+    near: &[bool],
     f: impl Fn([i64; 3], [i64; 3], &mut Vec<T>) + Sync,
 ) -> Vec<T> {
+    let index = &vox.walls.index;
     vox.blocked
         .par_iter()
         .enumerate()
         .flat_map(|(axis, set)| {
             (0..set.keys.len())
                 .into_par_iter()
+                .filter(move |&s| {
+                    let b = set.index.coord(set.keys[s] as usize);
+                    (0..3).all(|a| b[a] < index.dims[a]) && near[index.key(b)]
+                })
                 .map(move |s| (axis, set, s))
         })
         .flat_map_iter(|(axis, set, s)| {
@@ -351,15 +357,24 @@ impl Nesting {
         if hi - lo < NESTED_STEP {
             return Self::default();
         }
-        // The crossed edges between two inside vertices, as band vertex numbers, and their
-        // ends with coordinates.
-        let edges: Vec<(u32, u32, [i64; 3], [i64; 3])> = map_blocked_edges(vox, |v, u, out| {
-            if let (Some(i), Some(j)) = (band.verts.id(v), band.verts.id(u)) {
-                if side[i as usize] == Side::Inside && side[j as usize] == Side::Inside {
-                    out.push((i, j, v, u));
+        // Only a region at least NESTED_STEP above the lowest solid one can be the inner one
+        // of a nested pair, and the edges on its surface lie within a brick of its cells
+        // (`region_at` looks at most REGION_SEARCH + 1 < 8 cells away): the crossed edges
+        // elsewhere (most of the surface) separate no nested pair and are skipped.
+        let inner: Vec<bool> = (0..regions.verdicts.len() as u32)
+            .map(|r| solid(r) && regions.winding[r as usize] - lo >= NESTED_STEP)
+            .collect();
+        let near_inner = regions.bricks_near(&vox.walls, &inner);
+        // The crossed edges between two inside vertices there, as band vertex numbers, and
+        // their ends with coordinates.
+        let edges: Vec<(u32, u32, [i64; 3], [i64; 3])> =
+            map_blocked_edges(vox, &near_inner, |v, u, out| {
+                if let (Some(i), Some(j)) = (band.verts.id(v), band.verts.id(u)) {
+                    if side[i as usize] == Side::Inside && side[j as usize] == Side::Inside {
+                        out.push((i, j, v, u));
+                    }
                 }
-            }
-        });
+            });
         let mut ends: Vec<(u32, [i64; 3])> = edges
             .par_iter()
             .flat_map_iter(|&(i, j, v, u)| [(i, v), (j, u)])
@@ -417,15 +432,7 @@ impl Nesting {
             // (`region_at` looks at most REGION_SEARCH + 1 < 8 cells away): most of the
             // surface's crossed edges are skipped without a region look-up.
             let near = regions.bricks_near(&vox.walls, &wholly);
-            let index = &vox.walls.index;
-            let touching: Vec<u32> = map_blocked_edges(vox, |v, u, out| {
-                let brick = |c: [i64; 3]| -> Option<usize> {
-                    let b: [u32; 3] = std::array::from_fn(|a| (c[a].max(0) as u32) >> 3);
-                    (0..3).all(|a| b[a] < index.dims[a]).then(|| index.key(b))
-                };
-                if brick(v).is_none_or(|k| !near[k]) {
-                    return;
-                }
+            let touching: Vec<u32> = map_blocked_edges(vox, &near, |v, u, out| {
                 let (Some(i), Some(j)) = (band.verts.id(v), band.verts.id(u)) else {
                     return;
                 };
@@ -836,8 +843,14 @@ pub struct SealedCounts {
     /// their 26 neighbours.
     pub thin_parts: u64,
     /// Thin closed parts left to the thin shell because the grid cannot hold them: somewhere
-    /// a grid edge crosses them with both ends outside.
+    /// a grid edge crosses them with both ends outside, or none of their vertices lies
+    /// [`THIN_PART_DEPTH`] deep.
     pub shelled_parts: u64,
+    /// Sealed vertices joined through their 26 neighbours of which none lies
+    /// [`THIN_PART_DEPTH`] deep: left to the thin shell without asking the winding number
+    /// (whatever it says, such a part would be shelled), so not counted in `thin_parts` or
+    /// `shelled_parts`.
+    pub shallow: u64,
 }
 
 /// Decides the vertices that are still `Unknown` after [`crate::sign::vertex_sides`]: those
@@ -876,31 +889,61 @@ pub fn decide_sealed(
     let coords = band.verts.coords_of(&unknown);
     let (group_of, members, starts) = sealed_groups(band, vox, &position, &coords);
     let groups = starts.len() - 1;
-    let tree = tree.get();
-    let verdicts: Vec<Verdict> = (0..groups)
-        .into_par_iter()
-        .map_init(
-            || Vec::with_capacity(64),
-            |stack, g| {
-                let mut group: Vec<u32> =
-                    members[starts[g] as usize..starts[g + 1] as usize].to_vec();
-                // Farthest from the surface first; ties by vertex number.
-                let udf = |q: u32| band.nearest[unknown[q as usize] as usize].udf;
-                group.sort_by(|&a, &b| udf(b).total_cmp(&udf(a)).then(a.cmp(&b)));
-                let points: Vec<[f64; 3]> = group
-                    .iter()
-                    .take(SAMPLES)
-                    .map(|&q| coords[q as usize].map(|v| v as f64))
-                    .collect();
-                verdict(median_winding(tree, &points, stack))
-            },
-        )
-        .collect();
+    // The sealed vertices joined through their 26 neighbours: every thin part found below is
+    // within one of these, so where none of its vertices lies THIN_PART_DEPTH deep, each
+    // part in it would go back to the shell (below) whatever the winding number says, and
+    // its groups are not asked (on the dev corpus most sealed groups are such rims, and
+    // their queries, next to the surface, were most of the inside test's time on some).
+    let (reach_of, reaches) = thin_parts(band, &position, &coords, &vec![true; coords.len()]);
+    let mut reach_depth = vec![0f32; reaches];
+    for (q, &id) in unknown.iter().enumerate() {
+        let r = reach_of[q] as usize;
+        reach_depth[r] = reach_depth[r].max(band.nearest[id as usize].udf);
+    }
+    let shallow = |g: usize| {
+        let first = members[starts[g] as usize];
+        reach_depth[reach_of[first as usize] as usize] < THIN_PART_DEPTH
+    };
+    let asked: Vec<usize> = (0..groups).filter(|&g| !shallow(g)).collect();
+    let mut verdicts = vec![Verdict::Ambiguous; groups];
+    if !asked.is_empty() {
+        let tree = tree.get();
+        let found: Vec<Verdict> = asked
+            .par_iter()
+            .map_init(
+                || Vec::with_capacity(64),
+                |stack, &g| {
+                    let mut group: Vec<u32> =
+                        members[starts[g] as usize..starts[g + 1] as usize].to_vec();
+                    // Farthest from the surface first; ties by vertex number.
+                    let udf = |q: u32| band.nearest[unknown[q as usize] as usize].udf;
+                    group.sort_by(|&a, &b| udf(b).total_cmp(&udf(a)).then(a.cmp(&b)));
+                    let points: Vec<[f64; 3]> = group
+                        .iter()
+                        .take(SAMPLES)
+                        .map(|&q| coords[q as usize].map(|v| v as f64))
+                        .collect();
+                    verdict(median_winding(tree, &points, stack))
+                },
+            )
+            .collect();
+        for (&g, v) in asked.iter().zip(found) {
+            verdicts[g] = v;
+        }
+    }
     let found: Vec<bool> = group_of
         .iter()
         .map(|&g| verdicts[g as usize] == Verdict::Solid)
         .collect();
-    let (part_of, parts) = thin_parts(band, &position, &coords, &found);
+    // Where every deep enough set was found inside whole (the common case), its parts are
+    // those sets: no second pass over the neighbours.
+    let whole = (0..coords.len())
+        .all(|q| found[q] == (reach_depth[reach_of[q] as usize] >= THIN_PART_DEPTH));
+    let (part_of, parts) = if whole {
+        renumbered(&reach_of, reaches, &found)
+    } else {
+        thin_parts(band, &position, &coords, &found)
+    };
     let sealed = Sealed {
         position: &position,
         coords: &coords,
@@ -928,12 +971,14 @@ pub fn decide_sealed(
         };
     }
     let shelled = too_thin.iter().filter(|&&t| t).count() as u64;
+    let shallow_reaches = reach_depth.iter().filter(|&&d| d < THIN_PART_DEPTH).count() as u64;
     SealedCounts {
         groups: groups as u64,
-        ambiguous: verdicts
+        ambiguous: asked
             .iter()
-            .filter(|&&v| v == Verdict::Ambiguous)
+            .filter(|&&g| verdicts[g] == Verdict::Ambiguous)
             .count() as u64,
+        shallow: shallow_reaches,
         thin_parts: parts as u64 - shelled,
         shelled_parts: shelled,
     }
@@ -1042,6 +1087,28 @@ fn thin_parts(
         })
         .collect();
     components(coords.len(), &pairs, |q| found[q])
+}
+
+/// `label` (of `count` labels) kept where `keep` holds, numbered again in the order of
+/// their first kept item (as [`components`] numbers them); `u32::MAX` elsewhere.
+fn renumbered(label: &[u32], count: usize, keep: &[bool]) -> (Vec<u32>, usize) {
+    let mut new = vec![u32::MAX; count];
+    let mut next = 0u32;
+    let out = label
+        .iter()
+        .zip(keep)
+        .map(|(&l, &k)| {
+            if !k {
+                return u32::MAX;
+            }
+            if new[l as usize] == u32::MAX {
+                new[l as usize] = next;
+                next += 1;
+            }
+            new[l as usize]
+        })
+        .collect();
+    (out, next as usize)
 }
 
 /// The sealed vertices as [`decide_sealed`] found them: per band vertex its position among
@@ -1191,6 +1258,18 @@ mod tests {
         assert_eq!(verdict(0.5), Verdict::Ambiguous);
         assert_eq!(verdict(AIR_UP_TO), Verdict::Air);
         assert_eq!(verdict(SOLID_FROM), Verdict::Solid);
+    }
+
+    #[test]
+    fn whole_components_renumbered_match_components_of_the_kept_items() {
+        // Items 0..8 in components {0, 3, 5}, {1, 4}, {2, 7}, {6}; keep {1, 4} and {6}.
+        let pairs = [(3, 0), (5, 3), (4, 1), (7, 2)];
+        let (label, count) = components(8, &pairs, |_| true);
+        assert_eq!(count, 4);
+        let keep: Vec<bool> = (0..8).map(|q| [1, 4, 6].contains(&q)).collect();
+        let direct = components(8, &pairs, |q| keep[q]);
+        assert_eq!(renumbered(&label, count, &keep), direct);
+        assert_eq!(direct.1, 2);
     }
 
     #[test]

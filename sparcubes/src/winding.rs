@@ -310,10 +310,16 @@ fn spread(v: u64) -> u64 {
 
 /// Cuts triangle `t` into pieces whose edges are at most `max_edge` long by halving the
 /// longest edge (each half keeps the orientation); the pieces' solid angles add up to the
-/// triangle's.
-fn cut(t: [[f64; 3]; 3], max_edge: f64, out: &mut Vec<[[f64; 3]; 3]>) {
+/// triangle's. `stack` is scratch space, reused between triangles.
+fn cut(
+    t: [[f64; 3]; 3],
+    max_edge: f64,
+    stack: &mut Vec<[[f64; 3]; 3]>,
+    out: &mut Vec<[[f64; 3]; 3]>,
+) {
     let limit = max_edge * max_edge;
-    let mut stack = vec![t];
+    stack.clear();
+    stack.push(t);
     while let Some(t) = stack.pop() {
         let len2 = |i: usize| {
             let d = sub(t[(i + 1) % 3], t[i]);
@@ -333,21 +339,50 @@ fn cut(t: [[f64; 3]; 3], max_edge: f64, out: &mut Vec<[[f64; 3]; 3]>) {
     }
 }
 
+/// Triangles per task when cutting: large enough that a task's scratch and output vectors
+/// are allocated rarely.
+const CUT_CHUNK: usize = 4096;
+
+/// Every triangle of `mesh` cut by [`cut`], in triangle order.
+fn cut_all(mesh: &GridMesh, max_edge: f64) -> Vec<[[f64; 3]; 3]> {
+    let chunks: Vec<Vec<[[f64; 3]; 3]>> = (0..mesh.tris.len().div_ceil(CUT_CHUNK))
+        .into_par_iter()
+        .map(|c| {
+            let range = c * CUT_CHUNK..((c + 1) * CUT_CHUNK).min(mesh.tris.len());
+            let mut out = Vec::with_capacity(2 * range.len());
+            let mut stack = Vec::new();
+            for t in range {
+                cut(mesh.tri(t), max_edge, &mut stack, &mut out);
+            }
+            out
+        })
+        .collect();
+    chunks.concat()
+}
+
 /// Pieces sorted by the Morton code of their centroid (ties by their order in `pieces`), with
 /// the sorted codes: spatially close pieces end up next to each other.
 fn morton_order(pieces: Vec<[[f64; 3]; 3]>) -> (Vec<[[f64; 3]; 3]>, Vec<u64>) {
     let centroid = |t: &[[f64; 3]; 3]| -> [f64; 3] {
         std::array::from_fn(|k| (t[0][k] + t[1][k] + t[2][k]) / 3.0)
     };
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for t in &pieces {
-        let c = centroid(t);
-        for a in 0..3 {
-            lo[a] = lo[a].min(c[a]);
-            hi[a] = hi[a].max(c[a]);
-        }
-    }
+    // Bounds of the centroids: min and max are exact, so the parallel reduction gives the
+    // same bounds whatever the thread count.
+    let (lo, hi) = pieces
+        .par_iter()
+        .map(|t| {
+            let c = centroid(t);
+            (c, c)
+        })
+        .reduce(
+            || ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]),
+            |(alo, ahi), (blo, bhi)| {
+                (
+                    std::array::from_fn(|a| alo[a].min(blo[a])),
+                    std::array::from_fn(|a| ahi[a].max(bhi[a])),
+                )
+            },
+        );
     let extent = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
     let top = ((1u64 << MORTON_BITS) - 1) as f64;
     let scale = if extent > 0.0 { top / extent } else { 0.0 };
@@ -364,10 +399,9 @@ fn morton_order(pieces: Vec<[[f64; 3]; 3]>) -> (Vec<[[f64; 3]; 3]>, Vec<u64>) {
         })
         .collect();
     keyed.par_sort_unstable();
-    keyed
-        .into_iter()
-        .map(|(k, i)| (pieces[i as usize], k))
-        .unzip()
+    let sorted = keyed.par_iter().map(|&(_, i)| pieces[i as usize]).collect();
+    let codes = keyed.par_iter().map(|&(k, _)| k).collect();
+    (sorted, codes)
 }
 
 impl WindingTree {
@@ -376,16 +410,7 @@ impl WindingTree {
     /// as large as itself, and force exact sums of it (and of its neighbours) on every query
     /// near it. Zero-area triangles subtend no solid angle and change nothing.
     pub fn new(mesh: &GridMesh, piece: f64) -> Self {
-        let pieces: Vec<[[f64; 3]; 3]> = (0..mesh.tris.len())
-            .into_par_iter()
-            .fold(Vec::new, |mut out, t| {
-                cut(mesh.tri(t), piece, &mut out);
-                out
-            })
-            .reduce(Vec::new, |mut a, b| {
-                a.extend(b);
-                a
-            });
+        let pieces = cut_all(mesh, piece);
         let (pieces, codes) = morton_order(pieces);
         let kinds = split_ranges(&codes);
         // The leaves' moments in parallel, then the inner nodes' from the last node back (a
