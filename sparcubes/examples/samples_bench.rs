@@ -97,8 +97,27 @@ fn main() -> ExitCode {
     let volume_s = t.secs();
     let t = Clock::start();
     let sides = GridSides::new(&conversion.cubes);
-    let inside = sides.inside_batch(&near).len() + sides.inside_batch(&volume).len();
+    let (near_in, volume_in) = (sides.inside_batch(&near), sides.inside_batch(&volume));
+    let inside = near_in.len() + volume_in.len();
     let sides_s = t.secs();
+    // How often the closest triangle's face gives the side, and whether it agrees.
+    let face =
+        |points: &[[f64; 3]], closest: &[sparcubes::closest::ClosestPoint], grid: &[bool]| {
+            let mut answered = 0;
+            let mut differ = 0;
+            for ((p, c), g) in points.iter().zip(closest).zip(grid) {
+                if let Some(f) = index.face_side(*p, c) {
+                    answered += 1;
+                    differ += usize::from(f != *g);
+                }
+            }
+            format!("{answered} by the face, {differ} differ")
+        };
+    let faces = format!(
+        "near {}, volume {}",
+        face(&near, &a, &near_in),
+        face(&volume, &b, &volume_in)
+    );
     let samples = SampleParams {
         surface: count as usize,
         sharp: 0,
@@ -135,7 +154,7 @@ fn main() -> ExitCode {
     println!(
         "{input} at {resolution}: {} triangles, {} threads; convert {convert_s}, \
          extract {extract_s}; tree {build_s}, {count} near queries {near_s}, \
-         {count} volume queries {volume_s}, sides {sides_s} ({inside}); \
+         {count} volume queries {volume_s}, sides {sides_s} ({inside}; {faces}); \
          sample() {sample_s} ({} volume points; checksum {check:.6}){layout}",
         mesh.triangles.len(),
         rayon::current_num_threads(),

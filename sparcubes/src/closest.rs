@@ -32,12 +32,22 @@
 //! only 6 % fewer nodes than this depth-first order seeded by the previous query, and was
 //! slower. Leaves of 8 triangles were about 10 % faster than 4.
 //!
+//! The binary tree is then collapsed into a 4-wide one: each node holds its four children's
+//! boxes and oriented boxes side by side (`[axis][lane]`, `f32`), and the four bounds are
+//! computed at once in 4-lane `f32` arithmetic (SSE `subps`/`mulps`/`maxps`); the children
+//! nearer than the best are pushed farthest first. The stored bounds are exact or rounded
+//! outward; the query's own `f32` rounding is absorbed by a margin subtracted from every gap
+//! and a relative shrink of the sum, so they stay lower bounds and the answers are the same
+//! numbers (the final point–triangle distance is `f64`). On the 964k-triangle output above,
+//! one thread: near queries 0.68 → 0.54 s, volume queries 1.23 → 0.88 s. The bounds are squared
+//! in `f32`: exact for coordinates below 10¹⁸ in magnitude (grid coordinates are below 10⁴).
+//!
 //! Determinism: the tree is built single-threaded and the chunks (and so each query's starting
 //! triangle) are fixed, so results do not depend on the thread count.
 
 use crate::band::closest_point_on_triangle;
 use crate::mesh::TriMesh;
-use crate::vec3::{add, cross, dist2, dot, sub};
+use crate::vec3::{add, cross, dist2, dot, scale, sub};
 use rayon::prelude::*;
 
 /// Queries per chunk of a batch (fixed, so results never depend on the thread count).
@@ -80,13 +90,8 @@ struct Node {
 /// A BVH over the triangles of a mesh for exact closest-point queries (see the module docs).
 #[derive(Debug, Clone)]
 pub struct TriangleIndex {
-    /// The root's bounds (`None` for an empty mesh).
-    root: Option<Node>,
-    /// Children or triangles of each node; the root is node 0, the children of a node are
-    /// nodes `first` and `first + 1` with `first` odd.
-    links: Vec<Link>,
-    /// The bounds of both children of each inner node, entry `(first − 1) / 2`.
-    pairs: Vec<Pair>,
+    /// The 4-wide nodes; the root is node 0 (none for an empty mesh).
+    wides: Vec<Wide>,
     /// Triangle indices in leaf order.
     order: Vec<u32>,
     /// Corners of `order[i]`, in leaf order (contiguous per leaf).
@@ -105,9 +110,7 @@ impl TriangleIndex {
     pub fn new(mesh: &TriMesh) -> Self {
         if mesh.triangles.is_empty() {
             return Self {
-                root: None,
-                links: Vec::new(),
-                pairs: Vec::new(),
+                wides: Vec::new(),
                 order: Vec::new(),
                 corners: Vec::new(),
                 normals: Vec::new(),
@@ -140,18 +143,9 @@ impl TriangleIndex {
         for (s, &t) in order.iter().enumerate() {
             slots[t as usize] = s as u32;
         }
-        let links = nodes
-            .iter()
-            .map(|n| Link {
-                first: n.first,
-                count: n.count,
-            })
-            .collect();
-        let pairs = nodes[1..].chunks_exact(2).map(Pair::new).collect();
+        let wides = collapse(&nodes);
         Self {
-            root: nodes.first().copied(),
-            links,
-            pairs,
+            wides,
             order,
             corners,
             normals,
@@ -225,24 +219,30 @@ impl TriangleIndex {
         &self,
         q: [f64; 3],
         hint: Option<u32>,
-        stack: &mut Vec<(u32, f64)>,
+        stack: &mut Vec<Entry>,
     ) -> Option<ClosestPoint> {
-        let root = self.root.as_ref()?;
+        if self.wides.is_empty() {
+            return None;
+        }
         let mut best = (f64::INFINITY, u32::MAX, q);
         if let Some(t) = hint.and_then(|t| self.slot_of(t)) {
             let p = closest_point_on_triangle(q, &self.corners[t]);
             best = (dist2(q, p), self.order[t], p);
         }
+        let query = WideQuery::new(q);
         stack.clear();
-        stack.push((0, root.dist2(q)));
-        while let Some((id, d)) = stack.pop() {
-            if d >= best.0 {
+        stack.push(Entry {
+            first: 0,
+            count: 0,
+            bound: 0.0,
+        });
+        while let Some(entry) = stack.pop() {
+            if entry.bound >= best.0 {
                 continue;
             }
-            let node = self.links[id as usize];
-            if node.count > 0 {
-                let start = node.first as usize;
-                for s in start..start + node.count as usize {
+            if entry.count > 0 {
+                let start = entry.first as usize;
+                for s in start..start + entry.count as usize {
                     let corners = &self.corners[s];
                     let gap = dot(self.normals[s].map(f64::from), sub(q, corners[0]));
                     if gap * gap >= best.0 {
@@ -257,20 +257,30 @@ impl TriangleIndex {
                 }
                 continue;
             }
-            let (l, r) = (node.first, node.first + 1);
-            let [dl, dr] = self.pairs[(l >> 1) as usize].dist2(q);
-            // Push the farther child first so the nearer one is visited first; a child whose
-            // bound is not below the best is never pushed.
-            let (near, far) = if dl <= dr {
-                ((l, dl), (r, dr))
-            } else {
-                ((r, dr), (l, dl))
-            };
-            if far.1 < best.0 {
-                stack.push(far);
+            let node = &self.wides[entry.first as usize];
+            let bounds = node.dist2(&query);
+            // Push the children nearer than the best, farthest first, so that the nearest is
+            // visited first (a child whose bound is not below the best is never pushed).
+            let mut lanes = [0usize; 4];
+            let mut live = 0;
+            for (lane, &b) in bounds.iter().enumerate() {
+                if b < best.0 {
+                    // Insertion by decreasing bound.
+                    let mut k = live;
+                    while k > 0 && bounds[lanes[k - 1]] < b {
+                        lanes[k] = lanes[k - 1];
+                        k -= 1;
+                    }
+                    lanes[k] = lane;
+                    live += 1;
+                }
             }
-            if near.1 < best.0 {
-                stack.push(near);
+            for &lane in &lanes[..live] {
+                stack.push(Entry {
+                    first: node.child[lane],
+                    count: node.count[lane],
+                    bound: bounds[lane],
+                });
             }
         }
         Some(ClosestPoint {
@@ -278,6 +288,33 @@ impl TriangleIndex {
             distance: best.0.sqrt(),
             triangle: best.1,
         })
+    }
+
+    /// The side of `q` read from its closest triangle (`c`, this index's answer for `q`) when
+    /// that is exact: the closest point lies strictly inside the triangle's face (every
+    /// sub-triangle of its projection above 10⁻⁷ of the area) and `q` is clear of its plane
+    /// (by more than 10⁻⁹ of its largest coordinate, plus 10⁻⁹). Then the open segment from
+    /// the closest point to `q` meets no other part of the mesh (that part would be nearer),
+    /// so for a closed mesh with outward-facing triangles `q` is inside exactly when it lies
+    /// behind the face. `None` otherwise (the closest point on an edge or a corner, or `q` on
+    /// the plane): the caller asks another test.
+    pub fn face_side(&self, q: [f64; 3], c: &ClosestPoint) -> Option<bool> {
+        let [a, b, k] = self.corners[self.slot_of(c.triangle)?];
+        let n = cross(sub(b, a), sub(k, a));
+        let nn = dot(n, n);
+        if !(nn > 0.0 && nn.is_finite()) {
+            return None;
+        }
+        let d = dot(sub(q, a), n);
+        let big = q.iter().fold(1.0f64, |m, x| m.max(x.abs()));
+        let clear = d.abs() > 1e-9 * big * nn.sqrt();
+        if !clear {
+            return None;
+        }
+        let p = sub(q, scale(n, d / nn));
+        let margin = 1e-7 * nn;
+        let inside_edge = |u: [f64; 3], v: [f64; 3]| dot(cross(sub(v, u), sub(p, u)), n) > margin;
+        (inside_edge(a, b) && inside_edge(b, k) && inside_edge(k, a)).then_some(d < 0.0)
     }
 
     /// Position in leaf order of original triangle `t`.
@@ -290,90 +327,170 @@ impl TriangleIndex {
     }
 }
 
-impl Node {
-    /// A lower bound of the squared distance from `q` to the node's triangles: the larger of
-    /// the squared distances to its box and to its oriented box (0 inside both).
-    fn dist2(&self, q: [f64; 3]) -> f64 {
-        let mut s = 0.0;
-        let mut o = 0.0;
-        for a in 0..3 {
-            let d = (self.lo[a] as f64 - q[a])
-                .max(0.0)
-                .max(q[a] - self.hi[a] as f64);
-            s += d * d;
-            let f = self.frame[a].map(f64::from);
-            let t = dot(f, q);
-            let g = (self.near[a] as f64 - t)
-                .max(0.0)
-                .max(t - self.far[a] as f64);
-            o += g * g;
-        }
-        s.max(o)
-    }
-}
-
-/// Where the children or triangles of a node are.
+/// An entry of the traversal stack: a 4-wide node (`count` 0, `first` its index) or a leaf's
+/// run of triangles, with a lower bound of its squared distance to the query.
 #[derive(Debug, Clone, Copy)]
-struct Link {
-    /// Inner node: index of the first child. Leaf: first entry of `TriangleIndex::order`.
+pub(crate) struct Entry {
     first: u32,
-    /// Number of triangles of a leaf; 0 for an inner node.
     count: u32,
+    bound: f64,
 }
 
-/// The bounds of two sibling nodes side by side (`[axis][child]`), so that both children's
-/// bounds are computed in one pass of two-lane arithmetic: the traversal always needs both,
-/// and one scalar pass per child was half of the queries' time.
+/// Four children of a node of the 4-wide tree, their bounds side by side (`[axis][lane]`) so
+/// that the four are tested at once in 4-lane `f32` arithmetic. An unused lane has infinite
+/// bounds (never visited).
 #[derive(Debug, Clone, Copy)]
-struct Pair {
-    lo: [[f32; 2]; 3],
-    hi: [[f32; 2]; 3],
-    /// `frame[row][axis][child]`.
-    frame: [[[f32; 2]; 3]; 3],
-    near: [[f32; 2]; 3],
-    far: [[f32; 2]; 3],
+#[repr(C, align(64))]
+struct Wide {
+    lo: [[f32; 4]; 3],
+    hi: [[f32; 4]; 3],
+    /// `frame[row][axis][lane]`: the oriented boxes' axes (see [`frame`]).
+    frame: [[[f32; 4]; 3]; 3],
+    near: [[f32; 4]; 3],
+    far: [[f32; 4]; 3],
+    /// Inner child: index of its 4-wide node. Leaf: first entry of `TriangleIndex::order`.
+    child: [u32; 4],
+    /// Number of triangles of a leaf child; 0 for an inner child or an unused lane.
+    count: [u32; 4],
 }
 
-impl Pair {
-    /// The bounds of the two nodes of `siblings`.
-    fn new(siblings: &[Node]) -> Self {
-        let (l, r) = (&siblings[0], &siblings[1]);
-        let two = |a: [f32; 3], b: [f32; 3]| std::array::from_fn(|k| [a[k], b[k]]);
+/// A query point prepared for [`Wide::dist2`].
+struct WideQuery {
+    q: [f32; 3],
+    /// Subtracted from every gap: covers the rounding of the query to `f32` (at most 2⁻²⁴ of
+    /// its largest coordinate) and of the oriented box's `f32` dot product (at most about
+    /// 7·2⁻²⁴ of it), so the `f32` gaps never exceed the exact ones.
+    margin: f32,
+}
+
+impl WideQuery {
+    fn new(q: [f64; 3]) -> Self {
+        let big = q.iter().fold(0.0f64, |m, c| m.max(c.abs()));
         Self {
-            lo: two(l.lo, r.lo),
-            hi: two(l.hi, r.hi),
-            frame: std::array::from_fn(|row| two(l.frame[row], r.frame[row])),
-            near: two(l.near, r.near),
-            far: two(l.far, r.far),
+            q: q.map(|c| c as f32),
+            margin: (big * f64::from(2.0f32.powi(-20))) as f32,
         }
     }
+}
 
-    /// [`Node::dist2`] of both nodes, with the same operations in the same order (the same
-    /// numbers).
-    #[inline]
-    fn dist2(&self, q: [f64; 3]) -> [f64; 2] {
-        let mut s = [0.0; 2];
-        let mut o = [0.0; 2];
+/// Shrinks an `f32` bound by far more than the relative rounding of its handful of `f32`
+/// operations (about 10·2⁻²⁴), so that it stays a lower bound of the exact squared distance.
+const SHRINK: f64 = 1.0 - 1e-5;
+
+/// `a` if it is larger than `b`, else `b` (one `maxps` lane; the bounds are never NaN for
+/// finite queries).
+#[inline(always)]
+fn larger(a: f32, b: f32) -> f32 {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
+
+impl Wide {
+    /// A node whose four lanes are unused.
+    const UNUSED: Wide = Wide {
+        lo: [[f32::INFINITY; 4]; 3],
+        hi: [[f32::INFINITY; 4]; 3],
+        frame: [[[0.0; 4]; 3]; 3],
+        near: [[f32::INFINITY; 4]; 3],
+        far: [[f32::INFINITY; 4]; 3],
+        child: [u32::MAX; 4],
+        count: [0; 4],
+    };
+
+    /// Puts the bounds of binary node `node` in `lane`, with its child or triangles.
+    fn set(&mut self, lane: usize, node: &Node, child: u32, count: u32) {
         for a in 0..3 {
-            for c in 0..2 {
-                let d = (self.lo[a][c] as f64 - q[a])
-                    .max(0.0)
-                    .max(q[a] - self.hi[a][c] as f64);
-                s[c] += d * d;
+            self.lo[a][lane] = node.lo[a];
+            self.hi[a][lane] = node.hi[a];
+            self.near[a][lane] = node.near[a];
+            self.far[a][lane] = node.far[a];
+            for row in 0..3 {
+                self.frame[row][a][lane] = node.frame[row][a];
+            }
+        }
+        self.child[lane] = child;
+        self.count[lane] = count;
+    }
+
+    /// Lower bounds of the squared distances from the query to the four children: the larger
+    /// of the squared distances to the box and to the oriented box, computed in `f32` lanes,
+    /// each gap lessened by the query's margin and the sum shrunk by [`SHRINK`].
+    #[inline]
+    fn dist2(&self, w: &WideQuery) -> [f64; 4] {
+        let mut s = [0.0f32; 4];
+        let mut o = [0.0f32; 4];
+        for a in 0..3 {
+            for l in 0..4 {
+                let d = larger(self.lo[a][l] - w.q[a], w.q[a] - self.hi[a][l]) - w.margin;
+                let d = larger(d, 0.0);
+                s[l] += d * d;
             }
         }
         for row in 0..3 {
             let f = &self.frame[row];
-            for c in 0..2 {
-                let t = f[0][c] as f64 * q[0] + f[1][c] as f64 * q[1] + f[2][c] as f64 * q[2];
-                let g = (self.near[row][c] as f64 - t)
-                    .max(0.0)
-                    .max(t - self.far[row][c] as f64);
-                o[c] += g * g;
+            for l in 0..4 {
+                let t = f[0][l] * w.q[0] + f[1][l] * w.q[1] + f[2][l] * w.q[2];
+                let g = larger(self.near[row][l] - t, t - self.far[row][l]) - w.margin;
+                let g = larger(g, 0.0);
+                o[l] += g * g;
             }
         }
-        [s[0].max(o[0]), s[1].max(o[1])]
+        std::array::from_fn(|l| f64::from(larger(s[l], o[l])) * SHRINK)
     }
+}
+
+/// The 4-wide tree of a binary tree (`nodes[0]` the root): each 4-wide node takes a binary
+/// node's two children and opens the inner one with the largest box surface until it has four
+/// (or only leaves). Node 0 is the root.
+fn collapse(nodes: &[Node]) -> Vec<Wide> {
+    let mut wides = Vec::with_capacity(nodes.len() / 3 + 1);
+    wides.push(Wide::UNUSED);
+    let root = &nodes[0];
+    if root.count > 0 {
+        wides[0].set(0, root, root.first, root.count);
+    } else {
+        fill(nodes, 0, 0, &mut wides);
+    }
+    wides
+}
+
+/// Fills 4-wide node `wide` with the children of binary inner node `id` (recursively).
+fn fill(nodes: &[Node], id: usize, wide: usize, wides: &mut Vec<Wide>) {
+    let first = nodes[id].first as usize;
+    let mut kids = [first, first + 1, 0, 0];
+    let mut len = 2;
+    while len < 4 {
+        let widest = (0..len)
+            .filter(|&k| nodes[kids[k]].count == 0)
+            .max_by(|&a, &b| surface(&nodes[kids[a]]).total_cmp(&surface(&nodes[kids[b]])));
+        let Some(k) = widest else { break };
+        let open = nodes[kids[k]].first as usize;
+        // Keep the children in tree (Morton) order.
+        kids.copy_within(k + 1..len, k + 2);
+        kids[k] = open;
+        kids[k + 1] = open + 1;
+        len += 1;
+    }
+    for (lane, &k) in kids[..len].iter().enumerate() {
+        let node = &nodes[k];
+        if node.count > 0 {
+            wides[wide].set(lane, node, node.first, node.count);
+        } else {
+            let child = wides.len();
+            wides.push(Wide::UNUSED);
+            wides[wide].set(lane, node, child as u32, 0);
+            fill(nodes, k, child, wides);
+        }
+    }
+}
+
+/// Half the surface area of a node's box.
+fn surface(node: &Node) -> f64 {
+    let e: [f64; 3] = std::array::from_fn(|a| f64::from(node.hi[a]) - f64::from(node.lo[a]));
+    e[0] * e[1] + e[1] * e[2] + e[2] * e[0]
 }
 
 /// Triangles per leaf of [`morton_tree`].

@@ -4,7 +4,7 @@
 //! bit-parallel dilations of 512-bit masks. Cells it never reaches are inside.
 
 use crate::grid::{face_carry, or_assign, shift, split, test, BrickMask, BrickSet, NO_BRICK};
-use std::collections::VecDeque;
+use rayon::prelude::*;
 
 /// The flood's result: outside flags for empty bricks and outside masks for wall bricks.
 #[derive(Debug, Clone)]
@@ -44,35 +44,142 @@ pub fn grow_within(out: &mut BrickMask, wall: &BrickMask) {
 }
 
 /// Floods the outside over non-wall cells, starting from every cell on the border of the
-/// brick space. The result is the unique least fixpoint, so it does not depend on order.
+/// brick space. The result is the unique least fixpoint, so it does not depend on order or on
+/// the thread count.
 ///
-/// Two work lists: empty bricks (most of the grid) are expanded with a stack over a padded
-/// byte grid of brick states (no bounds checks, no face masks, 1 byte a brick); wall bricks go
-/// through a queue that grows their outside cells and carries faces. Whichever list is
-/// drained first, the fixpoint is the same.
+/// In rounds: empty bricks (most of the grid) are flooded from a stack over a padded byte grid
+/// of brick states (no bounds checks, no face masks, 1 byte a brick), one thread; then every
+/// wall brick that may gain outside cells (a neighbour grew or became outside) pulls the faces
+/// of its six neighbours and grows within its walls, all of them in parallel from the same
+/// snapshot, and the bricks the growth reaches are the next round's. Each round only adds cells
+/// the outside reaches, and it ends when nothing changes: the least fixpoint.
 pub fn flood_outside(walls: &BrickSet) -> Flood {
-    let mut state = FloodState {
-        walls,
-        bricks: PaddedBricks::new(walls),
-        wall_outside: vec![[0u64; 8]; walls.masks.len()],
-        queued: vec![false; walls.masks.len()],
-        queue: VecDeque::new(),
-        empty: Vec::new(),
-    };
-    state.seed_border();
+    // One entry into the thread pool for the whole flood: its rounds (many where the outside
+    // travels from wall brick to wall brick) then split their work among the pool's threads
+    // without handing each round over from the calling thread and waiting for it to return.
+    rayon::scope(|_| flood_in_pool(walls))
+}
+
+/// [`flood_outside`]'s rounds, run on a thread of the pool.
+fn flood_in_pool(walls: &BrickSet) -> Flood {
+    let mut bricks = PaddedBricks::new(walls);
+    let mut wall_outside = vec![[0u64; 8]; walls.masks.len()];
+    let pos: Vec<usize> = walls
+        .keys
+        .par_iter()
+        .map(|&k| bricks.at(walls.index.coord(k as usize)))
+        .collect();
+    let (mut empty, mut active) = bricks.border_seeds(walls);
     loop {
-        if let Some(p) = state.empty.pop() {
-            state.expand_empty(p);
-        } else if let Some(key) = state.queue.pop_front() {
-            state.expand_wall(key);
-        } else {
+        bricks.flood_empty(walls, &mut empty, &mut active);
+        if active.is_empty() {
             break;
+        }
+        active.par_sort_unstable();
+        active.dedup();
+        let grown: Vec<(u32, BrickMask)> = active
+            .par_iter()
+            .with_min_len(ROUND_PIECE)
+            .filter_map(|&s| {
+                let out = pulled(walls, &bricks, &wall_outside, &pos, s as usize)?;
+                Some((s, out))
+            })
+            .collect();
+        for &(s, out) in &grown {
+            wall_outside[s as usize] = out;
+        }
+        let reached: Vec<Reached> = grown
+            .par_iter()
+            .with_min_len(ROUND_PIECE)
+            .flat_map_iter(|&(s, out)| {
+                reached_from(walls, &bricks, &wall_outside, pos[s as usize], out)
+            })
+            .collect();
+        active.clear();
+        for r in reached {
+            match r {
+                Reached::Wall(t) => active.push(t),
+                Reached::Empty(q) => bricks.mark_empty(q, &mut empty),
+            }
         }
     }
     Flood {
-        empty_outside: state.bricks.empty_outside(),
-        wall_outside: state.wall_outside,
+        empty_outside: bricks.empty_outside(),
+        wall_outside,
     }
+}
+
+/// Wall bricks a thread takes at least at once in a round: most rounds reach only a few, and
+/// those are not worth splitting.
+const ROUND_PIECE: usize = 64;
+
+/// Wall brick `s`'s outside after pulling the faces its six neighbours carry into it and
+/// growing within its walls, or `None` when that adds nothing (its outside is always grown
+/// already).
+fn pulled(
+    walls: &BrickSet,
+    bricks: &PaddedBricks,
+    wall_outside: &[BrickMask],
+    pos: &[usize],
+    s: usize,
+) -> Option<BrickMask> {
+    let wall = &walls.masks[s];
+    let old = wall_outside[s];
+    let mut out = old;
+    for (axis, high) in DIRS {
+        let q = bricks.step(pos[s], axis, high);
+        // What the neighbour on side (axis, high) carries across its face towards this brick.
+        let carry = match bricks.state[q] {
+            EMPTY => continue,
+            WALL => {
+                let t = walls.index.slots[bricks.key(q, walls)] as usize;
+                face_carry(&wall_outside[t], axis, !high)
+            }
+            _ => face_carry(&FULL, axis, !high),
+        };
+        for z in 0..8 {
+            out[z] |= carry[z] & !wall[z];
+        }
+    }
+    if out == old {
+        return None;
+    }
+    grow_within(&mut out, wall);
+    Some(out)
+}
+
+/// A brick that a wall brick's grown outside reaches.
+enum Reached {
+    /// A wall brick (slot) that gains cells from it.
+    Wall(u32),
+    /// An empty brick (padded position) not yet known to be outside.
+    Empty(usize),
+}
+
+/// The bricks that wall brick at padded position `p` with outside `out` carries new cells into.
+fn reached_from<'a>(
+    walls: &'a BrickSet,
+    bricks: &'a PaddedBricks,
+    wall_outside: &'a [BrickMask],
+    p: usize,
+    out: BrickMask,
+) -> impl Iterator<Item = Reached> + 'a {
+    DIRS.into_iter().filter_map(move |(axis, high)| {
+        let q = bricks.step(p, axis, high);
+        let state = bricks.state[q];
+        if state != EMPTY && state != WALL {
+            return None;
+        }
+        let carry = face_carry(&out, axis, high);
+        if state == EMPTY {
+            return (carry != [0; 8]).then_some(Reached::Empty(q));
+        }
+        let t = walls.index.slots[bricks.key(q, walls)];
+        let (wall, known) = (&walls.masks[t as usize], &wall_outside[t as usize]);
+        (0..8)
+            .any(|z| carry[z] & !wall[z] & !known[z] != 0)
+            .then_some(Reached::Wall(t))
+    })
 }
 
 /// State of a brick in [`PaddedBricks`].
@@ -98,18 +205,21 @@ impl PaddedBricks {
         let dims = [d[0] + 2, d[1] + 2, d[2] + 2];
         let stride = [1, dims[0], dims[0] * dims[1]];
         let mut state = vec![BEYOND; dims[0] * dims[1] * dims[2]];
-        for z in 0..d[2] {
-            for y in 0..d[1] {
-                let row = (z + 1) * stride[2] + (y + 1) * stride[1] + 1;
-                let key = (z * d[1] + y) * d[0];
-                for (st, &slot) in state[row..row + d[0]]
-                    .iter_mut()
-                    .zip(&walls.index.slots[key..key + d[0]])
-                {
-                    *st = if slot == NO_BRICK { EMPTY } else { WALL };
+        state[stride[2]..(d[2] + 1) * stride[2]]
+            .par_chunks_mut(stride[2])
+            .enumerate()
+            .for_each(|(z, plane)| {
+                for y in 0..d[1] {
+                    let row = (y + 1) * stride[1] + 1;
+                    let key = (z * d[1] + y) * d[0];
+                    for (st, &slot) in plane[row..row + d[0]]
+                        .iter_mut()
+                        .zip(&walls.index.slots[key..key + d[0]])
+                    {
+                        *st = if slot == NO_BRICK { EMPTY } else { WALL };
+                    }
                 }
-            }
-        }
+            });
         Self {
             dims,
             stride,
@@ -125,6 +235,16 @@ impl PaddedBricks {
             + (b[2] as usize + 1) * self.stride[2]
     }
 
+    /// The padded position next to `p` on side (`axis`, `high`).
+    #[inline]
+    fn step(&self, p: usize, axis: usize, high: bool) -> usize {
+        if high {
+            p + self.stride[axis]
+        } else {
+            p - self.stride[axis]
+        }
+    }
+
     /// Brick key (in the unpadded index) of padded position `p`.
     #[inline]
     fn key(&self, p: usize, walls: &BrickSet) -> usize {
@@ -134,43 +254,11 @@ impl PaddedBricks {
         walls.index.key([x as u32, y as u32, z as u32])
     }
 
-    /// Per brick key: whether it is an empty brick found outside.
-    fn empty_outside(&self) -> Vec<bool> {
-        let d = [self.dims[0] - 2, self.dims[1] - 2, self.dims[2] - 2];
-        let mut out = Vec::with_capacity(d[0] * d[1] * d[2]);
-        for z in 0..d[2] {
-            for y in 0..d[1] {
-                let row = (z + 1) * self.stride[2] + (y + 1) * self.stride[1] + 1;
-                out.extend(
-                    self.state[row..row + d[0]]
-                        .iter()
-                        .map(|&s| s == EMPTY_OUTSIDE),
-                );
-            }
-        }
-        out
-    }
-}
-
-/// The flood in progress: its result so far and the bricks to advance from.
-struct FloodState<'a> {
-    walls: &'a BrickSet,
-    bricks: PaddedBricks,
-    /// Per wall brick (parallel to `walls.masks`): its outside cells so far.
-    wall_outside: Vec<BrickMask>,
-    /// Per wall brick: whether it is in the queue.
-    queued: Vec<bool>,
-    /// Wall bricks (keys) whose outside grew since they last carried.
-    queue: VecDeque<usize>,
-    /// Empty bricks (padded positions) found outside that have not carried yet.
-    empty: Vec<usize>,
-}
-
-impl FloodState<'_> {
-    /// Seeds every brick on the border of the brick space: an empty one is outside whole, a
-    /// wall brick gets its non-wall cells on the border faces.
-    fn seed_border(&mut self) {
-        let dims = self.walls.index.dims;
+    /// The flood's seeds on the border of the brick space: its empty bricks, marked outside
+    /// (padded positions), and its wall bricks (slots), which pull full faces from beyond.
+    fn border_seeds(&mut self, walls: &BrickSet) -> (Vec<usize>, Vec<u32>) {
+        let dims = walls.index.dims;
+        let (mut empty, mut active) = (Vec::new(), Vec::new());
         for z in 0..dims[2] {
             for y in 0..dims[1] {
                 let inner = z > 0 && z + 1 < dims[2] && y > 0 && y + 1 < dims[1];
@@ -180,128 +268,64 @@ impl FloodState<'_> {
                     &mut (0..dims[0])
                 };
                 for x in xs {
-                    self.seed_brick([x, y, z]);
+                    let b = [x, y, z];
+                    match walls.index.slots[walls.index.key(b)] {
+                        NO_BRICK => self.mark_empty(self.at(b), &mut empty),
+                        s => active.push(s),
+                    }
                 }
             }
         }
+        (empty, active)
     }
 
-    /// Seeds brick `b`, which lies on the border of the brick space.
-    fn seed_brick(&mut self, b: [u32; 3]) {
-        let index = &self.walls.index;
-        let dims = index.dims;
-        let key = index.key(b);
-        let slot = index.slots[key];
-        if slot == NO_BRICK {
-            self.mark_empty(self.bricks.at(b));
-            return;
-        }
-        let s = slot as usize;
-        let mut seed = [0u64; 8];
-        for (axis, high) in DIRS {
-            if b[axis] == if high { dims[axis] - 1 } else { 0 } {
-                // The face at local 0 (or 7) of this brick: carry a full face from the
-                // opposite side onto it.
-                or_assign(&mut seed, &face_carry(&FULL, axis, !high));
-            }
-        }
-        for z in 0..8 {
-            seed[z] &= !self.walls.masks[s][z];
-        }
-        or_assign(&mut self.wall_outside[s], &seed);
-        if !self.queued[s] {
-            self.queued[s] = true;
-            self.queue.push_back(key);
-        }
-    }
-
-    /// Marks the empty brick at padded position `p` outside, once.
+    /// Marks the empty brick at padded position `p` outside, once, and stacks it.
     #[inline]
-    fn mark_empty(&mut self, p: usize) {
-        if self.bricks.state[p] == EMPTY {
-            self.bricks.state[p] = EMPTY_OUTSIDE;
-            self.empty.push(p);
+    fn mark_empty(&mut self, p: usize, stack: &mut Vec<usize>) {
+        if self.state[p] == EMPTY {
+            self.state[p] = EMPTY_OUTSIDE;
+            stack.push(p);
         }
     }
 
-    /// An empty outside brick: marks its empty neighbours outside and carries a full face
-    /// into its wall neighbours.
-    fn expand_empty(&mut self, p: usize) {
-        for (axis, high) in DIRS {
-            let q = if high {
-                p + self.bricks.stride[axis]
-            } else {
-                p - self.bricks.stride[axis]
-            };
-            match self.bricks.state[q] {
-                EMPTY => {
-                    self.bricks.state[q] = EMPTY_OUTSIDE;
-                    self.empty.push(q);
+    /// Floods the empty bricks from the outside ones on `stack` until it is empty; the wall
+    /// bricks next to them (which pull full faces from them) go to `walls_reached` (slots).
+    fn flood_empty(
+        &mut self,
+        walls: &BrickSet,
+        stack: &mut Vec<usize>,
+        walls_reached: &mut Vec<u32>,
+    ) {
+        while let Some(p) = stack.pop() {
+            for (axis, high) in DIRS {
+                let q = self.step(p, axis, high);
+                match self.state[q] {
+                    EMPTY => {
+                        self.state[q] = EMPTY_OUTSIDE;
+                        stack.push(q);
+                    }
+                    WALL => walls_reached.push(walls.index.slots[self.key(q, walls)]),
+                    _ => {}
                 }
-                WALL => {
-                    let key = self.bricks.key(q, self.walls);
-                    self.carry_into(key, &face_carry(&FULL, axis, high));
+            }
+        }
+    }
+
+    /// Per brick key: whether it is an empty brick found outside.
+    fn empty_outside(&self) -> Vec<bool> {
+        let d = [self.dims[0] - 2, self.dims[1] - 2, self.dims[2] - 2];
+        let mut out = vec![false; d[0] * d[1] * d[2]];
+        out.par_chunks_mut(d[0] * d[1])
+            .enumerate()
+            .for_each(|(z, plane)| {
+                for (y, row_out) in plane.chunks_mut(d[0]).enumerate() {
+                    let row = (z + 1) * self.stride[2] + (y + 1) * self.stride[1] + 1;
+                    for (o, &s) in row_out.iter_mut().zip(&self.state[row..row + d[0]]) {
+                        *o = s == EMPTY_OUTSIDE;
+                    }
                 }
-                _ => {}
-            }
-        }
-    }
-
-    /// A wall brick whose outside grew: grows it within its walls and carries its faces.
-    fn expand_wall(&mut self, key: usize) {
-        let carries = self.outgoing_carries(key);
-        let b = self.walls.index.coord(key);
-        let dims = self.walls.index.dims;
-        for (i, &(axis, high)) in DIRS.iter().enumerate() {
-            if carries[i].iter().all(|&w| w == 0) {
-                continue;
-            }
-            let mut nbr = [b[0] as i64, b[1] as i64, b[2] as i64];
-            nbr[axis] += if high { 1 } else { -1 };
-            if nbr[axis] < 0 || nbr[axis] >= dims[axis] as i64 {
-                continue;
-            }
-            let nbr = [nbr[0] as u32, nbr[1] as u32, nbr[2] as u32];
-            let nkey = self.walls.index.key(nbr);
-            if self.walls.index.slots[nkey] == NO_BRICK {
-                self.mark_empty(self.bricks.at(nbr));
-            } else {
-                self.carry_into(nkey, &carries[i]);
-            }
-        }
-    }
-
-    /// Grows wall brick `key`'s outside within its walls and returns what it carries across
-    /// each of its six faces (in `DIRS` order).
-    fn outgoing_carries(&mut self, key: usize) -> [BrickMask; 6] {
-        let s = self.walls.index.slots[key] as usize;
-        let mut c = [[0u64; 8]; 6];
-        self.queued[s] = false;
-        let mut out = self.wall_outside[s];
-        grow_within(&mut out, &self.walls.masks[s]);
-        self.wall_outside[s] = out;
-        for (i, &(axis, high)) in DIRS.iter().enumerate() {
-            c[i] = face_carry(&out, axis, high);
-        }
-        c
-    }
-
-    /// Carries a face of outside cells into wall brick `nkey`, queueing it when that reaches
-    /// cells not yet known to be outside.
-    fn carry_into(&mut self, nkey: usize, carry: &BrickMask) {
-        let t = self.walls.index.slots[nkey] as usize;
-        let mut changed = false;
-        for z in 0..8 {
-            let incoming = carry[z] & !self.walls.masks[t][z] & !self.wall_outside[t][z];
-            if incoming != 0 {
-                self.wall_outside[t][z] |= incoming;
-                changed = true;
-            }
-        }
-        if changed && !self.queued[t] {
-            self.queued[t] = true;
-            self.queue.push_back(nkey);
-        }
+            });
+        out
     }
 }
 
@@ -410,8 +434,40 @@ mod tests {
 
     #[test]
     fn flood_matches_a_cell_by_cell_search() {
-        let walls = walls();
-        let flood = flood_outside(&walls);
+        assert_matches_cell_by_cell_search(&walls());
+    }
+
+    #[test]
+    fn flood_through_wall_bricks_matches_a_cell_by_cell_search() {
+        // Dense random walls (a third of the cells, every brick a wall brick), so the outside
+        // reaches most cells only through wall bricks, over many rounds; and walls two cells
+        // apart with one-cell gaps in a winding order.
+        let n = 48u32;
+        let mut state = 0x2545_F491_4F6C_DD1Du64;
+        let mut cells = Vec::new();
+        for z in 0..n {
+            for y in 0..n {
+                for x in 0..n {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    let maze = x % 3 == 1 && (y + 7 * (x / 3)) % 11 != 0;
+                    if state.is_multiple_of(3) && z < n / 2 || maze && z >= n / 2 {
+                        cells.push([x, y, z]);
+                    }
+                }
+            }
+        }
+        let index = BrickIndex::for_resolution(n);
+        let mut packed: Vec<u64> = cells.iter().map(|&c| pack(&index, c)).collect();
+        packed.sort_unstable();
+        packed.dedup();
+        assert_matches_cell_by_cell_search(&BrickSet::from_sorted_packed(n, &packed));
+    }
+
+    /// Checks [`flood_outside`] cell by cell against a plain flood over cells.
+    fn assert_matches_cell_by_cell_search(walls: &BrickSet) {
+        let flood = flood_outside(walls);
         let side = (walls.index.dims[0] * BRICK) as i64;
         let at = |c: [i64; 3]| (c[0] + side * (c[1] + side * c[2])) as usize;
         let mut outside = vec![false; (side * side * side) as usize];
@@ -452,7 +508,7 @@ mod tests {
                     } else {
                         CellSide::Inside
                     };
-                    assert_eq!(flood.cell(&walls, c), want, "cell {c:?}");
+                    assert_eq!(flood.cell(walls, c), want, "cell {c:?}");
                     counts[want as usize] += 1;
                 }
             }

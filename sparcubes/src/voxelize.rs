@@ -45,46 +45,71 @@ pub struct Voxelization {
 /// Whether a triangle touches the closed axis-aligned box `center ± half` (separating axis
 /// theorem with the 13 axes of Akenine-Möller, "Fast 3D triangle-box overlap testing", 2001).
 pub fn triangle_box_overlap(tri: &[[f64; 3]; 3], center: [f64; 3], half: f64) -> bool {
-    let v = [
-        sub(tri[0], center),
-        sub(tri[1], center),
-        sub(tri[2], center),
-    ];
-    for a in 0..3 {
-        let lo = v[0][a].min(v[1][a]).min(v[2][a]);
-        let hi = v[0][a].max(v[1][a]).max(v[2][a]);
-        if lo > half || hi < -half {
-            return false;
-        }
-    }
-    let e = [sub(v[1], v[0]), sub(v[2], v[1]), sub(v[0], v[2])];
-    let n = cross(e[0], e[1]);
-    let r = half * (n[0].abs() + n[1].abs() + n[2].abs());
-    if dot(n, v[0]).abs() > r {
+    let Some(centred) = CentredTriangle::unless_boxes_apart(tri, center, half) else {
         return false;
-    }
-    for edge in e {
+    };
+    (0..AXES).all(|k| !centred.separates(k, half))
+}
+
+/// A triangle in coordinates centred on a box, as [`triangle_box_overlap`] computes it: the
+/// one place its axis tests are written, so that [`CellTest`]'s fallback repeats them bit for
+/// bit.
+struct CentredTriangle {
+    v: [[f64; 3]; 3],
+    e: [[f64; 3]; 3],
+}
+
+impl CentredTriangle {
+    /// The triangle centred on `center`, or `None` when a coordinate axis separates it from the
+    /// box `center ± half` (their bounding boxes are apart).
+    #[inline]
+    fn unless_boxes_apart(tri: &[[f64; 3]; 3], center: [f64; 3], half: f64) -> Option<Self> {
+        let v = [
+            sub(tri[0], center),
+            sub(tri[1], center),
+            sub(tri[2], center),
+        ];
         for a in 0..3 {
-            let mut unit = [0.0; 3];
-            unit[a] = 1.0;
-            let axis = cross(unit, edge);
-            let p = [dot(axis, v[0]), dot(axis, v[1]), dot(axis, v[2])];
-            let r = half * (axis[0].abs() + axis[1].abs() + axis[2].abs());
-            if p[0].min(p[1]).min(p[2]) > r || p[0].max(p[1]).max(p[2]) < -r {
-                return false;
+            let lo = v[0][a].min(v[1][a]).min(v[2][a]);
+            let hi = v[0][a].max(v[1][a]).max(v[2][a]);
+            if lo > half || hi < -half {
+                return None;
             }
         }
+        let e = [sub(v[1], v[0]), sub(v[2], v[1]), sub(v[0], v[2])];
+        Some(Self { v, e })
     }
-    true
+
+    /// Whether axis `k` of [`CellTest`]'s order (0: the normal, `1 + 3 * edge + a`: coordinate
+    /// axis `a` crossed with edge `edge`) separates the triangle from the box of half size
+    /// `half` around the origin.
+    #[inline]
+    fn separates(&self, k: usize, half: f64) -> bool {
+        let v = &self.v;
+        if k == 0 {
+            let n = cross(self.e[0], self.e[1]);
+            let r = half * (n[0].abs() + n[1].abs() + n[2].abs());
+            return dot(n, v[0]).abs() > r;
+        }
+        let mut unit = [0.0; 3];
+        unit[(k - 1) % 3] = 1.0;
+        let axis = cross(unit, self.e[(k - 1) / 3]);
+        let p = [dot(axis, v[0]), dot(axis, v[1]), dot(axis, v[2])];
+        let r = half * (axis[0].abs() + axis[1].abs() + axis[2].abs());
+        p[0].min(p[1]).min(p[2]) > r || p[0].max(p[1]).max(p[2]) < -r
+    }
 }
 
 /// [`triangle_box_overlap`] against unit cells for one triangle, with the triangle's side of
 /// the test set up once: for each of the 10 axes that are not a coordinate axis (the normal
 /// and the 9 edge cross products), the triangle's projection range and the cell's radius, so a
 /// cell costs one dot product per axis. Rounding makes these projections differ from the
-/// direct test's in the last bits, so a cell within `margin` of deciding on some axis falls
-/// back to [`triangle_box_overlap`] itself: the answer is always the direct test's, bit for
-/// bit.
+/// direct test's in the last bits, so on an axis where a cell lies within `margin` of deciding,
+/// the direct test's own computation for that axis decides (and the coordinate axes, as the
+/// direct test has them): the answer is always the direct test's, bit for bit. A cell is unsure
+/// on a few axes at most (a face lying on a cell plane: the normal and the edge axes parallel
+/// to it), and only those are redone; a face in a grid-aligned plane never needs them (see
+/// [`CellTest::new`]).
 pub struct CellTest<'a> {
     tri: &'a [[f64; 3]; 3],
     origin: [f64; 3],
@@ -147,6 +172,20 @@ impl<'a> CellTest<'a> {
             test.outer[k] = r + margin;
             test.inner[k] = r - margin;
         }
+        // A triangle in a grid-aligned plane (its corners share coordinate `a` exactly, as the
+        // flat faces of CAD parts on the grid's outer planes do): the normal and the six edge
+        // axes crossed with the other two coordinate axes all point along `a`, their other
+        // components exactly zero. On such an axis the direct test projects the triangle to
+        // one point `p = fl(w * v_a)` against `r = fl(w / 2)`, and a candidate cell has
+        // `|v_a| <= 1/2` exactly (the coordinate axis `a` does not separate it), so rounding,
+        // being monotone, keeps `|p| <= r`: never separated, never redone. Only the three
+        // in-plane edge normals are left to decide.
+        if let Some(a) = (0..3).find(|&a| tri[0][a] == tri[1][a] && tri[1][a] == tri[2][a]) {
+            for k in (0..AXES).filter(|&k| k == 0 || (k - 1) % 3 != a) {
+                test.outer[k] = f64::INFINITY;
+                test.inner[k] = f64::INFINITY;
+            }
+        }
         test
     }
 
@@ -158,20 +197,25 @@ impl<'a> CellTest<'a> {
     pub fn touches(&self, c: [i64; 3]) -> bool {
         let center = [c[0] as f64 + 0.5, c[1] as f64 + 0.5, c[2] as f64 + 0.5];
         let d = sub(center, self.origin);
-        let (mut separated, mut sure) = (false, true);
+        let (mut separated, mut unsure) = (false, 0u16);
         for k in 0..AXES {
             let s = self.axis[0][k] * d[0] + self.axis[1][k] * d[1] + self.axis[2][k] * d[2];
             let (lo, hi) = (self.lo[k] - s, self.hi[k] - s);
             separated |= (lo > self.outer[k]) | (hi < -self.outer[k]);
-            sure &= (lo < self.inner[k]) & (hi > -self.inner[k]);
+            let sure = (lo < self.inner[k]) & (hi > -self.inner[k]);
+            unsure |= (!sure as u16) << k;
         }
         if separated {
-            false
-        } else if sure {
-            true
-        } else {
-            triangle_box_overlap(self.tri, center, 0.5)
+            return false;
         }
+        if unsure == 0 {
+            return true;
+        }
+        // Every axis not redone here is surely not separating, as the direct test would find.
+        let Some(centred) = CentredTriangle::unless_boxes_apart(self.tri, center, 0.5) else {
+            return false;
+        };
+        (0..AXES).all(|k| unsure & (1 << k) == 0 || !centred.separates(k, 0.5))
     }
 }
 
@@ -433,29 +477,107 @@ mod tests {
             [[0.0, 0.0, 3.0], [6.0, 6.0, 3.0], [0.0, 6.0, 3.0]],
             [[2.0, 2.0, 2.0], [2.0, 2.0, 2.0], [4.0, 4.0, 4.0]],
         ];
-        let mut touching = 0;
-        for tri in &tris {
-            let test = CellTest::new(tri);
-            let mut lo = [0i64; 3];
-            let mut hi = [0i64; 3];
-            for a in 0..3 {
-                let mn = tri[0][a].min(tri[1][a]).min(tri[2][a]);
-                let mx = tri[0][a].max(tri[1][a]).max(tri[2][a]);
-                lo[a] = mn.ceil() as i64 - 1;
-                hi[a] = mx.floor() as i64;
-            }
-            for z in lo[2]..=hi[2] {
-                for y in lo[1]..=hi[1] {
-                    for x in lo[0]..=hi[0] {
-                        let c = [x as f64 + 0.5, y as f64 + 0.5, z as f64 + 0.5];
-                        let direct = triangle_box_overlap(tri, c, 0.5);
-                        assert_eq!(test.touches([x, y, z]), direct, "{tri:?} cell {x} {y} {z}");
-                        touching += direct as usize;
-                    }
+        let touching: usize = tris
+            .iter()
+            .map(|tri| answers_as_the_direct_test(tri)[1])
+            .sum();
+        assert!(touching > 100);
+    }
+
+    /// Asserts that [`CellTest::touches`] answers as [`triangle_box_overlap`] on every
+    /// candidate cell of `tri` (its bounding box grown by one cell); returns how many cells
+    /// it does not and does touch.
+    fn answers_as_the_direct_test(tri: &[[f64; 3]; 3]) -> [usize; 2] {
+        let test = CellTest::new(tri);
+        let mut lo = [0i64; 3];
+        let mut hi = [0i64; 3];
+        for a in 0..3 {
+            let mn = tri[0][a].min(tri[1][a]).min(tri[2][a]);
+            let mx = tri[0][a].max(tri[1][a]).max(tri[2][a]);
+            lo[a] = mn.ceil() as i64 - 1;
+            hi[a] = mx.floor() as i64;
+        }
+        let mut counts = [0; 2];
+        for z in lo[2]..=hi[2] {
+            for y in lo[1]..=hi[1] {
+                for x in lo[0]..=hi[0] {
+                    let c = [x as f64 + 0.5, y as f64 + 0.5, z as f64 + 0.5];
+                    let direct = triangle_box_overlap(tri, c, 0.5);
+                    assert_eq!(test.touches([x, y, z]), direct, "{tri:?} cell {x} {y} {z}");
+                    counts[direct as usize] += 1;
                 }
             }
         }
-        assert!(touching > 100);
+        counts
+    }
+
+    #[test]
+    fn cell_test_answers_as_the_direct_test_on_random_and_grid_aligned_triangles() {
+        // A small xorshift generator: the test needs reproducible draws, not quality.
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let (mut mixed, mut touching, mut cells) = (0, 0, 0);
+        for i in 0..3000 {
+            // Corners on grid vertices, edges, half and quarter cells, or anywhere; a third of
+            // the triangles lie in a grid plane or a hair off it, and some share, repeat or nearly
+            // repeat corners.
+            let coord = |draw: u64, snap: u64| {
+                let r = (draw % 1_000_000) as f64 / 1_000_000.0 * 9.0 + 1.0;
+                match snap {
+                    0 => r.round(),
+                    1 => (r * 2.0).round() / 2.0,
+                    2 => (r * 4.0).round() / 4.0,
+                    _ => r,
+                }
+            };
+            let snap = next() % 4;
+            let mut tri = [[0.0; 3]; 3];
+            for corner in tri.iter_mut() {
+                for c in corner.iter_mut() {
+                    *c = coord(next(), snap);
+                }
+            }
+            match i % 8 {
+                0 | 1 | 5 => {
+                    let a = (next() % 3) as usize;
+                    let plane = coord(next(), 0);
+                    for corner in tri.iter_mut() {
+                        corner[a] = plane;
+                    }
+                    if i % 8 == 5 {
+                        // Nearly in the plane: decided within the fast test's margin.
+                        tri[2][a] += 1e-9;
+                    }
+                }
+                4 => {
+                    // A sliver: two corners a hair apart.
+                    tri[2] = tri[1];
+                    tri[2][(next() % 3) as usize] += 1e-7;
+                }
+                2 => {
+                    // Two coordinates shared: the triangle lies on a grid line's plane pair.
+                    let a = (next() % 3) as usize;
+                    tri[1][a] = tri[0][a];
+                    tri[2][(a + 1) % 3] = tri[0][(a + 1) % 3];
+                }
+                3 => tri[2] = tri[1],
+                _ => {}
+            }
+            let [apart, touched] = answers_as_the_direct_test(&tri);
+            touching += touched;
+            cells += apart + touched;
+            mixed += (apart > 0 && touched > 0) as usize;
+        }
+        assert!(
+            touching > 10_000 && cells > 2 * touching,
+            "{touching} of {cells}"
+        );
+        assert!(mixed > 1000, "triangles with cells on both sides: {mixed}");
     }
 
     #[test]

@@ -13,7 +13,12 @@
 //! Everything is in the job's **normalized frame**: the grid cube `[0, N]³` mapped onto
 //! `[-1, 1]³` (`p = 2·g/N − 1`, so `p = 2·(source − center)·scale`). Distances are exact
 //! distances to the extracted mesh ([`crate::closest`]); their sign, negative inside, comes
-//! from the sparse grid ([`crate::sides`]). Query points are rounded to the storage
+//! from the closest triangle's face where the closest point lies strictly inside it
+//! ([`TriangleIndex::face_side`], exact for the closed output mesh of the sparse grid), else
+//! from the sparse grid ([`crate::sides`]). Where both answer they differ on about one near
+//! point in 2000 (storage-rounded points on the grid's dyadic planes, where the grid's
+//! crossing count meets a triangle edge), and there the face is right by the winding number
+//! (docs/PERFORMANCE.md, issue 13 section). Query points are rounded to the storage
 //! precision first, so a stored point and its stored distance belong together; a distance
 //! too small for the precision keeps its sign as the smallest subnormal.
 //!
@@ -280,11 +285,14 @@ pub fn sample(cubes: &SparseCubes, mesh: &TriMesh, params: &SampleParams) -> Res
         .collect();
     if !near.is_empty() || !volume.is_empty() {
         let index = TriangleIndex::new(mesh);
-        let sides = GridSides::new(cubes);
+        // The grid sides, built only when some point's closest triangle does not give its side.
+        let sides = std::sync::OnceLock::new();
         let signed = |points: &[[f64; 3]]| -> (Vec<f32>, Vec<bool>) {
             let grid: Vec<[f64; 3]> = points.par_iter().map(|&p| to_grid(p)).collect();
             let closest = index.closest_batch(&grid);
-            let inside = sides.inside_batch(&grid);
+            let inside = face_or_grid_sides(&index, &grid, &closest, || {
+                sides.get_or_init(|| GridSides::new(cubes))
+            });
             let sdf = closest
                 .par_iter()
                 .zip(&inside)
@@ -301,6 +309,35 @@ pub fn sample(cubes: &SparseCubes, mesh: &TriMesh, params: &SampleParams) -> Res
         out.volume_occupancy = inside.into_iter().map(u8::from).collect();
     }
     Ok(out)
+}
+
+/// Whether each point (grid coordinates) is inside: from its closest triangle where
+/// [`TriangleIndex::face_side`] gives it (most near points), else from the grid sides. The face
+/// is cheaper than the grid's local parity test and right where the two differ (module docs).
+fn face_or_grid_sides<'a>(
+    index: &TriangleIndex,
+    grid: &[[f64; 3]],
+    closest: &[crate::closest::ClosestPoint],
+    sides: impl FnOnce() -> &'a GridSides<'a>,
+) -> Vec<bool> {
+    let face: Vec<Option<bool>> = grid
+        .par_iter()
+        .zip(closest)
+        .map(|(&g, c)| index.face_side(g, c))
+        .collect();
+    let rest: Vec<[f64; 3]> = grid
+        .iter()
+        .zip(&face)
+        .filter(|(_, f)| f.is_none())
+        .map(|(&g, _)| g)
+        .collect();
+    if rest.is_empty() {
+        return face.into_iter().map(|f| f == Some(true)).collect();
+    }
+    let mut rest = sides().inside_batch(&rest).into_iter();
+    face.into_iter()
+        .map(|f| f.unwrap_or_else(|| rest.next().unwrap_or(false)))
+        .collect()
 }
 
 #[cfg(test)]

@@ -237,3 +237,90 @@ fn bad_parameters_name_their_key() {
     let e = sample(&cubes, &TriMesh::default(), &small_params(0)).err();
     assert!(matches!(e, Some(Error::EmptyMesh { .. })));
 }
+
+#[test]
+fn face_sides_agree_with_grid_sides_on_real_meshes() {
+    // The side read from the closest triangle's face replaces the grid sides where it answers:
+    // on the bundled meshes, with and without deformation, both must give the same side for
+    // every point near the surface and in the volume.
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples");
+    for file in ["wuson.stl", "box_textured.glb", "cube.off"] {
+        let loaded = crate::io::load(&root.join(file)).unwrap_or_else(|e| panic!("{file}: {e}"));
+        for deform in [false, true] {
+            let (cubes, mesh) = convert(&loaded.mesh, 48, deform);
+            let n = cubes.resolution as f64;
+            let points: Vec<[f64; 3]> = (0..6000u64)
+                .map(|i| {
+                    let d = Draw::new(5, 9, i);
+                    if i % 2 == 0 {
+                        let v = mesh.positions[(i as usize * 7919) % mesh.positions.len()];
+                        let sigma = if i % 4 == 0 { 0.3 } else { 2.0 };
+                        [0, 1, 2].map(|a| v[a] as f64 + sigma * d.normal(a as u64))
+                    } else {
+                        [0, 1, 2].map(|a| (1.1 * d.uniform(a) - 0.05) * n)
+                    }
+                })
+                .collect();
+            let index = TriangleIndex::new(&mesh);
+            let closest = index.closest_batch(&points);
+            let grid = GridSides::new(&cubes).inside_batch(&points);
+            let mut answered = 0;
+            for ((p, c), g) in points.iter().zip(&closest).zip(&grid) {
+                if let Some(face) = index.face_side(*p, c) {
+                    answered += 1;
+                    assert_eq!(face, *g, "{file} deform {deform}: {p:?}");
+                }
+            }
+            // The face answers for most points (else the test would check little).
+            assert!(answered > points.len() / 4, "{file}: {answered}");
+            eprintln!("{file} deform {deform}: {answered} of {}", points.len());
+        }
+    }
+}
+
+#[test]
+fn grid_sides_are_right_for_points_on_grid_planes() {
+    // Points stored as f16 lie on dyadic planes of the grid, where a segment to a cell corner
+    // can pass exactly through an edge shared by two output triangles (or lie in a triangle's
+    // plane). The grid sides must still agree with the winding number of the output for every
+    // point not on the surface itself.
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples");
+    for file in ["wuson.stl", "box_textured.glb", "cube.off"] {
+        let loaded = crate::io::load(&root.join(file)).unwrap_or_else(|e| panic!("{file}: {e}"));
+        for deform in [false, true] {
+            let (cubes, mesh) = convert(&loaded.mesh, 40, deform);
+            let points: Vec<[f64; 3]> = (0..2000u64)
+                .map(|i| {
+                    let d = Draw::new(11, 3, i);
+                    let v = mesh.positions[(i as usize * 7919) % mesh.positions.len()];
+                    // Within about a voxel of the surface, rounded to quarter voxels (some
+                    // coordinates to whole or half voxels).
+                    let step = [0.25, 0.5, 1.0][(i % 3) as usize];
+                    [0, 1, 2]
+                        .map(|a| ((v[a] as f64 + 0.7 * d.normal(a as u64)) / step).round() * step)
+                })
+                .collect();
+            let index = TriangleIndex::new(&mesh);
+            let closest = index.closest_batch(&points);
+            let grid = GridSides::new(&cubes).inside_batch(&points);
+            let mut checked = 0;
+            let mut wrong = Vec::new();
+            for ((p, c), g) in points.iter().zip(&closest).zip(&grid) {
+                if c.distance < 1e-9 {
+                    continue;
+                }
+                checked += 1;
+                if (winding_number(&mesh, *p) > 0.5) != *g {
+                    wrong.push(*p);
+                }
+            }
+            assert!(checked > points.len() / 2, "{file}: {checked}");
+            assert!(
+                wrong.is_empty(),
+                "{file} deform {deform}: {} of {checked} wrong, e.g. {:?}",
+                wrong.len(),
+                &wrong[..wrong.len().min(3)]
+            );
+        }
+    }
+}
