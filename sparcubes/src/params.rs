@@ -32,9 +32,8 @@ pub struct Params {
     /// Whether to run the inside test (docs/ALGORITHM.md §2b): enclosed regions decided solid
     /// or air by the source's winding number, so parts inside hollow hulls keep their
     /// surfaces, and closed parts 1–2 voxels thick keep their thickness. Off by default: on
-    /// the dev corpus at 256³ it makes 11 meshes better and one worse beyond noise
-    /// (`left_finger.STL`), and costs 12 % of the conversion of the meshes it changes
-    /// (docs/QUALITY.md, issue 15).
+    /// the dev corpus at 256³ it makes 10 meshes better and none worse beyond noise, and
+    /// costs 12 % of the conversion of the meshes it changes (docs/QUALITY.md, issue 15).
     /// Left out of the serialized params while off, so existing jobs keep their fingerprint.
     #[serde(default, skip_serializing_if = "is_false")]
     pub inside_test: bool,
