@@ -443,10 +443,11 @@ fn run_help_shows_the_defaults() {
     }
 }
 
-/// `convert --inside-test` turns the inside test on (its counts and its `inside` stage in the
-/// JSON); without it the summary says it is off and no stage ran.
+/// The inside test is on by default (its counts and its `inside` stage in the JSON);
+/// `--no-inside-test` switches it off (no stage ran), `--inside-test` is the default spelled
+/// out, and the two together are refused.
 #[test]
-fn convert_inside_test_is_opt_in() {
+fn convert_inside_test_is_on_by_default() {
     let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
     let mesh = examples().join("wuson.stl");
     let run = |extra: &[&str]| -> serde_json::Value {
@@ -463,12 +464,15 @@ fn convert_inside_test_is_opt_in() {
         args.extend_from_slice(extra);
         serde_json::from_str(&ok(&args)).unwrap_or_else(|e| panic!("{e}"))
     };
-    let off = run(&[]);
+    let off = run(&["--no-inside-test"]);
     assert_eq!(off["inside_test"], false);
     assert!(off["stage_seconds"].get("inside").is_none(), "{off}");
     assert_eq!(off["enclosed_regions"], 0);
-    let on = run(&["--inside-test"]);
+    let on = run(&[]);
     assert_eq!(on["inside_test"], true);
+    let spelled = run(&["--inside-test"]);
+    assert_eq!(spelled["enclosed_regions"], on["enclosed_regions"]);
+    assert_eq!(spelled["output_faces"], on["output_faces"]);
     assert!(on["stage_seconds"].get("inside").is_some(), "{on}");
     // wuson's 51 closed parts overlap: the flood leaves regions enclosed, which the test counts.
     assert!(on["enclosed_regions"].as_u64().unwrap_or(0) > 0, "{on}");
@@ -478,10 +482,25 @@ fn convert_inside_test_is_opt_in() {
             (true.into(), true.into())
         );
     }
+    let out = tmp.path().join("o.ply");
+    let both = sparc3d(&[
+        "convert",
+        s(&mesh),
+        "-o",
+        s(&out),
+        "--inside-test",
+        "--no-inside-test",
+    ]);
+    assert!(!both.status.success());
+    assert!(
+        stderr(&both).contains("cannot be used with"),
+        "{}",
+        stderr(&both)
+    );
 }
 
-/// `preview --inside-test` draws a mesh converted with the inside test; a job's item is drawn
-/// as the job made it, so the flag is refused with `--id`.
+/// `preview` draws a mesh converted with the inside test unless `--no-inside-test`; a job's
+/// item is drawn as the job made it, so either flag is refused with `--id`.
 #[test]
 fn preview_inside_test_converts_a_mesh_with_it() {
     let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
@@ -500,11 +519,17 @@ fn preview_inside_test_converts_a_mesh_with_it() {
         let a = args(extra);
         sparc3d(&a.iter().map(String::as_str).collect::<Vec<_>>())
     };
-    let out = run(&["--inside-test"]);
-    assert!(out.status.success(), "{}", stderr(&out));
-    let on = std::fs::read(&png).unwrap_or_else(|e| panic!("{e}"));
-    assert!(on.starts_with(b"\x89PNG"), "not a PNG");
-    let out = run(&["--id", "x", "--inside-test"]);
-    assert!(!out.status.success());
-    assert!(stderr(&out).contains("--inside-test"), "{}", stderr(&out));
+    for flag in ["--inside-test", "--no-inside-test"] {
+        let out = run(&[flag]);
+        assert!(out.status.success(), "{}", stderr(&out));
+        let png_bytes = std::fs::read(&png).unwrap_or_else(|e| panic!("{e}"));
+        assert!(png_bytes.starts_with(b"\x89PNG"), "not a PNG");
+        let out = run(&["--id", "x", flag]);
+        assert!(!out.status.success());
+        assert!(
+            stderr(&out).contains("--no-inside-test"),
+            "{}",
+            stderr(&out)
+        );
+    }
 }

@@ -75,6 +75,56 @@ fn config_drift_is_refused_naming_the_keys() {
     );
 }
 
+/// A job whose stored config has no `inside_test` key — what every binary wrote before the
+/// inside test became the default, and what `inside_test = false` writes now — keeps the
+/// test off: its job.json still has no key and the same fingerprint after a run, and
+/// re-initialising it with the new default (the test on) is refused as a
+/// changed config naming `params.inside_test`, so the default never leaks into an old job.
+#[test]
+fn a_job_stored_without_the_inside_test_key_resumes_with_it_off() {
+    let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let toml = tmp.path().join("job.toml");
+    std::fs::write(&toml, "[params]\ninside_test = false\n").unwrap_or_else(|e| panic!("{e}"));
+    let (job, manifest) = setup(tmp.path(), "job", &["--config", &toml.to_string_lossy()]);
+    let read_job = || -> serde_json::Value {
+        let text = std::fs::read_to_string(job.join("job.json")).unwrap_or_else(|e| panic!("{e}"));
+        serde_json::from_str(&text).unwrap_or_else(|e| panic!("{e}"))
+    };
+    let before = read_job();
+    assert!(
+        before["config"]["params"].get("inside_test").is_none(),
+        "{before}"
+    );
+    let j = job.to_string_lossy();
+    ok(&["run", &j, "--workers", "2"]);
+    let after = read_job();
+    assert!(
+        after["config"]["params"].get("inside_test").is_none(),
+        "{after}"
+    );
+    assert_eq!(after["fingerprint"], before["fingerprint"]);
+    // A new job over the same manifest, with the default, has the test on and its own
+    // fingerprint.
+    let (new_job, _) = setup(tmp.path(), "new", &[]);
+    let text = std::fs::read_to_string(new_job.join("job.json")).unwrap_or_else(|e| panic!("{e}"));
+    let new: serde_json::Value = serde_json::from_str(&text).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(new["config"]["params"]["inside_test"], true);
+    assert_ne!(new["fingerprint"], before["fingerprint"]);
+    let out = sparc3d(&[
+        "init",
+        &j,
+        "--manifest",
+        &manifest.to_string_lossy(),
+        "--resolution",
+        "48",
+        "--shard-size",
+        "8",
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("params.inside_test"), "{err}");
+}
+
 #[test]
 fn bad_files_become_failed_rows_and_show_matches_convert() {
     let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));

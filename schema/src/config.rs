@@ -181,10 +181,6 @@ impl JobConfig {
                 }
             })?;
             m.insert("samples".into(), samples);
-            // So is the inside test while off (`Params::inside_test`); offer its key too.
-            if let Some(Value::Object(params)) = m.get_mut("params") {
-                params.entry("inside_test").or_insert(Value::Bool(false));
-            }
         }
         merge(&mut base, overrides, "")?;
         serde_json::from_value(base).map_err(|source| SchemaError::Json {
@@ -321,18 +317,44 @@ mod tests {
         Ok(())
     }
 
+    /// The canonical JSON of the default config as written before the inside test became
+    /// the default (`Params::inside_test`): no `inside_test` key, since it was left out while
+    /// off. Its fingerprint is pinned above: sha256 of `sparc3d-shard-v3`, a newline and this
+    /// text without `limits`, with the f32 fields widened to f64 as the fingerprint writes them
+    /// (0.45 as 0.44999998807907104), computed outside Rust.
+    const OLD_DEFAULT_FINGERPRINT: &str =
+        "a7712068316c66542d270a919f246ea5254f497543406fbe9a54bcce2e548281";
+
+    const OLD_DEFAULT_CONFIG: &str = r#"{"extract_mesh":true,"limits":{"item_memory_bytes":8589934592,"item_timeout_s":600.0,"max_crash_retries":2,"max_interrupted_attempts":5},"params":{"deform":false,"deform_max":0.45,"deform_step":0.5,"margin_cells":3,"resolution":512,"shell_half_thickness":0.9},"shard_size":256,"store_mesh":false,"validation_sample_rate":0.01,"zstd_level":3}"#;
+
     #[test]
-    fn inside_test_is_left_out_while_off() -> Result<()> {
-        let off = JobConfig::default();
-        let text = serde_json::to_string(&off).map_err(|source| SchemaError::Json {
-            context: "test".into(),
-            source,
-        })?;
-        assert!(!text.contains("inside_test"), "{text}");
-        let on = JobConfig::overlaid(&serde_json::json!({"params": {"inside_test": true}}))?;
-        assert!(on.params.inside_test);
-        assert_ne!(off.fingerprint()?, on.fingerprint()?);
-        assert_eq!(off.diff_keys(&on)?, vec!["params.inside_test"]);
+    fn a_stored_config_without_the_key_keeps_the_inside_test_off_and_its_fingerprint() -> Result<()>
+    {
+        let old: JobConfig =
+            serde_json::from_str(OLD_DEFAULT_CONFIG).map_err(|source| SchemaError::Json {
+                context: "test".into(),
+                source,
+            })?;
+        assert!(!old.params.inside_test);
+        assert_eq!(old.fingerprint()?, OLD_DEFAULT_FINGERPRINT);
+        // Written back (a resumed job's job.json), it still has no key.
+        assert!(!old.to_canonical_json()?.contains("inside_test"));
+        Ok(())
+    }
+
+    #[test]
+    fn a_new_config_has_the_inside_test_on_and_its_own_fingerprint() -> Result<()> {
+        let new = JobConfig::default();
+        assert!(new.params.inside_test);
+        assert!(new.to_canonical_json()?.contains("\"inside_test\":true"));
+        assert_ne!(new.fingerprint()?, OLD_DEFAULT_FINGERPRINT);
+        // `inside_test = false` under `[params]` gives back the old default, fingerprint too.
+        let off =
+            JobConfig::from_overrides(&serde_json::json!({"params": {"inside_test": false}}))?;
+        assert!(!off.params.inside_test);
+        assert_eq!(off.fingerprint()?, OLD_DEFAULT_FINGERPRINT);
+        assert!(!off.to_canonical_json()?.contains("inside_test"));
+        assert_eq!(off.diff_keys(&new)?, vec!["params.inside_test"]);
         Ok(())
     }
 

@@ -311,7 +311,7 @@ pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
     st.done("band");
     // The inside test (stage "inside"): enclosed regions decided solid or air by the winding
     // number, air added to the outside; later, the vertices sealed inside thin parts.
-    // Off (the default, `Params::inside_test`): every enclosed region stays solid, no vertex
+    // Off (`Params::inside_test` false; on by default): every enclosed region stays solid, no vertex
     // is sealed and nothing is nested, which is the conversion without the test, bit for bit.
     let tree = params
         .inside_test

@@ -31,10 +31,15 @@ pub struct Params {
     pub deform_max: f32,
     /// Whether to run the inside test (docs/ALGORITHM.md §2b): enclosed regions decided solid
     /// or air by the source's winding number, so parts inside hollow hulls keep their
-    /// surfaces, and closed parts 1–2 voxels thick keep their thickness. Off by default: on
+    /// surfaces, and closed parts 1–2 voxels thick keep their thickness. On by default: on
     /// the dev corpus at 256³ it makes 10 meshes better and none worse beyond noise, and
     /// costs 12 % of the conversion of the meshes it changes (docs/QUALITY.md, issue 15).
-    /// Left out of the serialized params while off, so existing jobs keep their fingerprint.
+    ///
+    /// Serialized only while on, and a missing key deserializes as OFF (serde's `default`,
+    /// `bool::default()`, not [`Params::default`]) on purpose: configs stored before the test
+    /// became the default (a job's `job.json`, a worker's request) never wrote the key and
+    /// were converted without the test, so resuming such a job keeps converting without it
+    /// and keeps its fingerprint; a new job with the test on writes `inside_test: true`.
     #[serde(default, skip_serializing_if = "is_false")]
     pub inside_test: bool,
 }
@@ -53,7 +58,7 @@ impl Default for Params {
             deform: false,
             deform_step: 0.5,
             deform_max: 0.45,
-            inside_test: false,
+            inside_test: true,
         }
     }
 }

@@ -1,7 +1,8 @@
 //! Parts inside closed hulls and closed parts thinner than two voxels (issue 15): enclosed
 //! regions decided solid or air by the winding number, sealed vertices decided by it too.
-//! The test is opt-in (`Params::inside_test`); every conversion here turns it on, and
-//! `default_keeps_the_conversion_without_the_test` checks that off means off.
+//! The test is on by default (`Params::inside_test`); every conversion here asks for it
+//! explicitly, and `off_keeps_the_conversion_without_the_test` checks that off means off and
+//! that the default is on.
 
 use sparcubes::band::closest_point_on_triangle;
 use sparcubes::{convert, extract, shapes, topology, ConvertStats, Params, SparseCubes, TriMesh};
@@ -325,16 +326,21 @@ fn same_cubes_whatever_the_thread_count() {
 }
 
 #[test]
-fn default_keeps_the_conversion_without_the_test() {
-    // A sphere in a sphere: with the test the inner surface goes (one solid); by default it
-    // stays (as a thin sheet inside the solid), and the stats count no region decision.
+fn off_keeps_the_conversion_without_the_test() {
+    // A sphere in a sphere: with the test (the default) the inner surface goes (one solid);
+    // with it off it stays (as a thin sheet inside the solid), and the stats count no region
+    // decision.
     let mesh = shapes::merge(&[
         shapes::sphere([0.0; 3], 1.0, 48),
         shapes::sphere([0.0; 3], 0.5, 32),
     ]);
-    let off = convert(&mesh, &Params::with_resolution(N)).expect("convert");
+    let off_params = Params {
+        inside_test: false,
+        ..Params::with_resolution(N)
+    };
+    let off = convert(&mesh, &off_params).expect("convert");
     let out = extract(&off.cubes);
-    let components = assert_closed_manifold("default", &out);
+    let components = assert_closed_manifold("off", &out);
     assert!(
         components >= 2,
         "inner sphere gone without the test: {components}"
@@ -346,8 +352,13 @@ fn default_keeps_the_conversion_without_the_test() {
         off.stats
     );
     assert!(!off.stats.stage_seconds.iter().any(|(s, _)| *s == "inside"));
-    let (_, _, on) = convert_extract(&mesh, N);
+    let (on_cubes, _, on) = convert_extract(&mesh, N);
     assert_eq!(assert_closed_manifold("inside test", &on), 1);
+    let default = convert(&mesh, &Params::with_resolution(N)).expect("convert");
+    assert_eq!(
+        default.cubes, on_cubes,
+        "the default is not the inside test"
+    );
 }
 
 #[test]

@@ -118,9 +118,16 @@ fn thin_closed_plate_is_kept_as_a_shell() {
 
 #[test]
 fn nested_shells_both_present() {
+    // Without the inside test: with it (the default) a solid inside a solid with no air
+    // between is one solid and the inner surface goes (docs/ALGORITHM.md §2b;
+    // convert_enclosed.rs checks that side).
     let outer = shapes::sphere([0.0; 3], 1.0, 48);
     let inner = shapes::sphere([0.0; 3], 0.5, 32);
-    let out = convert(&shapes::merge(&[outer, inner]), &params(64, false)).expect("convert");
+    let off = Params {
+        inside_test: false,
+        ..params(64, false)
+    };
+    let out = convert(&shapes::merge(&[outer, inner]), &off).expect("convert");
     let c = &out.cubes;
     check_invariants(c);
     let voxel = 1.0 / (c.normalization.scale * c.resolution as f64);

@@ -155,8 +155,19 @@ fn nested_shells_and_non_manifold_input() {
         shapes::sphere([0.0; 3], 1.0, 24),
         shapes::sphere([0.0; 3], 0.5, 16),
     ]);
+    // With the inside test (the default) the inner solid sphere lies in solid material with
+    // no air between: one solid, no interior surface (docs/ALGORITHM.md §2b). Without it the
+    // inner surface stays, a closed sheet of its own.
     let (_, out) = convert_extract(&nested, 48, true);
     assert_closed_manifold("nested", &out);
+    assert_eq!(topology::check(&out).components, 1);
+    let off = Params {
+        deform: true,
+        inside_test: false,
+        ..Params::with_resolution(48)
+    };
+    let out = extract(&convert(&nested, &off).expect("convert").cubes);
+    assert_closed_manifold("nested without the inside test", &out);
     assert!(topology::check(&out).components >= 2);
     // Two cubes sharing an edge: non-manifold input.
     let pair = shapes::merge(&[

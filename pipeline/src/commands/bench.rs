@@ -46,6 +46,8 @@ pub struct Args {
     pub no_warmup: bool,
     #[command(flatten)]
     pub deform: super::deform_args::DeformArgs,
+    #[command(flatten)]
+    pub inside_test: super::inside_test_args::InsideTestArgs,
     /// zstd level of the encoded tensors.
     #[arg(long, default_value_t = 3)]
     pub zstd_level: i32,
@@ -195,6 +197,9 @@ fn bench_mesh(exe: &Path, path: &Path, resolution: u32, args: &Args) -> BenchRow
         .arg(args.zstd_level.to_string())
         .stdin(Stdio::null())
         .stdout(Stdio::piped());
+    if !args.inside_test.enabled() {
+        cmd.arg("--no-inside-test");
+    }
     if args.deform.enabled() {
         cmd.arg("--deform");
     }

@@ -20,6 +20,8 @@ pub struct Args {
     pub resolution: crate::resolution_arg::ResolutionArg,
     #[command(flatten)]
     pub deform: super::deform_args::DeformArgs,
+    #[command(flatten)]
+    pub inside_test: super::inside_test_args::InsideTestArgs,
     /// zstd level of the encoded tensors (the job default is 3).
     #[arg(long, default_value_t = 3)]
     pub zstd_level: i32,
@@ -128,6 +130,7 @@ fn measure(args: &Args, row: &mut BenchRow) -> anyhow::Result<()> {
     let name = args.input.display();
     let mut params = sparcubes::Params::with_resolution(args.resolution.get());
     params.deform = args.deform.enabled();
+    params.inside_test = args.inside_test.enabled();
     let steps = Steps {
         params: &params,
         input_components: false,

@@ -22,11 +22,8 @@ pub struct Args {
     pub resolution: crate::resolution_arg::ResolutionArg,
     #[command(flatten)]
     pub deform: super::deform_args::DeformArgs,
-    /// Run the inside test (docs/ALGORITHM.md §2b): decide enclosed regions solid or air by
-    /// the source's winding number, keeping parts inside hollow hulls and thin closed parts.
-    /// Off by default (docs/QUALITY.md: better on some meshes, worse on others, slower).
-    #[arg(long)]
-    pub inside_test: bool,
+    #[command(flatten)]
+    pub inside_test: super::inside_test_args::InsideTestArgs,
     /// Write the output in grid coordinates (voxels) instead of the source frame.
     #[arg(long)]
     pub grid_frame: bool,
@@ -50,7 +47,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let start = Instant::now();
     let mut params = sparcubes::Params::with_resolution(args.resolution.get());
     params.deform = args.deform.enabled();
-    params.inside_test = args.inside_test;
+    params.inside_test = args.inside_test.enabled();
     let steps = Steps {
         params: &params,
         input_components: true,

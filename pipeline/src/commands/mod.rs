@@ -11,6 +11,7 @@ pub mod extract;
 pub mod failures;
 pub mod fill_holes;
 pub mod init;
+pub mod inside_test_args;
 pub mod inspect;
 pub mod item_worker;
 pub mod ls;

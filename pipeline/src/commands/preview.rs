@@ -37,10 +37,10 @@ pub struct Args {
     pub elevation: f32,
     #[command(flatten)]
     pub resolution: crate::resolution_arg::ResolutionArg,
-    /// Convert a mesh with the inside test on (as `convert --inside-test`; docs/ALGORITHM.md
-    /// §2b). Not for a job's item, which is drawn as the job made it.
-    #[arg(long)]
-    pub inside_test: bool,
+    /// A mesh is converted with the inside test on unless `--no-inside-test` (as `convert`;
+    /// docs/ALGORITHM.md §2b). Neither flag applies to a job's item, drawn as the job made it.
+    #[command(flatten)]
+    pub inside_test: super::inside_test_args::InsideTestArgs,
 }
 
 /// Runs `sparc3d preview`.
@@ -51,8 +51,11 @@ pub fn run(args: Args) -> Result<ExitCode> {
         elevation_deg: args.elevation,
     };
     let (image, what) = match &args.id {
-        Some(_) if args.inside_test => {
-            bail!("--inside-test applies to a mesh; a job's item is drawn as the job made it")
+        Some(_) if args.inside_test.given() => {
+            bail!(
+                "--inside-test and --no-inside-test apply to a mesh; a job's item is drawn as \
+                 the job made it"
+            )
         }
         Some(id) => {
             let job = Job::open(&args.input)?;
@@ -73,7 +76,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 preview_mesh(
                     &args.input,
                     args.resolution.get(),
-                    args.inside_test,
+                    args.inside_test.enabled(),
                     &options,
                 )?,
                 args.input.display().to_string(),
