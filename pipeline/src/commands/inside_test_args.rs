@@ -11,7 +11,8 @@ pub struct InsideTestArgs {
     #[arg(long, conflicts_with = "no_inside_test")]
     pub inside_test: bool,
     /// Switch the inside test off: every region the outside fill cannot reach stays solid
-    /// (the behaviour before it became the default; about 10 % faster on meshes it changes).
+    /// (the behaviour before it became the default; the test costs 9–12 % of the conversion of
+    /// the meshes it changes, docs/QUALITY.md).
     #[arg(long)]
     pub no_inside_test: bool,
 }
