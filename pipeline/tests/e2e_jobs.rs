@@ -123,6 +123,8 @@ fn a_job_stored_without_the_inside_test_key_resumes_with_it_off() {
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("params.inside_test"), "{err}");
+    // The refusal says how to resume such a job.
+    assert!(err.contains("inside_test = false"), "{err}");
 }
 
 #[test]
