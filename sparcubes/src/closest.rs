@@ -718,7 +718,7 @@ fn morton_keys(points: &[[f64; 3]]) -> Vec<(u64, u32)> {
             }
         }
     }
-    let cells = ((1u64 << 21) - 1) as f64;
+    let cells = ((1u64 << crate::morton::BITS) - 1) as f64;
     let scale: [f64; 3] = std::array::from_fn(|a| {
         let e = hi[a] - lo[a];
         if e > 0.0 && e.is_finite() {
@@ -739,10 +739,7 @@ fn morton_keys(points: &[[f64; 3]]) -> Vec<(u64, u32)> {
                     0
                 }
             });
-            (
-                spread(cell[0]) | (spread(cell[1]) << 1) | (spread(cell[2]) << 2),
-                i as u32,
-            )
+            (crate::morton::code(cell), i as u32)
         })
         .collect();
     keyed.par_sort_unstable();
@@ -752,17 +749,6 @@ fn morton_keys(points: &[[f64; 3]]) -> Vec<(u64, u32)> {
 /// Query numbers sorted along a Morton curve over the queries' bounding box (ties by number).
 fn morton_order(queries: &[[f64; 3]]) -> Vec<u32> {
     morton_keys(queries).into_iter().map(|(_, i)| i).collect()
-}
-
-/// The 21 low bits of `v` spread to every third bit of a `u64`.
-fn spread(v: u64) -> u64 {
-    let mut x = v & 0x1f_ffff;
-    x = (x | (x << 32)) & 0x001f_0000_0000_ffff;
-    x = (x | (x << 16)) & 0x001f_0000_ff00_00ff;
-    x = (x | (x << 8)) & 0x100f_00f0_0f00_f00f;
-    x = (x | (x << 4)) & 0x10c3_0c30_c30c_30c3;
-    x = (x | (x << 2)) & 0x1249_2492_4924_9249;
-    x
 }
 
 #[cfg(test)]

@@ -41,6 +41,7 @@ pub mod io;
 pub mod layouts;
 pub mod mc_table;
 pub mod mesh;
+pub mod morton;
 pub mod normalize;
 pub mod params;
 pub mod regions;

@@ -38,9 +38,6 @@ pub const BETA: f64 = 1.5;
 /// Most triangles per leaf.
 const LEAF_TRIANGLES: u32 = 8;
 
-/// Bits per axis of the Morton codes that order the triangles.
-const MORTON_BITS: u32 = 21;
-
 /// A node's moments about its centre, as built (and shifted from child to parent).
 #[derive(Debug, Clone, Copy, Default)]
 struct Moments {
@@ -297,17 +294,6 @@ fn combine(parts: &[Moments]) -> Moments {
     out
 }
 
-/// Spreads the low 21 bits of `v` to every third bit.
-fn spread(v: u64) -> u64 {
-    let mut x = v & 0x1f_ffff;
-    x = (x | x << 32) & 0x001f_0000_0000_ffff;
-    x = (x | x << 16) & 0x001f_0000_ff00_00ff;
-    x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
-    x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
-    x = (x | x << 2) & 0x1249_2492_4924_9249;
-    x
-}
-
 /// Cuts triangle `t` into pieces whose edges are at most `max_edge` long by halving the
 /// longest edge (each half keeps the orientation); the pieces' solid angles add up to the
 /// triangle's. `stack` is scratch space, reused between triangles.
@@ -384,7 +370,7 @@ fn morton_order(pieces: Vec<[[f64; 3]; 3]>) -> (Vec<[[f64; 3]; 3]>, Vec<u64>) {
             },
         );
     let extent = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
-    let top = ((1u64 << MORTON_BITS) - 1) as f64;
+    let top = ((1u64 << crate::morton::BITS) - 1) as f64;
     let scale = if extent > 0.0 { top / extent } else { 0.0 };
     let mut keyed: Vec<(u64, u32)> = pieces
         .par_iter()
@@ -392,10 +378,7 @@ fn morton_order(pieces: Vec<[[f64; 3]; 3]>) -> (Vec<[[f64; 3]; 3]>, Vec<u64>) {
         .map(|(i, t)| {
             let c = centroid(t);
             let q = |a: usize| ((c[a] - lo[a]) * scale).clamp(0.0, top) as u64;
-            (
-                spread(q(0)) | spread(q(1)) << 1 | spread(q(2)) << 2,
-                i as u32,
-            )
+            (crate::morton::code([q(0), q(1), q(2)]), i as u32)
         })
         .collect();
     keyed.par_sort_unstable();
