@@ -900,11 +900,7 @@ pub fn decide_sealed(
     // its groups are not asked (on the dev corpus most sealed groups are such rims, and
     // their queries, next to the surface, were most of the inside test's time on some).
     let (reach_of, reaches) = thin_parts(band, &position, &coords, &vec![true; coords.len()]);
-    let mut reach_depth = vec![0f32; reaches];
-    for (q, &id) in unknown.iter().enumerate() {
-        let r = reach_of[q] as usize;
-        reach_depth[r] = reach_depth[r].max(band.nearest[id as usize].udf);
-    }
+    let reach_depth = deepest_per_label(band, &unknown, &reach_of, reaches, |_| true);
     let shallow = |g: usize| {
         let first = members[starts[g] as usize];
         reach_depth[reach_of[first as usize] as usize] < THIN_PART_DEPTH
@@ -963,13 +959,7 @@ pub fn decide_sealed(
     let mut too_thin = parts_with_gaps(band, vox, side, &sealed, parts, n);
     // A part whose found vertices all lie within THIN_PART_DEPTH of the surface is held by
     // the grid in too few places: a shell.
-    let mut deepest = vec![0f32; parts];
-    for (q, &id) in unknown.iter().enumerate() {
-        if found[q] {
-            let p = part_of[q] as usize;
-            deepest[p] = deepest[p].max(band.nearest[id as usize].udf);
-        }
-    }
+    let deepest = deepest_per_label(band, &unknown, &part_of, parts, |q| found[q]);
     for (t, &d) in too_thin.iter_mut().zip(&deepest) {
         *t |= d < THIN_PART_DEPTH;
     }
@@ -995,6 +985,26 @@ pub fn decide_sealed(
         thin_parts: parts as u64 - shelled,
         shelled_parts: shelled,
     }
+}
+
+/// Per label (of `count`), the largest distance to the surface of the sealed vertices
+/// (`unknown`, band vertex numbers) with that label for which `counted` holds; 0 for a label
+/// without any.
+fn deepest_per_label(
+    band: &Band,
+    unknown: &[u32],
+    label: &[u32],
+    count: usize,
+    counted: impl Fn(usize) -> bool,
+) -> Vec<f32> {
+    let mut deepest = vec![0f32; count];
+    for (q, &id) in unknown.iter().enumerate() {
+        if counted(q) {
+            let l = label[q] as usize;
+            deepest[l] = deepest[l].max(band.nearest[id as usize].udf);
+        }
+    }
+    deepest
 }
 
 /// Depth, in voxels, that at least one found vertex of a thin closed part must lie below its
