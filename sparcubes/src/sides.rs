@@ -188,35 +188,29 @@ impl<'a> GridSides<'a> {
                 }
             }
         }
-        // The side of `g` from the segment to `target` (corner `v`, maybe nudged); `None` when
-        // a crossing cannot be called, unless `strict`, which counts unsure ones as misses.
-        let side_through = |v: usize, target: Vec3, strict: bool| -> Option<bool> {
-            let mut odd = false;
-            for t in &scratch.triangles {
-                match segment_crossing(g, target, t) {
-                    Crossing::Miss => {}
-                    Crossing::Hit => odd = !odd,
-                    Crossing::Unsure if strict => {}
-                    Crossing::Unsure => return None,
-                }
-            }
-            Some((self.cubes.sdf[v] < 0.0) != odd)
-        };
+        // Inside when corner `v` is and the segment to it crosses the surface an even number
+        // of times, or when it is not and the number is odd.
+        let side = |v: usize, odd: bool| (self.cubes.sdf[v] < 0.0) != odd;
+        let triangles = &scratch.triangles;
         for &(_, v) in corners.iter() {
-            if let Some(side) = side_through(v, position(self.cubes, v), false) {
-                return side;
+            if let Ok(odd) = crossing_parity(g, position(self.cubes, v), triangles) {
+                return side(v, odd);
             }
         }
         // Every corner's segment grazes a triangle: nudge the nearest corner's end by a
         // ten-thousandth of a voxel along directions no grid plane or edge follows. The corner
         // is at least that far from the surface unless its φ is within about 1e-4 of zero.
+        // Should every nudge graze too, the first one's count decides, grazes counted as misses.
         let v = corners[0].1;
         let at = position(self.cubes, v);
-        let nudged = |k: usize| std::array::from_fn(|a| at[a] + 1e-4 * NUDGES[k][a]);
-        (0..NUDGES.len())
-            .find_map(|k| side_through(v, nudged(k), false))
-            .or_else(|| side_through(v, nudged(0), true))
-            .unwrap_or(false)
+        let nudged = |k: usize| -> Vec3 { std::array::from_fn(|a| at[a] + 1e-4 * NUDGES[k][a]) };
+        let odd = match crossing_parity(g, nudged(0), triangles) {
+            Ok(odd) => odd,
+            Err(counted) => (1..NUDGES.len())
+                .find_map(|k| crossing_parity(g, nudged(k), triangles).ok())
+                .unwrap_or(counted),
+        };
+        side(v, odd)
     }
 
     /// Side of a cell without a sign change, from the first active cell above it along +z.
@@ -263,6 +257,24 @@ const NUDGES: [[f64; 3]; 3] = [
     [-0.414_213_562_4, 0.732_050_807_6, 0.540_302_305_9],
     [0.236_067_977_5, -0.645_751_311_1, 0.726_542_528_0],
 ];
+
+/// The parity of the crossings of the segment `p`–`q` with `triangles`: `Ok` when every
+/// crossing can be called, else `Err` with the parity that counts the unsure ones as misses.
+fn crossing_parity(p: Vec3, q: Vec3, triangles: &[[[f64; 3]; 3]]) -> Result<bool, bool> {
+    let (mut odd, mut sure) = (false, true);
+    for t in triangles {
+        match segment_crossing(p, q, t) {
+            Crossing::Miss => {}
+            Crossing::Hit => odd = !odd,
+            Crossing::Unsure => sure = false,
+        }
+    }
+    if sure {
+        Ok(odd)
+    } else {
+        Err(odd)
+    }
+}
 
 /// Tolerance of [`segment_crossing`]'s barycentric and along-segment coordinates: a hit
 /// closer than this to a triangle's border (in its own normalised coordinates) is unsure.

@@ -15,10 +15,11 @@
 //! distances to the extracted mesh ([`crate::closest`]); their sign, negative inside, comes
 //! from the closest triangle's face where the closest point lies strictly inside it
 //! ([`TriangleIndex::face_side`], exact for the closed output mesh of the sparse grid), else
-//! from the sparse grid ([`crate::sides`]). Where both answer they differ on about one near
-//! point in 2000 (storage-rounded points on the grid's dyadic planes, where the grid's
-//! crossing count meets a triangle edge), and there the face is right by the winding number
-//! (docs/PERFORMANCE.md, issue 13 section). Query points are rounded to the storage
+//! from the sparse grid ([`crate::sides`]). Before the grid sides set aside crossings that
+//! graze a triangle's border, the two differed on about one near point in 2000
+//! (storage-rounded points on the grid's dyadic planes, where the grid's crossing count met a
+//! triangle edge), and there the face was right by the winding number (docs/PERFORMANCE.md,
+//! issue 13 section); now they agree (tests). Query points are rounded to the storage
 //! precision first, so a stored point and its stored distance belong together; a distance
 //! too small for the precision keeps its sign as the smallest subnormal.
 //!
@@ -313,7 +314,7 @@ pub fn sample(cubes: &SparseCubes, mesh: &TriMesh, params: &SampleParams) -> Res
 
 /// Whether each point (grid coordinates) is inside: from its closest triangle where
 /// [`TriangleIndex::face_side`] gives it (most near points), else from the grid sides. The face
-/// is cheaper than the grid's local parity test and right where the two differ (module docs).
+/// is cheaper than the grid's local parity test (module docs).
 fn face_or_grid_sides<'a>(
     index: &TriangleIndex,
     grid: &[[f64; 3]],
