@@ -21,6 +21,8 @@ mod ply;
 mod stl;
 mod write;
 
+pub use write::PendingSave;
+
 use crate::duplicate_faces::drop_duplicate_faces;
 use crate::error::{Error, Result};
 use crate::mesh::TriMesh;
@@ -367,5 +369,12 @@ pub fn load_bytes(bytes: &[u8], format: Format, path: &Path) -> Result<LoadedMes
 /// The file is written to a temporary name in the same folder and renamed, so a failed write
 /// never leaves a partial file behind.
 pub fn save(mesh: &TriMesh, path: &Path) -> Result<()> {
-    write::save(mesh, path)
+    write::save_pending(mesh, path)?.commit()
+}
+
+/// Writes a mesh as [`save`] does but stops before the sync and the rename: the returned
+/// [`PendingSave`] puts the file in place when committed, and removes it when dropped
+/// uncommitted. For callers with work to do while the disk catches up.
+pub fn save_pending(mesh: &TriMesh, path: &Path) -> Result<PendingSave> {
+    write::save_pending(mesh, path)
 }

@@ -17,7 +17,9 @@ enum OutFormat {
     Glb,
 }
 
-pub(crate) fn save(mesh: &TriMesh, path: &Path) -> Result<()> {
+/// Writes `mesh` in full to a temporary file beside `path` (the format follows its
+/// extension), leaving the sync and the rename to [`PendingSave::commit`].
+pub(crate) fn save_pending(mesh: &TriMesh, path: &Path) -> Result<PendingSave> {
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
@@ -52,7 +54,7 @@ pub(crate) fn save(mesh: &TriMesh, path: &Path) -> Result<()> {
             reason: "a GLB needs at least one triangle".to_string(),
         });
     }
-    atomic_write(path, |w| match format {
+    PendingSave::write(path, |w| match format {
         OutFormat::Ply => write_ply(mesh, w),
         OutFormat::Obj => write_obj(mesh, w),
         OutFormat::Stl => write_stl(mesh, w),
@@ -71,29 +73,71 @@ fn temp_path(path: &Path) -> PathBuf {
     path.with_file_name(format!(".{name}.tmp-{}-{k}", std::process::id()))
 }
 
-/// Writes through `body` to a temporary file, syncs it and renames it to `path`; on any error
-/// the temporary file is removed and `path` is left as it was.
-fn atomic_write(
-    path: &Path,
-    body: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
-) -> Result<()> {
-    let tmp = temp_path(path);
-    let result = (|| {
-        let file = std::fs::File::create(&tmp)?;
-        let mut w = std::io::BufWriter::new(file);
-        body(&mut w)?;
-        let file = w.into_inner().map_err(|e| e.into_error())?;
-        file.sync_all()?;
-        drop(file);
-        std::fs::rename(&tmp, path)
-    })();
-    result.map_err(|source| {
-        let _ = std::fs::remove_file(&tmp);
-        Error::Io {
+/// A file written in full under a temporary name beside its target, not yet synced nor in
+/// place. [`PendingSave::commit`] syncs it and renames it over the target; dropped without a
+/// successful commit, it removes the temporary file and the target stays as it was. Splitting
+/// the two lets the caller do other work while the disk catches up (the sync is most of a
+/// large file's wall time).
+pub struct PendingSave {
+    path: PathBuf,
+    tmp: PathBuf,
+    file: Option<std::fs::File>,
+    committed: bool,
+}
+
+impl PendingSave {
+    /// Writes through `body` to a temporary file beside `path`; on error the temporary file
+    /// is removed.
+    fn write(
+        path: &Path,
+        body: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
+    ) -> Result<Self> {
+        let mut pending = Self {
             path: path.to_path_buf(),
+            tmp: temp_path(path),
+            file: None,
+            committed: false,
+        };
+        let written = (|| {
+            let file = std::fs::File::create(&pending.tmp)?;
+            let mut w = std::io::BufWriter::new(file);
+            body(&mut w)?;
+            w.into_inner().map_err(|e| e.into_error())
+        })();
+        // On an error `pending` is dropped here, which removes the temporary file.
+        pending.file = Some(written.map_err(|source| pending.io_error(source))?);
+        Ok(pending)
+    }
+
+    /// Syncs the file to disk and renames it over the target. On error the temporary file is
+    /// removed and the target is left as it was.
+    pub fn commit(mut self) -> Result<()> {
+        let synced = match self.file.take() {
+            Some(file) => file.sync_all(),
+            None => Ok(()),
+        };
+        synced
+            .and_then(|()| std::fs::rename(&self.tmp, &self.path))
+            .map_err(|source| self.io_error(source))?;
+        self.committed = true;
+        Ok(())
+    }
+
+    fn io_error(&self, source: std::io::Error) -> Error {
+        Error::Io {
+            path: self.path.clone(),
             source,
         }
-    })
+    }
+}
+
+impl Drop for PendingSave {
+    fn drop(&mut self) {
+        if !self.committed {
+            self.file = None;
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
 }
 
 fn write_ply(mesh: &TriMesh, w: &mut impl Write) -> std::io::Result<()> {
@@ -273,6 +317,49 @@ mod tests {
             }
         }
         out
+    }
+
+    /// The names in `dir`, sorted.
+    fn names(dir: &Path) -> Vec<String> {
+        let mut names: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        names
+    }
+
+    #[test]
+    fn a_pending_save_is_in_place_only_once_committed() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("out.ply");
+        std::fs::write(&target, b"old").unwrap();
+        let mesh = crate::shapes::cuboid([0.0; 3], [1.0; 3], &[]);
+        let mut plain = Vec::new();
+        write_ply(&mesh, &mut plain).unwrap();
+
+        // Written but dropped uncommitted: the temporary file goes, the target is untouched.
+        let pending = save_pending(&mesh, &target).unwrap();
+        assert_eq!(
+            names(dir.path()).len(),
+            2,
+            "the temporary file is beside the target"
+        );
+        drop(pending);
+        assert_eq!(names(dir.path()), ["out.ply"]);
+        assert_eq!(std::fs::read(&target).unwrap(), b"old");
+
+        // Committed: the target holds the mesh's bytes, nothing else is left.
+        save_pending(&mesh, &target).unwrap().commit().unwrap();
+        assert_eq!(names(dir.path()), ["out.ply"]);
+        assert_eq!(std::fs::read(&target).unwrap(), plain);
+
+        // A commit that cannot rename (the target's folder is gone) fails and leaves nothing.
+        let gone = dir.path().join("gone");
+        std::fs::create_dir(&gone).unwrap();
+        let pending = save_pending(&mesh, &gone.join("out.ply")).unwrap();
+        std::fs::remove_dir_all(&gone).unwrap();
+        assert!(pending.commit().is_err());
     }
 
     #[test]
