@@ -4,6 +4,7 @@ mod cluster;
 mod commands;
 mod folder_scan;
 mod hints;
+mod huge_pages;
 mod item_lookup;
 mod job_setup;
 mod local_workers;
@@ -22,6 +23,9 @@ mod units;
 mod validation;
 
 use clap::Parser;
+
+#[global_allocator]
+static ALLOCATOR: huge_pages::HugePageAlloc = huge_pages::HugePageAlloc;
 
 /// Lets a closed pipe (`sparc3d inspect JOB | head`) end the process quietly, as it does for
 /// other command-line tools, instead of a panic in `println!`.
@@ -51,6 +55,7 @@ fn describe(err: &anyhow::Error) -> String {
 }
 
 fn main() -> std::process::ExitCode {
+    huge_pages::configure_from_env();
     restore_default_sigpipe();
     let cli = commands::Cli::parse();
     match commands::run(cli) {
