@@ -332,3 +332,75 @@ pub fn triangle_planes(mesh: &GridMesh) -> Vec<[f64; 4]> {
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::grid::{dilate, Dilation};
+    use crate::voxelize::voxelize;
+
+    /// A torus crossed by a sphere, scaled and shifted off the lattice into a 48³ grid.
+    fn crossed_shapes() -> (GridMesh, u32) {
+        let mesh = crate::shapes::merge(&[
+            crate::shapes::torus([0.0; 3], 1.0, 0.35, 24),
+            crate::shapes::sphere([0.3, 0.2, 0.1], 0.5, 16),
+        ]);
+        let verts = mesh
+            .positions
+            .iter()
+            .map(|p| {
+                [
+                    p[0] as f64 * 17.3 + 24.1,
+                    p[1] as f64 * 17.3 + 23.7,
+                    p[2] as f64 * 17.3 + 24.3,
+                ]
+            })
+            .collect();
+        let grid = GridMesh {
+            verts,
+            tris: mesh.triangles,
+        };
+        (grid, 48)
+    }
+
+    /// The nearest point of `p` over every triangle, ties to the lowest index.
+    fn nearest_by_brute_force(mesh: &GridMesh, p: [f64; 3]) -> Nearest {
+        let (mut best, mut point) = (f64::INFINITY, p);
+        for t in 0..mesh.tris.len() {
+            let q = closest_point_on_triangle(p, &mesh.tri(t));
+            let d = sub(p, q);
+            let d2 = dot(d, d);
+            if d2 < best {
+                (best, point) = (d2, q);
+            }
+        }
+        Nearest {
+            point: point.map(|c| c as f32),
+            udf: best.sqrt() as f32,
+        }
+    }
+
+    #[test]
+    fn band_distances_are_the_exact_minimum_over_all_triangles() {
+        let (mesh, n) = crossed_shapes();
+        let planes = triangle_planes(&mesh);
+        let walls = voxelize(&mesh, n).walls;
+        // The core band (corners of the wall cells), and the corners of the cells around the
+        // walls, which the far pass of REACH settles.
+        let core = dilate(&walls, n, Dilation::Corners);
+        let around = dilate(&dilate(&walls, n, Dilation::Box), n, Dilation::Corners);
+        for (verts, reach) in [(core, CORE_REACH), (around, REACH)] {
+            let band = compute_band(&mesh, &planes, verts, reach);
+            let coords = band.verts.coords();
+            assert!(coords.len() > 1000, "{} vertices", coords.len());
+            for (c, got) in coords.iter().zip(&band.nearest) {
+                let want = nearest_by_brute_force(&mesh, c.map(|v| v as f64));
+                assert_eq!(
+                    (got.udf.to_bits(), got.point.map(f32::to_bits)),
+                    (want.udf.to_bits(), want.point.map(f32::to_bits)),
+                    "vertex {c:?} (reach {reach}): {got:?} against {want:?}"
+                );
+            }
+        }
+    }
+}
