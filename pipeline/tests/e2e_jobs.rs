@@ -25,20 +25,36 @@ fn setup_at(tmp: &Path, name: &str, resolution: &str, extra: &[&str]) -> (PathBu
         ]);
     }
     let job = tmp.join(name);
-    let mut args = vec![
-        "init".to_string(),
-        job.to_string_lossy().into_owned(),
-        "--manifest".into(),
-        manifest.to_string_lossy().into_owned(),
-        "--resolution".into(),
-        resolution.into(),
-        "--shard-size".into(),
-        "8".into(),
-    ];
-    args.extend(extra.iter().map(|s| s.to_string()));
-    let refs: Vec<&str> = args.iter().map(String::as_str).collect();
-    ok(&refs);
+    let (j, m) = (job.to_string_lossy(), manifest.to_string_lossy());
+    let mut args = init_args(&j, &m, resolution, "8").to_vec();
+    args.extend_from_slice(extra);
+    ok(&args);
     (job, manifest)
+}
+
+/// `init JOB --manifest MANIFEST --resolution R --shard-size S`, as arguments.
+fn init_args<'a>(
+    job: &'a str,
+    manifest: &'a str,
+    resolution: &'a str,
+    shard_size: &'a str,
+) -> [&'a str; 8] {
+    [
+        "init",
+        job,
+        "--manifest",
+        manifest,
+        "--resolution",
+        resolution,
+        "--shard-size",
+        shard_size,
+    ]
+}
+
+/// The job's `job.json`.
+fn job_json(job: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(job.join("job.json")).unwrap_or_else(|e| panic!("{e}"));
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{e}"))
 }
 
 #[test]
@@ -47,26 +63,8 @@ fn config_drift_is_refused_naming_the_keys() {
     let (job, manifest) = setup(tmp.path(), "job", &[]);
     let (j, m) = (job.to_string_lossy(), manifest.to_string_lossy());
     // Same config: accepted, nothing to do.
-    ok(&[
-        "init",
-        &j,
-        "--manifest",
-        &m,
-        "--resolution",
-        "48",
-        "--shard-size",
-        "8",
-    ]);
-    let out = sparc3d(&[
-        "init",
-        &j,
-        "--manifest",
-        &m,
-        "--resolution",
-        "64",
-        "--shard-size",
-        "5",
-    ]);
+    ok(&init_args(&j, &m, "48", "8"));
+    let out = sparc3d(&init_args(&j, &m, "64", "5"));
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
@@ -86,18 +84,14 @@ fn a_job_stored_without_the_inside_test_key_resumes_with_it_off() {
     let toml = tmp.path().join("job.toml");
     std::fs::write(&toml, "[params]\ninside_test = false\n").unwrap_or_else(|e| panic!("{e}"));
     let (job, manifest) = setup(tmp.path(), "job", &["--config", &toml.to_string_lossy()]);
-    let read_job = || -> serde_json::Value {
-        let text = std::fs::read_to_string(job.join("job.json")).unwrap_or_else(|e| panic!("{e}"));
-        serde_json::from_str(&text).unwrap_or_else(|e| panic!("{e}"))
-    };
-    let before = read_job();
+    let before = job_json(&job);
     assert!(
         before["config"]["params"].get("inside_test").is_none(),
         "{before}"
     );
     let j = job.to_string_lossy();
     ok(&["run", &j, "--workers", "2"]);
-    let after = read_job();
+    let after = job_json(&job);
     assert!(
         after["config"]["params"].get("inside_test").is_none(),
         "{after}"
@@ -106,20 +100,10 @@ fn a_job_stored_without_the_inside_test_key_resumes_with_it_off() {
     // A new job over the same manifest, with the default, has the test on and its own
     // fingerprint.
     let (new_job, _) = setup(tmp.path(), "new", &[]);
-    let text = std::fs::read_to_string(new_job.join("job.json")).unwrap_or_else(|e| panic!("{e}"));
-    let new: serde_json::Value = serde_json::from_str(&text).unwrap_or_else(|e| panic!("{e}"));
+    let new = job_json(&new_job);
     assert_eq!(new["config"]["params"]["inside_test"], true);
     assert_ne!(new["fingerprint"], before["fingerprint"]);
-    let out = sparc3d(&[
-        "init",
-        &j,
-        "--manifest",
-        &manifest.to_string_lossy(),
-        "--resolution",
-        "48",
-        "--shard-size",
-        "8",
-    ]);
+    let out = sparc3d(&init_args(&j, &manifest.to_string_lossy(), "48", "8"));
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("params.inside_test"), "{err}");

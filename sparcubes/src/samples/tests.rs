@@ -34,6 +34,20 @@ fn convert(mesh: &TriMesh, resolution: u32, deform: bool) -> (SparseCubes, TriMe
     (cubes, out)
 }
 
+/// The example files shipped with the repository, by name: a closed organic mesh, a textured
+/// box (glTF), a triangulated cube (OFF).
+fn bundled_meshes() -> Vec<(&'static str, TriMesh)> {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples");
+    ["wuson.stl", "box_textured.glb", "cube.off"]
+        .into_iter()
+        .map(|file| {
+            let loaded =
+                crate::io::load(&root.join(file)).unwrap_or_else(|e| panic!("{file}: {e}"));
+            (file, loaded.mesh)
+        })
+        .collect()
+}
+
 fn small_params(seed: u64) -> SampleParams {
     SampleParams {
         surface: 500,
@@ -110,12 +124,8 @@ fn signs_agree_with_winding_number_and_distances_are_exact() {
 
 #[test]
 fn bundled_meshes_signs_agree_with_winding_number_and_distances_are_exact() {
-    // The example files shipped with the repository: a closed organic mesh, a textured box
-    // (glTF), a triangulated cube (OFF).
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples");
-    for file in ["wuson.stl", "box_textured.glb", "cube.off"] {
-        let loaded = crate::io::load(&root.join(file)).unwrap_or_else(|e| panic!("{file}: {e}"));
-        let (cubes, mesh) = convert(&loaded.mesh, 24, false);
+    for (file, source) in bundled_meshes() {
+        let (cubes, mesh) = convert(&source, 24, false);
         let s = sample(&cubes, &mesh, &small_params(3)).unwrap_or_else(|e| panic!("{e}"));
         let (vol_agree, vol_err) = check(&cubes, &mesh, &s.volume_points, &s.volume_sdf);
         let (near_agree, near_err) = check(&cubes, &mesh, &s.near_points, &s.near_sdf);
@@ -243,11 +253,9 @@ fn face_sides_agree_with_grid_sides_on_real_meshes() {
     // The side read from the closest triangle's face replaces the grid sides where it answers:
     // on the bundled meshes, with and without deformation, both must give the same side for
     // every point near the surface and in the volume.
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples");
-    for file in ["wuson.stl", "box_textured.glb", "cube.off"] {
-        let loaded = crate::io::load(&root.join(file)).unwrap_or_else(|e| panic!("{file}: {e}"));
+    for (file, source) in bundled_meshes() {
         for deform in [false, true] {
-            let (cubes, mesh) = convert(&loaded.mesh, 48, deform);
+            let (cubes, mesh) = convert(&source, 48, deform);
             let n = cubes.resolution as f64;
             let points: Vec<[f64; 3]> = (0..6000u64)
                 .map(|i| {
@@ -284,11 +292,9 @@ fn grid_sides_are_right_for_points_on_grid_planes() {
     // can pass exactly through an edge shared by two output triangles (or lie in a triangle's
     // plane). The grid sides must still agree with the winding number of the output for every
     // point not on the surface itself.
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples");
-    for file in ["wuson.stl", "box_textured.glb", "cube.off"] {
-        let loaded = crate::io::load(&root.join(file)).unwrap_or_else(|e| panic!("{file}: {e}"));
+    for (file, source) in bundled_meshes() {
         for deform in [false, true] {
-            let (cubes, mesh) = convert(&loaded.mesh, 40, deform);
+            let (cubes, mesh) = convert(&source, 40, deform);
             let points: Vec<[f64; 3]> = (0..2000u64)
                 .map(|i| {
                     let d = Draw::new(11, 3, i);
