@@ -32,10 +32,11 @@ impl ComponentForest {
     /// Marks the corners of `t` (all in range) used and joins their sets.
     #[inline]
     pub(super) fn join(&self, t: &[u32; 3]) {
+        let mut root = find_shared(&self.parent, t[0]);
         self.used[t[0] as usize].store(true, Ordering::Relaxed);
         for &v in &t[1..] {
             self.used[v as usize].store(true, Ordering::Relaxed);
-            unite(&self.parent, t[0], v);
+            root = unite_roots(&self.parent, root, find_shared(&self.parent, v));
         }
     }
 
@@ -60,30 +61,31 @@ fn find_shared(parent: &[AtomicU32], mut x: u32) -> u32 {
             return x;
         }
         let g = parent[p as usize].load(Ordering::Acquire);
-        if g != p {
-            // Only ever points `x` higher up its own tree; losing the race is harmless.
-            let _ = parent[x as usize].compare_exchange(p, g, Ordering::AcqRel, Ordering::Relaxed);
+        if g == p {
+            return p;
         }
+        // Only ever points `x` higher up its own tree; losing the race is harmless.
+        let _ = parent[x as usize].compare_exchange(p, g, Ordering::AcqRel, Ordering::Relaxed);
         x = g;
     }
 }
 
-/// Joins the sets of `a` and `b`: the larger root goes under the smaller one, so no cycle can
-/// form whatever the interleaving.
-fn unite(parent: &[AtomicU32], a: u32, b: u32) {
-    let (mut a, mut b) = (a, b);
+/// Joins the sets whose roots were found to be `a` and `b` (either may have been linked
+/// under another since): the larger root goes under the smaller one, so no cycle can form
+/// whatever the interleaving. Returns a vertex of the joined set, for the next join.
+fn unite_roots(parent: &[AtomicU32], a: u32, b: u32) -> u32 {
+    let (mut ra, mut rb) = (a, b);
     loop {
-        let (ra, rb) = (find_shared(parent, a), find_shared(parent, b));
         if ra == rb {
-            return;
+            return ra;
         }
         let (hi, lo) = if ra > rb { (ra, rb) } else { (rb, ra) };
         if parent[hi as usize]
             .compare_exchange(hi, lo, Ordering::AcqRel, Ordering::Acquire)
             .is_ok()
         {
-            return;
+            return lo;
         }
-        (a, b) = (ra, rb);
+        (ra, rb) = (find_shared(parent, ra), find_shared(parent, rb));
     }
 }
