@@ -2,6 +2,18 @@
 //! around it), the defects of the edges it is the lower end of and whether its triangles form
 //! a single fan.
 
+/// The three link entries of a good triangle `t`, each with its vertex: `(v, a, b)` puts
+/// `[a, b]` in the link of `v`, `[b, v]` in that of `a` and `[v, a]` in that of `b`, so every
+/// entry lists the other two corners in winding order.
+#[inline]
+pub(super) fn link_entries(t: &[u32; 3]) -> [(u32, [u32; 2]); 3] {
+    [
+        (t[0], [t[1], t[2]]),
+        (t[1], [t[2], t[0]]),
+        (t[2], [t[0], t[1]]),
+    ]
+}
+
 /// Whether `link` is one closed fan, consistently oriented: following each triangle to the
 /// one that continues it (whose first corner is this one's second) visits every triangle once
 /// and comes back. Then every edge at the vertex has one triangle on each side, in opposite

@@ -5,31 +5,15 @@
 //! each vertex its rows, a second pass fills them, and a pass over the vertices reads them.
 //! This holds every link in memory at once (8 bytes per triangle corner).
 
-use super::fan::{LinkCounts, Scratch};
-use super::CHUNK;
+use super::fan::{link_entries, LinkCounts, Scratch};
+use super::{is_good, CHUNK};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU32, Ordering};
 
-/// The edge and vertex defects of the triangles of `triangles` that pass `keep` (in range,
-/// not degenerate), over `nv` vertices.
-pub(super) fn link_counts(
-    triangles: &[[u32; 3]],
-    nv: usize,
-    keep: impl Fn(&[u32; 3]) -> bool + Sync,
-) -> LinkCounts {
-    let degree: Vec<AtomicU32> = (0..nv)
-        .into_par_iter()
-        .with_min_len(CHUNK)
-        .map(|_| AtomicU32::new(0))
-        .collect();
-    triangles.par_chunks(CHUNK).for_each(|tris| {
-        for t in tris.iter().filter(|t| keep(t)) {
-            for &v in t {
-                degree[v as usize].fetch_add(1, Ordering::Relaxed);
-            }
-        }
-    });
-    let links = VertexLinks::fill(triangles, degree, keep);
+/// The edge and vertex defects of the good triangles of `triangles` (in range, not
+/// degenerate), over `nv` vertices.
+pub(super) fn link_counts(triangles: &[[u32; 3]], nv: usize) -> LinkCounts {
+    let links = VertexLinks::new(triangles, nv);
     (0..nv)
         .into_par_iter()
         .with_min_len(CHUNK)
@@ -54,16 +38,25 @@ struct VertexLinks {
 }
 
 impl VertexLinks {
-    /// The links of the triangles of `triangles` that pass `keep`, given each vertex's number
-    /// of kept triangles (`degree`).
-    fn fill(
-        triangles: &[[u32; 3]],
-        degree: Vec<AtomicU32>,
-        keep: impl Fn(&[u32; 3]) -> bool + Sync,
-    ) -> Self {
+    /// The links of the good triangles of `triangles`, over `nv` vertices.
+    fn new(triangles: &[[u32; 3]], nv: usize) -> Self {
+        let good = || {
+            triangles
+                .par_chunks(CHUNK)
+                .flat_map_iter(|tris| tris.iter().filter(|t| is_good(t, nv)))
+        };
+        let mut degree: Vec<AtomicU32> = (0..nv)
+            .into_par_iter()
+            .with_min_len(CHUNK)
+            .map(|_| AtomicU32::new(0))
+            .collect();
+        good().for_each(|t| {
+            for &v in t {
+                degree[v as usize].fetch_add(1, Ordering::Relaxed);
+            }
+        });
         // Exclusive prefix sum; `degree` becomes each row's fill cursor.
-        let mut degree = degree;
-        let mut start = Vec::with_capacity(degree.len() + 1);
+        let mut start = Vec::with_capacity(nv + 1);
         let mut sum = 0u32;
         for d in &mut degree {
             let d = d.get_mut();
@@ -76,16 +69,11 @@ impl VertexLinks {
             .with_min_len(CHUNK)
             .map(|_| [AtomicU32::new(0), AtomicU32::new(0)])
             .collect();
-        triangles.par_chunks(CHUNK).for_each(|tris| {
-            for t in tris {
-                if !keep(t) {
-                    continue;
-                }
-                for i in 0..3 {
-                    let slot = degree[t[i] as usize].fetch_add(1, Ordering::Relaxed) as usize;
-                    link[slot][0].store(t[(i + 1) % 3], Ordering::Relaxed);
-                    link[slot][1].store(t[(i + 2) % 3], Ordering::Relaxed);
-                }
+        good().for_each(|t| {
+            for (v, [a, b]) in link_entries(t) {
+                let slot = degree[v as usize].fetch_add(1, Ordering::Relaxed) as usize;
+                link[slot][0].store(a, Ordering::Relaxed);
+                link[slot][1].store(b, Ordering::Relaxed);
             }
         });
         let link = link

@@ -95,9 +95,8 @@ pub fn check(mesh: &TriMesh) -> TopologyReport {
 /// The edge and vertex defects of the good triangles of `triangles`, tile by tile where
 /// `chunk_tiles` (from [`FaceScan`]) says that is cheap, all at once otherwise.
 fn link_counts(triangles: &[[u32; 3]], nv: usize, chunk_tiles: &[TileSet]) -> fan::LinkCounts {
-    let good = |t: &[u32; 3]| is_good(t, nv);
-    tiles::link_counts(triangles, chunk_tiles, nv, good)
-        .unwrap_or_else(|| links::link_counts(triangles, nv, good))
+    tiles::link_counts(triangles, chunk_tiles, nv)
+        .unwrap_or_else(|| links::link_counts(triangles, nv))
 }
 
 /// What [`check`]'s pass over the triangles found: the counts of bad faces, and per chunk
@@ -203,7 +202,7 @@ pub fn components(mesh: &TriMesh) -> Vec<u32> {
     let nv = mesh.positions.len();
     let mut parent: Vec<usize> = (0..nv).collect();
     for t in &mesh.triangles {
-        if t.iter().any(|&v| v as usize >= nv) {
+        if !in_range(t, nv) {
             continue;
         }
         let a = find(&mut parent, t[0] as usize);
@@ -218,7 +217,7 @@ pub fn components(mesh: &TriMesh) -> Vec<u32> {
     let mut next = 0u32;
     let mut out = Vec::with_capacity(mesh.triangles.len());
     for t in &mesh.triangles {
-        let root = if t.iter().any(|&v| v as usize >= nv) {
+        let root = if !in_range(t, nv) {
             usize::MAX - out.len()
         } else {
             find(&mut parent, t[0] as usize)
@@ -352,10 +351,9 @@ mod tests {
     fn both_paths(m: &TriMesh) -> (Option<fan::LinkCounts>, fan::LinkCounts) {
         let nv = m.positions.len();
         let faces = FaceScan::of(m, &ComponentForest::new(nv));
-        let good = |t: &[u32; 3]| is_good(t, nv);
         (
-            tiles::link_counts(&m.triangles, &faces.chunk_tiles, nv, good),
-            links::link_counts(&m.triangles, nv, good),
+            tiles::link_counts(&m.triangles, &faces.chunk_tiles, nv),
+            links::link_counts(&m.triangles, nv),
         )
     }
 

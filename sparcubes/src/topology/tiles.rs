@@ -11,8 +11,8 @@
 //! read more than [`MAX_READS`] times in all (triangles in no order related to their
 //! vertices), [`link_counts`] says so and the general path ([`super::links`]) is taken.
 
-use super::fan::{LinkCounts, Scratch};
-use super::CHUNK;
+use super::fan::{link_entries, LinkCounts, Scratch};
+use super::{is_good, CHUNK};
 use rayon::prelude::*;
 
 /// Vertices per tile: their rows (64 bytes a vertex) take 4 MiB. Smaller tiles (down to
@@ -56,15 +56,13 @@ impl TileSet {
     }
 }
 
-/// The edge and vertex defects of the triangles that pass `keep` (in range, not
-/// degenerate), tile by tile; `chunk_tiles[c]` holds the tiles that chunk `c` (of [`CHUNK`]
-/// triangles) uses. `None` when the tiles would read the triangles more than [`MAX_READS`]
-/// times.
+/// The edge and vertex defects of the good triangles (in range, not degenerate), tile by
+/// tile; `chunk_tiles[c]` holds the tiles that chunk `c` (of [`CHUNK`] triangles) uses.
+/// `None` when the tiles would read the triangles more than [`MAX_READS`] times.
 pub(super) fn link_counts(
     triangles: &[[u32; 3]],
     chunk_tiles: &[TileSet],
     nv: usize,
-    keep: impl Fn(&[u32; 3]) -> bool + Sync,
 ) -> Option<LinkCounts> {
     let mut readers: Vec<Vec<u32>> = vec![Vec::new(); nv.div_ceil(TILE)];
     let mut reads = 0usize;
@@ -83,7 +81,7 @@ pub(super) fn link_counts(
             .par_iter()
             .enumerate()
             .map_init(TileLinks::default, |tile, (j, chunks)| {
-                tile.counts(j, chunks, triangles, nv, &keep)
+                tile.counts(j, chunks, triangles, nv)
             })
             .reduce(LinkCounts::default, LinkCounts::sum),
     )
@@ -122,7 +120,6 @@ impl TileLinks {
         chunks: &[u32],
         triangles: &[[u32; 3]],
         nv: usize,
-        keep: impl Fn(&[u32; 3]) -> bool,
     ) -> LinkCounts {
         let lo = j * TILE;
         let len = TILE.min(nv - lo);
@@ -133,13 +130,15 @@ impl TileLinks {
         }
         self.spill.clear();
         for &c in chunks {
-            for t in chunk(triangles, c as usize).iter().filter(|t| keep(t)) {
-                for i in 0..3 {
-                    let local = (t[i] as usize).wrapping_sub(lo);
+            for t in chunk(triangles, c as usize)
+                .iter()
+                .filter(|t| is_good(t, nv))
+            {
+                for (v, entry) in link_entries(t) {
+                    let local = (v as usize).wrapping_sub(lo);
                     if local >= len {
                         continue;
                     }
-                    let entry = [t[(i + 1) % 3], t[(i + 2) % 3]];
                     let n = self.count[local] as usize;
                     self.count[local] += 1;
                     match self.rows[local].0.get_mut(n) {
