@@ -15,6 +15,7 @@ use crate::normalize::Normalization;
 use crate::params::Params;
 use crate::regions::{classify_regions, decide_sealed, mark_air, Nesting, Regions};
 use crate::ring::ring_cells;
+use crate::seal::{seal_openings, Sealing};
 use crate::sign::{compute_signs, ring_signs, sealed_to_outside, vertex_sides};
 use crate::voxelize::{voxelize, GridMesh};
 use crate::winding::LazyWindingTree;
@@ -59,6 +60,9 @@ pub struct ConvertStats {
     /// somewhere for the grid (under a cell), or nowhere 0.3 voxel deep (these are shelled
     /// without asking the winding number, so the count includes any such pocket).
     pub shelled_thin_parts: u64,
+    /// Pockets the sealing found solid and took back from the outside: nearly closed parts
+    /// whose openings the walls grown at the sealing scale close ([`crate::seal`]).
+    pub sealed_pockets: u64,
     /// Groups of sealed vertices inside two closed surfaces or more: closed parts overlapping
     /// by less than the grid resolves, left outside so both keep their surfaces
     /// ([`crate::regions::OVERLAP_FROM`]).
@@ -275,6 +279,16 @@ fn assemble(
     (cubes, shell_vertices)
 }
 
+/// The ring's cells with the cells the caps of sealed openings run through (§3b): surface-free
+/// cells where a sealed pocket meets the outside, whose corners need φ as the ring's do.
+fn with_caps(rings: BrickSet, caps: Vec<(u32, BrickMask)>, n: u32) -> BrickSet {
+    if caps.is_empty() {
+        return rings;
+    }
+    let keyed = rings.keys.into_iter().zip(rings.masks).collect();
+    BrickSet::from_masks(n, merge_masks(keyed, caps))
+}
+
 /// Converts a sanitised mesh into sparse cubes (docs/ALGORITHM.md §1–6; extraction, §7, is
 /// [`crate::extract()`]).
 pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
@@ -300,11 +314,25 @@ pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
     }
     st.done("normalize");
 
-    let vox = voxelize(&grid, n);
+    let mut vox = voxelize(&grid, n);
     st.stats.wall_cells = vox.walls.len();
     st.done("voxelize");
     let mut flood = flood_outside(&vox.walls);
     st.done("flood");
+    // The inside test's winding number (§2b), built on first use; the sealing (§3b) asks it
+    // about the pockets it finds.
+    let tree = params
+        .inside_test
+        .then(|| LazyWindingTree::new(&grid, winding_piece(n)));
+    let sealing = match &tree {
+        Some(tree) if params.seal_openings => {
+            let sealing = seal_openings(&mut vox, &mut flood, tree, n);
+            st.stats.sealed_pockets = sealing.solid;
+            st.done("seal");
+            sealing
+        }
+        _ => Sealing::default(),
+    };
     let planes = triangle_planes(&grid);
     let core_verts = dilate(&vox.walls, n, Dilation::Corners);
     let band = compute_band(&grid, &planes, core_verts, CORE_REACH);
@@ -313,9 +341,6 @@ pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
     // number, air added to the outside; later, the vertices sealed inside thin parts.
     // Off (`Params::inside_test` false; on by default): every enclosed region stays solid, no vertex
     // is sealed and nothing is nested, which is the conversion without the test, bit for bit.
-    let tree = params
-        .inside_test
-        .then(|| LazyWindingTree::new(&grid, winding_piece(n)));
     let regions = match &tree {
         Some(tree) => {
             let regions = classify_regions(&vox.walls, &flood, &band, tree);
@@ -352,7 +377,11 @@ pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
     st.done("sign");
     let field = compute_field(&band, signs, params);
     st.done("deform");
-    let rings = ring_cells(&band, &core_signs, &field.sdf, &vox.walls, &flood, n);
+    let rings = with_caps(
+        ring_cells(&band, &core_signs, &field.sdf, &vox.walls, &flood, n),
+        sealing.caps,
+        n,
+    );
     // The ring's own vertices: corners of ring cells that are not in the core band.
     let ring_verts = difference(&dilate(&rings, n, Dilation::Corners), &band.verts.set, n);
     let ring = compute_band(&grid, &planes, ring_verts, REACH);

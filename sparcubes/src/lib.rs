@@ -9,7 +9,8 @@
 //!
 //! 1. [`normalize`] — fit the mesh into the grid with a margin,
 //! 2. [`voxelize`] — wall cells (cells a triangle touches) and grid edges a triangle crosses,
-//! 3. [`flood`] — outside cells by a hierarchical flood fill (bricks, then cells),
+//! 3. [`flood`] — outside cells by a hierarchical flood fill (bricks, then cells); [`seal`] —
+//!    openings small for their part sealed, so nearly closed solids stay solid,
 //! 4. [`band`] — exact unsigned distance and closest point on the vertices near the surface,
 //! 5. [`sign`] — inside/outside per vertex, thin-shell treatment of open parts,
 //! 6. [`deform`] — φ and the bounded displacement of each vertex towards the surface; [`ring`]
@@ -48,6 +49,7 @@ pub mod regions;
 pub mod ring;
 pub mod samples;
 pub mod sanitize;
+pub mod seal;
 #[cfg(feature = "test-shapes")]
 pub mod shapes;
 pub mod sides;

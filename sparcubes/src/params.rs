@@ -42,9 +42,21 @@ pub struct Params {
     /// and keeps its fingerprint; a new job with the test on writes `inside_test: true`.
     #[serde(default, skip_serializing_if = "is_false")]
     pub inside_test: bool,
+    /// Whether openings small for their part are sealed, so that a nearly closed solid stays
+    /// solid instead of becoming a thin shell (docs/ALGORITHM.md §3b, [`crate::seal`]): a
+    /// pocket that the walls grown by about 1/32 of the grid close off (openings up to about
+    /// 1/15 of the grid across, the same share of the object at every resolution) and that the
+    /// source's winding number reads as solid is taken back from the outside. Needs the
+    /// inside test (it asks the winding number); without it this does nothing. On by default.
+    ///
+    /// Serialized only while on and read as off when missing, as [`Params::inside_test`]:
+    /// a job stored before the rule existed resumes without it and keeps its fingerprint.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub seal_openings: bool,
 }
 
-/// Whether a flag is off (serde's `skip_serializing_if` for [`Params::inside_test`]).
+/// Whether a flag is off (serde's `skip_serializing_if` for [`Params::inside_test`] and
+/// [`Params::seal_openings`]).
 fn is_false(b: &bool) -> bool {
     !*b
 }
@@ -59,6 +71,7 @@ impl Default for Params {
             deform_step: 0.5,
             deform_max: 0.45,
             inside_test: true,
+            seal_openings: true,
         }
     }
 }
@@ -69,6 +82,16 @@ impl Params {
         Self {
             resolution,
             ..Self::default()
+        }
+    }
+
+    /// The parameters with the rules that depend on others settled: the sealing of openings
+    /// asks the inside test's winding number, so without the test it is off (and a config
+    /// that switches the test off stores neither key, as before the sealing existed).
+    pub fn settled(self) -> Self {
+        Self {
+            seal_openings: self.seal_openings && self.inside_test,
+            ..self
         }
     }
 

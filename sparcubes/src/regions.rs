@@ -508,10 +508,18 @@ fn wall_parts(walls: &BrickSet, flood: &Flood) -> (Vec<u32>, Vec<BrickMask>) {
 }
 
 /// Union–find over part numbers; the root of a set is its smallest member.
-struct Sets(Vec<u32>);
+/// A union–find over `0..n` whose roots are the smallest members of their sets (path
+/// halving; a union links the larger root under the smaller).
+pub(crate) struct Sets(Vec<u32>);
 
 impl Sets {
-    fn find(&mut self, mut x: u32) -> u32 {
+    /// Every member in a set of its own.
+    pub(crate) fn new(n: usize) -> Self {
+        Self((0..n as u32).collect())
+    }
+
+    /// The root of `x`'s set.
+    pub(crate) fn find(&mut self, mut x: u32) -> u32 {
         while self.0[x as usize] != x {
             let up = self.0[self.0[x as usize] as usize];
             self.0[x as usize] = up;
@@ -520,7 +528,8 @@ impl Sets {
         x
     }
 
-    fn union(&mut self, a: u32, b: u32) {
+    /// Joins the sets of `a` and `b`.
+    pub(crate) fn union(&mut self, a: u32, b: u32) {
         let (ra, rb) = (self.find(a), self.find(b));
         if ra != rb {
             let (lo, hi) = (ra.min(rb), ra.max(rb));

@@ -199,3 +199,239 @@ pub fn flipped(mesh: &TriMesh) -> TriMesh {
     }
     m
 }
+
+/// A UV sphere of radius `r` around `c` with a round opening at its +z pole, `hole` across
+/// (the chord of its rim; `hole` = 2r leaves a hemisphere bowl open at its equator), outward
+/// oriented.
+pub fn sphere_with_hole(c: [f64; 3], r: f64, hole: f64, segments: u32) -> TriMesh {
+    let rim = (0.5 * hole / r).clamp(0.0, 1.0).asin();
+    let rings = segments.max(3) as usize;
+    let segs = 2 * rings;
+    let mut m = TriMesh::default();
+    let mut grid = Vec::new();
+    for i in 0..rings {
+        let th = rim + (PI - rim) * i as f64 / rings as f64;
+        let row: Vec<u32> = (0..segs)
+            .map(|j| {
+                let ph = 2.0 * PI * j as f64 / segs as f64;
+                let p = [th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()];
+                push(&mut m, std::array::from_fn(|a| c[a] + r * p[a]))
+            })
+            .collect();
+        grid.push(row);
+    }
+    let bottom = push(&mut m, [c[0], c[1], c[2] - r]);
+    for j in 0..segs {
+        let k = (j + 1) % segs;
+        for i in 0..grid.len() - 1 {
+            let (a, b) = (grid[i][j], grid[i][k]);
+            let (cc, d) = (grid[i + 1][j], grid[i + 1][k]);
+            m.triangles.push([a, cc, d]);
+            m.triangles.push([a, d, b]);
+        }
+        let last = grid.len() - 1;
+        m.triangles.push([bottom, grid[last][k], grid[last][j]]);
+    }
+    m
+}
+
+/// A closed surface given by `at(u, v)`, periodic in both parameters over `0..1`, as a grid
+/// of quads between the parameter values `us` and `vs` (ascending, starting at 0, each
+/// wrapping to the first); the quads for which `skip(i, j)` holds (between `us[i]..us[i+1]`
+/// and `vs[j]..vs[j+1]`) are left out. Oriented by the order of `at`'s parameters.
+pub fn periodic_surface(
+    at: impl Fn(f64, f64) -> [f64; 3],
+    us: &[f64],
+    vs: &[f64],
+    skip: impl Fn(usize, usize) -> bool,
+) -> TriMesh {
+    let mut m = TriMesh::default();
+    for &u in us {
+        for &v in vs {
+            push(&mut m, at(u, v));
+        }
+    }
+    let (nu, nv) = (us.len(), vs.len());
+    for i in 0..nu {
+        for j in 0..nv {
+            if skip(i, j) {
+                continue;
+            }
+            let id = |i: usize, j: usize| ((i % nu) * nv + j % nv) as u32;
+            let (a, b, c, d) = (id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1));
+            m.triangles.push([a, b, c]);
+            m.triangles.push([a, c, d]);
+        }
+    }
+    m
+}
+
+/// `steps` even parameter values in `0..1` with the values `cut` added (sorted, distinct), and
+/// the position of each `cut` value among them.
+pub fn parameters(steps: usize, cut: &[f64]) -> (Vec<f64>, Vec<usize>) {
+    let mut all: Vec<f64> = (0..steps).map(|i| i as f64 / steps as f64).collect();
+    all.extend(cut.iter().map(|c| c.rem_euclid(1.0)));
+    all.sort_by(f64::total_cmp);
+    all.dedup_by(|a, b| (*a - *b).abs() < 1e-12);
+    let at = cut
+        .iter()
+        .map(|c| {
+            let c = c.rem_euclid(1.0);
+            all.iter().position(|&x| (x - c).abs() < 1e-12).unwrap_or(0)
+        })
+        .collect();
+    (all, at)
+}
+
+/// A torus around the z axis through `c` (major radius `big`, minor `small`) with a hole in
+/// its outer wall, `hole` across along both directions (none for `hole` = 0), centred on the
+/// outer equator at +x. Outward oriented.
+pub fn torus_with_hole(c: [f64; 3], big: f64, small: f64, hole: f64, segments: u32) -> TriMesh {
+    let du = 0.5 * hole / (2.0 * PI * (big + small));
+    let dv = 0.5 * hole / (2.0 * PI * small);
+    let (us, cu) = parameters(2 * segments as usize, &[-du, du]);
+    let (vs, cv) = parameters(segments as usize, &[-dv, dv]);
+    let at = |u: f64, v: f64| {
+        let (u, v) = (2.0 * PI * u, 2.0 * PI * v);
+        let rr = big + small * v.cos();
+        [
+            c[0] + rr * u.cos(),
+            c[1] + rr * u.sin(),
+            c[2] + small * v.sin(),
+        ]
+    };
+    // The hole's quads: from the cut at −d (which sorts last, near 1) wrapping to +d.
+    let inside = |i: usize, lo: usize, hi: usize| {
+        if lo > hi {
+            i >= lo || i < hi
+        } else {
+            i >= lo && i < hi
+        }
+    };
+    periodic_surface(at, &us, &vs, |i, j| {
+        hole > 0.0 && inside(i, cu[0], cu[1]) && inside(j, cv[0], cv[1])
+    })
+}
+
+/// A tube of radius `radius` around a trefoil knot (x = sin t + 2 sin 2t, y = cos t − 2 cos 2t,
+/// z = −sin 3t, scaled by `scale` around `c`), with a hole `hole` across in its wall at t = 0
+/// (none for `hole` = 0). The tube's frame is the knot's Frenet frame, which is periodic (the
+/// trefoil's curvature never vanishes), so the tube closes on itself. Outward oriented.
+pub fn knot_with_hole(c: [f64; 3], scale: f64, radius: f64, hole: f64, segments: u32) -> TriMesh {
+    let curve = |t: f64| {
+        [
+            t.sin() + 2.0 * (2.0 * t).sin(),
+            t.cos() - 2.0 * (2.0 * t).cos(),
+            -(3.0 * t).sin(),
+        ]
+    };
+    let d1 = |t: f64| {
+        [
+            t.cos() + 4.0 * (2.0 * t).cos(),
+            -t.sin() + 4.0 * (2.0 * t).sin(),
+            -3.0 * (3.0 * t).cos(),
+        ]
+    };
+    let d2 = |t: f64| {
+        [
+            -t.sin() - 8.0 * (2.0 * t).sin(),
+            -t.cos() + 8.0 * (2.0 * t).cos(),
+            9.0 * (3.0 * t).sin(),
+        ]
+    };
+    let unit = |a: [f64; 3]| {
+        let l = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+        a.map(|x| x / l)
+    };
+    let cross = |a: [f64; 3], b: [f64; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
+    let speed = {
+        let v = d1(0.0);
+        scale * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+    };
+    let du = 0.5 * hole / (2.0 * PI * speed);
+    let dv = 0.5 * hole / (2.0 * PI * radius);
+    let (us, cu) = parameters(16 * segments as usize, &[-du, du]);
+    let (vs, cv) = parameters(segments as usize, &[-dv, dv]);
+    let at = |u: f64, v: f64| {
+        let t = 2.0 * PI * u;
+        let tangent = unit(d1(t));
+        let binormal = unit(cross(d1(t), d2(t)));
+        let normal = cross(binormal, tangent);
+        let (cv, sv) = ((2.0 * PI * v).cos(), (2.0 * PI * v).sin());
+        let p = curve(t);
+        std::array::from_fn(|a| c[a] + scale * p[a] + radius * (cv * normal[a] + sv * binormal[a]))
+    };
+    let inside = |i: usize, lo: usize, hi: usize| {
+        if lo > hi {
+            i >= lo || i < hi
+        } else {
+            i >= lo && i < hi
+        }
+    };
+    periodic_surface(at, &us, &vs, |i, j| {
+        hole > 0.0 && inside(i, cu[0], cu[1]) && inside(j, cv[0], cv[1])
+    })
+}
+
+/// A cup: an open cylinder around the z axis through `c` from z0 to z1 with a flat bottom at
+/// z0, a single sheet open at z1 (its mouth, 2r across).
+pub fn cup(c: [f64; 2], r: f64, z0: f64, z1: f64, segments: u32) -> TriMesh {
+    let mut m = open_cylinder(c, r, z0, z1, segments);
+    let centre = push(&mut m, [c[0], c[1], z0]);
+    let s = segments;
+    for i in 0..s {
+        let j = (i + 1) % s;
+        m.triangles.push([centre, 2 * j, 2 * i]);
+    }
+    m
+}
+
+/// A closed block from `lo` to `hi` with a slot cut across its +z face along y: `width`
+/// wide (along x, centred) and `depth` deep. The profile in (x, z) is extruded along y.
+/// Outward oriented.
+pub fn slotted_block(lo: [f64; 3], hi: [f64; 3], width: f64, depth: f64) -> TriMesh {
+    let (cx, top) = (0.5 * (lo[0] + hi[0]), hi[2]);
+    let (a, b, floor) = (cx - 0.5 * width, cx + 0.5 * width, hi[2] - depth);
+    // The profile, counter-clockwise in (x, z) seen from −y.
+    let profile = [
+        [lo[0], lo[2]],
+        [hi[0], lo[2]],
+        [hi[0], top],
+        [b, top],
+        [b, floor],
+        [a, floor],
+        [a, top],
+        [lo[0], top],
+    ];
+    let mut m = TriMesh::default();
+    let front: Vec<u32> = profile
+        .iter()
+        .map(|p| push(&mut m, [p[0], lo[1], p[1]]))
+        .collect();
+    let back: Vec<u32> = profile
+        .iter()
+        .map(|p| push(&mut m, [p[0], hi[1], p[1]]))
+        .collect();
+    // Sides: one quad per profile edge, facing out of the profile.
+    for i in 0..profile.len() {
+        let j = (i + 1) % profile.len();
+        m.triangles.push([front[i], back[i], back[j]]);
+        m.triangles.push([front[i], back[j], front[j]]);
+    }
+    // Caps: the profile as three fans that share the slot floor's corners.
+    let fans: [&[usize]; 3] = [&[0, 1, 4, 5], &[1, 2, 3, 4], &[0, 5, 6, 7]];
+    for fan in fans {
+        for k in 1..fan.len() - 1 {
+            let (p, q, r) = (fan[0], fan[k], fan[k + 1]);
+            m.triangles.push([front[p], front[q], front[r]]);
+            m.triangles.push([back[p], back[r], back[q]]);
+        }
+    }
+    m
+}
