@@ -8,20 +8,14 @@ use sparc3d_schema::ShardRow;
 use sparcubes::TriMesh;
 use std::path::Path;
 
-/// Converts the mesh at `path` at `resolution` (with the inside test if `inside_test`) and
-/// renders source above output.
+/// Converts the mesh at `path` with `params` and renders source above output.
 pub fn preview_mesh(
     path: &Path,
-    resolution: u32,
-    inside_test: bool,
+    params: &sparcubes::Params,
     options: &CompareOptions,
 ) -> Result<Image> {
     let source = load(path)?;
-    let params = sparcubes::Params {
-        inside_test,
-        ..sparcubes::Params::with_resolution(resolution)
-    };
-    let conversion = sparcubes::convert(&source, &params)
+    let conversion = sparcubes::convert(&source, params)
         .with_context(|| format!("converting {}", path.display()))?;
     let output = sparcubes::extract::extract_to_source(&conversion.cubes);
     Ok(source_above_output(&source, &output, options))

@@ -183,9 +183,13 @@ impl JobConfig {
             m.insert("samples".into(), samples);
         }
         merge(&mut base, overrides, "")?;
-        serde_json::from_value(base).map_err(|source| SchemaError::Json {
+        let config: Self = serde_json::from_value(base).map_err(|source| SchemaError::Json {
             context: "job config".into(),
             source,
+        })?;
+        Ok(Self {
+            params: config.params.settled(),
+            ..config
         })
     }
 
@@ -354,7 +358,41 @@ mod tests {
         assert!(!off.params.inside_test);
         assert_eq!(off.fingerprint()?, OLD_DEFAULT_FINGERPRINT);
         assert!(!off.to_canonical_json()?.contains("inside_test"));
-        assert_eq!(off.diff_keys(&new)?, vec!["params.inside_test"]);
+        // (The sealing asks the inside test, so switching the test off switches it off too.)
+        assert_eq!(
+            off.diff_keys(&new)?,
+            vec!["params.inside_test", "params.seal_openings"]
+        );
+        Ok(())
+    }
+
+    /// The canonical JSON of the default config as written after the inside test became the
+    /// default and before the sealing of openings existed (`Params::seal_openings`): no
+    /// `seal_openings` key. Its fingerprint is the one `sparc3d init` of that release wrote
+    /// into job.json for a default job.
+    const INSIDE_TEST_ERA_CONFIG: &str = r#"{"extract_mesh":true,"limits":{"item_memory_bytes":8589934592,"item_timeout_s":600.0,"max_crash_retries":2,"max_interrupted_attempts":5},"params":{"deform":false,"deform_max":0.45,"deform_step":0.5,"inside_test":true,"margin_cells":3,"resolution":512,"shell_half_thickness":0.9},"shard_size":256,"store_mesh":false,"validation_sample_rate":0.01,"zstd_level":3}"#;
+    const INSIDE_TEST_ERA_FINGERPRINT: &str =
+        "a4e8c0d24cb21d80dfdd56bbb52be3c6dfc0af8ed224c37516fd159ac585b654";
+
+    #[test]
+    fn a_stored_config_without_the_key_keeps_the_sealing_off_and_its_fingerprint() -> Result<()> {
+        let old: JobConfig =
+            serde_json::from_str(INSIDE_TEST_ERA_CONFIG).map_err(|source| SchemaError::Json {
+                context: "test".into(),
+                source,
+            })?;
+        assert!(old.params.inside_test && !old.params.seal_openings);
+        assert_eq!(old.fingerprint()?, INSIDE_TEST_ERA_FINGERPRINT);
+        assert!(!old.to_canonical_json()?.contains("seal_openings"));
+        // The new default seals, with a fingerprint of its own; `seal_openings = false` gives
+        // back the old one.
+        let new = JobConfig::default();
+        assert!(new.to_canonical_json()?.contains("\"seal_openings\":true"));
+        assert_ne!(new.fingerprint()?, INSIDE_TEST_ERA_FINGERPRINT);
+        let off =
+            JobConfig::from_overrides(&serde_json::json!({"params": {"seal_openings": false}}))?;
+        assert_eq!(off.fingerprint()?, INSIDE_TEST_ERA_FINGERPRINT);
+        assert_eq!(off.diff_keys(&new)?, vec!["params.seal_openings"]);
         Ok(())
     }
 

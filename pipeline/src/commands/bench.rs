@@ -197,9 +197,7 @@ fn bench_mesh(exe: &Path, path: &Path, resolution: u32, args: &Args) -> BenchRow
         .arg(args.zstd_level.to_string())
         .stdin(Stdio::null())
         .stdout(Stdio::piped());
-    if !args.inside_test.enabled() {
-        cmd.arg("--no-inside-test");
-    }
+    cmd.args(args.inside_test.as_flags());
     if args.deform.enabled() {
         cmd.arg("--deform");
     }

@@ -130,7 +130,7 @@ fn measure(args: &Args, row: &mut BenchRow) -> anyhow::Result<()> {
     let name = args.input.display();
     let mut params = sparcubes::Params::with_resolution(args.resolution.get());
     params.deform = args.deform.enabled();
-    params.inside_test = args.inside_test.enabled();
+    args.inside_test.apply_to(&mut params);
     let steps = Steps {
         params: &params,
         input_components: false,

@@ -47,7 +47,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let start = Instant::now();
     let mut params = sparcubes::Params::with_resolution(args.resolution.get());
     params.deform = args.deform.enabled();
-    params.inside_test = args.inside_test.enabled();
+    args.inside_test.apply_to(&mut params);
     let steps = Steps {
         params: &params,
         input_components: true,
@@ -95,6 +95,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         "active_cells": s.active_cells,
         "shell_vertices": s.shell_vertices,
         "inside_test": params.inside_test,
+        "seal_openings": params.seal_openings,
+        "sealed_pockets": s.sealed_pockets,
         "enclosed_regions": s.enclosed_regions,
         "air_regions": s.air_regions,
         "ambiguous_regions": s.ambiguous_regions,
@@ -199,6 +201,12 @@ fn print_text(v: &Value, load: &LoadStats, stages: &[(String, f64)]) {
         println!(
             "  inside test  {} enclosed regions ({} air, {} ambiguous kept solid); thin closed parts: {} kept, {} as shells; {} sealed overlaps of parts",
             v["enclosed_regions"], v["air_regions"], v["ambiguous_regions"], v["thin_parts"], v["shelled_thin_parts"], v["overlap_groups"]
+        );
+    }
+    if v["seal_openings"] == true {
+        println!(
+            "  openings     {} nearly closed parts kept solid (small openings sealed)",
+            v["sealed_pockets"]
         );
     }
     println!(

@@ -131,20 +131,29 @@ pub fn run(args: Args) -> Result<ExitCode> {
 pub fn check_same_config(existing: &sparc3d_workers::Job, config: &JobConfig) -> Result<()> {
     let keys = existing.file.config.diff_keys(config)?;
     if !keys.is_empty() {
-        // Jobs made before the inside test became the default stored no `inside_test` key and
-        // convert without it; the same command line now asks for it, so say how to resume.
-        let hint = if keys.iter().any(|k| k == "params.inside_test")
-            && !existing.file.config.params.inside_test
-        {
-            format!(
-                "; this job converts without the inside test (the default before it was \
-                 switched on): resume it with `sparc3d run {}` alone, or give the command a \
-                 config with `inside_test = false` under [params]",
-                existing.layout.root.display()
-            )
-        } else {
-            String::new()
-        };
+        // Jobs made before a rule became the default stored no key for it and convert without
+        // it; the same command line now asks for it, so say how to resume.
+        let stored = &existing.file.config.params;
+        let off = [
+            ("inside_test", "the inside test", stored.inside_test),
+            (
+                "seal_openings",
+                "the sealing of small openings",
+                stored.seal_openings,
+            ),
+        ];
+        let hint = off
+            .iter()
+            .find(|(key, _, on)| !on && keys.iter().any(|k| *k == format!("params.{key}")))
+            .map(|(key, what, _)| {
+                format!(
+                    "; this job converts without {what} (the default before it was switched \
+                     on): resume it with `sparc3d run {}` alone, or give the command a config \
+                     with `{key} = false` under [params]",
+                    existing.layout.root.display()
+                )
+            })
+            .unwrap_or_default();
         bail!(
             "{} is already initialised with a different config; differing keys: {} \
              (use a new job folder, or the same config){hint}",

@@ -43,6 +43,13 @@ pub struct Args {
     pub inside_test: super::inside_test_args::InsideTestArgs,
 }
 
+/// The conversion parameters of a mesh drawn by `preview`: its resolution and rules.
+fn rules(args: &Args) -> sparcubes::Params {
+    let mut params = sparcubes::Params::with_resolution(args.resolution.get());
+    args.inside_test.apply_to(&mut params);
+    params
+}
+
 /// Runs `sparc3d preview`.
 pub fn run(args: Args) -> Result<ExitCode> {
     let options = CompareOptions {
@@ -53,8 +60,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let (image, what) = match &args.id {
         Some(_) if args.inside_test.given() => {
             bail!(
-                "--inside-test and --no-inside-test apply to a mesh; a job's item is drawn as \
-                 the job made it"
+                "--inside-test, --no-inside-test and --no-seal-openings apply to a mesh; a job's \
+                 item is drawn as the job made it"
             )
         }
         Some(id) => {
@@ -73,12 +80,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 );
             }
             (
-                preview_mesh(
-                    &args.input,
-                    args.resolution.get(),
-                    args.inside_test.enabled(),
-                    &options,
-                )?,
+                preview_mesh(&args.input, &rules(&args), &options)?,
                 args.input.display().to_string(),
             )
         }
