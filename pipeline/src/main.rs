@@ -11,6 +11,7 @@ mod local_workers;
 mod manifest_io;
 mod memory;
 mod npz;
+mod path_column;
 mod pictures;
 mod pool;
 mod progress;
@@ -19,6 +20,7 @@ mod sample;
 mod signals;
 mod stats;
 mod summary;
+mod tsv;
 mod units;
 mod validation;
 

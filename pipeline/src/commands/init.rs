@@ -19,6 +19,10 @@ pub struct Args {
     /// Manifest (.csv, .jsonl or .parquet with a path column).
     #[arg(long)]
     pub manifest: PathBuf,
+    /// The manifest's column of local paths, when it has several path-like columns that the
+    /// rule cannot tell apart (docs/RELIABILITY.md, "Manifests").
+    #[arg(long, value_name = "NAME")]
+    pub path_column: Option<String>,
     #[command(flatten)]
     pub config: ConfigArgs,
 }
@@ -68,19 +72,63 @@ pub fn build_config(args: &ConfigArgs) -> Result<JobConfig> {
     Ok(config)
 }
 
+/// Paths listed in full when hashing fails for many rows; the rest are counted.
+const LISTED: usize = 10;
+
+/// A manifest row's id and frozen sha256: the manifest's own, or (a row with neither) the
+/// sha256 of the file, which is then also the id.
+fn id_and_sha(r: &manifest_io::RawRecord) -> Result<(String, Option<String>)> {
+    Ok(match (&r.id, &r.sha256) {
+        (Some(id), sha) => (id.clone(), sha.clone()),
+        (None, Some(sha)) => (sha.clone(), Some(sha.clone())),
+        (None, None) => {
+            let sha = sparc3d_workers::fsutil::file_sha256(std::path::Path::new(&r.uri))?;
+            (sha.clone(), Some(sha))
+        }
+    })
+}
+
+/// Whether `sha` is a sha256 as hex (64 digits, either case).
+fn is_sha256(sha: &str) -> bool {
+    sha.len() == 64 && sha.bytes().all(|b| b.is_ascii_hexdigit())
+}
+
+/// `what` for every row in `bad`, the first [`LISTED`] in full and the rest counted.
+fn listing(bad: &[String]) -> String {
+    let mut text = bad
+        .iter()
+        .take(LISTED)
+        .cloned()
+        .collect::<Vec<_>>()
+        .join("; ");
+    if bad.len() > LISTED {
+        text.push_str(&format!("; and {} more", bad.len() - LISTED));
+    }
+    text
+}
+
 fn freeze(records: Vec<manifest_io::RawRecord>, shard_size: u32) -> Result<Vec<FrozenItem>> {
-    let with_ids: Vec<Result<ManifestRecord>> = records
+    let bad_sha: Vec<String> = records
+        .iter()
+        .enumerate()
+        .filter_map(|(i, r)| {
+            let sha = r.sha256.as_deref()?;
+            (!is_sha256(sha)).then(|| format!("row {}: {sha:?}", i + 1))
+        })
+        .collect();
+    if !bad_sha.is_empty() {
+        bail!(
+            "{} rows have a sha256 that is not 64 hex digits (a file's bytes are checked against \
+             it before they are converted): {}",
+            bad_sha.len(),
+            listing(&bad_sha)
+        );
+    }
+    let with_ids: Vec<Result<ManifestRecord, String>> = records
         .into_par_iter()
-        .map(|r| {
-            let (id, sha) = match (r.id, r.sha256) {
-                (Some(id), sha) => (id, sha),
-                (None, Some(sha)) => (sha.clone(), Some(sha)),
-                (None, None) => {
-                    let sha = sparc3d_workers::fsutil::file_sha256(std::path::Path::new(&r.uri))
-                        .with_context(|| format!("hashing {} for its id", r.uri))?;
-                    (sha.clone(), Some(sha))
-                }
-            };
+        .enumerate()
+        .map(|(i, r)| {
+            let (id, sha) = id_and_sha(&r).map_err(|e| format!("row {}: {e}", i + 1))?;
             Ok(ManifestRecord {
                 id,
                 uri: r.uri,
@@ -89,11 +137,23 @@ fn freeze(records: Vec<manifest_io::RawRecord>, shard_size: u32) -> Result<Vec<F
             })
         })
         .collect();
+    let unreadable: Vec<String> = with_ids
+        .iter()
+        .filter_map(|r| r.as_ref().err().cloned())
+        .collect();
+    if !unreadable.is_empty() {
+        bail!(
+            "{} of {} files could not be hashed for their ids (a row without id or sha256 is \
+             identified by its file's sha256): {}",
+            unreadable.len(),
+            with_ids.len(),
+            listing(&unreadable)
+        );
+    }
     let mut seen: HashMap<String, usize> = HashMap::new();
     let mut items = Vec::with_capacity(with_ids.len());
     let mut dups = Vec::new();
-    for (i, rec) in with_ids.into_iter().enumerate() {
-        let rec = rec?;
+    for (i, rec) in with_ids.into_iter().flatten().enumerate() {
         if let Some(first) = seen.get(&rec.id) {
             dups.push(format!("{} (rows {} and {})", rec.id, first + 1, i + 1));
             continue;
@@ -113,18 +173,67 @@ fn freeze(records: Vec<manifest_io::RawRecord>, shard_size: u32) -> Result<Vec<F
             dups.iter().take(5).cloned().collect::<Vec<_>>().join(", ")
         );
     }
+    let unchecked = items.iter().filter(|i| i.record.sha256.is_none()).count();
+    if unchecked > 0 {
+        eprintln!(
+            "note: {unchecked} items have an id but no sha256: their rows record the sha256 of \
+             the bytes converted, but a file changed after init cannot be told from the one \
+             meant (a sha256 column, as `sparc3d manifest build` writes, has each file checked \
+             before it is converted)"
+        );
+    }
     Ok(items)
+}
+
+/// When the manifest given to `init` again is the one the job was made from (its frozen text
+/// has the sha256 `job.json` recorded) but the job's frozen copy is not: the first line where
+/// they differ, for the error that refuses the job.
+fn frozen_copy_differs(layout: &JobLayout, text: &str, sha256: &str) -> Option<String> {
+    let file: JobFile = sparc3d_workers::fsutil::read_json(&layout.job_file()).ok()?;
+    let frozen = std::fs::read_to_string(layout.manifest()).ok()?;
+    if file.manifest_sha256 != sha256 || frozen == text {
+        return None;
+    }
+    let mut lines = frozen.lines().zip(text.lines()).enumerate();
+    let line = match lines.find(|(_, (a, b))| a != b) {
+        Some((n, (now, meant))) => format!("line {}: {now}, where it froze {meant}", n + 1),
+        None => format!(
+            "{} lines, where it froze {}",
+            frozen.lines().count(),
+            text.lines().count()
+        ),
+    };
+    Some(format!(
+        "this manifest is the one {} was made from, but its frozen copy {} was edited since: \
+         {line}",
+        layout.root.display(),
+        layout.manifest().display()
+    ))
 }
 
 /// Runs `sparc3d init`.
 pub fn run(args: Args) -> Result<ExitCode> {
     let config = build_config(&args.config)?;
-    let records = manifest_io::read(&args.manifest)?;
-    if records.is_empty() {
-        bail!("{}: the manifest is empty", args.manifest.display());
-    }
-    create(&args.job, records, config)?;
+    let manifest = read_manifest(&args.manifest, args.path_column.as_deref())?;
+    create(&args.job, manifest.records, config)?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// Reads a manifest for a new job, saying which column its paths came from; an empty one is
+/// refused.
+pub fn read_manifest(path: &Path, path_column: Option<&str>) -> Result<manifest_io::Manifest> {
+    let manifest = manifest_io::read(path, path_column)?;
+    if manifest.records.is_empty() {
+        bail!("{}: the manifest is empty", path.display());
+    }
+    eprintln!(
+        "{}: {} rows, paths from column {} ({})",
+        path.display(),
+        manifest.records.len(),
+        manifest.path_column.name,
+        manifest.path_column.why
+    );
+    Ok(manifest)
 }
 
 /// Refuses a config that differs from the one `existing` was created with, naming the keys.
@@ -171,7 +280,12 @@ pub fn create(job: &Path, records: Vec<manifest_io::RawRecord>, config: JobConfi
         sparc3d_schema::config::hex(&Sha256::digest(text.as_bytes()))
     };
     if layout.job_file().exists() {
-        let existing = sparc3d_workers::Job::open(&layout.root)?;
+        let existing = sparc3d_workers::Job::open(&layout.root).map_err(|e| {
+            match frozen_copy_differs(&layout, &text, &manifest_sha256) {
+                Some(line) => anyhow::Error::new(e).context(line),
+                None => e.into(),
+            }
+        })?;
         check_same_config(&existing, &config)?;
         if existing.file.manifest_sha256 != manifest_sha256 {
             bail!(
