@@ -3,6 +3,7 @@
 mod cluster;
 mod commands;
 mod folder_scan;
+mod freeze;
 mod hints;
 mod huge_pages;
 mod item_lookup;

@@ -1,13 +1,12 @@
-//! `sparc3d init JOB --manifest M [--resolution N] [--shard-size S] [--config job.toml]`:
-//! freezes the manifest into the job folder, gives every item its shard once, and writes the
-//! config with its fingerprint. Re-running with another config is refused, naming the keys.
+//! `sparc3d init JOB --manifest M [--resolution N] [--shard-size S] [--config job.toml]
+//! [--path-column NAME]`: freezes the manifest into the job folder (`freeze.rs`), gives every
+//! item its shard once, and writes the config with its fingerprint. Re-running with another
+//! config is refused, naming the keys; a job whose files were edited since is refused too.
 
 use crate::manifest_io;
 use crate::units::with_default;
 use anyhow::{bail, Context, Result};
-use rayon::prelude::*;
-use sparc3d_schema::{FrozenItem, JobConfig, JobFile, JobLayout, ManifestRecord};
-use std::collections::HashMap;
+use sparc3d_schema::{JobConfig, JobFile, JobLayout};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -70,119 +69,6 @@ pub fn build_config(args: &ConfigArgs) -> Result<JobConfig> {
     }
     config.validate().context("invalid job config")?;
     Ok(config)
-}
-
-/// Paths listed in full when hashing fails for many rows; the rest are counted.
-const LISTED: usize = 10;
-
-/// A manifest row's id and frozen sha256: the manifest's own, or (a row with neither) the
-/// sha256 of the file, which is then also the id.
-fn id_and_sha(r: &manifest_io::RawRecord) -> Result<(String, Option<String>)> {
-    Ok(match (&r.id, &r.sha256) {
-        (Some(id), sha) => (id.clone(), sha.clone()),
-        (None, Some(sha)) => (sha.clone(), Some(sha.clone())),
-        (None, None) => {
-            let sha = sparc3d_workers::fsutil::file_sha256(std::path::Path::new(&r.uri))?;
-            (sha.clone(), Some(sha))
-        }
-    })
-}
-
-/// Whether `sha` is a sha256 as hex (64 digits, either case).
-fn is_sha256(sha: &str) -> bool {
-    sha.len() == 64 && sha.bytes().all(|b| b.is_ascii_hexdigit())
-}
-
-/// `what` for every row in `bad`, the first [`LISTED`] in full and the rest counted.
-fn listing(bad: &[String]) -> String {
-    let mut text = bad
-        .iter()
-        .take(LISTED)
-        .cloned()
-        .collect::<Vec<_>>()
-        .join("; ");
-    if bad.len() > LISTED {
-        text.push_str(&format!("; and {} more", bad.len() - LISTED));
-    }
-    text
-}
-
-fn freeze(records: Vec<manifest_io::RawRecord>, shard_size: u32) -> Result<Vec<FrozenItem>> {
-    let bad_sha: Vec<String> = records
-        .iter()
-        .enumerate()
-        .filter_map(|(i, r)| {
-            let sha = r.sha256.as_deref()?;
-            (!is_sha256(sha)).then(|| format!("row {}: {sha:?}", i + 1))
-        })
-        .collect();
-    if !bad_sha.is_empty() {
-        bail!(
-            "{} rows have a sha256 that is not 64 hex digits (a file's bytes are checked against \
-             it before they are converted): {}",
-            bad_sha.len(),
-            listing(&bad_sha)
-        );
-    }
-    let with_ids: Vec<Result<ManifestRecord, String>> = records
-        .into_par_iter()
-        .enumerate()
-        .map(|(i, r)| {
-            let (id, sha) = id_and_sha(&r).map_err(|e| format!("row {}: {e}", i + 1))?;
-            Ok(ManifestRecord {
-                id,
-                uri: r.uri,
-                sha256: sha,
-                format: r.format,
-            })
-        })
-        .collect();
-    let unreadable: Vec<String> = with_ids
-        .iter()
-        .filter_map(|r| r.as_ref().err().cloned())
-        .collect();
-    if !unreadable.is_empty() {
-        bail!(
-            "{} of {} files could not be hashed for their ids (a row without id or sha256 is \
-             identified by its file's sha256): {}",
-            unreadable.len(),
-            with_ids.len(),
-            listing(&unreadable)
-        );
-    }
-    let mut seen: HashMap<String, usize> = HashMap::new();
-    let mut items = Vec::with_capacity(with_ids.len());
-    let mut dups = Vec::new();
-    for (i, rec) in with_ids.into_iter().flatten().enumerate() {
-        if let Some(first) = seen.get(&rec.id) {
-            dups.push(format!("{} (rows {} and {})", rec.id, first + 1, i + 1));
-            continue;
-        }
-        seen.insert(rec.id.clone(), i);
-        let index = items.len() as u64;
-        items.push(FrozenItem {
-            index,
-            shard: index / shard_size.max(1) as u64,
-            record: rec,
-        });
-    }
-    if !dups.is_empty() {
-        bail!(
-            "the manifest has {} duplicate ids, e.g. {}; ids must be unique",
-            dups.len(),
-            dups.iter().take(5).cloned().collect::<Vec<_>>().join(", ")
-        );
-    }
-    let unchecked = items.iter().filter(|i| i.record.sha256.is_none()).count();
-    if unchecked > 0 {
-        eprintln!(
-            "note: {unchecked} items have an id but no sha256: their rows record the sha256 of \
-             the bytes converted, but a file changed after init cannot be told from the one \
-             meant (a sha256 column, as `sparc3d manifest build` writes, has each file checked \
-             before it is converted)"
-        );
-    }
-    Ok(items)
 }
 
 /// When the manifest given to `init` again is the one the job was made from (its frozen text
@@ -269,7 +155,7 @@ pub fn check_same_config(existing: &sparc3d_workers::Job, config: &JobConfig) ->
 /// one with another config or manifest is refused.
 pub fn create(job: &Path, records: Vec<manifest_io::RawRecord>, config: JobConfig) -> Result<()> {
     let layout = JobLayout::new(job);
-    let items = freeze(records, config.shard_size)?;
+    let items = crate::freeze::freeze(records, config.shard_size)?;
     let mut text = String::new();
     for it in &items {
         text.push_str(&serde_json::to_string(it)?);

@@ -127,8 +127,11 @@ pub fn run(args: Args) -> Result<ExitCode> {
         failures_hint();
         return Ok(stop.exit_code());
     }
-    if after.shards_done < after.shards || after.pending > 0 || pool_error.is_some() {
-        print_unfinished(&job, &after, errors.len())?;
+    let unfinished = after.shards_done < after.shards || after.pending > 0;
+    if unfinished || pool_error.is_some() {
+        if unfinished {
+            print_unfinished(&job, &after, errors.len())?;
+        }
         failures_hint();
         return Ok(ExitCode::FAILURE);
     }
