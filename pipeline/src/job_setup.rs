@@ -1,9 +1,10 @@
 //! The job folder `sparc3d run` works on: an existing job, or (with `--job OUT`) one made from
-//! a folder of meshes or a manifest when OUT is not a job yet, with `init`'s config flags.
+//! a folder of meshes or a manifest when OUT is not a job yet, with `init`'s config flags; and
+//! the job a read-only command opens ([`open_read_only`]).
 
-use crate::commands::init::{build_config, check_same_config, create, ConfigArgs};
+use crate::commands::init::{build_config, check_same_config, create, read_manifest, ConfigArgs};
 use crate::folder_scan::collect;
-use crate::manifest_io::{self, RawRecord};
+use crate::manifest_io::RawRecord;
 use anyhow::{bail, Result};
 use sparc3d_schema::JobLayout;
 use sparc3d_workers::Job;
@@ -18,7 +19,12 @@ fn is_job(dir: &Path) -> bool {
 /// resumed when it is a job already and otherwise created from `input` (a folder of meshes,
 /// scanned as `manifest build` does, or a manifest). Config flags given for an existing job
 /// must agree with its config.
-pub fn job_for_run(input: &Path, out: Option<&Path>, flags: &ConfigArgs) -> Result<PathBuf> {
+pub fn job_for_run(
+    input: &Path,
+    out: Option<&Path>,
+    flags: &ConfigArgs,
+    path_column: Option<&str>,
+) -> Result<PathBuf> {
     let Some(out) = out else {
         if !is_job(input) {
             bail!(
@@ -61,7 +67,7 @@ pub fn job_for_run(input: &Path, out: Option<&Path>, flags: &ConfigArgs) -> Resu
         );
         c.records.into_iter().map(RawRecord::from).collect()
     } else {
-        manifest_io::read(input)?
+        read_manifest(input, path_column)?.records
     };
     if records.is_empty() {
         bail!("{}: no meshes to convert", input.display());
@@ -76,4 +82,23 @@ fn check_flags(dir: &Path, flags: &ConfigArgs) -> Result<()> {
         check_same_config(&Job::open(dir)?, &build_config(flags)?)?;
     }
     Ok(())
+}
+
+/// Opens the job at `root` for a command that only reads it (`status`, `ls`, `failures`,
+/// `inspect`, `show`, ...): a job whose files were edited after `init` is opened all the same,
+/// after a warning on stderr naming each file and what differs; commands that change a job
+/// refuse it ([`Job::open`]).
+pub fn open_read_only(root: &Path) -> Result<Job> {
+    let (job, problems) = Job::open_read_only(root)?;
+    for p in &problems {
+        eprintln!("warning: {}: {p}", root.display());
+    }
+    if !problems.is_empty() {
+        eprintln!(
+            "warning: {} was changed after `sparc3d init`: what follows is read as it is, and \
+             commands that change the job (run, work, retry, verify, submit) refuse it",
+            root.display()
+        );
+    }
+    Ok(job)
 }

@@ -3,6 +3,7 @@
 mod cluster;
 mod commands;
 mod folder_scan;
+mod freeze;
 mod hints;
 mod huge_pages;
 mod item_lookup;
@@ -11,6 +12,7 @@ mod local_workers;
 mod manifest_io;
 mod memory;
 mod npz;
+mod path_column;
 mod pictures;
 mod pool;
 mod progress;
@@ -19,6 +21,7 @@ mod sample;
 mod signals;
 mod stats;
 mod summary;
+mod tsv;
 mod units;
 mod validation;
 

@@ -1,12 +1,13 @@
 //! Reading and writing manifests: CSV, JSONL or Parquet, chosen by extension. Any table with
-//! a path column (`uri`, `path`, `local_path` or `file`) is a manifest; `id` (or `sha256`) is
-//! optional. Relative paths are resolved against the manifest's folder.
+//! a path column is a manifest (which column: `path_column.rs`, one rule for the whole
+//! manifest); `id` (or `sha256`) is optional. Relative paths are resolved against the
+//! manifest's folder.
 
+use crate::path_column::PathColumn;
 use anyhow::{bail, Context, Result};
 use arrow_array::{Array, LargeStringArray, RecordBatch, StringArray, StringViewArray};
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use parquet::arrow::ArrowWriter;
-use sparc3d_schema::manifest::{ID_COLUMNS, PATH_COLUMNS};
 use sparc3d_schema::ManifestRecord;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -42,24 +43,29 @@ fn ext(path: &Path) -> String {
         .unwrap_or_default()
 }
 
+/// A manifest read: its rows and the column their paths came from.
+#[derive(Debug, Clone)]
+pub struct Manifest {
+    /// The rows, in order.
+    pub records: Vec<RawRecord>,
+    /// The path column and why it was chosen.
+    pub path_column: PathColumn,
+}
+
 fn from_table(
     rows: Vec<BTreeMap<String, String>>,
     base: &Path,
     source: &Path,
-) -> Result<Vec<RawRecord>> {
+    path_column: Option<&str>,
+) -> Result<Manifest> {
+    let column = crate::path_column::choose(&rows, path_column, source)?;
+    crate::path_column::check_rows(&rows, &column, source)?;
     let mut out = Vec::with_capacity(rows.len());
-    for (n, row) in rows.into_iter().enumerate() {
+    for row in rows {
         let get = |k: &str| row.get(k).filter(|v| !v.is_empty()).cloned();
-        let Some(uri) = PATH_COLUMNS.iter().find_map(|k| get(k)) else {
-            bail!(
-                "{}: row {}: no path (expected a column named one of {:?})",
-                source.display(),
-                n + 1,
-                PATH_COLUMNS
-            );
-        };
+        let uri = get(&column.name).unwrap_or_default();
         let p = PathBuf::from(&uri);
-        let abs = if p.is_absolute() || uri.contains("://") {
+        let abs = if p.is_absolute() {
             uri
         } else {
             base.join(p).to_string_lossy().into_owned()
@@ -71,8 +77,10 @@ fn from_table(
             format: get("format"),
         });
     }
-    let _ = ID_COLUMNS;
-    Ok(out)
+    Ok(Manifest {
+        records: out,
+        path_column: column,
+    })
 }
 
 fn string_at(col: &dyn Array, i: usize) -> Option<String> {
@@ -114,8 +122,9 @@ fn read_parquet_table(path: &Path) -> Result<Vec<BTreeMap<String, String>>> {
     Ok(rows)
 }
 
-/// Reads a manifest file.
-pub fn read(path: &Path) -> Result<Vec<RawRecord>> {
+/// Reads a manifest file; `path_column` is `--path-column` (otherwise `path_column.rs`'s rule
+/// picks the column).
+pub fn read(path: &Path, path_column: Option<&str>) -> Result<Manifest> {
     let base = path.parent().map(|p| p.to_path_buf()).unwrap_or_default();
     let base = std::fs::canonicalize(if base.as_os_str().is_empty() {
         Path::new(".")
@@ -176,7 +185,7 @@ pub fn read(path: &Path) -> Result<Vec<RawRecord>> {
             path.display()
         ),
     };
-    from_table(rows, &base, path)
+    from_table(rows, &base, path, path_column)
 }
 
 /// Writes manifest records; the format follows the extension.

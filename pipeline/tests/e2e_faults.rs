@@ -449,12 +449,20 @@ fn write_failures_are_explained_and_the_run_exits_non_zero() {
 }
 
 /// Item 12: an item memory limit too small to start the conversion thread says so, naming
-/// the limit, without repeating the class in the message.
+/// the limit, without repeating the class in the message. Every item fails for it, so `run`
+/// exits 1 (issue 32, item 7: a cause that affects every item is no success).
 #[test]
 fn too_small_item_memory_names_the_limit() {
     let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
     let job = new_job(tmp.path());
-    ok(&["run", s(&job), "--workers", "2", "--item-memory", "20M"]);
+    let out = sparc3d(&["run", s(&job), "--workers", "2", "--item-memory", "20M"]);
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("no item converted"),
+        "{}",
+        stderr(&out)
+    );
+    assert_eq!(status(&job)["pending"], 0);
     let text = ok(&["failures", s(&job), "--json"]);
     let mut n = 0;
     for line in text.lines() {

@@ -238,9 +238,16 @@ fn timeouts_are_failed_rows_and_retry_converts_them_again() {
     // row that arrives before it.
     let (job, _) = setup_at(tmp.path(), "job", "320", &[]);
     let j = job.to_string_lossy().into_owned();
-    ok(&["run", &j, "--workers", "2", "--item-timeout", "0.001"]);
+    let out = sparc3d(&["run", &j, "--workers", "2", "--item-timeout", "0.001"]);
     assert_each_item_once(&job);
     let s = status(&job);
+    // When every item timed out, `run` says no item converted and exits 1 (issue 32, item 7).
+    let none_ok = s["ok"] == 0 && out.status.code() == Some(1);
+    assert!(
+        out.status.success() || none_ok,
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     // Items that answer before the watchdog's first look are kept; the others time out.
     let timeouts = s["error_classes"]["timeout"].as_u64().unwrap_or(0);
     assert!(timeouts > 0, "{s}");

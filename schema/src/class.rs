@@ -68,11 +68,14 @@ pub enum ErrorClass {
     Crashed,
     /// Encoding the result into tensors failed.
     EncodeError,
+    /// The file's bytes are not the ones the manifest froze (their sha256 differs): it
+    /// changed after `init`, so it was not converted under the item's id.
+    SourceChanged,
 }
 
 impl ErrorClass {
     /// Every class, in a stable order.
-    pub const ALL: [ErrorClass; 12] = [
+    pub const ALL: [ErrorClass; 13] = [
         ErrorClass::ParseError,
         ErrorClass::UnsupportedFormat,
         ErrorClass::EmptyMesh,
@@ -85,6 +88,7 @@ impl ErrorClass {
         ErrorClass::OutOfMemory,
         ErrorClass::Crashed,
         ErrorClass::EncodeError,
+        ErrorClass::SourceChanged,
     ];
 
     /// The snake_case name stored in the `error_class` column.
@@ -102,6 +106,7 @@ impl ErrorClass {
             ErrorClass::OutOfMemory => "out_of_memory",
             ErrorClass::Crashed => "crashed",
             ErrorClass::EncodeError => "encode_error",
+            ErrorClass::SourceChanged => "source_changed",
         }
     }
 

@@ -193,7 +193,9 @@ impl JobConfig {
         })
     }
 
-    /// Refuses parameters the converter would refuse and a shard size of 0.
+    /// Refuses parameters the converter would refuse, a shard size of 0, a zstd level zstd
+    /// does not have, a sample rate outside [0, 1] and an item time limit that is not a
+    /// positive number of seconds; each message names the key and its valid range.
     pub fn validate(&self) -> Result<()> {
         self.params.validate().map_err(|e| SchemaError::Invalid {
             what: "job config",
@@ -213,6 +215,38 @@ impl JobConfig {
                 what: "job config",
                 value: "shard_size must be at least 1".into(),
             });
+        }
+        self.validate_settings()
+    }
+
+    /// The range checks of the keys beside `params`, `samples` and `shard_size`.
+    fn validate_settings(&self) -> Result<()> {
+        let invalid = |value: String| {
+            Err(SchemaError::Invalid {
+                what: "job config",
+                value,
+            })
+        };
+        let levels = zstd::compression_level_range();
+        if !levels.contains(&self.zstd_level) {
+            return invalid(format!(
+                "zstd_level must be in {}..={}, got {}",
+                levels.start(),
+                levels.end(),
+                self.zstd_level
+            ));
+        }
+        if !(0.0..=1.0).contains(&self.validation_sample_rate) {
+            return invalid(format!(
+                "validation_sample_rate must be in [0, 1], got {}",
+                self.validation_sample_rate
+            ));
+        }
+        let timeout = self.limits.item_timeout_s;
+        if !(timeout.is_finite() && timeout > 0.0) {
+            return invalid(format!(
+                "limits.item_timeout_s must be a positive number of seconds, got {timeout}"
+            ));
         }
         Ok(())
     }

@@ -545,3 +545,66 @@ fn gltf_node_dag_is_bounded_before_reading() {
     let p = write(dir.path(), "shallow.gltf", shallow.as_bytes());
     assert_eq!(load(&p).expect("shallow dag").mesh.face_count(), 16);
 }
+
+/// Issue 32, item 8: an OBJ with vertices but no valid face says how many vertices the file
+/// has (tobj keeps only those a face uses, so the message used to say "0 vertices").
+#[test]
+fn an_obj_without_a_valid_face_counts_the_vertices_of_the_file() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let cases: [(&str, &[u8], &str); 3] = [
+        (
+            "no_face.obj",
+            b"v 0 0 0\nv 1 0 0\nv 0 1 0\n",
+            "(3 vertices and no face)",
+        ),
+        (
+            "bad_face.obj",
+            b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n",
+            "(3 vertices; dropped 1 faces with a bad vertex index, the first at OBJ line 4",
+        ),
+        (
+            "segment.obj",
+            b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2\n",
+            "(3 vertices; skipped 0 points and 1 line segments)",
+        ),
+    ];
+    for (name, bytes, says) in cases {
+        let e = expect_err(&write(dir.path(), name, bytes), ErrorClass::EmptyMesh);
+        assert!(e.to_string().contains(says), "{name}: {e}");
+    }
+}
+
+/// Issue 32, item 8: a 2 GB sparse all-zero `.stl` (its header claims 0 triangles) is an
+/// empty mesh from its first kilobyte; `read_source` hands back no 2 GB buffer. Files whose
+/// header alone is not the answer read as before.
+#[test]
+fn an_stl_header_claiming_no_triangle_is_empty_without_reading_the_file() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let big = dir.path().join("zeros.stl");
+    let f = std::fs::File::create(&big).expect("create");
+    f.set_len(2 << 30).expect("a sparse file of 2 GiB");
+    drop(f);
+    let e = match sparcubes::io::read_source(&big) {
+        Ok(bytes) => panic!("read {} bytes of a file with no triangle", bytes.len()),
+        Err(e) => e,
+    };
+    assert_eq!(e.class(), ErrorClass::EmptyMesh, "{e}");
+    let text = e.to_string();
+    assert!(
+        text.contains("empty mesh") && text.contains("claims 0 triangles"),
+        "{text}"
+    );
+    let e = expect_err(&big, ErrorClass::EmptyMesh);
+    assert!(e.to_string().contains("claims 0 triangles"), "{e}");
+    // A header alone (84 bytes) is empty too; an ascii file is read as ascii; a binary file
+    // with triangles still loads.
+    expect_err(
+        &write(dir.path(), "header.stl", &[0u8; 84]),
+        ErrorClass::EmptyMesh,
+    );
+    let ascii = b"solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid t\n";
+    let loaded = load(&write(dir.path(), "ascii.stl", ascii)).expect("ascii STL");
+    assert_eq!(loaded.mesh.face_count(), 1);
+    let loaded = load(&example("wuson.stl")).expect("binary STL");
+    assert!(loaded.mesh.face_count() > 0);
+}

@@ -119,10 +119,30 @@ pub struct Failed {
 
 /// Loads the mesh at `path` and takes it through `steps`.
 pub fn convert_file(path: &Path, steps: Steps) -> Result<Converted, Box<Failed>> {
+    let started = Instant::now();
+    match sparcubes::io::read_source(path) {
+        Ok(bytes) => convert_bytes(bytes, path, steps, started),
+        Err(e) => Err(Box::new(Failed {
+            error: StageError::Load(e),
+            seconds: StageSeconds::default(),
+        })),
+    }
+}
+
+/// Takes the bytes read from `path` ([`sparcubes::io::read_source`], started at `started`,
+/// which the load stage's time counts from) through `steps`; they are dropped once parsed.
+pub fn convert_bytes(
+    bytes: Vec<u8>,
+    path: &Path,
+    steps: Steps,
+    started: Instant,
+) -> Result<Converted, Box<Failed>> {
     let mut seconds = StageSeconds::default();
     let fail = |error, seconds| Box::new(Failed { error, seconds });
-    let t = Instant::now();
-    let (source, load_stats) = match sparcubes::io::load(path) {
+    let t = started;
+    let loaded = sparcubes::io::load_read(&bytes, path);
+    drop(bytes);
+    let (source, load_stats) = match loaded {
         Ok(loaded) => (loaded.mesh, loaded.stats),
         Err(e) => return Err(fail(StageError::Load(e), seconds)),
     };
@@ -232,15 +252,36 @@ fn encode(
 }
 
 /// Converts one item into its shard row (timings `total_s` and `attempts` are filled in by
-/// the supervisor); every error becomes a `failed` row.
+/// the supervisor); every error becomes a `failed` row. The bytes converted are the bytes
+/// hashed: a file whose sha256 is not the one frozen at `init` is a `source_changed` row,
+/// never converted under the item's id ([`check_source`]); an ok row's `source_sha256` is
+/// the hash of the bytes it was converted from.
 pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
     let params = &config.params;
     let path = Path::new(&item.record.uri);
-    let sha = item
-        .record
-        .sha256
-        .clone()
-        .or_else(|| crate::fsutil::file_sha256(path).ok());
+    let started = Instant::now();
+    let failed = |class, message: String, load_s: f64| {
+        let mut row = ShardRow::failed_item(item, params.resolution, class, message);
+        row.timings.load_s = load_s;
+        row
+    };
+    let bytes = match sparcubes::io::read_source(path) {
+        Ok(bytes) => bytes,
+        Err(e) => {
+            let error = StageError::Load(e);
+            return failed(error.class(), error.to_string(), 0.0);
+        }
+    };
+    let sha = crate::fsutil::bytes_sha256(&bytes);
+    if let Err(message) = check_source(item, &sha) {
+        let mut row = failed(
+            ErrorClass::SourceChanged,
+            message,
+            started.elapsed().as_secs_f64(),
+        );
+        row.source_sha256 = Some(sha);
+        return row;
+    }
     let steps = Steps {
         params,
         input_components: true,
@@ -252,12 +293,11 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
             store_mesh: config.store_mesh,
         }),
     };
-    let done = match convert_file(path, steps) {
+    let done = match convert_bytes(bytes, path, steps, started) {
         Ok(done) => done,
-        Err(failed) => {
-            let Failed { error, seconds } = *failed;
-            let class = error.class();
-            let mut row = ShardRow::failed_item(item, params.resolution, class, error.to_string());
+        Err(failure) => {
+            let Failed { error, seconds } = *failure;
+            let mut row = failed(error.class(), error.to_string(), 0.0);
             row.timings = seconds.timings;
             return row;
         }
@@ -268,7 +308,7 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
         item_index: item.index,
         id: item.record.id.clone(),
         uri: item.record.uri.clone(),
-        source_sha256: sha,
+        source_sha256: Some(sha),
         status: ItemStatus::Ok,
         error_class: None,
         error_message: None,
@@ -288,6 +328,24 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
         }),
         timings: done.seconds.timings,
         tensors: done.tensors,
+    }
+}
+
+/// Refuses bytes whose sha256 (`found`) is not the one the item was frozen with: the file
+/// changed after the manifest was made (or its sha256 column is wrong), and the item's id
+/// stands for the frozen bytes. An item frozen without a sha256 (a manifest with ids and no
+/// sha256 column) has nothing to compare with. Only the file the manifest names is hashed;
+/// a glTF file's external buffers are not part of its sha256 (docs/RELIABILITY.md).
+fn check_source(item: &FrozenItem, found: &str) -> Result<(), String> {
+    match &item.record.sha256 {
+        Some(frozen) if !frozen.eq_ignore_ascii_case(found) => Err(format!(
+            "{}: the file's sha256 is {found}, not {frozen} as the manifest froze it: the file \
+             changed after the manifest was made, so it was not converted under its id; restore \
+             it and `sparc3d retry JOB --class source_changed`, or convert the new file in a \
+             new job",
+            item.record.uri
+        )),
+        _ => Ok(()),
     }
 }
 

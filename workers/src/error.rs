@@ -43,6 +43,21 @@ pub enum WorkerError {
         /// The new owner.
         owner: String,
     },
+    /// The job's own files no longer match what `init` recorded (hand edits): every command
+    /// but a read-only one refuses the job.
+    #[error(
+        "{} was changed after `sparc3d init`, so this command refuses it: {}. Restore the \
+         files as init wrote them, or make a new job folder; read-only commands (status, ls, \
+         failures, inspect, show) still read it",
+        root.display(),
+        problems.join("; ")
+    )]
+    EditedJob {
+        /// The job folder.
+        root: PathBuf,
+        /// What differs, one finding per file and fact.
+        problems: Vec<String>,
+    },
     /// The item worker process could not be started or talked to.
     #[error("item worker: {0}")]
     Child(String),
@@ -84,13 +99,14 @@ pub enum WorkerError {
     },
 }
 
-fn hint(e: &std::io::Error) -> &'static str {
+/// What to do about an I/O error, for the end of its message (" (disk full: …)"), or nothing.
+pub fn hint(e: &std::io::Error) -> String {
     errno_hint(e.raw_os_error())
 }
 
 /// The hint for an I/O error inside a Parquet error: the writer reports it wrapped, or only
 /// as text (`... (os error 28)`).
-fn parquet_hint(e: &parquet::errors::ParquetError) -> &'static str {
+fn parquet_hint(e: &parquet::errors::ParquetError) -> String {
     if let parquet::errors::ParquetError::External(inner) = e {
         if let Some(io) = inner.downcast_ref::<std::io::Error>() {
             return hint(io);
@@ -104,18 +120,44 @@ fn parquet_hint(e: &parquet::errors::ParquetError) -> &'static str {
     errno_hint(errno)
 }
 
-fn errno_hint(errno: Option<i32>) -> &'static str {
+fn errno_hint(errno: Option<i32>) -> String {
     match errno {
         Some(libc::ENOSPC) | Some(libc::EDQUOT) => {
-            " (disk full: free space and run again; finished items are kept)"
+            " (disk full: free space and run again; finished items are kept)".into()
         }
         Some(libc::EFBIG) => {
             " (file size limit reached: raise the limit and run again; finished items are kept)"
+                .into()
         }
         Some(libc::EACCES) | Some(libc::EROFS) | Some(libc::EPERM) => {
-            " (output folder not writable: fix permissions and run again)"
+            " (output folder not writable: fix permissions and run again)".into()
         }
-        _ => "",
+        Some(libc::EMFILE) => format!(
+            " (this process's open-file limit is {}: raise it (`ulimit -n`) and run again; \
+             finished items are kept)",
+            open_file_limit()
+        ),
+        Some(libc::ENFILE) => {
+            " (the system's open-file table is full: close files and run again; finished \
+             items are kept)"
+                .into()
+        }
+        _ => String::new(),
+    }
+}
+
+/// The soft limit on this process's open files (`ulimit -n`), as text.
+fn open_file_limit() -> String {
+    let mut limit = libc::rlimit {
+        rlim_cur: 0,
+        rlim_max: 0,
+    };
+    // SAFETY: getrlimit writes the struct it is given and reads nothing else.
+    let ok = unsafe { libc::getrlimit(libc::RLIMIT_NOFILE, &mut limit) } == 0;
+    match (ok, limit.rlim_cur) {
+        (false, _) => "unknown".into(),
+        (true, libc::RLIM_INFINITY) => "unlimited".into(),
+        (true, n) => n.to_string(),
     }
 }
 

@@ -62,6 +62,12 @@ pub fn file_sha256(path: &Path) -> Result<String> {
     Ok(sparc3d_schema::config::hex(&h.finalize()))
 }
 
+/// Hex sha256 of bytes in memory (a source file as the worker read it).
+pub fn bytes_sha256(bytes: &[u8]) -> String {
+    use sha2::{Digest, Sha256};
+    sparc3d_schema::config::hex(&Sha256::digest(bytes))
+}
+
 /// The stamp of a file from its metadata: modification and change times and inode.
 pub fn file_stamp(meta: &std::fs::Metadata) -> FileStamp {
     use std::os::unix::fs::MetadataExt;

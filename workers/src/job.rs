@@ -3,7 +3,6 @@
 use crate::error::{Result, WorkerError};
 use crate::fsutil::read_json;
 use sparc3d_schema::{FrozenItem, JobFile, JobLayout};
-use std::io::BufRead;
 use std::path::Path;
 
 /// An initialised job.
@@ -18,8 +17,27 @@ pub struct Job {
 }
 
 impl Job {
-    /// Opens the job folder `root` (written by `sparc3d init`).
+    /// Opens the job folder `root` (written by `sparc3d init`) for a command that changes it
+    /// or trusts it (`run`, `work`, `retry`, `verify`, `submit`, `init` again): a job whose
+    /// files no longer match what `init` recorded (a hand edit of `job.json` or
+    /// `manifest.jsonl`, a config out of range: [`crate::job_files::problems`]) is refused,
+    /// naming each file and what differs.
     pub fn open(root: &Path) -> Result<Self> {
+        let (job, problems) = Self::open_read_only(root)?;
+        if problems.is_empty() {
+            return Ok(job);
+        }
+        Err(WorkerError::EditedJob {
+            root: root.to_path_buf(),
+            problems,
+        })
+    }
+
+    /// Opens the job folder `root` for a command that only reads it (`status`, `ls`,
+    /// `failures`, `inspect`, ...): also a job whose files were edited after `init`, with what
+    /// was found ([`crate::job_files::problems`]; empty when nothing was), for the command to
+    /// say.
+    pub fn open_read_only(root: &Path) -> Result<(Self, Vec<String>)> {
         let layout = JobLayout::new(root);
         let job_file = layout.job_file();
         if !job_file.exists() {
@@ -29,18 +47,23 @@ impl Job {
             });
         }
         let file: JobFile = read_json(&job_file)?;
-        let items = read_frozen_manifest(&layout.manifest())?;
+        let manifest = layout.manifest();
+        let bytes =
+            std::fs::read(&manifest).map_err(|e| WorkerError::io("reading", &manifest, e))?;
+        let items = parse_frozen_manifest(&manifest, &bytes)?;
         if items.len() as u64 != file.items {
             return Err(WorkerError::BadFile {
                 path: layout.manifest(),
                 reason: format!("{} items, job.json says {}", items.len(), file.items),
             });
         }
-        Ok(Self {
+        let job = Self {
             layout,
             file,
             items,
-        })
+        };
+        let problems = crate::job_files::problems(&job, &bytes);
+        Ok((job, problems))
     }
 
     /// The items of one shard, in manifest order.
@@ -59,14 +82,22 @@ impl Job {
 
 /// Reads a frozen manifest (`manifest.jsonl`).
 pub fn read_frozen_manifest(path: &Path) -> Result<Vec<FrozenItem>> {
-    let f = std::fs::File::open(path).map_err(|e| WorkerError::io("reading", path, e))?;
+    let bytes = std::fs::read(path).map_err(|e| WorkerError::io("reading", path, e))?;
+    parse_frozen_manifest(path, &bytes)
+}
+
+/// Parses the bytes of the frozen manifest at `path`: one item per line, in index order.
+fn parse_frozen_manifest(path: &Path, bytes: &[u8]) -> Result<Vec<FrozenItem>> {
     let mut items = Vec::new();
-    for (n, line) in std::io::BufReader::new(f).lines().enumerate() {
-        let line = line.map_err(|e| WorkerError::io("reading", path, e))?;
+    for (n, line) in bytes.split(|&b| b == b'\n').enumerate() {
+        let line = std::str::from_utf8(line).map_err(|e| WorkerError::BadFile {
+            path: path.to_path_buf(),
+            reason: format!("line {}: {e}", n + 1),
+        })?;
         if line.trim().is_empty() {
             continue;
         }
-        let item: FrozenItem = serde_json::from_str(&line).map_err(|e| WorkerError::BadFile {
+        let item: FrozenItem = serde_json::from_str(line).map_err(|e| WorkerError::BadFile {
             path: path.to_path_buf(),
             reason: format!("line {}: {e}", n + 1),
         })?;

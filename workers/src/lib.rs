@@ -1,13 +1,14 @@
 //! Processing of one shard of a sparc3d job: claim it, convert each item in isolation,
 //! checkpoint finished items, and write the Parquet shard atomically.
 //!
-//! Roles, one module each: [`job`] (read a job folder), [`lease`] (who works on a shard),
-//! [`journal`] (finished items, appended and fsynced), [`convert`] (the one function that
-//! touches geometry), [`child`] (the isolated process that runs it), [`process`] (the one
-//! child-process supervisor: stderr tail, parent-death signal, time limit, resource use),
-//! [`supervisor`] (runs items in a child, with a watchdog, and classifies its deaths),
-//! [`shard`] (the loop over a shard's items), [`store`] (shards on disk: write, check against
-//! their completion records, read back), [`events`] (progress reports).
+//! Roles, one module each: [`job`] (read a job folder), [`job_files`] (are its files as `init`
+//! wrote them), [`lease`] (who works on a shard), [`journal`] (finished items, appended and
+//! fsynced), [`convert`] (the one function that touches geometry), [`child`] (the isolated
+//! process that runs it), [`process`] (the one child-process supervisor: stderr tail,
+//! parent-death signal, time limit, resource use), [`supervisor`] (runs items in a child, with
+//! a watchdog, and classifies its deaths), [`shard`] (the loop over a shard's items), [`store`]
+//! (shards on disk: write, check against their completion records, read back), [`events`]
+//! (progress reports).
 #![deny(missing_docs)]
 
 pub mod child;
@@ -17,6 +18,7 @@ pub mod events;
 pub mod frame;
 pub mod fsutil;
 pub mod job;
+pub mod job_files;
 pub mod journal;
 pub mod lease;
 pub mod parent;

@@ -172,7 +172,11 @@ impl ItemRunner {
             ..Default::default()
         };
         let mut process = Process::spawn(&mut cmd, &options).map_err(|e| {
-            WorkerError::Child(format!("starting {}: {e}", self.cmd.program.display()))
+            WorkerError::Child(format!(
+                "starting {}: {e}{}",
+                self.cmd.program.display(),
+                crate::error::hint(&e)
+            ))
         })?;
         let (Some(mut stdin), Some(stdout)) = (process.take_stdin(), process.take_stdout()) else {
             return Err(WorkerError::Child("no pipes to the item worker".into()));

@@ -138,8 +138,9 @@ fn collect_inputs(input: &Path) -> Result<Vec<PathBuf>> {
     } else if sparcubes::io::Format::from_extension(input).is_some() {
         files.push(input.to_path_buf());
     } else if input.is_file() {
-        files = manifest_io::read(input)
+        files = manifest_io::read(input, None)
             .with_context(|| format!("reading manifest {}", input.display()))?
+            .records
             .into_iter()
             .map(|r| PathBuf::from(r.uri))
             .collect();

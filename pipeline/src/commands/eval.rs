@@ -12,7 +12,6 @@ use anyhow::{bail, Context};
 use serde_json::{json, Value};
 use sparc3d_metrics::{evaluate, EvalOptions, QualityReport};
 use sparc3d_schema::ShardRow;
-use sparc3d_workers::Job;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -113,7 +112,7 @@ fn eval_row(row: &ShardRow, args: &Args) -> anyhow::Result<QualityReport> {
 
 /// `sparc3d eval JOB --sample N`.
 fn run_job(args: &Args) -> anyhow::Result<ExitCode> {
-    let job = Job::open(&args.source)?;
+    let job = crate::job_setup::open_read_only(&args.source)?;
     let size = args.sample.unwrap_or(DEFAULT_JOB_SAMPLE);
     let drawn = sample::draw(&job, size, args.sample_seed)?;
     eprintln!(

@@ -1,10 +1,11 @@
-//! `sparc3d failures JOB [--json]`: every failed item with its class and message.
+//! `sparc3d failures JOB [--json]`: every failed item with its class and message, one line
+//! each: class, id, source and the whole message, separated by tabs and escaped (`tsv.rs`).
 
+use crate::tsv;
 use anyhow::Result;
 use serde::Serialize;
 use sparc3d_schema::ItemStatus;
 use sparc3d_workers::store::read::shard_rows;
-use sparc3d_workers::Job;
 use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -35,7 +36,7 @@ struct Failure {
 
 /// Runs `sparc3d failures`.
 pub fn run(args: Args) -> Result<ExitCode> {
-    let job = Job::open(&args.job)?;
+    let job = crate::job_setup::open_read_only(&args.job)?;
     let mut n = 0;
     let mut out = std::io::stdout().lock();
     for shard in 0..job.file.shards {
@@ -60,8 +61,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
             let line = if args.json {
                 serde_json::to_string(&f)?
             } else {
-                let msg = f.error_message.lines().next().unwrap_or("");
-                format!("{}\t{}\t{}\t{}", f.error_class, f.id, f.uri, msg)
+                let (id, uri) = (tsv::field(&f.id), tsv::field(&f.uri));
+                let msg = tsv::field(&f.error_message);
+                format!("{}\t{id}\t{uri}\t{msg}", f.error_class)
             };
             if writeln!(out, "{line}").is_err() {
                 return Ok(ExitCode::SUCCESS); // the reader went away (e.g. `| head`)

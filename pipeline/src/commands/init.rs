@@ -1,13 +1,12 @@
-//! `sparc3d init JOB --manifest M [--resolution N] [--shard-size S] [--config job.toml]`:
-//! freezes the manifest into the job folder, gives every item its shard once, and writes the
-//! config with its fingerprint. Re-running with another config is refused, naming the keys.
+//! `sparc3d init JOB --manifest M [--resolution N] [--shard-size S] [--config job.toml]
+//! [--path-column NAME]`: freezes the manifest into the job folder (`freeze.rs`), gives every
+//! item its shard once, and writes the config with its fingerprint. Re-running with another
+//! config is refused, naming the keys; a job whose files were edited since is refused too.
 
 use crate::manifest_io;
 use crate::units::with_default;
 use anyhow::{bail, Context, Result};
-use rayon::prelude::*;
-use sparc3d_schema::{FrozenItem, JobConfig, JobFile, JobLayout, ManifestRecord};
-use std::collections::HashMap;
+use sparc3d_schema::{JobConfig, JobFile, JobLayout};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -19,6 +18,10 @@ pub struct Args {
     /// Manifest (.csv, .jsonl or .parquet with a path column).
     #[arg(long)]
     pub manifest: PathBuf,
+    /// The manifest's column of local paths, when it has several path-like columns that the
+    /// rule cannot tell apart (docs/RELIABILITY.md, "Manifests").
+    #[arg(long, value_name = "NAME")]
+    pub path_column: Option<String>,
     #[command(flatten)]
     pub config: ConfigArgs,
 }
@@ -68,63 +71,55 @@ pub fn build_config(args: &ConfigArgs) -> Result<JobConfig> {
     Ok(config)
 }
 
-fn freeze(records: Vec<manifest_io::RawRecord>, shard_size: u32) -> Result<Vec<FrozenItem>> {
-    let with_ids: Vec<Result<ManifestRecord>> = records
-        .into_par_iter()
-        .map(|r| {
-            let (id, sha) = match (r.id, r.sha256) {
-                (Some(id), sha) => (id, sha),
-                (None, Some(sha)) => (sha.clone(), Some(sha)),
-                (None, None) => {
-                    let sha = sparc3d_workers::fsutil::file_sha256(std::path::Path::new(&r.uri))
-                        .with_context(|| format!("hashing {} for its id", r.uri))?;
-                    (sha.clone(), Some(sha))
-                }
-            };
-            Ok(ManifestRecord {
-                id,
-                uri: r.uri,
-                sha256: sha,
-                format: r.format,
-            })
-        })
-        .collect();
-    let mut seen: HashMap<String, usize> = HashMap::new();
-    let mut items = Vec::with_capacity(with_ids.len());
-    let mut dups = Vec::new();
-    for (i, rec) in with_ids.into_iter().enumerate() {
-        let rec = rec?;
-        if let Some(first) = seen.get(&rec.id) {
-            dups.push(format!("{} (rows {} and {})", rec.id, first + 1, i + 1));
-            continue;
-        }
-        seen.insert(rec.id.clone(), i);
-        let index = items.len() as u64;
-        items.push(FrozenItem {
-            index,
-            shard: index / shard_size.max(1) as u64,
-            record: rec,
-        });
+/// When the manifest given to `init` again is the one the job was made from (its frozen text
+/// has the sha256 `job.json` recorded) but the job's frozen copy is not: the first line where
+/// they differ, for the error that refuses the job.
+fn frozen_copy_differs(layout: &JobLayout, text: &str, sha256: &str) -> Option<String> {
+    let file: JobFile = sparc3d_workers::fsutil::read_json(&layout.job_file()).ok()?;
+    let frozen = std::fs::read_to_string(layout.manifest()).ok()?;
+    if file.manifest_sha256 != sha256 || frozen == text {
+        return None;
     }
-    if !dups.is_empty() {
-        bail!(
-            "the manifest has {} duplicate ids, e.g. {}; ids must be unique",
-            dups.len(),
-            dups.iter().take(5).cloned().collect::<Vec<_>>().join(", ")
-        );
-    }
-    Ok(items)
+    let mut lines = frozen.lines().zip(text.lines()).enumerate();
+    let line = match lines.find(|(_, (a, b))| a != b) {
+        Some((n, (now, meant))) => format!("line {}: {now}, where it froze {meant}", n + 1),
+        None => format!(
+            "{} lines, where it froze {}",
+            frozen.lines().count(),
+            text.lines().count()
+        ),
+    };
+    Some(format!(
+        "this manifest is the one {} was made from, but its frozen copy {} was edited since: \
+         {line}",
+        layout.root.display(),
+        layout.manifest().display()
+    ))
 }
 
 /// Runs `sparc3d init`.
 pub fn run(args: Args) -> Result<ExitCode> {
     let config = build_config(&args.config)?;
-    let records = manifest_io::read(&args.manifest)?;
-    if records.is_empty() {
-        bail!("{}: the manifest is empty", args.manifest.display());
-    }
-    create(&args.job, records, config)?;
+    let manifest = read_manifest(&args.manifest, args.path_column.as_deref())?;
+    create(&args.job, manifest.records, config)?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// Reads a manifest for a new job, saying which column its paths came from; an empty one is
+/// refused.
+pub fn read_manifest(path: &Path, path_column: Option<&str>) -> Result<manifest_io::Manifest> {
+    let manifest = manifest_io::read(path, path_column)?;
+    if manifest.records.is_empty() {
+        bail!("{}: the manifest is empty", path.display());
+    }
+    eprintln!(
+        "{}: {} rows, paths from column {} ({})",
+        path.display(),
+        manifest.records.len(),
+        manifest.path_column.name,
+        manifest.path_column.why
+    );
+    Ok(manifest)
 }
 
 /// Refuses a config that differs from the one `existing` was created with, naming the keys.
@@ -169,7 +164,7 @@ pub fn check_same_config(existing: &sparc3d_workers::Job, config: &JobConfig) ->
 /// one with another config or manifest is refused.
 pub fn create(job: &Path, records: Vec<manifest_io::RawRecord>, config: JobConfig) -> Result<()> {
     let layout = JobLayout::new(job);
-    let items = freeze(records, config.shard_size)?;
+    let items = crate::freeze::freeze(records, config.shard_size)?;
     let mut text = String::new();
     for it in &items {
         text.push_str(&serde_json::to_string(it)?);
@@ -180,7 +175,12 @@ pub fn create(job: &Path, records: Vec<manifest_io::RawRecord>, config: JobConfi
         sparc3d_schema::config::hex(&Sha256::digest(text.as_bytes()))
     };
     if layout.job_file().exists() {
-        let existing = sparc3d_workers::Job::open(&layout.root)?;
+        let existing = sparc3d_workers::Job::open(&layout.root).map_err(|e| {
+            match frozen_copy_differs(&layout, &text, &manifest_sha256) {
+                Some(line) => anyhow::Error::new(e).context(line),
+                None => e.into(),
+            }
+        })?;
         check_same_config(&existing, &config)?;
         if existing.file.manifest_sha256 != manifest_sha256 {
             bail!(

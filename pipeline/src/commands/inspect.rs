@@ -83,7 +83,7 @@ fn shard_files(target: &Path) -> Result<Vec<PathBuf>> {
         check_alone(target)?;
         return Ok(vec![target.to_path_buf()]);
     }
-    let job = sparc3d_workers::Job::open(target)?;
+    let job = crate::job_setup::open_read_only(target)?;
     let mut files = Vec::new();
     let mut damaged = Vec::new();
     for (shard, state) in (0..).zip(shard_states(&job, Check::Full)?) {

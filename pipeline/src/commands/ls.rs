@@ -1,9 +1,9 @@
 //! `sparc3d ls JOB [--failed] [--json]`: every item of a job in manifest order with its id,
 //! status (`ok`, `failed:CLASS`, `skipped`, `pending`, or `damaged` when its finished shard no longer
 //! matches its record) and source file: where the ids that `show`/`preview --id` take come
-//! from.
+//! from. One line per item, fields separated by tabs and escaped (`tsv.rs`).
 
-use crate::hints;
+use crate::{hints, tsv};
 use anyhow::Result;
 use serde::Serialize;
 use sparc3d_schema::ItemStatus;
@@ -60,7 +60,7 @@ fn shard_statuses(
 
 /// Runs `sparc3d ls`.
 pub fn run(args: Args) -> Result<ExitCode> {
-    let job = Job::open(&args.job)?;
+    let job = crate::job_setup::open_read_only(&args.job)?;
     let mut out = std::io::stdout().lock();
     let mut statuses = None;
     let mut loaded = None;
@@ -98,7 +98,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 Some(c) => format!("{status}:{c}"),
                 None => status.to_string(),
             };
-            format!("{}\t{status}\t{}", listed.id, listed.uri)
+            let (id, uri) = (tsv::field(listed.id), tsv::field(listed.uri));
+            format!("{id}\t{status}\t{uri}")
         };
         if writeln!(out, "{line}").is_err() {
             return Ok(ExitCode::SUCCESS); // the reader went away (e.g. `| head`)

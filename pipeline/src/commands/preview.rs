@@ -10,7 +10,6 @@ use crate::item_lookup;
 use crate::pictures::{preview_mesh, preview_row, write_png};
 use anyhow::{bail, Result};
 use sparc3d_render::CompareOptions;
-use sparc3d_workers::Job;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -65,7 +64,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
             )
         }
         Some(id) => {
-            let job = Job::open(&args.input)?;
+            let job = crate::job_setup::open_read_only(&args.input)?;
             let row = item_lookup::row(&job, item_lookup::find(&job, id)?)?;
             (
                 preview_row(&row, &options)?,

@@ -64,7 +64,7 @@ struct Columns {
 
 /// Runs `sparc3d report`.
 pub fn run(args: Args) -> Result<ExitCode> {
-    let job = Job::open(&args.job)?;
+    let job = crate::job_setup::open_read_only(&args.job)?;
     let summary = summarize(&job)?;
     let columns = read_columns(&job, args.max_failures)?;
     let options = CompareOptions {

@@ -8,7 +8,8 @@
 //! leases). A shard leased by another live worker (another `run`, a cluster task, or the
 //! workers of a `run` just killed) is waited for and taken over once its lease is released
 //! or expires; one shard's failure does not stop the others; and `run` exits 0 only when every
-//! shard is done, otherwise it names what is left and exits non-zero.
+//! shard is done and some item converted, otherwise it names what is left (or that every item
+//! failed) and exits non-zero.
 
 use super::work::LimitArgs;
 use crate::local_workers::LocalWorkers;
@@ -36,6 +37,9 @@ pub struct Args {
     pub job: Option<PathBuf>,
     #[command(flatten)]
     pub config: super::init::ConfigArgs,
+    /// With --job and a manifest: its column of local paths, as `init --path-column`.
+    #[arg(long, value_name = "NAME")]
+    pub path_column: Option<String>,
     /// Worker processes (default: number of cores).
     #[arg(long)]
     pub workers: Option<usize>,
@@ -52,7 +56,12 @@ pub struct Args {
 
 /// Runs `sparc3d run`.
 pub fn run(args: Args) -> Result<ExitCode> {
-    let job_dir = crate::job_setup::job_for_run(&args.input, args.job.as_deref(), &args.config)?;
+    let job_dir = crate::job_setup::job_for_run(
+        &args.input,
+        args.job.as_deref(),
+        &args.config,
+        args.path_column.as_deref(),
+    )?;
     let job = Job::open(&job_dir)?;
     let stop = install_signals()?;
     let cores = std::thread::available_parallelism()
@@ -83,9 +92,18 @@ pub fn run(args: Args) -> Result<ExitCode> {
         limit_args: args.limits.to_args(),
         threads,
     };
-    let errors =
-        Pool::new(launcher, workers, queue, waiting).run(&mut progress, &|| stop.requested())?;
+    // An error of the pool itself (a worker that cannot be started: too many open files) ends
+    // the run like a failed shard: said, then what is left is named below.
+    let (errors, pool_error) = match Pool::new(launcher, workers, queue, waiting)
+        .run(&mut progress, &|| stop.requested())
+    {
+        Ok(errors) => (errors, None),
+        Err(e) => (Vec::new(), Some(e)),
+    };
     let (ok, failed, retried) = progress.finish();
+    if let Some(e) = &pool_error {
+        eprintln!("error: {}{}", crate::describe(e), os_hint(e));
+    }
     let elapsed = start.elapsed().as_secs_f64();
     let after = summarize(&job)?;
     let converted = (after.ok + after.failed).saturating_sub(before.ok + before.failed);
@@ -109,8 +127,11 @@ pub fn run(args: Args) -> Result<ExitCode> {
         failures_hint();
         return Ok(stop.exit_code());
     }
-    if after.shards_done < after.shards || after.pending > 0 {
-        print_unfinished(&job, &after, errors.len())?;
+    let unfinished = after.shards_done < after.shards || after.pending > 0;
+    if unfinished || pool_error.is_some() {
+        if unfinished {
+            print_unfinished(&job, &after, errors.len())?;
+        }
         failures_hint();
         return Ok(ExitCode::FAILURE);
     }
@@ -118,6 +139,10 @@ pub fn run(args: Args) -> Result<ExitCode> {
     // journal and lease behind; every shard is done now, so they go.
     for shard in 0..after.shards {
         sparc3d_workers::shard::clear_leftovers(&job, shard, args.limits.lease_ttl)?;
+    }
+    if after.ok == 0 && after.failed > 0 {
+        print_all_failed(&job_dir, &after);
+        return Ok(ExitCode::FAILURE);
     }
     eprintln!("{}", crate::hints::next_steps(&job_dir, after.shards));
     failures_hint();
@@ -127,6 +152,14 @@ pub fn run(args: Args) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// The hint for an I/O error inside `e` (the open-file limit, a full disk), or nothing.
+fn os_hint(e: &anyhow::Error) -> String {
+    e.chain()
+        .find_map(|c| c.downcast_ref::<std::io::Error>())
+        .map(sparc3d_workers::error::hint)
+        .unwrap_or_default()
+}
+
 /// Names what is left when shards are not finished, and how to resume.
 fn print_unfinished(job: &Job, after: &JobSummary, failed_shards: usize) -> Result<()> {
     let left: Vec<String> = shard_states(job, Check::Quick)?
@@ -134,24 +167,47 @@ fn print_unfinished(job: &Job, after: &JobSummary, failed_shards: usize) -> Resu
         .enumerate()
         .filter(|(_, s)| !matches!(s, ShardState::Done(_)))
         .map(|(i, _)| i.to_string())
-        .take(20)
         .collect();
+    let failed = if failed_shards == 0 {
+        String::new()
+    } else {
+        format!("{failed_shards} shard(s) failed (above); ")
+    };
+    if left.is_empty() {
+        // Every shard is done, yet items have no row: the job's files disagree with each
+        // other (never the case for a job as init wrote it, which `Job::open` checks).
+        eprintln!(
+            "error: every shard is done but {} of {} items have no row in them; {failed}`sparc3d \
+             verify {}` checks the shards against their records",
+            after.pending,
+            after.items,
+            job.layout.root.display()
+        );
+        return Ok(());
+    }
     eprintln!(
-        "error: {} items in {} shards are not finished (shards {}{}); {}fix the cause and \
+        "error: {} items in {} shards are not finished (shards {}{}); {failed}fix the cause and \
          run again to resume (finished items are kept)",
         after.pending,
-        after.shards - after.shards_done,
-        left.join(", "),
-        if after.shards - after.shards_done > 20 {
-            ", …"
-        } else {
-            ""
-        },
-        if failed_shards == 0 {
-            String::new()
-        } else {
-            format!("{failed_shards} shard(s) failed (above); ")
-        },
+        left.len(),
+        left.iter().take(20).cloned().collect::<Vec<_>>().join(", "),
+        if left.len() > 20 { ", …" } else { "" },
     );
     Ok(())
+}
+
+/// Says that no item of a finished job converted: a cause shared by every item (a wrong path
+/// column, an unreadable folder, a config every mesh fails with) is not a success.
+fn print_all_failed(job_dir: &std::path::Path, after: &JobSummary) {
+    let mut classes: Vec<_> = after.error_classes.iter().collect();
+    classes.sort_by(|a, b| b.1.cmp(a.1).then(a.0.cmp(b.0)));
+    let classes: Vec<String> = classes.iter().map(|(c, n)| format!("{n} {c}")).collect();
+    eprintln!(
+        "error: no item converted: all {} items failed ({}); a cause that affects every item is \
+         likely (a path column of URLs or of another machine's paths, an unreadable folder, a \
+         config every mesh fails with): `sparc3d failures {}` says why",
+        after.failed,
+        classes.join(", "),
+        job_dir.display()
+    );
 }

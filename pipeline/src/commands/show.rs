@@ -3,7 +3,6 @@
 
 use crate::item_lookup;
 use anyhow::{Context, Result};
-use sparc3d_workers::Job;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -29,7 +28,7 @@ pub struct Args {
 
 /// Runs `sparc3d show`.
 pub fn run(args: Args) -> Result<ExitCode> {
-    let job = Job::open(&args.job)?;
+    let job = crate::job_setup::open_read_only(&args.job)?;
     let item = item_lookup::find(&job, &args.id)?;
     // The shard is hashed against its completion record before its row is trusted.
     let row = item_lookup::row(&job, item)?;

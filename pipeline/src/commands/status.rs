@@ -4,7 +4,6 @@
 use crate::summary::{summarize, RATE_MIN_ITEMS, RATE_MIN_SECONDS};
 use crate::units::format_seconds;
 use anyhow::Result;
-use sparc3d_workers::Job;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -20,7 +19,7 @@ pub struct Args {
 
 /// Runs `sparc3d status`.
 pub fn run(args: Args) -> Result<ExitCode> {
-    let job = Job::open(&args.job)?;
+    let job = crate::job_setup::open_read_only(&args.job)?;
     let s = summarize(&job)?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&s)?);

@@ -56,6 +56,9 @@ pub struct LoadStats {
     /// Triangles dropped because an earlier one has the same three vertex indices (in any
     /// order): [`crate::duplicate_faces`].
     pub faces_duplicate: u64,
+    /// Vertices the file defines, when its reader keeps only those a face uses (OBJ): what
+    /// an empty mesh's message counts.
+    pub vertices_in_file: Option<u64>,
 }
 
 /// A loaded, sanitised mesh and what loading did to it.
@@ -240,9 +243,34 @@ pub fn open_regular(path: &Path) -> std::io::Result<(std::fs::File, u64)> {
     Ok((file, meta.len()))
 }
 
+/// Bytes read from the start of a file before the rest, for checks that can refuse the file
+/// without reading it whole ([`stl::empty_by_header`]).
+const HEAD_BYTES: u64 = 1024;
+
+/// Reads a mesh file's bytes as [`load`] does, for a caller that needs the bytes themselves
+/// (the job's worker hashes what it converts) before [`load_read`] parses them: [`read_file`],
+/// except that a `.stl` whose binary header claims no triangle is refused as an empty mesh
+/// after its first kilobyte, however long the file is.
+pub fn read_source(path: &Path) -> Result<Vec<u8>> {
+    let stl = Format::from_extension(path) == Some(Format::Stl);
+    read_checked(path, |head, len| {
+        let reason = stl.then(|| stl::empty_by_header(head, len)).flatten()?;
+        Some(Error::EmptyMesh {
+            context: path.display().to_string(),
+            reason,
+        })
+    })
+}
+
 /// Reads a regular file whole ([`open_regular`]), refusing files over [`MAX_FILE_BYTES`]
 /// (also one that grows past it while being read) and empty files.
 pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>> {
+    read_checked(path, |_, _| None)
+}
+
+/// [`read_file`], reading the first [`HEAD_BYTES`] first: `refuse` sees them and the file's
+/// length, and an error it returns ends the read there.
+fn read_checked(path: &Path, refuse: impl Fn(&[u8], u64) -> Option<Error>) -> Result<Vec<u8>> {
     use std::io::Read;
     let io_err = |source| Error::Io {
         path: path.to_path_buf(),
@@ -251,7 +279,7 @@ pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>> {
     if std::fs::metadata(path).is_ok_and(|m| m.is_dir()) {
         return Err(parse_err(path, "is a directory, not a mesh file"));
     }
-    let (file, len) = open_regular(path).map_err(io_err)?;
+    let (mut file, len) = open_regular(path).map_err(io_err)?;
     let over = |len: u64| {
         too_large(
             path,
@@ -261,8 +289,18 @@ pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>> {
     if len > MAX_FILE_BYTES {
         return Err(over(len));
     }
-    let mut bytes = Vec::with_capacity(len as usize);
-    file.take(MAX_FILE_BYTES + 1)
+    let mut head = Vec::with_capacity(HEAD_BYTES as usize);
+    file.by_ref()
+        .take(HEAD_BYTES)
+        .read_to_end(&mut head)
+        .map_err(io_err)?;
+    if let Some(e) = refuse(&head, len) {
+        return Err(e);
+    }
+    let mut bytes = Vec::with_capacity(len.max(head.len() as u64) as usize);
+    bytes.extend_from_slice(&head);
+    drop(head);
+    file.take(MAX_FILE_BYTES + 1 - bytes.len() as u64)
         .read_to_end(&mut bytes)
         .map_err(io_err)?;
     if bytes.len() as u64 > MAX_FILE_BYTES {
@@ -303,23 +341,33 @@ fn empty_reason(format: Format, stats: &LoadStats, vertices: usize) -> String {
             stats.points_skipped, stats.lines_skipped
         ));
     }
+    let dropped = stats.faces_bad_index + stats.faces_non_finite;
+    if dropped + stats.points_skipped + stats.lines_skipped == 0 {
+        reason.push_str(" and no face");
+    }
     reason.push(')');
     reason
 }
 
 /// Loads a mesh file, choosing the format by extension (then by content), and sanitises it.
 pub fn load(path: &Path) -> Result<LoadedMesh> {
-    let bytes = read_file(path)?;
+    load_read(&read_source(path)?, path)
+}
+
+/// Parses and sanitises the bytes [`read_source`] read from `path`, choosing the format by
+/// the extension of `path` (then by content); `path` names the file in errors and locates a
+/// glTF file's external buffers.
+pub fn load_read(bytes: &[u8], path: &Path) -> Result<LoadedMesh> {
     let format = match Format::from_extension(path) {
         Some(f) => f,
-        None => Format::sniff(&bytes).ok_or_else(|| Error::UnsupportedFormat {
+        None => Format::sniff(bytes).ok_or_else(|| Error::UnsupportedFormat {
             path: path.to_path_buf(),
             reason: "unknown extension and unrecognised content (supported: .obj, .ply, \
                      .stl, .off, .gltf, .glb)"
                 .to_string(),
         })?,
     };
-    load_bytes(&bytes, format, path)
+    load_bytes(bytes, format, path)
 }
 
 /// Reads and sanitises a mesh of a known format from bytes; `path` names it in errors and
@@ -348,7 +396,9 @@ pub fn load_bytes(bytes: &[u8], format: Format, path: &Path) -> Result<LoadedMes
     check_count(path, "vertices", raw.positions.len())?;
     check_count(path, "triangles", raw.triangles.len())?;
     let context = path.display().to_string();
-    let vertices = raw.positions.len();
+    let vertices = stats
+        .vertices_in_file
+        .map_or(raw.positions.len(), |n| n as usize);
     let (mut mesh, s) = drop_invalid(raw);
     stats.faces_duplicate = drop_duplicate_faces(&mut mesh.triangles);
     // Loaders drop faces with bad indices themselves; what sanitising finds adds to that.

@@ -101,6 +101,8 @@ pub(crate) fn read(bytes: &[u8], path: &Path, stats: &mut LoadStats) -> Result<T
     })
     .map_err(|e| parse_err(path, format!("OBJ: {e}")))?;
 
+    // tobj keeps only the vertices a face uses: an empty mesh's message counts the file's.
+    stats.vertices_in_file = Some(n_v as u64);
     let mut mesh = TriMesh::default();
     let mut poly: Vec<u32> = Vec::new();
     for model in &models {

@@ -37,6 +37,20 @@ fn looks_ascii(bytes: &[u8]) -> bool {
     t.starts_with("solid") && (t.contains("facet") || t.contains("endsolid"))
 }
 
+/// Why a file of `len` bytes that starts with `head` (at least its first kilobyte, or all of
+/// it) has no triangle, when its header alone says so: a binary STL header claiming 0
+/// triangles. [`read`] would read such a file as binary (it is not ascii, or it is exactly
+/// the header long) and take nothing after the header, so the rest need not be read.
+pub(crate) fn empty_by_header(head: &[u8], len: u64) -> Option<String> {
+    let binary = len == HEADER as u64 || !looks_ascii(head);
+    (claimed(head) == Some(0) && binary).then(|| {
+        format!(
+            "its binary STL header claims 0 triangles (a file of {len} bytes; nothing after the \
+             {HEADER}-byte header is read)"
+        )
+    })
+}
+
 pub(crate) fn read(bytes: &[u8], path: &Path, _stats: &mut LoadStats) -> Result<TriMesh> {
     if !looks_binary(bytes) && looks_ascii(bytes) {
         return read_ascii(bytes, path);

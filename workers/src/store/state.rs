@@ -144,9 +144,11 @@ pub fn shard_state(
 }
 
 /// Moves a damaged shard's completion record and file (whichever exist) into
-/// `JOB/quarantine/part-NNNNN-<unix time>/` with a `reason.txt`, so that the shard counts as
-/// not finished and is converted again. Nothing is deleted. The caller holds the shard's
-/// lease. Returns the folder.
+/// `JOB/quarantine/part-NNNNN-<unix time>/`, then writes `reason.txt` there naming why and
+/// the files moved, so that the shard counts as not finished and is converted again. Nothing
+/// is deleted. The note comes last: a process killed part-way leaves no note that names a
+/// file still in `shards/` (a folder without one was interrupted while moving). The caller
+/// holds the shard's lease. Returns the folder.
 pub fn quarantine(layout: &JobLayout, shard: u64, reason: &str) -> Result<PathBuf> {
     let stamp = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
@@ -156,24 +158,33 @@ pub fn quarantine(layout: &JobLayout, shard: u64, reason: &str) -> Result<PathBu
         .quarantine_dir()
         .join(format!("{}-{stamp}", JobLayout::shard_name(shard)));
     create_dir(&dir)?;
-    crate::fsutil::write_atomic(
-        &dir.join("reason.txt"),
-        format!("shard {shard}: {reason}\n").as_bytes(),
-        "writing quarantine note",
-    )?;
     // The record first: without it the shard is no longer done, whatever happens next.
+    let mut moved = Vec::new();
     for from in [layout.completion(shard), layout.shard_file(shard)] {
         let Some(name) = from.file_name() else {
             continue;
         };
         match std::fs::rename(&from, dir.join(name)) {
-            Ok(()) => {}
+            Ok(()) => moved.push(name.to_string_lossy().into_owned()),
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
             Err(e) => return Err(WorkerError::io("moving a damaged shard aside", &from, e)),
         }
     }
     sync_dir(&layout.shards_dir())?;
-    sync_dir(&dir)?;
+    let note = format!(
+        "shard {shard}: {reason}\nmoved here from {}: {}\n",
+        layout.shards_dir().display(),
+        if moved.is_empty() {
+            "nothing (neither file was there)".to_string()
+        } else {
+            moved.join(", ")
+        }
+    );
+    crate::fsutil::write_atomic(
+        &dir.join("reason.txt"),
+        note.as_bytes(),
+        "writing quarantine note",
+    )?;
     Ok(dir)
 }
 
@@ -378,6 +389,12 @@ mod tests {
         let kept = std::fs::read(aside.join("part-00000.parquet"))
             .map_err(|e| WorkerError::io("t", &aside, e))?;
         assert_eq!(kept, bad);
+        let note = std::fs::read_to_string(aside.join("reason.txt"))
+            .map_err(|e| WorkerError::io("t", &aside, e))?;
+        assert!(
+            note.contains("part-00000.complete.json, part-00000.parquet"),
+            "{note}"
+        );
 
         // A torn record.
         write(&layout, &data, &rec)?;

@@ -1,0 +1,254 @@
+//! Which column of a manifest holds the paths of its meshes, by one rule (docs/RELIABILITY.md,
+//! "Manifests"), never chosen row by row:
+//!
+//! 1. `--path-column NAME` names it (any column).
+//! 2. Otherwise the candidates are the path-like columns (`uri`, `path`, `local_path`, `file`)
+//!    that hold a value in some row. One candidate is the column.
+//! 3. With several, a column whose every value is a URL (`scheme://…`) is left out, since
+//!    sparc3d reads local files only; when one is left it is the column, otherwise the
+//!    manifest is refused, naming the candidates, until `--path-column` says which.
+//!
+//! Every row must then hold a local path in that column: a row with none there (empty, or a
+//! value only in another path-like column) or with a URL is refused, naming the row.
+
+use anyhow::{bail, Result};
+use sparc3d_schema::manifest::PATH_COLUMNS;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// The column chosen and why, for `init` to say.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PathColumn {
+    /// The column's name (lower case, as the manifest reader keys rows).
+    pub name: String,
+    /// Why this one: `given`, the only path-like column, or the others hold URLs.
+    pub why: String,
+}
+
+/// Whether `value` is a URL (`scheme://…`, the scheme a letter then letters, digits, `+`, `-`
+/// or `.`, as RFC 3986 §3.1 spells it) rather than a local path.
+pub fn is_url(value: &str) -> bool {
+    let Some((scheme, _)) = value.split_once("://") else {
+        return false;
+    };
+    let mut chars = scheme.chars();
+    chars.next().is_some_and(|c| c.is_ascii_alphabetic())
+        && chars.all(|c| c.is_ascii_alphanumeric() || matches!(c, '+' | '-' | '.'))
+}
+
+/// The path column of `rows` (keys in lower case) by the module's rule; `given` is
+/// `--path-column`. `source` names the manifest in errors.
+pub fn choose(
+    rows: &[BTreeMap<String, String>],
+    given: Option<&str>,
+    source: &Path,
+) -> Result<PathColumn> {
+    let has_value = |col: &str| {
+        rows.iter()
+            .any(|r| r.get(col).is_some_and(|v| !v.is_empty()))
+    };
+    if let Some(name) = given {
+        let name = name.trim().to_ascii_lowercase();
+        if !has_value(&name) {
+            bail!(
+                "{}: --path-column {name}: no row has a value in a column of that name",
+                source.display()
+            );
+        }
+        return Ok(PathColumn {
+            name,
+            why: "given with --path-column".into(),
+        });
+    }
+    let candidates: Vec<&str> = PATH_COLUMNS.into_iter().filter(|c| has_value(c)).collect();
+    let all_urls = |col: &str| {
+        rows.iter()
+            .filter_map(|r| r.get(col).filter(|v| !v.is_empty()))
+            .all(|v| is_url(v))
+    };
+    let local: Vec<&str> = candidates
+        .iter()
+        .copied()
+        .filter(|c| !all_urls(c))
+        .collect();
+    match (candidates.as_slice(), local.as_slice()) {
+        ([], _) => bail!(
+            "{}: no path column (expected a column named one of {}, or --path-column NAME)",
+            source.display(),
+            PATH_COLUMNS.join(", ")
+        ),
+        ([only], _) => Ok(PathColumn {
+            name: only.to_string(),
+            why: "the only path column".into(),
+        }),
+        (_, [one]) => {
+            let urls: Vec<&str> = candidates.iter().copied().filter(|c| c != one).collect();
+            Ok(PathColumn {
+                name: one.to_string(),
+                why: format!(
+                    "{} holds only URLs, and sparc3d reads local files",
+                    urls.join(" and ")
+                ),
+            })
+        }
+        (_, []) => bail!(
+            "{}: the path columns {} hold only URLs; sparc3d reads local files: download the \
+             meshes and give their local paths",
+            source.display(),
+            candidates.join(", ")
+        ),
+        _ => bail!(
+            "{}: several path columns hold local paths ({}); say which with --path-column NAME",
+            source.display(),
+            local.join(", ")
+        ),
+    }
+}
+
+/// Refuses rows without a local path in `column`, naming the first few and how many.
+pub fn check_rows(
+    rows: &[BTreeMap<String, String>],
+    column: &PathColumn,
+    source: &Path,
+) -> Result<()> {
+    let mut bad = Vec::new();
+    for (n, row) in rows.iter().enumerate() {
+        let value = row.get(&column.name).map(String::as_str).unwrap_or("");
+        let why = if value.is_empty() {
+            let others: Vec<(&str, &String)> = PATH_COLUMNS
+                .into_iter()
+                .filter(|c| *c != column.name)
+                .filter_map(|c| Some((c, row.get(c).filter(|v| !v.is_empty())?)))
+                .collect();
+            let names = others
+                .iter()
+                .map(|(c, _)| *c)
+                .collect::<Vec<_>>()
+                .join(", ");
+            if others.is_empty() {
+                format!("no {}", column.name)
+            } else if others.iter().all(|(_, v)| is_url(v)) {
+                format!("no {}, only a URL in {names}", column.name)
+            } else {
+                format!(
+                    "no {}, only a path in {names} (ambiguous: say which with --path-column)",
+                    column.name
+                )
+            }
+        } else if is_url(value) {
+            format!(
+                "{} is a URL ({value}); sparc3d reads local files: download first",
+                column.name
+            )
+        } else {
+            continue;
+        };
+        bad.push(format!("row {}: {why}", n + 1));
+    }
+    if !bad.is_empty() {
+        bail!(
+            "{}: {} of {} rows have no local path in column {} ({}): {}{}",
+            source.display(),
+            bad.len(),
+            rows.len(),
+            column.name,
+            column.why,
+            bad.iter().take(10).cloned().collect::<Vec<_>>().join("; "),
+            if bad.len() > 10 { "; …" } else { "" }
+        );
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rows(list: &[&[(&str, &str)]]) -> Vec<BTreeMap<String, String>> {
+        list.iter()
+            .map(|r| {
+                r.iter()
+                    .map(|(k, v)| (k.to_string(), v.to_string()))
+                    .collect()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn urls_are_told_from_paths() {
+        for url in [
+            "s3://b/x.obj",
+            "https://h/x.obj",
+            "file:///x.obj",
+            "gs+x-y.z://a",
+        ] {
+            assert!(is_url(url), "{url}");
+        }
+        for path in [
+            "/data/x.obj",
+            "x.obj",
+            "a/b://c.obj",
+            "://x",
+            "1s3://x",
+            "C:/x.obj",
+        ] {
+            assert!(!is_url(path), "{path}");
+        }
+    }
+
+    #[test]
+    fn one_rule_for_the_column() -> Result<()> {
+        let m = Path::new("m.csv");
+        let both = rows(&[
+            &[("uri", "s3://b/a.obj"), ("local_path", "/d/a.obj")],
+            &[("uri", "s3://b/b.obj"), ("local_path", "/d/b.obj")],
+        ]);
+        let c = choose(&both, None, m)?;
+        assert_eq!(c.name, "local_path");
+        assert!(c.why.contains("uri holds only URLs"), "{}", c.why);
+        assert_eq!(choose(&both, Some("URI"), m)?.name, "uri");
+        let two_local = rows(&[&[("path", "/d/a.obj"), ("local_path", "/e/a.obj")]]);
+        let e = choose(&two_local, None, m).err().map(|e| e.to_string());
+        assert!(
+            e.as_deref()
+                .is_some_and(|e| e.contains("path, local_path") && e.contains("--path-column")),
+            "{e:?}"
+        );
+        let only = rows(&[&[("file", "a.obj"), ("id", "x")]]);
+        assert_eq!(choose(&only, None, m)?.name, "file");
+        assert!(choose(&rows(&[&[("id", "x")]]), None, m).is_err());
+        assert!(choose(&only, Some("nope"), m).is_err());
+        Ok(())
+    }
+
+    #[test]
+    fn rows_without_a_local_path_in_the_column_are_refused() -> Result<()> {
+        let m = Path::new("m.csv");
+        let r = rows(&[
+            &[("uri", "s3://b/a.obj"), ("local_path", "/d/a.obj")],
+            &[("uri", "s3://b/b.obj"), ("local_path", "")],
+            &[("uri", ""), ("local_path", "https://h/c.obj")],
+        ]);
+        let c = PathColumn {
+            name: "local_path".into(),
+            why: "given".into(),
+        };
+        let e = check_rows(&r, &c, m)
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(e.contains("2 of 3 rows"), "{e}");
+        assert!(e.contains("row 2: no local_path, only a URL in uri"), "{e}");
+        assert!(e.contains("row 3: local_path is a URL"), "{e}");
+        let r = rows(&[&[("path", "/d/a.obj"), ("local_path", "")]]);
+        let e = check_rows(&r, &c, m)
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(
+            e.contains("row 1: no local_path, only a path in path (ambiguous"),
+            "{e}"
+        );
+        check_rows(&rows(&[&[("local_path", "/d/a.obj")]]), &c, m)
+    }
+}

@@ -1,0 +1,124 @@
+//! Whether a job's own files are as `sparc3d init` wrote them. `init` records the config's
+//! fingerprint and the frozen manifest's sha256 in `job.json`; a hand edit of either file (a
+//! resolution, a shard size, a path in `manifest.jsonl`) no longer matches what was recorded,
+//! and a config out of range fails every item. [`problems`] names each such finding with its
+//! file and what differs; [`crate::Job::open`] refuses a job with any, and read-only commands
+//! open it with [`crate::Job::open_read_only`] and say what was found.
+
+use crate::job::Job;
+use crate::store::read::read_meta;
+use sparc3d_schema::{meta_keys, JobConfig, SCHEMA_VERSION};
+
+/// What differs between the job's files and what `init` recorded, one line each naming the
+/// file; empty when the job is as `init` wrote it. `manifest_bytes` are the bytes of the
+/// frozen manifest the job was read from.
+pub fn problems(job: &Job, manifest_bytes: &[u8]) -> Vec<String> {
+    let file = &job.file;
+    let mut out = Vec::new();
+    if file.schema_version != SCHEMA_VERSION {
+        out.push(format!(
+            "job.json: schema_version is {}, this sparc3d writes version {SCHEMA_VERSION} \
+             (a job is never a mix of versions: convert it again in a new job folder)",
+            file.schema_version
+        ));
+    }
+    if let Err(e) = file.config.validate() {
+        out.push(format!("job.json: {e}"));
+    }
+    if let Some(p) = fingerprint_problem(job) {
+        out.push(p);
+    }
+    let size = u64::from(file.config.shard_size.max(1));
+    let shards = file.items.div_ceil(size);
+    if file.shards != shards {
+        out.push(format!(
+            "job.json: shards is {}, but {} items in shards of {size} make {shards}",
+            file.shards, file.items
+        ));
+    }
+    let sha = crate::fsutil::bytes_sha256(manifest_bytes);
+    if sha != file.manifest_sha256 {
+        out.push(format!(
+            "manifest.jsonl: its sha256 is {sha}, but job.json recorded {} when the manifest was \
+             frozen: the frozen manifest was edited after `sparc3d init` (its paths, ids and \
+             shards never change once frozen)",
+            file.manifest_sha256
+        ));
+    }
+    if let Some(item) = job.items.iter().find(|i| i.shard != i.index / size) {
+        out.push(format!(
+            "manifest.jsonl: item {} ({}) is in shard {}, but shards of {size} put it in shard {}",
+            item.index,
+            item.record.id,
+            item.shard,
+            item.index / size
+        ));
+    }
+    out
+}
+
+/// The finding when the stored config no longer gives the fingerprint recorded with it, with
+/// the keys that differ from the config a finished shard was written with, when there is one.
+fn fingerprint_problem(job: &Job) -> Option<String> {
+    let now = match job.file.config.fingerprint() {
+        Ok(f) if f == job.file.fingerprint => return None,
+        Ok(f) => f,
+        Err(e) => return Some(format!("job.json: the config cannot be fingerprinted: {e}")),
+    };
+    let short = |f: &str| f.chars().take(12).collect::<String>();
+    let what = match shard_config(job).map(|written| changed_keys(&written, &job.file.config)) {
+        Some(keys) if !keys.is_empty() => keys,
+        _ => format!(
+            "it gives fingerprint {}…, init recorded {}… (no finished shard says which key \
+             changed)",
+            short(&now),
+            short(&job.file.fingerprint)
+        ),
+    };
+    Some(format!(
+        "job.json: the config was edited after `sparc3d init`: {what}; a job's config never \
+         changes (convert with another config in a new job folder)"
+    ))
+}
+
+/// The config stored in the first shard file of the job that has one (Parquet key-value
+/// metadata), if any.
+fn shard_config(job: &Job) -> Option<JobConfig> {
+    (0..job.file.shards).find_map(|shard| {
+        let path = job.layout.shard_file(shard);
+        if !path.exists() {
+            return None;
+        }
+        let meta = read_meta(&path).ok()?;
+        let text = meta.kv.get(meta_keys::CONFIG)?;
+        serde_json::from_str(text).ok()
+    })
+}
+
+/// The fingerprinted keys whose values differ, as `key: old → new`, comma-separated.
+fn changed_keys(old: &JobConfig, new: &JobConfig) -> String {
+    let (Ok(keys), Ok(a), Ok(b)) = (
+        old.diff_keys(new),
+        serde_json::to_value(old),
+        serde_json::to_value(new),
+    ) else {
+        return String::new();
+    };
+    let value = |v: &serde_json::Value, key: &str| {
+        let pointer = format!("/{}", key.replace('.', "/"));
+        v.pointer(&pointer)
+            .map_or("(none)".to_string(), |x| x.to_string())
+    };
+    keys.iter()
+        .filter(|k| {
+            !sparc3d_schema::config::UNFINGERPRINTED
+                .iter()
+                .any(|u| k.as_str() == *u || k.starts_with(&format!("{u}.")))
+        })
+        .map(|k| {
+            let (was, now) = (value(&a, k), value(&b, k));
+            format!("{k} is {now}, the shards were written with {was}")
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
