@@ -261,6 +261,7 @@ impl<L: Launcher> Pool<L> {
                 Event::ShardSkipped { shard, reason } => {
                     observer.println(&format!("shard {shard}: {reason}"))
                 }
+                Event::LeaseLost { message, .. } => observer.println(&message),
                 Event::ShardDamaged {
                     shard,
                     reason,
@@ -431,6 +432,7 @@ mod tests {
             pid: 1,
             heartbeat_at: 0.0,
             expires_at: 0.0,
+            acquired_at: 0.0,
         })
     }
 
