@@ -50,7 +50,8 @@ pub enum ShardOutcome {
 /// Processes shard `shard` of `job`. A finished shard is checked against its completion
 /// record ([`Check::Quick`]) before it is skipped; a damaged one is moved aside and converted
 /// again. Item failures become rows; errors are failures of the job's machinery (files,
-/// leases, config drift) and leave the journal for a later resume.
+/// leases, config drift) and leave the journals for a later resume. A worker that lost the
+/// lease stops with [`ShardOutcome::LeaseLost`].
 pub fn process_shard(job: &Job, shard: u64, opts: &mut WorkOptions) -> Result<ShardOutcome> {
     let layout = &job.layout;
     let fp = job.fingerprint().to_string();
@@ -98,10 +99,11 @@ pub fn process_shard(job: &Job, shard: u64, opts: &mut WorkOptions) -> Result<Sh
     }
 }
 
-/// A worker killed after writing a shard's completion record but before removing its journal
-/// and lease leaves both behind. The shard holds every row, so the journal is redundant: take
-/// the lease (unless a live worker still holds it, which then cleans up itself), remove the
-/// journal, release the lease.
+/// A worker killed after writing a shard's completion record but before removing its
+/// journals and lease leaves them behind (so may a stopped former holder that was continued
+/// after the shard was written). The shard holds every row, so the journals are redundant:
+/// take the lease (unless a live worker still holds it, which then cleans up itself), remove
+/// the journals, release the lease.
 pub fn clear_leftovers(job: &Job, shard: u64, lease_ttl_s: f64) -> Result<()> {
     let layout = &job.layout;
     let lease_file = layout.lease(shard);

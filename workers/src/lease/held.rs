@@ -7,9 +7,10 @@
 //! the shard is committed, and polled by the item loop ([`Lease::is_lost`]). The first needs no
 //! I/O: a stopped worker that is continued knows at once that it lost its lease.
 //!
-//! A lost lease is never renewed, written or removed by its old holder. The heartbeat of a
-//! holder that finds the file rewritten by an *earlier* holder (a stale heartbeat that was
-//! stopped between its check and its write) writes its own again: the latest taker wins.
+//! A lost lease is never renewed, written or removed by its old holder: a heartbeat checks
+//! right before it renames its renewal into place. A holder that finds the file rewritten by
+//! an *earlier* holder (a stale heartbeat stopped between that check and its rename) writes
+//! its own again at once: the latest taker wins.
 
 use super::{info, json, read, LeaseInfo};
 use std::path::{Path, PathBuf};
@@ -31,6 +32,8 @@ pub struct Loss {
 #[derive(Debug)]
 struct Shared {
     stop: AtomicBool,
+    /// Set by a check that found the lease file rewritten by an earlier holder: renew now.
+    beat_now: AtomicBool,
     /// Unix time (f64 bits) at which the last lease written by this holder expires.
     expires_at: AtomicU64,
     lost: Mutex<Option<String>>,
@@ -93,6 +96,7 @@ impl Lease {
     pub(super) fn start(path: &Path, first: &LeaseInfo, ttl: f64) -> Self {
         let shared = Arc::new(Shared {
             stop: AtomicBool::new(false),
+            beat_now: AtomicBool::new(false),
             expires_at: AtomicU64::new(first.expires_at.to_bits()),
             lost: Mutex::new(None),
         });
@@ -129,7 +133,17 @@ impl Lease {
         let expires_at = self.shared.expires_at();
         let found = match expired(&self.path, &self.owner, expires_at, crate::now()) {
             Some(why) => Some(why),
-            None => read(&self.path).and_then(|h| taken(&h, &self.owner, self.acquired_at)),
+            None => read(&self.path).and_then(|h| {
+                let why = taken(&h, &self.owner, self.acquired_at);
+                if why.is_none() && h.owner != self.owner {
+                    // An earlier holder's stale heartbeat: write ours again now.
+                    self.shared.beat_now.store(true, Ordering::SeqCst);
+                    if let Some(t) = &self.heartbeat {
+                        t.thread().unpark();
+                    }
+                }
+                why
+            }),
         };
         match found {
             Some(why) => {
@@ -179,41 +193,69 @@ impl Drop for Lease {
     }
 }
 
-/// The heartbeat: every `period`, unless stopped, renews the lease at `p` while it is this
-/// holder's; records the loss and ends once it is not.
+/// The heartbeat: every `period` (or at once when a check asks), unless stopped, renews the
+/// lease at `p` while it is this holder's; records the loss and ends once it is not.
 fn heartbeat(p: &Path, owner: &str, acquired_at: f64, ttl: f64, period: Duration, s: &Shared) {
     let tick = Duration::from_millis(50).min(period);
     let mut waited = Duration::ZERO;
     while !s.stop.load(Ordering::SeqCst) {
-        // Woken early by `stop_heartbeat`, so releasing a lease does not wait.
+        // Woken early by `stop_heartbeat` (so releasing a lease does not wait) or by a check
+        // that found the file rewritten by an earlier holder.
         let t0 = std::time::Instant::now();
         std::thread::park_timeout(tick);
         if s.stop.load(Ordering::SeqCst) {
             return;
         }
         waited += t0.elapsed();
-        if waited < period {
+        if waited < period && !s.beat_now.swap(false, Ordering::SeqCst) {
             continue;
         }
         waited = Duration::ZERO;
-        // An expired lease is never renewed: someone may be taking it over right now.
-        if let Some(why) = expired(p, owner, s.expires_at(), crate::now()) {
-            return s.lose(why);
-        }
-        if let Some(why) = read(p).and_then(|h| taken(&h, owner, acquired_at)) {
-            return s.lose(why);
-        }
-        // Ours, absent (removed from outside) or rewritten by an earlier holder: write ours.
-        // A failed write is retried at the next beat; expiry protects the others.
         let next = LeaseInfo {
             acquired_at,
             ..info(owner, ttl)
         };
-        if crate::fsutil::write_atomic(p, &json(&next), "lease").is_ok() {
-            s.expires_at
-                .store(next.expires_at.to_bits(), Ordering::SeqCst);
+        match renew(p, &next, s) {
+            Ok(()) => s
+                .expires_at
+                .store(next.expires_at.to_bits(), Ordering::SeqCst),
+            Err(Some(why)) => return s.lose(why),
+            // A failed write is retried at the next beat; expiry protects the others.
+            Err(None) => {}
         }
     }
+}
+
+/// Writes `next` over the lease at `p` (ours, absent, or rewritten by an earlier holder):
+/// under a temporary name, fsynced, and renamed into place only after checking, right before
+/// the rename, that the lease has not expired nor been taken (so that a holder stopped during
+/// the slow part, the fsync, does not replace its successor's lease when continued).
+/// `Err(Some(why))` when the lease is lost, `Err(None)` when the write failed.
+fn renew(p: &Path, next: &LeaseInfo, s: &Shared) -> Result<(), Option<String>> {
+    let name = p.file_name().map(|n| n.to_string_lossy().into_owned());
+    let tmp = p.with_file_name(format!(
+        ".{}.beat-{}",
+        name.unwrap_or_default(),
+        super::file_token(&next.owner)
+    ));
+    let written = std::fs::File::create(&tmp).and_then(|mut f| {
+        std::io::Write::write_all(&mut f, &json(next))?;
+        f.sync_all()
+    });
+    let lost = || {
+        // An expired lease is never renewed: someone may be taking it over right now.
+        expired(p, &next.owner, s.expires_at(), crate::now())
+            .or_else(|| read(p).and_then(|h| taken(&h, &next.owner, next.acquired_at)))
+    };
+    let result = match written {
+        Err(_) => Err(None),
+        Ok(()) => match lost() {
+            Some(why) => Err(Some(why)),
+            None => std::fs::rename(&tmp, p).map_err(|_| None),
+        },
+    };
+    let _ = std::fs::remove_file(&tmp);
+    result
 }
 
 #[cfg(test)]
