@@ -18,6 +18,7 @@ mod resolution_arg;
 mod sample;
 mod signals;
 mod stats;
+mod stuck;
 mod summary;
 mod units;
 mod validation;

@@ -265,3 +265,80 @@ fn a_worker_stopped_past_its_lease_cannot_touch_the_new_holders_shard() {
     );
     assert_same_as_clean_run(&job);
 }
+
+/// Pids of the `sparc3d work` processes below `pid`.
+fn work_processes(pid: u32) -> Vec<u32> {
+    descendants(pid)
+        .into_iter()
+        .filter(|p| {
+            std::fs::read(format!("/proc/{p}/cmdline"))
+                .is_ok_and(|c| c.split(|&b| b == 0).nth(1) == Some(b"work".as_slice()))
+        })
+        .collect()
+}
+
+/// Whether a process exists and is not a zombie.
+fn running(pid: u32) -> bool {
+    std::fs::read_to_string(format!("/proc/{pid}/stat"))
+        .ok()
+        .and_then(|s| s.rsplit_once(')').map(|(_, r)| r.trim_start().to_string()))
+        .is_some_and(|r| !r.starts_with('Z') && !r.starts_with('X'))
+}
+
+/// Item 6: `run`'s own worker is stopped mid-shard. `run` sees it make no progress past its
+/// lease, kills it, starts the shard again on a new worker (which takes the expired lease
+/// over), says so, and finishes the job like a clean run.
+#[test]
+fn run_takes_back_the_shard_of_its_stopped_worker() {
+    let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let job = tmp.path().join("job");
+    init(&job, &fixture().manifest);
+    let mut run = Command::new(bin())
+        .args(["run", s(&job), "--workers", "1", "--log-interval", "1s"])
+        .args(["--lease-ttl", LEASE_TTL])
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap_or_else(|e| panic!("{e}"));
+    // Once its worker converts an item (the worker has its item worker), stop the worker.
+    let deadline = Instant::now() + Duration::from_secs(120);
+    let worker = loop {
+        assert!(
+            Instant::now() < deadline,
+            "the worker never started an item"
+        );
+        assert!(matches!(run.try_wait(), Ok(None)), "run ended too soon");
+        if let Some(&w) = work_processes(run.id()).first() {
+            if !descendants(w).is_empty() {
+                break w;
+            }
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    signal(worker, libc::SIGSTOP);
+    let deadline = Instant::now() + Duration::from_secs(120);
+    while matches!(run.try_wait(), Ok(None)) {
+        if Instant::now() > deadline {
+            signal(worker, libc::SIGKILL);
+            let _ = run.kill();
+            let out = run.wait_with_output().unwrap_or_else(|e| panic!("{e}"));
+            panic!(
+                "run still waiting two minutes after its worker was stopped:\n{}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let out = run.wait_with_output().unwrap_or_else(|e| panic!("{e}"));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let said = format!("shard 0: worker {worker} made no progress past its lease");
+    let line = err
+        .lines()
+        .find(|l| l.starts_with(&said))
+        .unwrap_or_else(|| panic!("run did not say it took shard 0 back:\n{err}"));
+    assert!(line.contains("new worker"), "{line}");
+    assert!(!running(worker), "the stopped worker is still there");
+    assert_same_as_clean_run(&job);
+}

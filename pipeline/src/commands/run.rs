@@ -7,8 +7,10 @@
 //! Its workers die with it (they stop as on SIGTERM when `run` is killed, releasing their
 //! leases). A shard leased by another live worker (another `run`, a cluster task, or the
 //! workers of a `run` just killed) is waited for and taken over once its lease is released
-//! or expires; one shard's failure does not stop the others; and `run` exits 0 only when every
-//! shard is done, otherwise it names what is left and exits non-zero.
+//! or expires; a worker of its own that makes no progress past its lease (stopped, hung) is
+//! killed and its shard started again on a new worker; one shard's failure does not stop the
+//! others; and `run` exits 0 only when every shard is done, otherwise it names what is left
+//! and exits non-zero.
 
 use super::work::LimitArgs;
 use crate::local_workers::LocalWorkers;
@@ -83,8 +85,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
         limit_args: args.limits.to_args(),
         threads,
     };
-    let errors =
-        Pool::new(launcher, workers, queue, waiting).run(&mut progress, &|| stop.requested())?;
+    let lease_ttl = std::time::Duration::from_secs_f64(args.limits.lease_ttl.max(0.1));
+    let errors = Pool::new(launcher, workers, queue, waiting, lease_ttl)
+        .run(&mut progress, &|| stop.requested())?;
     let (ok, failed, retried) = progress.finish();
     let elapsed = start.elapsed().as_secs_f64();
     let after = summarize(&job)?;
