@@ -5,6 +5,7 @@
 use crate::pool::{Launcher, Worker};
 use anyhow::{Context, Result};
 use sparc3d_workers::events::Event;
+use sparc3d_workers::lease::LeaseInfo;
 use sparc3d_workers::process::{Process, ProcessOptions};
 use sparc3d_workers::store::state::{shard_state, Check, ShardState};
 use sparc3d_workers::Job;
@@ -39,6 +40,16 @@ impl Worker for WorkProcess {
 
     fn terminate(&mut self) {
         self.0.signal(libc::SIGTERM);
+    }
+
+    /// SIGKILL, which also ends a stopped process; its item worker follows by its
+    /// parent-death signal.
+    fn kill(&mut self) {
+        self.0.signal(libc::SIGKILL);
+    }
+
+    fn pid(&self) -> u32 {
+        self.0.id()
     }
 
     /// Waits (briefly) until its stderr is read to the end, so that the reason a worker
@@ -95,6 +106,10 @@ impl Launcher for LocalWorkers<'_> {
             });
         }
         Ok(WorkProcess(process))
+    }
+
+    fn lease(&mut self, shard: u64) -> Option<LeaseInfo> {
+        sparc3d_workers::lease::read(&self.job.layout.lease(shard))
     }
 
     fn shard_state(&mut self, shard: u64) -> Result<ShardState> {

@@ -20,6 +20,7 @@ mod resolution_arg;
 mod sample;
 mod signals;
 mod stats;
+mod stuck;
 mod summary;
 mod tsv;
 mod units;

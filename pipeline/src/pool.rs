@@ -2,14 +2,17 @@
 //! shard, workers that write their shard while their slot already runs the next one
 //! (overlapping writes), shards leased elsewhere waited for and taken over, the restart policy
 //! (a worker killed by a signal is restarted; one that ends without finishing waits for the
-//! shard's holder), a clean stop on request, and progress through an [`Observer`].
+//! shard's holder), stuck workers taken back (`stuck.rs`), a clean stop on request, and
+//! progress through an [`Observer`].
 //!
 //! How workers start, what a shard's state is and how progress shows are the caller's
 //! ([`Launcher`], [`Observer`]): `run` starts `sparc3d work --events` processes
 //! (`local_workers.rs`); the unit tests below start fakes.
 
+use crate::stuck::Watch;
 use anyhow::Result;
 use sparc3d_workers::events::Event;
+use sparc3d_workers::lease::LeaseInfo;
 use sparc3d_workers::store::state::ShardState;
 use std::collections::{BTreeMap, HashMap, VecDeque};
 use std::os::unix::process::ExitStatusExt;
@@ -33,6 +36,10 @@ pub trait Worker {
     fn try_wait(&mut self) -> Option<ExitStatus>;
     /// Asks it to stop cleanly (SIGTERM for a process).
     fn terminate(&mut self);
+    /// Kills it at once (SIGKILL for a process): it is stuck.
+    fn kill(&mut self);
+    /// Its process id, as its shard's lease names it.
+    fn pid(&self) -> u32;
     /// The end of its error output, once it has exited (empty when it printed none).
     fn error_tail(&mut self) -> String;
 }
@@ -50,6 +57,8 @@ pub trait Launcher {
     ) -> Result<Self::Worker>;
     /// The state of `shard` now.
     fn shard_state(&mut self, shard: u64) -> Result<ShardState>;
+    /// The lease of `shard` as its file says, expired or not (`None`: none readable).
+    fn lease(&mut self, shard: u64) -> Option<LeaseInfo>;
 }
 
 /// Where the pool reports progress.
@@ -88,6 +97,8 @@ impl Observer for crate::progress::Progress {
 struct Running<W> {
     worker: W,
     shard: u64,
+    /// Whether it makes progress (its lease).
+    watch: Watch,
 }
 
 /// The shards to start now, and those leased by another live worker (to wait for, with the
@@ -133,6 +144,9 @@ pub struct Pool<L: Launcher> {
     unfinished: HashMap<u64, u32>,
     errors: Vec<String>,
     last_look: Instant,
+    /// Seconds a worker's lease lives without a heartbeat.
+    lease_ttl: Duration,
+    last_watch: Instant,
     /// Workers' events, tagged with their slot: the sender given to each, and the receiver.
     events_tx: Sender<(usize, Event)>,
     events: Receiver<(usize, Event)>,
@@ -140,12 +154,14 @@ pub struct Pool<L: Launcher> {
 
 impl<L: Launcher> Pool<L> {
     /// A pool of `workers` slots over the shards `queue` (to start) and `waiting` (leased
-    /// elsewhere), as [`plan`] gives them.
+    /// elsewhere), as [`plan`] gives them; the workers' leases live `lease_ttl` without a
+    /// heartbeat.
     pub fn new(
         launcher: L,
         workers: usize,
         queue: VecDeque<u64>,
         waiting: BTreeMap<u64, String>,
+        lease_ttl: Duration,
     ) -> Self {
         let (events_tx, events) = mpsc::channel();
         Self {
@@ -158,6 +174,8 @@ impl<L: Launcher> Pool<L> {
             unfinished: HashMap::new(),
             errors: Vec::new(),
             last_look: Instant::now(),
+            lease_ttl,
+            last_watch: Instant::now(),
             events_tx,
             events,
         }
@@ -186,6 +204,8 @@ impl<L: Launcher> Pool<L> {
             if !stopping {
                 self.look_at_waiting()?;
             }
+            // Also while stopping: a stopped worker never acts on SIGTERM.
+            self.take_back_stuck(observer, stopping);
             if self.slots.iter().all(Option::is_none)
                 && self.writing.is_empty()
                 && ((self.queue.is_empty() && self.waiting.is_empty()) || stopping)
@@ -220,7 +240,11 @@ impl<L: Launcher> Pool<L> {
                     break;
                 };
                 let worker = self.launcher.spawn(shard, slot, &self.events_tx)?;
-                *s = Some(Running { worker, shard });
+                *s = Some(Running {
+                    worker,
+                    shard,
+                    watch: Watch::new(),
+                });
                 observer.slot_shard(slot, Some(shard));
             }
         }
@@ -250,17 +274,53 @@ impl<L: Launcher> Pool<L> {
         Ok(())
     }
 
+    /// Workers that make no progress past their lease (stopped, hung): killed, and their
+    /// shard started again on a new worker, which takes the expired lease over (unless the
+    /// pool is `stopping`).
+    fn take_back_stuck(&mut self, observer: &dyn Observer, stopping: bool) {
+        if self.last_watch.elapsed() < WAIT_POLL {
+            return;
+        }
+        self.last_watch = Instant::now();
+        let now = sparc3d_workers::now();
+        let running = self
+            .slots
+            .iter_mut()
+            .flatten()
+            .chain(self.writing.iter_mut());
+        for r in running {
+            let lease = self.launcher.lease(r.shard);
+            let pid = r.worker.pid();
+            if let Some(why) = r.watch.look(lease.as_ref(), pid, now, self.lease_ttl) {
+                r.worker.kill();
+                let next = if stopping {
+                    ""
+                } else {
+                    " and starting the shard again on a new worker"
+                };
+                observer.println(&format!(
+                    "shard {}: worker {pid} made no progress past its lease ({why}); killed it{next}",
+                    r.shard
+                ));
+            }
+        }
+    }
+
     /// Shows the workers' events (waiting briefly for the first); a worker writing its shard
     /// leaves its slot for the next shard.
     fn take_events(&mut self, observer: &mut dyn Observer) {
         let mut next = self.events.recv_timeout(Duration::from_millis(20)).ok();
         while let Some((slot, e)) = next {
+            if let Some(r) = self.slots[slot].as_mut() {
+                r.watch.saw_event();
+            }
             match e {
                 Event::ItemStarted { uri, .. } => observer.item_started(slot, &uri),
                 Event::ItemFinished { status, .. } => observer.item_finished(slot, &status),
                 Event::ShardSkipped { shard, reason } => {
                     observer.println(&format!("shard {shard}: {reason}"))
                 }
+                Event::LeaseLost { message, .. } => observer.println(&message),
                 Event::ShardDamaged {
                     shard,
                     reason,
@@ -311,6 +371,11 @@ impl<L: Launcher> Pool<L> {
         if status.success() {
             // Done, or held by another worker (it said "leased by"): wait for that one.
             return self.after_success(r.shard, observer);
+        }
+        if r.watch.taken_back() {
+            // Killed by `take_back_stuck`, which said so; its journal keeps its finished items.
+            self.queue.push_back(r.shard);
+            return Ok(());
         }
         let deaths = self.killed.entry(r.shard).or_insert(0);
         if status.signal().is_some() && *deaths < MAX_WORKER_DEATHS {
@@ -366,7 +431,6 @@ impl<L: Launcher> Pool<L> {
 mod tests {
     use super::*;
     use sparc3d_schema::CompletionRecord;
-    use sparc3d_workers::lease::LeaseInfo;
     use std::cell::RefCell;
     use std::rc::Rc;
 
@@ -385,6 +449,8 @@ mod tests {
         LeasedElsewhere,
         /// Runs until it is asked to stop.
         RunForever,
+        /// Runs until killed; its lease expired (a stopped worker).
+        Stuck,
     }
 
     #[derive(Default)]
@@ -392,9 +458,11 @@ mod tests {
         scripts: HashMap<u64, VecDeque<Script>>,
         states: HashMap<u64, ShardState>,
         spawned: Vec<(u64, usize)>,
+        leases: HashMap<u64, LeaseInfo>,
         alive: usize,
         most_alive: usize,
         terminated: usize,
+        killed: Vec<u32>,
     }
 
     struct FakeWorker {
@@ -403,6 +471,8 @@ mod tests {
         script: Script,
         turns_left: u32,
         stopped: bool,
+        killed: bool,
+        pid: u32,
     }
 
     fn done(shard: u64) -> ShardState {
@@ -431,24 +501,27 @@ mod tests {
             pid: 1,
             heartbeat_at: 0.0,
             expires_at: 0.0,
+            acquired_at: 0.0,
         })
     }
 
     impl Worker for FakeWorker {
         fn try_wait(&mut self) -> Option<ExitStatus> {
-            if !self.stopped && (self.script == Script::RunForever || self.turns_left > 0) {
+            let forever = matches!(self.script, Script::RunForever | Script::Stuck);
+            if !self.stopped && !self.killed && (forever || self.turns_left > 0) {
                 self.turns_left = self.turns_left.saturating_sub(1);
                 return None;
             }
             let mut w = self.world.borrow_mut();
             w.alive -= 1;
             let raw = match self.script {
+                _ if self.killed => libc::SIGKILL,
                 _ if self.stopped => 0,
                 Script::Finish | Script::WriteSlowly => {
                     w.states.insert(self.shard, done(self.shard));
                     0
                 }
-                Script::LeasedElsewhere | Script::RunForever => 0,
+                Script::LeasedElsewhere | Script::RunForever | Script::Stuck => 0,
                 Script::Killed => libc::SIGKILL,
                 Script::Fail => 1 << 8,
             };
@@ -459,6 +532,13 @@ mod tests {
         fn terminate(&mut self) {
             self.stopped = true;
             self.world.borrow_mut().terminated += 1;
+        }
+        fn kill(&mut self) {
+            self.killed = true;
+            self.world.borrow_mut().killed.push(self.pid);
+        }
+        fn pid(&self) -> u32 {
+            self.pid
         }
         fn error_tail(&mut self) -> String {
             "error: no such mesh".into()
@@ -487,8 +567,21 @@ mod tests {
                 .and_then(VecDeque::pop_front)
                 .unwrap_or(Script::Finish);
             w.spawned.push((shard, slot));
+            let pid = 1000 + w.spawned.len() as u32;
             w.alive += 1;
             w.most_alive = w.most_alive.max(w.alive);
+            if script == Script::Stuck {
+                // Its lease, last renewed long ago: it expired.
+                let lease = LeaseInfo {
+                    owner: format!("here:{pid}:0"),
+                    host: sparc3d_workers::lease::hostname(),
+                    pid,
+                    heartbeat_at: 0.0,
+                    expires_at: 60.0,
+                    acquired_at: 0.0,
+                };
+                w.leases.insert(shard, lease);
+            }
             if script == Script::WriteSlowly {
                 events.send((slot, Event::ShardWriting { shard }))?;
             }
@@ -499,7 +592,12 @@ mod tests {
                 script,
                 turns_left,
                 stopped: false,
+                killed: false,
+                pid,
             })
+        }
+        fn lease(&mut self, shard: u64) -> Option<LeaseInfo> {
+            self.world.borrow().leases.get(&shard).cloned()
         }
         fn shard_state(&mut self, shard: u64) -> Result<ShardState> {
             let mut w = self.world.borrow_mut();
@@ -563,7 +661,7 @@ mod tests {
             start: Instant::now(),
             changes: changes.to_vec(),
         };
-        let pool = Pool::new(launcher, workers, queue, waiting);
+        let pool = Pool::new(launcher, workers, queue, waiting, Duration::from_secs(60));
         let errors = pool.run(&mut seen, stop)?;
         let world = Rc::try_unwrap(world)
             .map_err(|_| anyhow::anyhow!("a fake worker outlived the pool"))?
@@ -668,6 +766,33 @@ mod tests {
         assert_eq!(world.terminated, 2);
         assert_eq!(spawns_of(&world, 2), 0, "no shard starts after the request");
         assert_eq!(world.alive, 0, "the pool waits for its workers");
+        Ok(())
+    }
+
+    /// Issue 32, item 6: a worker whose own lease expired (stopped) is killed, said so, and
+    /// its shard started again on a new worker; the other shards go on.
+    #[test]
+    fn a_worker_stuck_past_its_lease_is_killed_and_its_shard_started_again() -> Result<()> {
+        let scripts: &[(u64, &[Script])] = &[(0, &[Script::Stuck, Script::Finish])];
+        let (world, errors, lines) = run_pool(2, 2, scripts, &[], &[], &|| false)?;
+        assert!(errors.is_empty(), "{errors:?}");
+        assert_eq!(world.killed, vec![1001], "the stuck worker is killed");
+        assert_eq!(spawns_of(&world, 0), 2, "its shard started again");
+        assert!(matches!(world.states.get(&0), Some(ShardState::Done(_))));
+        assert!(matches!(world.states.get(&1), Some(ShardState::Done(_))));
+        let said: Vec<&String> = lines.iter().filter(|l| l.contains("lease")).collect();
+        assert_eq!(said.len(), 1, "{lines:?}");
+        assert!(
+            said[0].starts_with(
+                "shard 0: worker 1001 made no progress past its lease (its lease expired"
+            ) && said[0].ends_with("starting the shard again on a new worker"),
+            "{}",
+            said[0]
+        );
+        assert!(
+            !lines.iter().any(|l| l.ends_with("restarting it")),
+            "{lines:?}"
+        );
         Ok(())
     }
 }

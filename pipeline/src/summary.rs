@@ -1,5 +1,5 @@
 //! A job's progress read from its folder: completion records (checked against their shard
-//! files), leases and journals. Used by `status` and by `run` (to plan, and to start its
+//! files), leases and journals (every holder's of a shard, read together). Used by `status` and by `run` (to plan, and to start its
 //! counters where the last run stopped).
 
 use anyhow::Result;
@@ -129,11 +129,7 @@ pub fn summarize_states(job: &Job, states: &[ShardState]) -> JobSummary {
                 });
             }
         }
-        let jpath = job.layout.journal(shard);
-        if !jpath.exists() {
-            continue;
-        }
-        let Ok(js) = sparc3d_workers::journal::replay(&jpath) else {
+        let Ok(js) = sparc3d_workers::journal::set::read(&job.layout, shard, None) else {
             continue;
         };
         if let Some(c) = js.created_at {

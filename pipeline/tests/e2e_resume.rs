@@ -155,9 +155,10 @@ fn kill_9_at_random_moments_then_resume_gives_the_same_content() {
         .map(|d| d.flatten().map(|e| e.file_name()).collect())
         .unwrap_or_default();
     assert!(
-        leftovers
-            .iter()
-            .all(|n| !n.to_string_lossy().ends_with(".journal")),
+        leftovers.iter().all(|n| {
+            let n = n.to_string_lossy();
+            !n.ends_with(".journal") && !n.ends_with(".journals")
+        }),
         "{leftovers:?}"
     );
 }

@@ -5,7 +5,10 @@
 //! JOB/manifest.jsonl                    frozen manifest, one FrozenItem per line
 //! JOB/shards/part-NNNNN.parquet         a finished shard
 //! JOB/shards/part-NNNNN.complete.json   its completion record (written last)
-//! JOB/state/part-NNNNN.journal          finished items of a shard in progress
+//! JOB/state/part-NNNNN.journals/H.journal  finished items of a shard in progress, one file
+//!                                         per lease holder H (no worker writes another's)
+//! JOB/state/part-NNNNN.journal          a shard's single journal as earlier builds wrote it
+//!                                       (read when resuming, never written)
 //! JOB/state/part-NNNNN.lease            who works on a shard, with heartbeat and expiry
 //! JOB/quarantine/part-NNNNN-<time>/     a damaged shard and its record, moved aside
 //! ```
@@ -70,10 +73,22 @@ impl JobLayout {
             .join(format!("{}.complete.json", Self::shard_name(shard)))
     }
 
-    /// The journal of a shard in progress.
+    /// The single journal of a shard in progress as earlier versions wrote it: read when a
+    /// job started by them is resumed, never written.
     pub fn journal(&self, shard: u64) -> PathBuf {
         self.state_dir()
             .join(format!("{}.journal", Self::shard_name(shard)))
+    }
+
+    /// The folder of a shard's journals, one per lease holder.
+    pub fn journals_dir(&self, shard: u64) -> PathBuf {
+        self.state_dir()
+            .join(format!("{}.journals", Self::shard_name(shard)))
+    }
+
+    /// The journal of lease holder `holder` (a file-name-safe token) on a shard.
+    pub fn holder_journal(&self, shard: u64, holder: &str) -> PathBuf {
+        self.journals_dir(shard).join(format!("{holder}.journal"))
     }
 
     /// `quarantine/`: damaged shards moved aside (never deleted) to be converted again.

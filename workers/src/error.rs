@@ -35,13 +35,21 @@ pub enum WorkerError {
         /// The job's fingerprint.
         expected: String,
     },
-    /// Another worker took this shard's lease over (our heartbeat was too late).
-    #[error("lost the lease of shard {shard} to {owner}")]
+    /// This worker no longer holds the shard's lease (it was stopped or starved past it, or
+    /// another worker took it over): it stops working on the shard and writes nothing more.
+    #[error(
+        "shard {shard}: this worker lost its lease {}: {why}; it stops here and leaves the \
+         shard to the new holder (what it converted stays in its own journal file, which no \
+         other worker writes)",
+        lease.display()
+    )]
     LeaseLost {
         /// Shard index.
         shard: u64,
-        /// The new owner.
-        owner: String,
+        /// The lease file.
+        lease: PathBuf,
+        /// What happened, naming the new holder when there is one.
+        why: String,
     },
     /// The job's own files no longer match what `init` recorded (hand edits): every command
     /// but a read-only one refuses the job.

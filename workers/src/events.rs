@@ -67,6 +67,13 @@ pub enum Event {
         /// The folder the damaged files were moved to.
         moved_to: String,
     },
+    /// The worker lost the shard's lease (stopped past it, or taken over) and left the shard.
+    LeaseLost {
+        /// Shard index.
+        shard: u64,
+        /// What happened, naming the lease file.
+        message: String,
+    },
     /// A shard was not processed (already done, or leased by another worker).
     ShardSkipped {
         /// Shard index.

@@ -78,3 +78,27 @@ pub fn file_stamp(meta: &std::fs::Metadata) -> FileStamp {
         inode: meta.ino(),
     }
 }
+
+/// Gives the file `from` the name `to` unless `to` exists: a hard link, which fails when the
+/// target exists, so two writers never replace each other's file. `Ok(false)` when `to`
+/// exists. On file systems without hard links, a rename after checking that `to` is absent
+/// (which leaves a moment between the check and the rename).
+pub fn link_no_replace(from: &Path, to: &Path) -> std::io::Result<bool> {
+    match std::fs::hard_link(from, to) {
+        Ok(()) => Ok(true),
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Ok(false),
+        Err(e)
+            if matches!(
+                e.raw_os_error(),
+                Some(libc::EPERM) | Some(libc::EOPNOTSUPP) | Some(libc::ENOSYS)
+            ) =>
+        {
+            if to.symlink_metadata().is_ok() {
+                return Ok(false);
+            }
+            std::fs::rename(from, to)?;
+            Ok(true)
+        }
+        Err(e) => Err(e),
+    }
+}

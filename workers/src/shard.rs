@@ -1,13 +1,16 @@
-//! The loop over one shard: claim its lease, resume from its journal, run each unfinished
-//! item in the supervised item worker, journal the outcome, and write the shard when every
-//! item is finished.
+//! The loop over one shard: claim its lease, resume from its journals, run each unfinished
+//! item in the supervised item worker, journal the outcome in this holder's own journal, and
+//! write the shard when every item is finished. Every journal append and the shard's commit
+//! are preceded by a check that the lease is still held; a worker that lost it (stopped past
+//! it, or taken over) stops with [`ShardOutcome::LeaseLost`].
 
 use crate::error::{Result, WorkerError};
 use crate::events::Event;
 use crate::frame::Record;
 use crate::job::Job;
-use crate::journal::Journal;
-use crate::lease::{self, Acquired};
+use crate::journal::{self, Journal};
+use crate::lease::{self, Acquired, Lease};
+use crate::store::commit::Committed;
 use crate::store::state::{self, Check, Completion};
 use crate::supervisor::{ChildCommand, ItemOutcome, ItemRunner};
 use sparc3d_schema::{CompletionRecord, ErrorClass, FrozenItem, ItemStatus, Limits, ShardRow};
@@ -39,12 +42,16 @@ pub enum ShardOutcome {
     Busy(String),
     /// Stopped on request; the journal keeps what finished.
     Stopped,
+    /// This worker lost the shard's lease and left the shard to its new holder; the message
+    /// names the lease and what happened.
+    LeaseLost(String),
 }
 
 /// Processes shard `shard` of `job`. A finished shard is checked against its completion
 /// record ([`Check::Quick`]) before it is skipped; a damaged one is moved aside and converted
 /// again. Item failures become rows; errors are failures of the job's machinery (files,
-/// leases, config drift) and leave the journal for a later resume.
+/// leases, config drift) and leave the journals for a later resume. A worker that lost the
+/// lease stops with [`ShardOutcome::LeaseLost`].
 pub fn process_shard(job: &Job, shard: u64, opts: &mut WorkOptions) -> Result<ShardOutcome> {
     let layout = &job.layout;
     let fp = job.fingerprint().to_string();
@@ -79,31 +86,59 @@ pub fn process_shard(job: &Job, shard: u64, opts: &mut WorkOptions) -> Result<Sh
     };
     let result = run_leased(job, shard, opts, &held, &owner);
     held.release();
-    result
+    match result {
+        Err(lost @ WorkerError::LeaseLost { .. }) => {
+            let message = lost.to_string();
+            (opts.events)(Event::LeaseLost {
+                shard,
+                message: message.clone(),
+            });
+            Ok(ShardOutcome::LeaseLost(message))
+        }
+        other => other,
+    }
 }
 
-/// A worker killed after writing a shard's completion record but before removing its journal
-/// and lease leaves both behind. The shard holds every row, so the journal is redundant: take
-/// the lease (unless a live worker still holds it, which then cleans up itself), remove the
-/// journal, release the lease.
+/// A worker killed after writing a shard's completion record but before removing its
+/// journals and lease leaves them behind (so may a stopped former holder that was continued
+/// after the shard was written). The shard holds every row, so the journals are redundant:
+/// take the lease (unless a live worker still holds it, which then cleans up itself), remove
+/// the journals, release the lease.
 pub fn clear_leftovers(job: &Job, shard: u64, lease_ttl_s: f64) -> Result<()> {
     let layout = &job.layout;
-    let (journal, lease_file) = (layout.journal(shard), layout.lease(shard));
-    if !journal.exists() && !lease_file.exists() {
+    let lease_file = layout.lease(shard);
+    if !journal::set::exists(layout, shard) && !lease_file.exists() {
         return Ok(());
     }
     if let Acquired::Held(held) = lease::acquire(&lease_file, &lease::owner_name(), lease_ttl_s)? {
-        let _ = std::fs::remove_file(&journal);
+        let removed = journal::set::remove_all(layout, shard);
         held.release();
+        removed?;
     }
     Ok(())
+}
+
+/// `Ok` while this worker holds the lease of `shard`; else the error that stops it.
+fn fence(held: &Lease, shard: u64) -> Result<()> {
+    held.check().map_err(|loss| WorkerError::LeaseLost {
+        shard,
+        lease: loss.lease,
+        why: loss.why,
+    })
+}
+
+/// Appends `record` to this holder's journal once the lease is checked. A holder stopped
+/// between the check and the write still writes only to its own file.
+fn append(journal: &mut Journal, held: &Lease, shard: u64, record: &Record) -> Result<()> {
+    fence(held, shard)?;
+    journal.append(record)
 }
 
 fn run_leased(
     job: &Job,
     shard: u64,
     opts: &mut WorkOptions,
-    held: &lease::Lease,
+    held: &Lease,
     owner: &str,
 ) -> Result<ShardOutcome> {
     let layout = &job.layout;
@@ -113,6 +148,7 @@ fn run_leased(
     match state::completion(layout, shard, &fp, Check::Quick)? {
         Completion::Done(r) => return Ok(ShardOutcome::AlreadyDone(*r)),
         Completion::Damaged(reason) => {
+            fence(held, shard)?;
             let moved_to = state::quarantine(layout, shard, &reason)?;
             (opts.events)(Event::ShardDamaged {
                 shard,
@@ -123,7 +159,11 @@ fn run_leased(
         Completion::Absent => {}
     }
     let items = job.shard_items(shard);
-    let mut journal = Journal::open(&layout.journal(shard), shard, &fp)?;
+    // What the earlier holders journalled, read once: this holder writes its own file.
+    let earlier = journal::set::read(layout, shard, Some(&fp))?;
+    let writer = lease::file_token(owner);
+    let own = layout.holder_journal(shard, &writer);
+    let mut journal = Journal::create(&own, shard, &fp, earlier)?;
     let started_at = journal.state.created_at.unwrap_or_else(crate::now);
     (opts.events)(Event::ShardStarted {
         shard,
@@ -157,17 +197,30 @@ fn run_leased(
     (opts.events)(Event::ShardWriting { shard });
     // Every result on disk (and any failed background flush reported) before the shard.
     journal.sync()?;
-    let record = crate::store::write::write_shard(job, shard, &journal, owner, started_at)?;
-    let journal_path = journal.path().to_path_buf();
+    let fenced = || fence(held, shard);
+    let committed =
+        crate::store::write::write_shard(job, shard, &journal, &writer, started_at, &fenced)?;
     drop(journal);
-    let _ = std::fs::remove_file(&journal_path);
-    (opts.events)(Event::ShardFinished {
-        shard,
-        rows: record.rows,
-        ok: record.ok,
-        failed: record.failed,
-    });
-    Ok(ShardOutcome::Done(record))
+    // The shard holds every row now: the journals (this holder's and the earlier ones') go.
+    let _ = journal::set::remove_all(layout, shard);
+    Ok(match committed {
+        Committed::Done(record) => {
+            (opts.events)(Event::ShardFinished {
+                shard,
+                rows: record.rows,
+                ok: record.ok,
+                failed: record.failed,
+            });
+            ShardOutcome::Done(record)
+        }
+        Committed::FinishedElsewhere(record) => {
+            (opts.events)(Event::ShardSkipped {
+                shard,
+                reason: "finished by another worker meanwhile; its shard is kept".into(),
+            });
+            ShardOutcome::AlreadyDone(record)
+        }
+    })
 }
 
 /// How one attempt at an item ended, for the loop over a shard's items.
@@ -186,19 +239,13 @@ fn attempt(
     journal: &mut Journal,
     opts: &mut WorkOptions,
     shard: u64,
-    held: &lease::Lease,
+    held: &Lease,
     runner: &mut ItemRunner,
     item: &FrozenItem,
     resolution: u32,
 ) -> Result<Attempt> {
     if opts.stop.load(Ordering::SeqCst) {
         return Ok(Attempt::Stopped);
-    }
-    if let Some(new_owner) = held.lost_to() {
-        return Err(WorkerError::LeaseLost {
-            shard,
-            owner: new_owner,
-        });
     }
     let attempts = journal
         .state
@@ -214,14 +261,19 @@ fn attempt(
         let class = ErrorClass::Crashed;
         let mut row = ShardRow::failed_item(item, resolution, class, message);
         row.attempts = attempts.started;
-        finish(journal, opts, shard, row)?;
+        finish(journal, held, opts, shard, row)?;
         return Ok(Attempt::Finished);
     }
-    journal.append(&Record::Start {
-        index: item.index,
-        attempt: attempts.started + 1,
-        at: crate::now(),
-    })?;
+    append(
+        journal,
+        held,
+        shard,
+        &Record::Start {
+            index: item.index,
+            attempt: attempts.started + 1,
+            at: crate::now(),
+        },
+    )?;
     (opts.events)(Event::ItemStarted {
         shard,
         index: item.index,
@@ -229,20 +281,23 @@ fn attempt(
         uri: item.record.uri.clone(),
     });
     let t = std::time::Instant::now();
-    let outcome = runner.run(item, &opts.stop)?;
+    // A lost lease stops the item like Ctrl-C does; the abort's append then reports it.
+    let stop = || opts.stop.load(Ordering::SeqCst) || held.is_lost();
+    let outcome = runner.run(item, &stop)?;
     let seconds = t.elapsed().as_secs_f64();
     match outcome {
         ItemOutcome::Finished(mut row) => {
             row.attempts = attempts.started + 1;
             row.timings.total_s = seconds;
-            finish(journal, opts, shard, *row)?;
+            finish(journal, held, opts, shard, *row)?;
             Ok(Attempt::Finished)
         }
         ItemOutcome::Stopped => {
-            journal.append(&Record::Abort {
+            let abort = Record::Abort {
                 index: item.index,
                 at: crate::now(),
-            })?;
+            };
+            append(journal, held, shard, &abort)?;
             Ok(Attempt::Stopped)
         }
         ItemOutcome::Died {
@@ -251,12 +306,13 @@ fn attempt(
             stderr_tail,
         } => {
             if class.is_crash() && attempts.crashes < opts.limits.max_crash_retries {
-                journal.append(&Record::Crash {
+                let crash = Record::Crash {
                     index: item.index,
                     class,
                     message,
                     at: crate::now(),
-                })?;
+                };
+                append(journal, held, shard, &crash)?;
                 (opts.events)(Event::ItemFinished {
                     shard,
                     index: item.index,
@@ -270,13 +326,20 @@ fn attempt(
             row.stderr_tail = (!stderr_tail.is_empty()).then_some(stderr_tail);
             row.attempts = attempts.started + 1;
             row.timings.total_s = seconds;
-            finish(journal, opts, shard, row)?;
+            finish(journal, held, opts, shard, row)?;
             Ok(Attempt::Finished)
         }
     }
 }
 
-fn finish(journal: &mut Journal, opts: &mut WorkOptions, shard: u64, row: ShardRow) -> Result<()> {
+/// Journals `row` as the item's final result and reports it.
+fn finish(
+    journal: &mut Journal,
+    held: &Lease,
+    opts: &mut WorkOptions,
+    shard: u64,
+    row: ShardRow,
+) -> Result<()> {
     let event = Event::ItemFinished {
         shard,
         index: row.item_index,
@@ -289,10 +352,11 @@ fn finish(journal: &mut Journal, opts: &mut WorkOptions, shard: u64, row: ShardR
         class: row.error_class.map(|c| c.as_str().to_string()),
         seconds: row.timings.total_s,
     };
-    journal.append(&Record::Done {
+    let done = Record::Done {
         row: Box::new(row),
         at: crate::now(),
-    })?;
+    };
+    append(journal, held, shard, &done)?;
     (opts.events)(event);
     Ok(())
 }

@@ -11,7 +11,6 @@ use std::io::{BufReader, Write};
 use std::os::unix::process::ExitStatusExt;
 use std::path::PathBuf;
 use std::process::{ChildStdin, Command, ExitStatus, Stdio};
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::time::{Duration, Instant};
 
@@ -227,8 +226,9 @@ impl ItemRunner {
         }
     }
 
-    /// Runs one item; `stop` is polled so that Ctrl-C interrupts a long item.
-    pub fn run(&mut self, item: &FrozenItem, stop: &AtomicBool) -> Result<ItemOutcome> {
+    /// Runs one item; `stop` is polled so that Ctrl-C (or a lost lease) interrupts a long
+    /// item.
+    pub fn run(&mut self, item: &FrozenItem, stop: &dyn Fn() -> bool) -> Result<ItemOutcome> {
         let mut proc = match self.proc.take() {
             Some(p) => p,
             None => self.spawn()?,
@@ -260,7 +260,7 @@ impl ItemRunner {
                     return Ok(self.died(proc, false));
                 }
                 Err(RecvTimeoutError::Timeout) => {
-                    if stop.load(Ordering::SeqCst) {
+                    if stop() {
                         proc.kill();
                         return Ok(ItemOutcome::Stopped);
                     }

@@ -9,7 +9,7 @@ use sparc3d_schema::{
     ShardRow,
 };
 use sparc3d_workers::frame::Record;
-use sparc3d_workers::journal::Journal;
+use sparc3d_workers::journal::{self, Journal, JournalState};
 use sparc3d_workers::lease::{self, Acquired};
 use sparc3d_workers::store;
 use sparc3d_workers::supervisor::ChildCommand;
@@ -106,7 +106,7 @@ fn a_crashing_item_is_retried_then_recorded_with_its_stderr() -> TestResult {
         .is_some_and(|t| t.contains("about to die")));
     assert_eq!(row.source_sha256, job.items[0].record.sha256);
     // The journal is gone once the shard is written; the shard checks against its record.
-    assert!(!job.layout.journal(0).exists());
+    assert!(!journal::set::exists(&job.layout, 0));
     assert!(matches!(
         process_shard(&job, 0, &mut options(KILLED, limits, false))?,
         ShardOutcome::AlreadyDone(_)
@@ -136,7 +136,13 @@ fn resume_keeps_finished_items_and_gives_up_on_items_that_kill_their_worker() ->
     let limits = Limits::default();
     std::fs::create_dir_all(job.layout.state_dir())?;
     // A worker finished item 0, then was killed `max_interrupted_attempts` times on item 1.
-    let mut journal = Journal::open(&job.layout.journal(0), 0, job.fingerprint())?;
+    // Its journal is the single file earlier builds wrote: a job they started resumes.
+    let mut journal = Journal::create(
+        &job.layout.journal(0),
+        0,
+        job.fingerprint(),
+        JournalState::default(),
+    )?;
     let first = ShardRow::failed_item(
         &job.items[0],
         64,
@@ -165,6 +171,7 @@ fn resume_keeps_finished_items_and_gives_up_on_items_that_kill_their_worker() ->
     assert_eq!(rows[1].attempts, limits.max_interrupted_attempts);
     let message = rows[1].error_message.as_deref().unwrap_or_default();
     assert!(message.contains("killed 5 times"), "{message}");
+    assert!(!journal::set::exists(&job.layout, 0), "the journal is gone");
     Ok(())
 }
 
@@ -182,7 +189,7 @@ fn a_stop_during_an_item_leaves_the_journal_for_a_resume() -> TestResult {
     let _ = ctrl_c.join();
     assert_eq!(outcome, ShardOutcome::Stopped);
     assert!(!job.layout.shard_file(0).exists());
-    let state = sparc3d_workers::journal::replay(&job.layout.journal(0))?;
+    let state = journal::set::read(&job.layout, 0, None)?;
     let attempts = &state.attempts[&0];
     assert_eq!((attempts.started, attempts.aborted), (1, 1));
     assert_eq!(
@@ -203,7 +210,115 @@ fn a_shard_leased_by_a_live_worker_is_left_alone() -> TestResult {
     };
     let outcome = process_shard(&job, 0, &mut options(KILLED, Limits::default(), false))?;
     assert_eq!(outcome, ShardOutcome::Busy("elsewhere".into()));
-    assert!(!job.layout.journal(0).exists());
+    assert!(!journal::set::exists(&job.layout, 0));
     held.release();
+    Ok(())
+}
+
+/// Issue 32, item 4: another worker takes the lease over while an item converts (the item
+/// worker script writes the new holder's lease, as a taker does once a holder was stopped
+/// past its lease). The worker stops the item and the shard, says which lease it lost and to
+/// whom, leaves the new holder's lease in place and writes no shard.
+#[test]
+fn a_worker_whose_lease_is_taken_over_stops_and_leaves_the_shard() -> TestResult {
+    let dir = tempfile::tempdir()?;
+    let job = job(dir.path(), 2)?;
+    let lease_file = job.layout.lease(0);
+    let take_over = format!(
+        "t=$(( $(date +%s) + 1000 )); \
+         printf '{{\"owner\":\"newer\",\"host\":\"elsewhere\",\"pid\":1,\"heartbeat_at\":%s,\
+         \"expires_at\":%s,\"acquired_at\":%s}}' $t $t $t > '{0}.x' && mv '{0}.x' '{0}'; \
+         exec sleep 30",
+        lease_file.display()
+    );
+    let mut opts = options(&take_over, Limits::default(), false);
+    // A short lease: its heartbeat, which notices the takeover, beats every 0.1 s.
+    opts.lease_ttl_s = 0.4;
+    let outcome = process_shard(&job, 0, &mut opts)?;
+    let ShardOutcome::LeaseLost(message) = outcome else {
+        panic!("not stopped by the lost lease: {outcome:?}")
+    };
+    assert!(message.contains("lost its lease"), "{message}");
+    assert!(
+        message.contains(&lease_file.display().to_string()),
+        "{message}"
+    );
+    assert!(message.contains("newer took it over"), "{message}");
+    assert_eq!(
+        lease::read(&lease_file).map(|l| l.owner),
+        Some("newer".to_string()),
+        "the new holder's lease is left in place"
+    );
+    assert!(!job.layout.shard_file(0).exists());
+    assert!(!job.layout.completion(0).exists());
+    Ok(())
+}
+
+/// A journal holding every item of the job's shard 0 as failed rows, written by `holder`.
+fn full_journal(job: &Job, holder: &str) -> Result<Journal, Box<dyn std::error::Error>> {
+    let mut j = Journal::create(
+        &job.layout.holder_journal(0, holder),
+        0,
+        job.fingerprint(),
+        JournalState::default(),
+    )?;
+    for item in &job.items {
+        let row = ShardRow::failed_item(item, 64, ErrorClass::ParseError, holder.into());
+        j.append(&Record::Done {
+            row: Box::new(row),
+            at: 1.0,
+        })?;
+    }
+    Ok(j)
+}
+
+/// Issue 32, item 4: a writer that lost its lease while stopped, continued after the new
+/// holder finished the shard, finds it finished and replaces neither its file nor its record.
+#[test]
+fn a_late_writer_never_replaces_a_finished_shard() -> TestResult {
+    let dir = tempfile::tempdir()?;
+    let job = job(dir.path(), 2)?;
+    process_shard(&job, 0, &mut options(KILLED, Limits::default(), false))?;
+    let (file, record) = (job.layout.shard_file(0), job.layout.completion(0));
+    let before = (std::fs::read(&file)?, std::fs::read(&record)?);
+    let inode = std::os::unix::fs::MetadataExt::ino(&std::fs::metadata(&file)?);
+    let late = full_journal(&job, "late")?;
+    let no_fence = || Ok(());
+    let committed = store::write::write_shard(&job, 0, &late, "late", 0.0, &no_fence)?;
+    assert!(
+        matches!(committed, store::commit::Committed::FinishedElsewhere(_)),
+        "{committed:?}"
+    );
+    assert_eq!((std::fs::read(&file)?, std::fs::read(&record)?), before);
+    assert_eq!(
+        std::os::unix::fs::MetadataExt::ino(&std::fs::metadata(&file)?),
+        inode
+    );
+    let leftovers: Vec<_> = std::fs::read_dir(job.layout.shards_dir())?
+        .flatten()
+        .map(|e| e.file_name())
+        .filter(|n| n.to_string_lossy().starts_with('.'))
+        .collect();
+    assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
+    Ok(())
+}
+
+/// A shard file without its completion record (a writer stopped or killed between the two,
+/// or `retry`) is not finished: the next writer puts its own in its place, with its record.
+#[test]
+fn a_shard_file_without_its_record_is_replaced_by_the_next_writer() -> TestResult {
+    let dir = tempfile::tempdir()?;
+    let job = job(dir.path(), 2)?;
+    std::fs::create_dir_all(job.layout.shards_dir())?;
+    std::fs::write(job.layout.shard_file(0), b"left by a writer that stopped")?;
+    let outcome = process_shard(&job, 0, &mut options(KILLED, Limits::default(), false))?;
+    assert!(matches!(outcome, ShardOutcome::Done(_)), "{outcome:?}");
+    let state =
+        store::state::completion(&job.layout, 0, job.fingerprint(), store::state::Check::Full)?;
+    assert!(
+        matches!(state, store::state::Completion::Done(_)),
+        "{state:?}"
+    );
+    assert_eq!(rows(&job)?.len(), 2);
     Ok(())
 }

@@ -1,6 +1,7 @@
 //! `sparc3d retry JOB [--class C]`: queues failed items (of one class, or all) to be converted
 //! again. A finished shard keeps its other rows in a fresh journal and loses its completion
-//! record, so the next `run` or `work` converts only the retried items and rewrites it.
+//! record and file, so the next `run` or `work` converts only the retried items and writes it
+//! again.
 
 use anyhow::{bail, Result};
 use sparc3d_schema::{ErrorClass, ItemStatus, ShardRow};
@@ -55,18 +56,21 @@ pub fn run(args: Args) -> Result<ExitCode> {
             continue;
         }
         let kept: Vec<ShardRow> = rows.into_iter().filter(|r| !matches(r)).collect();
-        // The journal first, then the completion record goes: a crash in between leaves the
-        // shard done, and retry can simply run again.
-        sparc3d_workers::journal::write_with_rows(
-            &job.layout.journal(shard),
+        // The journal first, then the completion record goes, then the shard file (its rows
+        // are in the journal): a crash in between leaves the shard done, or a file without
+        // its record that the next writer replaces, and retry can simply run again.
+        sparc3d_workers::journal::set::replace_with_rows(
+            &job.layout,
             shard,
             job.fingerprint(),
             &kept,
         )?;
-        let record = job.layout.completion(shard);
-        if record.exists() {
-            std::fs::remove_file(&record)
-                .map_err(|e| sparc3d_workers::WorkerError::io("removing", &record, e))?;
+        for file in [job.layout.completion(shard), job.layout.shard_file(shard)] {
+            match std::fs::remove_file(&file) {
+                Ok(()) => {}
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+                Err(e) => return Err(sparc3d_workers::WorkerError::io("removing", &file, e).into()),
+            }
         }
         queued += n;
         shards += 1;

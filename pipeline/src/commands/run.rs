@@ -7,9 +7,10 @@
 //! Its workers die with it (they stop as on SIGTERM when `run` is killed, releasing their
 //! leases). A shard leased by another live worker (another `run`, a cluster task, or the
 //! workers of a `run` just killed) is waited for and taken over once its lease is released
-//! or expires; one shard's failure does not stop the others; and `run` exits 0 only when every
-//! shard is done and some item converted, otherwise it names what is left (or that every item
-//! failed) and exits non-zero.
+//! or expires; a worker of its own that makes no progress past its lease (stopped, hung) is
+//! killed and its shard started again on a new worker; one shard's failure does not stop the
+//! others; and `run` exits 0 only when every shard is done and some item converted, otherwise
+//! it names what is left (or that every item failed) and exits non-zero.
 
 use super::work::LimitArgs;
 use crate::local_workers::LocalWorkers;
@@ -94,7 +95,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
     };
     // An error of the pool itself (a worker that cannot be started: too many open files) ends
     // the run like a failed shard: said, then what is left is named below.
-    let (errors, pool_error) = match Pool::new(launcher, workers, queue, waiting)
+    let lease_ttl = std::time::Duration::from_secs_f64(args.limits.lease_ttl.max(0.1));
+    let (errors, pool_error) = match Pool::new(launcher, workers, queue, waiting, lease_ttl)
         .run(&mut progress, &|| stop.requested())
     {
         Ok(errors) => (errors, None),

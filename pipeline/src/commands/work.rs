@@ -190,7 +190,12 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 }
                 ShardOutcome::Busy(owner) => eprintln!("shard {shard}: leased by {owner}, skipped"),
                 ShardOutcome::Stopped => eprintln!("shard {shard}: stopped; run again to resume"),
+                ShardOutcome::LeaseLost(_) => {}
             }
+        }
+        // Said also under `run`, whose events carry it too: a stale worker's log must tell.
+        if let ShardOutcome::LeaseLost(message) = &outcome {
+            eprintln!("{message}");
         }
         if outcome == ShardOutcome::Stopped {
             stopped = true;

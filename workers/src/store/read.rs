@@ -1,6 +1,6 @@
 //! Reading shards back: record batches and rows of a finished shard or a tensor file (its
 //! schema version checked), the facts of its footer, and the rows of a shard whether
-//! finished or still in its journal.
+//! finished or still in its journals.
 
 use super::state::{completion, Check, Completion};
 use crate::error::{Result, WorkerError};
@@ -147,7 +147,7 @@ pub fn damaged(job: &Job, shard: u64, why: &str) -> WorkerError {
 }
 
 /// Rows of a shard whether finished (Parquet, its record checked with `check`) or in progress
-/// (journal), in item order. A damaged shard is an error.
+/// (its journals), in item order. A damaged shard is an error.
 pub fn shard_rows(job: &Job, shard: u64, check: Check) -> Result<Vec<ShardRow>> {
     let layout = &job.layout;
     match completion(layout, shard, job.fingerprint(), check)? {
@@ -155,14 +155,10 @@ pub fn shard_rows(job: &Job, shard: u64, check: Check) -> Result<Vec<ShardRow>> 
         Completion::Damaged(why) => return Err(damaged(job, shard, &why)),
         Completion::Absent => {}
     }
-    let jpath = layout.journal(shard);
-    if !jpath.exists() {
-        return Ok(Vec::new());
-    }
-    let state = crate::journal::replay(&jpath)?;
+    let state = crate::journal::set::read(layout, shard, None)?;
     state
         .done
         .values()
-        .map(|d| crate::journal::read_row_at(&jpath, d.offset))
+        .map(|d| crate::journal::read_row_at(&d.journal, d.offset))
         .collect()
 }

@@ -1,8 +1,9 @@
-//! Writes a finished shard: rows from the journal in item order into a Parquet file under a
-//! temporary name, fsync, rename, fsync of the folder, and the completion record last.
+//! Writes a finished shard: rows from the journals in item order into a Parquet file under a
+//! temporary name of the writer's own, fsync, then the commit ([`super::commit`]): the file
+//! linked to the shard's name, fsync of the folder, and the completion record last.
 
+use super::commit::{commit, Committed};
 use crate::error::{Result, WorkerError};
-use crate::fsutil::{sync_dir, write_atomic};
 use crate::job::Job;
 use crate::journal::Journal;
 use parquet::arrow::ArrowWriter;
@@ -87,40 +88,45 @@ impl std::io::Write for HashingFile {
     }
 }
 
-/// Writes shard `shard` from its journal (every item must be finished) and returns its
-/// completion record, which is written last.
+/// Writes shard `shard` from its journals (every item must be finished) and commits it,
+/// its completion record last. `writer` names the temporary files (unique per writer);
+/// `fence` is called once the file is written, before anything is put in place, and stops
+/// a writer that lost its lease.
 pub fn write_shard(
     job: &Job,
     shard: u64,
     journal: &Journal,
-    writer_id: &str,
+    writer: &str,
     started_at: f64,
-) -> Result<CompletionRecord> {
+    fence: &dyn Fn() -> Result<()>,
+) -> Result<Committed> {
     let layout = &job.layout;
-    let tmp = layout.shard_tmp(shard, writer_id);
-    let file = File::create(&tmp).map_err(|e| WorkerError::io("creating shard", &tmp, e))?;
-    let result = write_parquet(job, shard, journal, file, &tmp, started_at);
-    let record = match result {
-        Ok(r) => r,
+    let tmp = layout.shard_tmp(shard, writer);
+    let written = File::create(&tmp)
+        .map_err(|e| WorkerError::io("creating shard", &tmp, e))
+        .and_then(|file| write_parquet(job, shard, journal, file, &tmp, started_at))
+        .and_then(|written| fence().map(|()| written));
+    let (file, record) = match written {
+        Ok(w) => w,
         Err(e) => {
             let _ = std::fs::remove_file(&tmp);
             return Err(e);
         }
     };
-    let json = serde_json::to_vec_pretty(&record).map_err(|e| WorkerError::BadFile {
-        path: layout.completion(shard),
-        reason: e.to_string(),
-    })?;
-    write_atomic(
-        &layout.completion(shard),
-        &json,
-        "writing completion record",
-    )?;
-    Ok(record)
+    commit(
+        layout,
+        shard,
+        &job.file.fingerprint,
+        &tmp,
+        &file,
+        record,
+        writer,
+    )
 }
 
-/// The rows of the journal into Parquet at `tmp` (through `file`), fsynced and renamed to the
-/// shard's name; the completion record that describes it (not yet written).
+/// The rows of the journals into Parquet at `tmp` (through `file`), fsynced; the file and the
+/// completion record that will describe it (its size and stamp are filled in once it is in
+/// place).
 fn write_parquet(
     job: &Job,
     shard: u64,
@@ -128,9 +134,7 @@ fn write_parquet(
     file: File,
     tmp: &Path,
     started_at: f64,
-) -> Result<CompletionRecord> {
-    let layout = &job.layout;
-    let final_path = layout.shard_file(shard);
+) -> Result<(File, CompletionRecord)> {
     let pq_err = |source| WorkerError::Parquet {
         path: tmp.to_path_buf(),
         source,
@@ -182,14 +186,7 @@ fn write_parquet(
     let file_sha256 = sparc3d_schema::config::hex(&hash.finalize());
     file.sync_all()
         .map_err(|e| WorkerError::io("syncing shard", tmp, e))?;
-    drop(file);
-    std::fs::rename(tmp, &final_path)
-        .map_err(|e| WorkerError::io("renaming shard", &final_path, e))?;
-    sync_dir(&layout.shards_dir())?;
-    let meta = std::fs::metadata(&final_path)
-        .map_err(|e| WorkerError::io("reading shard size", &final_path, e))?;
-    let bytes = meta.len();
-    Ok(CompletionRecord {
+    let record = CompletionRecord {
         shard,
         schema_version: sparc3d_schema::SCHEMA_VERSION,
         fingerprint: job.file.fingerprint.clone(),
@@ -197,12 +194,13 @@ fn write_parquet(
         ok,
         failed,
         error_classes: classes,
-        bytes,
+        bytes: 0,
         sha256: file_sha256,
-        stamp: Some(crate::fsutil::file_stamp(&meta)),
+        stamp: None,
         content_digest: sparc3d_schema::config::hex(&digest.finalize()),
         item_seconds,
         started_at,
-        finished_at: crate::now(),
-    })
+        finished_at: 0.0,
+    };
+    Ok((file, record))
 }

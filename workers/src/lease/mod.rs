@@ -6,16 +6,22 @@
 //! and is stale by definition, like one whose holder is gone (expired, or a process of this
 //! host that no longer exists or is a zombie). A stale lease is taken over: renamed away (only
 //! one taker's rename succeeds), then created anew.
+//!
+//! A lease keeps workers apart; it does not by itself keep a stopped holder from writing once
+//! it is continued. That is fencing: the holder checks its lease before each write
+//! ([`held`]), and every write that could still happen between a check and the write lands
+//! in a file of that holder's own or is a create that fails when the target exists
+//! (docs/RELIABILITY.md, "Fencing a holder that lost its lease").
+
+mod held;
+
+pub use held::{Lease, Loss};
 
 use crate::error::{Result, WorkerError};
 use serde::{Deserialize, Serialize};
 use std::fs::OpenOptions;
 use std::io::Write;
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex};
-use std::thread::JoinHandle;
-use std::time::Duration;
+use std::path::Path;
 
 /// Content of a lease file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -30,6 +36,10 @@ pub struct LeaseInfo {
     pub heartbeat_at: f64,
     /// Unix time after which the lease is stale.
     pub expires_at: f64,
+    /// Unix time this holder took the lease: of two holders, the later one holds it (0 in
+    /// leases written by earlier builds).
+    #[serde(default)]
+    pub acquired_at: f64,
 }
 
 impl LeaseInfo {
@@ -39,6 +49,11 @@ impl LeaseInfo {
             return true;
         }
         self.host == hostname() && !pid_alive(self.pid)
+    }
+
+    /// Whether the holder is the process `pid` of this host.
+    pub fn is_held_by_local(&self, pid: u32) -> bool {
+        self.pid == pid && self.host == hostname()
     }
 }
 
@@ -82,16 +97,7 @@ pub fn read(path: &Path) -> Option<LeaseInfo> {
     serde_json::from_slice(&bytes).ok()
 }
 
-/// A held lease; the heartbeat runs until it is dropped or released.
-#[derive(Debug)]
-pub struct Lease {
-    path: PathBuf,
-    owner: String,
-    stop: Arc<AtomicBool>,
-    lost: Arc<Mutex<Option<String>>>,
-    heartbeat: Option<JoinHandle<()>>,
-}
-
+/// A fresh lease of this process for `owner`, valid for `ttl` seconds from now.
 fn info(owner: &str, ttl: f64) -> LeaseInfo {
     let now = crate::now();
     LeaseInfo {
@@ -100,6 +106,7 @@ fn info(owner: &str, ttl: f64) -> LeaseInfo {
         pid: std::process::id(),
         heartbeat_at: now,
         expires_at: now + ttl,
+        acquired_at: now,
     }
 }
 
@@ -166,9 +173,10 @@ fn create(path: &Path, content: &[u8], owner: &str) -> std::io::Result<bool> {
 /// Never fails because of another worker's lease, only on I/O errors of our own writes.
 pub fn acquire(path: &Path, owner: &str, ttl: f64) -> Result<Acquired> {
     for _ in 0..TAKEOVER_TRIES {
-        let content = json(&info(owner, ttl));
+        let fresh = info(owner, ttl);
+        let content = json(&fresh);
         if create(path, &content, owner).map_err(|e| WorkerError::io("creating lease", path, e))? {
-            return Ok(Acquired::Held(Lease::start(path, owner, ttl)));
+            return Ok(Acquired::Held(Lease::start(path, &fresh, ttl)));
         }
         if let Some(h) = read(path).filter(|h| !h.is_stale(crate::now())) {
             return Ok(Acquired::Busy(h));
@@ -200,89 +208,16 @@ fn sanitize(s: &str) -> String {
         .collect()
 }
 
-impl Lease {
-    fn start(path: &Path, owner: &str, ttl: f64) -> Self {
-        let stop = Arc::new(AtomicBool::new(false));
-        let lost = Arc::new(Mutex::new(None));
-        let (p, o, s, l) = (
-            path.to_path_buf(),
-            owner.to_string(),
-            stop.clone(),
-            lost.clone(),
-        );
-        let period = Duration::from_secs_f64((ttl / 4.0).clamp(0.05, 30.0));
-        let heartbeat = std::thread::Builder::new()
-            .name("lease-heartbeat".into())
-            .spawn(move || {
-                let tick = Duration::from_millis(50).min(period);
-                let mut waited = Duration::ZERO;
-                while !s.load(Ordering::SeqCst) {
-                    // Woken early by `stop_heartbeat`, so releasing a lease does not wait.
-                    let t0 = std::time::Instant::now();
-                    std::thread::park_timeout(tick);
-                    if s.load(Ordering::SeqCst) {
-                        return;
-                    }
-                    waited += t0.elapsed();
-                    if waited < period {
-                        continue;
-                    }
-                    waited = Duration::ZERO;
-                    match read(&p) {
-                        Some(h) if h.owner != o => {
-                            if let Ok(mut g) = l.lock() {
-                                *g = Some(h.owner);
-                            }
-                            return;
-                        }
-                        _ => {
-                            // A failed heartbeat is retried; expiry protects the others.
-                            let _ = crate::fsutil::write_atomic(&p, &json(&info(&o, ttl)), "lease");
-                        }
-                    }
-                }
-            })
-            .ok();
-        Self {
-            path: path.to_path_buf(),
-            owner: owner.to_string(),
-            stop,
-            lost,
-            heartbeat,
-        }
-    }
-
-    /// `Some(new owner)` when another worker took the lease over.
-    pub fn lost_to(&self) -> Option<String> {
-        self.lost.lock().ok().and_then(|g| g.clone())
-    }
-
-    /// The owner name.
-    pub fn owner(&self) -> &str {
-        &self.owner
-    }
-
-    /// Stops the heartbeat and removes the lease file if it is still ours.
-    pub fn release(mut self) {
-        self.stop_heartbeat();
-        if read(&self.path).is_some_and(|h| h.owner == self.owner) {
-            let _ = std::fs::remove_file(&self.path);
-        }
-    }
-
-    fn stop_heartbeat(&mut self) {
-        self.stop.store(true, Ordering::SeqCst);
-        if let Some(h) = self.heartbeat.take() {
-            h.thread().unpark();
-            let _ = h.join();
-        }
-    }
-}
-
-impl Drop for Lease {
-    fn drop(&mut self) {
-        self.stop_heartbeat();
-    }
+/// An owner name as a token for file names: letters, digits, `-` and `.` kept, the rest `_`
+/// (files named by it are created exclusively, so two owners never share one).
+pub fn file_token(owner: &str) -> String {
+    owner
+        .chars()
+        .map(|c| match c {
+            'a'..='z' | 'A'..='Z' | '0'..='9' | '-' | '.' => c,
+            _ => '_',
+        })
+        .collect()
 }
 
 /// A unique owner name for this process.
@@ -297,6 +232,7 @@ pub fn owner_name() -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::time::Duration;
 
     #[test]
     fn second_taker_is_refused_and_stale_lease_is_taken_over() -> Result<()> {
@@ -315,6 +251,7 @@ mod tests {
             pid: 1,
             heartbeat_at: 0.0,
             expires_at: 1.0,
+            acquired_at: 0.0,
         };
         std::fs::write(&path, json(&old)).map_err(|e| WorkerError::io("t", &path, e))?;
         let Acquired::Held(c) = acquire(&path, "c", 60.0)? else {
@@ -363,6 +300,7 @@ mod tests {
             pid,
             heartbeat_at: crate::now(),
             expires_at: crate::now() + 60.0,
+            acquired_at: crate::now(),
         };
         assert!(lease.is_stale(crate::now()));
         let _ = child.wait();
