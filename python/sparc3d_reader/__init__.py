@@ -495,13 +495,17 @@ def run_export(job: PathLike, fmt: str, out: PathLike, ids: Optional[Sequence[st
 def _load_npz(path: pathlib.Path) -> Dict[str, Any]:
     with np.load(path) as z:
         item = {k: z[k] for k in z.files}
-    item["id"] = path.stem
+    # Every export names its item inside (`id`, `item_index`); files of older versions did
+    # not, and were named after the id.
+    item["id"] = str(item["id"]) if "id" in item else path.stem
+    if "item_index" in item:
+        item["item_index"] = int(item["item_index"])
     return item
 
 
 def iter_export(folder: PathLike) -> Iterator[Dict[str, Any]]:
-    """Yields the arrays of every `.npz` in an export folder (sorted by name), with `id` set
-    from the file name."""
+    """Yields the arrays of every `.npz` in an export folder (sorted by name, which is
+    manifest order), with `id` (str) and `item_index` (int) from inside the file."""
     for path in sorted(pathlib.Path(folder).glob("*.npz")):
         yield _load_npz(path)
 
