@@ -2,6 +2,7 @@
 
 mod cluster;
 mod commands;
+mod export_name;
 mod folder_scan;
 mod freeze;
 mod hints;

@@ -22,6 +22,10 @@ frame; `samples_to_source` maps them to the source frame), batched by `collate_v
 layouts of other codebases are written by `sparc3d export` (`run_export`) and read back with
 `iter_export` / `ExportDataset` and `collate_direct3d_s2`, `collate_trellis2`, `collate_cubvh`.
 
+A job folder is read as the CLI reads it (`jobs.py`): only its own shards, each checked against
+its completion record (`verify=True`: the sha256; "quick"; False) and its rows against the
+frozen manifest; every shard left out is named in a `ShardWarning`.
+
 Only numpy and pyarrow are needed; `SparseCubesDataset` is a `torch.utils.data.Dataset` when
 torch is installed (imported only when the class is first used) and a plain indexable class
 otherwise.
@@ -29,6 +33,8 @@ otherwise.
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 import json
 import os
 import pathlib
@@ -37,6 +43,9 @@ from typing import Any, Dict, Iterable, Iterator, List, Optional, Sequence, Tupl
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
+
+from . import jobs
+from .jobs import ShardWarning, Verify
 
 __all__ = [
     "TENSORS",
@@ -50,6 +59,7 @@ __all__ = [
     "collate_trellis2",
     "collate_cubvh",
     "shard_paths",
+    "ShardWarning",
     "decode_tensor",
     "row_to_item",
     "iter_items",
@@ -88,24 +98,85 @@ _SAMPLE_COLUMNS = [f"{t}{s}" for t in SAMPLE_TENSORS for s in ("", "_dtype", "_s
 PathLike = Union[str, os.PathLike]
 
 
-def shard_paths(paths: Union[PathLike, Iterable[PathLike]], complete_only: bool = True) -> List[pathlib.Path]:
-    """The shard files under `paths`: each path is a job folder (its `shards/part-*.parquet`,
-    only those with a completion record unless `complete_only` is false) or a shard file."""
+def shard_paths(paths: Union[PathLike, Iterable[PathLike]], complete_only: bool = True,
+                verify: Verify = True) -> List[pathlib.Path]:
+    """The shard files under `paths` that the reader reads, checked as `iter_items` checks them
+    (docs/RELIABILITY.md, "The Python reader"). Each path is a job folder (its own shards with a
+    completion record that the file matches, and every row its item; with `complete_only`
+    false also shards without a record), a folder of shard files, or a file (read when it has
+    no completion record beside it). Shards left out are named in a `ShardWarning`.
+
+    `verify`: True hashes every shard against its record's sha256 (as `sparc3d inspect`), "quick"
+    only those whose size or stamp changed since recorded (as `sparc3d status`), False checks
+    the size only."""
+    return [s.path for s in _shards(paths, complete_only) if _usable(s, verify)]
+
+
+def _shards(paths: Union[PathLike, Iterable[PathLike]], complete_only: bool) -> List[jobs.Shard]:
+    """The shards under `paths`, not yet checked against their records."""
     if isinstance(paths, (str, os.PathLike)):
         paths = [paths]
-    out: List[pathlib.Path] = []
+    out: List[jobs.Shard] = []
     for p in paths:
         p = pathlib.Path(p)
         if p.is_dir():
-            shards = p / "shards" if (p / "shards").is_dir() else p
-            for f in sorted(shards.glob("part-*.parquet")):
-                if not complete_only or f.with_name(f.name[: -len(".parquet")] + ".complete.json").exists():
-                    out.append(f)
+            job = jobs.job_of_folder(p)
+            out += jobs.job_shards(job, complete_only) if job else _folder_shards(p, complete_only)
         elif p.is_file():
-            out.append(p)
+            out.append(_file_shard(p))
         else:
             raise FileNotFoundError(f"{p}: neither a job folder nor a shard file")
     return out
+
+
+def _record_beside(path: pathlib.Path) -> pathlib.Path:
+    return path.with_name(path.name[: -len(".parquet")] + ".complete.json")
+
+
+def _file_shard(path: pathlib.Path) -> jobs.Shard:
+    """A file named on its own: a shard of a job (checked as the job's), or any other file."""
+    job, index = jobs.job_of_file(path)
+    record, torn = jobs.read_record(_record_beside(path)) if path.suffix == ".parquet" else (None, None)
+    return jobs.Shard(path, job, index, record, torn=torn)
+
+
+def _folder_shards(folder: pathlib.Path, complete_only: bool) -> List[jobs.Shard]:
+    """`part-*.parquet` of a folder outside a job (or its `shards/`): those with a completion
+    record (all with `complete_only` false); no job to check names or rows against."""
+    shards = folder / "shards" if (folder / "shards").is_dir() else folder
+    out = []
+    for f in sorted(shards.glob("part-*.parquet")):
+        record, torn = jobs.read_record(_record_beside(f))
+        if record is not None or torn is not None or not complete_only:
+            out.append(jobs.Shard(f, record=record, torn=torn))
+    return out
+
+
+def _usable(shard: jobs.Shard, verify: Verify) -> bool:
+    """Whether a shard is read: it matches its completion record as far as `verify` looks,
+    and a job's shard holds its items (`jobs.check_rows`). Otherwise a ShardWarning says why."""
+    jobs.check_verify_mode(verify)
+    why = shard.torn
+    if why is None and shard.record is not None:
+        why = jobs.check_against_record(shard, verify)
+    if why is None and shard.job is not None:
+        why = _rows_not_the_shards(shard)
+    if why is None:
+        return True
+    fix = (f" `sparc3d verify {shard.job.root}` moves it aside, `sparc3d run {shard.job.root}` "
+           "converts it again." if shard.job else "")
+    jobs.warn_shards(f"{shard.path} is not read, its items left out: {why}.{fix}")
+    return False
+
+
+def _rows_not_the_shards(shard: jobs.Shard) -> Optional[str]:
+    """Why a job shard's footer or rows are not its own (`jobs.check_rows`), if so; a file
+    pyarrow cannot read is damaged too."""
+    try:
+        f = pq.ParquetFile(shard.path)
+        return jobs.check_footer(shard, f) or jobs.check_rows(shard, jobs.read_check_columns(shard.path, f))
+    except (OSError, pa.ArrowException, UnicodeDecodeError, OverflowError) as e:
+        return f"it cannot be read ({type(e).__name__}: {e})"
 
 
 #: The shard schema version this reader decodes (docs/FORMAT.md).
@@ -117,16 +188,37 @@ def decode_tensor(row: Dict[str, Any], name: str) -> Optional[np.ndarray]:
     zstd frame holds the elements' little-endian bytes in byte planes, column by column."""
     if row.get(name) is None:
         return None
-    dtype, shape = np.dtype(row[name + "_dtype"]), row[name + "_shape"]
+    dtype, shape = _tensor_dtype(row, name), row[name + "_shape"]
+    if not shape or any(d is None or d < 0 for d in shape):
+        raise ValueError(f"item {row.get('id')!r}: column {name}_shape is {shape!r}, not a shape")
     n, k = int(shape[0]), int(np.prod(shape[1:]))
     raw = pa.decompress(row[name], decompressed_size=n * k * dtype.itemsize, codec="zstd")
     planes = np.frombuffer(raw, np.uint8).reshape(k, dtype.itemsize, n)
     return planes.transpose(2, 0, 1).copy().view(dtype).reshape(shape)
 
 
+def _tensor_dtype(row: Dict[str, Any], name: str) -> np.dtype:
+    """The numpy dtype of a tensor column; a ValueError naming the row and column unless it is
+    a little-endian number type (a byte-order flip `<` → `>` would decode to other numbers)."""
+    text = row[name + "_dtype"]
+    try:
+        dtype = np.dtype(text)
+    except (TypeError, ValueError, SyntaxError):  # numpy parses some strings as Python
+        dtype = None
+    if dtype is None or str(text)[:1] not in ("<", "|") or dtype.kind not in "uif":
+        raise ValueError(f"item {row.get('id')!r}: column {name}_dtype is {text!r}, not a "
+                         "little-endian number type (docs/FORMAT.md, \"Tensor encoding\")")
+    return dtype
+
+
 def row_to_item(row: Dict[str, Any]) -> Dict[str, Any]:
     """One `ok` row (a dict of column values) as an item: metadata plus the tensors in the
-    reader's dtypes (coords and cells int32 [K, 3], sdf float32 [K], deformation float32 [K, 3])."""
+    reader's dtypes (coords and cells int32 [K, 3], sdf float32 [K], deformation float32 [K, 3]).
+    A ValueError names the columns the row lacks."""
+    missing = [c for c in _READ_COLUMNS if c not in row]
+    if missing:
+        raise ValueError(f"item {row.get('id')!r}: no column {', '.join(map(repr, missing))} "
+                         "(docs/FORMAT.md, \"Columns\")")
     item: Dict[str, Any] = {
         "id": row["id"],
         "item_index": int(row["item_index"]),
@@ -217,23 +309,67 @@ def shard_config(path: PathLike) -> Dict[str, Any]:
     return json.loads(raw) if raw else {}
 
 
+def _item_columns(path: pathlib.Path, f: pq.ParquetFile, samples: bool) -> List[str]:
+    """The columns an item is read from; a ValueError names any the file lacks. The sample
+    columns are read when asked for and present (jobs without `[samples]` hold them empty)."""
+    _check_version(path, f)
+    names = f.schema_arrow.names
+    jobs.require_columns(path, names, _READ_COLUMNS)
+    with_samples = samples and all(c in names for c in _SAMPLE_COLUMNS)
+    return _READ_COLUMNS + (_SAMPLE_COLUMNS if with_samples else [])
+
+
 def _rows(path: pathlib.Path, batch_size: int, samples: bool = True) -> Iterator[Dict[str, Any]]:
     f = pq.ParquetFile(path)
-    _check_version(path, f)
-    columns = _READ_COLUMNS + (_SAMPLE_COLUMNS if samples else [])
+    columns = _item_columns(path, f, samples)
+    n = 0
     for batch in f.iter_batches(batch_size=batch_size, columns=columns):
+        n += batch.num_rows
         yield from batch.to_pylist()
+    _check_row_count(path, n, f.metadata.num_rows)
+
+
+def _check_row_count(path: pathlib.Path, read: int, stored: int) -> None:
+    # pyarrow reads a column chunk whose page header is damaged as no rows at all, silently.
+    if read != stored:
+        raise ValueError(f"{path}: {read} rows read, its footer says {stored}: the file is "
+                         "damaged (read it with verify=True to leave such a shard out)")
+
+
+@contextlib.contextmanager
+def _naming(path: pathlib.Path) -> Iterator[None]:
+    """Errors of pyarrow or zstd reading a file (a damaged page, a blob failing zstd's checksum,
+    text that is not UTF-8) as a ValueError naming the file."""
+    try:
+        yield
+    except (OSError, pa.ArrowException, UnicodeDecodeError, OverflowError) as e:
+        raise ValueError(f"{path}: cannot be read ({type(e).__name__}: {e})") from e
+
+
+def _shard_item(path: pathlib.Path, row: Dict[str, Any]) -> Dict[str, Any]:
+    """`row_to_item`, its errors naming the shard file."""
+    try:
+        return row_to_item(row)
+    except ValueError as e:
+        raise ValueError(f"{path}: {e}") from None
 
 
 def iter_items(paths: Union[PathLike, Iterable[PathLike]], complete_only: bool = True,
-               batch_size: int = 16, samples: bool = True) -> Iterator[Dict[str, Any]]:
+               batch_size: int = 16, samples: bool = True,
+               verify: Verify = True) -> Iterator[Dict[str, Any]]:
     """Yields every `ok` item of the given jobs / shard files, in shard and item order
     (failed and skipped rows are left out). Reads `batch_size` rows at a time; with
-    `samples=False` the sample columns are not read."""
-    for path in shard_paths(paths, complete_only):
-        for row in _rows(path, batch_size, samples):
-            if row["status"] == "ok":
-                yield row_to_item(row)
+    `samples=False` the sample columns are not read.
+
+    Each shard is checked before its first item is yielded, as `shard_paths` says (`verify`:
+    True, "quick" or False); one that fails is left out with a `ShardWarning`."""
+    for shard in _shards(paths, complete_only):
+        if not _usable(shard, verify):
+            continue
+        with _naming(shard.path):
+            for row in _rows(shard.path, batch_size, samples):
+                if row["status"] == "ok":
+                    yield _shard_item(shard.path, row)
 
 
 #: The 8 corners of a cell as offsets from its minimum corner; corner `o` is
@@ -319,21 +455,28 @@ def write_tensor_file(path: PathLike, rows: Sequence[Dict[str, Any]], tensors: S
 
 
 def iter_tensor_rows(paths: Union[PathLike, Iterable[PathLike]], tensors: Sequence[str],
-                     complete_only: bool = True, batch_size: int = 16) -> Iterator[Dict[str, Any]]:
+                     complete_only: bool = True, batch_size: int = 16,
+                     verify: Verify = True) -> Iterator[Dict[str, Any]]:
     """Yields every row of tensor files (or shards) as a dict: the plain columns as they are,
-    each name in `tensors` decoded (None when null). Folders are read like job folders
-    (their `part-*.parquet`, with completion records unless `complete_only` is false)."""
-    for path in shard_paths(paths, complete_only):
+    each name in `tensors` decoded (None when null; a ValueError names a tensor the file does
+    not have). Folders are read like job folders (`shard_paths`, with `verify`)."""
+    for path in shard_paths(paths, complete_only, verify):
         f = pq.ParquetFile(path)
         _check_version(path, f)
+        jobs.require_columns(path, f.schema_arrow.names,
+                             [f"{t}{s}" for t in tensors for s in ("", "_dtype", "_shape")])
         names = [n for n in f.schema_arrow.names if not any(
             n in (t + "_dtype", t + "_shape") for t in tensors)]
-        for batch in f.iter_batches(batch_size=batch_size):
-            for row in batch.to_pylist():
-                out = {k: row[k] for k in names if k not in tensors}
-                for t in tensors:
-                    out[t] = decode_tensor(row, t)
-                yield out
+        n = 0
+        with _naming(path):
+            for batch in f.iter_batches(batch_size=batch_size):
+                n += batch.num_rows
+                for row in batch.to_pylist():
+                    out = {k: row[k] for k in names if k not in tensors}
+                    for t in tensors:
+                        out[t] = decode_tensor(row, t)
+                    yield out
+        _check_row_count(path, n, f.metadata.num_rows)
 
 
 def collate_sparse(batch: Sequence[Dict[str, Any]], to_torch: bool = False) -> Dict[str, Any]:
@@ -389,26 +532,51 @@ def collate_sparse(batch: Sequence[Dict[str, Any]], to_torch: bool = False) -> D
 class _SparseCubesDatasetBase:
     """Indexable items of jobs / shard files (see `iter_items` for what an item holds).
 
-    Indexes the `ok` rows once (metadata columns only); `ds[i]` reads the row group holding
-    item i (the last one read is cached, so reading in order is cheap). `transform`, when
-    given, is applied to each item."""
+    Checks the shards as `shard_paths` does (`verify`: True, "quick" or False; a shard that
+    fails is left out with a `ShardWarning`) and indexes the `ok` rows once (metadata columns
+    only); `ds[i]` reads the row group holding item i (the last one read is cached, so reading
+    in order is cheap), after checking that its shard file was not changed since. `transform`,
+    when given, is applied to each item."""
 
     def __init__(self, paths: Union[PathLike, Iterable[PathLike]], complete_only: bool = True,
-                 transform=None):
-        self.paths = shard_paths(paths, complete_only)
+                 transform=None, verify: Verify = True):
+        shards = [s for s in _shards(paths, complete_only) if _usable(s, verify)]
+        self.paths = [s.path for s in shards]
+        # Each shard with its record and stamp when checked, to notice a later change; without
+        # its job (what DataLoader workers are sent stays small).
+        self._shards = [dataclasses.replace(s, job=None) for s in shards]
         self.transform = transform
         # (shard number, row group, row within the group) of every ok row.
         self.index: List[Tuple[int, int, int]] = []
         self.ids: List[str] = []
         for s, path in enumerate(self.paths):
-            f = pq.ParquetFile(path)
-            for g in range(f.metadata.num_row_groups):
-                t = f.read_row_group(g, columns=["id", "status"]).to_pydict()
-                for r, (id_, status) in enumerate(zip(t["id"], t["status"])):
-                    if status == "ok":
-                        self.index.append((s, g, r))
-                        self.ids.append(id_)
+            with _naming(path):
+                self._index_shard(s, path)
         self._cache: Tuple[Optional[Tuple[int, int]], Optional[pa.Table]] = (None, None)
+
+    def _index_shard(self, s: int, path: pathlib.Path) -> None:
+        """Appends the ok rows of shard file `s` to the index."""
+        f = pq.ParquetFile(path)
+        jobs.require_columns(path, f.schema_arrow.names, ["id", "status"])
+        for g in range(f.metadata.num_row_groups):
+            t = f.read_row_group(g, columns=["id", "status"]).to_pydict()
+            _check_row_count(path, len(t["id"]), f.metadata.row_group(g).num_rows)
+            for r, (id_, status) in enumerate(zip(t["id"], t["status"])):
+                if status == "ok":
+                    self.index.append((s, g, r))
+                    self.ids.append(id_)
+
+    def _row_group(self, s: int, g: int) -> pa.Table:
+        """Row group `g` of shard file `s` (cached), once its file is known to be unchanged."""
+        key, table = self._cache
+        if key != (s, g) or table is None:
+            path = self.paths[s]
+            jobs.check_unchanged(self._shards[s])
+            f = pq.ParquetFile(path)
+            table = f.read_row_group(g, columns=_item_columns(path, f, samples=True))
+            _check_row_count(path, table.num_rows, f.metadata.row_group(g).num_rows)
+            self._cache = ((s, g), table)
+        return table
 
     def __len__(self) -> int:
         return len(self.index)
@@ -419,12 +587,9 @@ class _SparseCubesDatasetBase:
         if not 0 <= i < len(self):
             raise IndexError(f"item {i} out of range ({len(self)} items)")
         s, g, r = self.index[i]
-        key, table = self._cache
-        if key != (s, g) or table is None:
-            table = pq.ParquetFile(self.paths[s]).read_row_group(
-                g, columns=_READ_COLUMNS + _SAMPLE_COLUMNS)
-            self._cache = ((s, g), table)
-        item = row_to_item(table.slice(r, 1).to_pylist()[0])
+        with _naming(self.paths[s]):
+            row = self._row_group(s, g).slice(r, 1).to_pylist()[0]
+        item = _shard_item(self.paths[s], row)
         return self.transform(item) if self.transform else item
 
     def __iter__(self) -> Iterator[Dict[str, Any]]:
@@ -495,13 +660,17 @@ def run_export(job: PathLike, fmt: str, out: PathLike, ids: Optional[Sequence[st
 def _load_npz(path: pathlib.Path) -> Dict[str, Any]:
     with np.load(path) as z:
         item = {k: z[k] for k in z.files}
-    item["id"] = path.stem
+    # Every export names its item inside (`id`, `item_index`); files of older versions did
+    # not, and were named after the id.
+    item["id"] = str(item["id"]) if "id" in item else path.stem
+    if "item_index" in item:
+        item["item_index"] = int(item["item_index"])
     return item
 
 
 def iter_export(folder: PathLike) -> Iterator[Dict[str, Any]]:
-    """Yields the arrays of every `.npz` in an export folder (sorted by name), with `id` set
-    from the file name."""
+    """Yields the arrays of every `.npz` in an export folder (sorted by name, which is
+    manifest order), with `id` (str) and `item_index` (int) from inside the file."""
     for path in sorted(pathlib.Path(folder).glob("*.npz")):
         yield _load_npz(path)
 

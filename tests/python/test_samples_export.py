@@ -89,7 +89,7 @@ def test_sample_columns_hold_the_configured_counts_in_f16(job):
 
 
 def test_every_export_loads_with_numpy_alone_and_with_the_reader(job, tmp_path):
-    ok, _ = ok_rows(job)
+    ok, rows = ok_rows(job)
     for fmt in reader.EXPORT_FORMATS:
         out = tmp_path / fmt
         reader.run_export(job, fmt, out, binary=sparc3d_bin())
@@ -98,6 +98,7 @@ def test_every_export_loads_with_numpy_alone_and_with_the_reader(job, tmp_path):
         scope = {"path": str(files[0]), "fmt": fmt}
         exec(snippet("read-export"), scope)
         assert scope["center"].shape == (3,) and scope["scale"] > 0
+        assert scope["item_id"] == rows[scope["item_index"]]["id"]  # one shard: rows[i] is item i
         items = list(reader.iter_export(out))
         if fmt == "vecset-npz":
             b = reader.collate_vecset(items)

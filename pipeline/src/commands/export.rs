@@ -1,11 +1,13 @@
 //! `sparc3d export JOB --format F --out DIR [--ids …] [--frame source|normalized]`: writes one
 //! `.npz` per ok item in another codebase's on-disk layout (docs/FORMAT.md, "Exports"). The
 //! sparse layouts are computed from the stored grid by `sparcubes::layouts`; the vector-set
-//! samples come from the shard's sample columns. Every file carries the item's
-//! normalization (`center`, `scale`, `resolution`).
+//! samples come from the shard's sample columns. Every file carries the item it holds (`id`,
+//! `item_index`) and its normalization (`center`, `scale`, `resolution`); file names come from
+//! `export_name` (unique per item, within the file-name limit).
 
+use crate::export_name::{self, ExportNames};
 use crate::item_lookup;
-use crate::npz::{npz_bytes, Array};
+use crate::npz::{self, npz_bytes, Array};
 use anyhow::{bail, Context, Result};
 use sparc3d_schema::ShardRow;
 use sparc3d_workers::store::read::shard_rows;
@@ -14,6 +16,7 @@ use sparc3d_workers::Job;
 use sparcubes::layouts::{cubvh, direct3d_s2, trellis2};
 use sparcubes::samples::Precision;
 use std::collections::BTreeSet;
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -48,7 +51,7 @@ pub struct Args {
     /// Layout to write.
     #[arg(long, value_enum)]
     pub format: Format,
-    /// Output folder (created); one `<id>.npz` per item.
+    /// Output folder (created); one `<index>-<id>.npz` per item (docs/FORMAT.md, "Exports").
     #[arg(long)]
     pub out: PathBuf,
     /// Only these items (comma-separated or repeated), each named as `--id` elsewhere: its id,
@@ -86,15 +89,16 @@ pub fn run(args: Args) -> Result<ExitCode> {
         .map(|i| i.shard)
         .collect();
     let dtype = job.file.config.samples.params.dtype;
+    let names = ExportNames::for_job(job.file.items);
     let (mut written, mut failed) = (0u64, 0u64);
     for shard in shards {
         for row in shard_rows(&job, shard, Check::Full)? {
             if !(wanted.is_empty() || wanted.contains(row.id.as_str())) || row.tensors.is_none() {
                 continue;
             }
-            let path = args.out.join(format!("{}.npz", file_stem(&row.id)));
+            let name = names.file_name(row.item_index, &row.id, "npz");
             match export_row(&row, args.format, args.frame, dtype)
-                .and_then(|arrays| write_atomic(&path, &npz_bytes(&arrays)?))
+                .and_then(|arrays| write_item_file(&args.out, &name, &row.id, &npz_bytes(&arrays)?))
             {
                 Ok(()) => written += 1,
                 Err(e) => {
@@ -103,6 +107,10 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 }
             }
         }
+    }
+    // The renames last, once: the files were fsynced one by one.
+    if written > 0 {
+        sparc3d_workers::fsutil::sync_dir(&args.out)?;
     }
     eprintln!(
         "{written} items written to {}{}",
@@ -120,30 +128,46 @@ pub fn run(args: Args) -> Result<ExitCode> {
     })
 }
 
-/// A file name for an item id: characters outside `[A-Za-z0-9._-]` become `_`.
-pub fn file_stem(id: &str) -> String {
-    let s: String = id
-        .chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || "._-".contains(c) {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect();
-    if s.is_empty() || s.starts_with('.') {
-        format!("_{s}")
-    } else {
-        s
+/// Writes item `id`'s file `name` in `dir`: to a temporary name, fsynced, then renamed. A
+/// file already there is replaced only when it holds the same item (a second export of the
+/// job); one that holds another item, or that is not an export at all, is an error and stays.
+fn write_item_file(dir: &Path, name: &str, id: &str, bytes: &[u8]) -> Result<()> {
+    let path = dir.join(name);
+    refuse_another_items_file(&path, id)?;
+    let tmp = dir.join(export_name::tmp_name(name));
+    let written = (|| -> Result<()> {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        Ok(std::fs::rename(&tmp, &path)?)
+    })()
+    .with_context(|| format!("writing {} (through {})", path.display(), tmp.display()));
+    if written.is_err() {
+        let _ = std::fs::remove_file(&tmp);
     }
+    written
 }
 
-/// Writes `bytes` to `path` through a temporary name and a rename.
-fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let tmp = path.with_extension("npz.tmp");
-    std::fs::write(&tmp, bytes).with_context(|| format!("writing {}", tmp.display()))?;
-    std::fs::rename(&tmp, path).with_context(|| format!("renaming to {}", path.display()))
+/// An error when `path` exists and holds anything but item `id`'s export.
+fn refuse_another_items_file(path: &Path, id: &str) -> Result<()> {
+    let bytes = match std::fs::read(path) {
+        Ok(b) => b,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(e).with_context(|| format!("reading {}", path.display())),
+    };
+    match npz::read_text(&bytes, "id") {
+        Some(found) if found == id => Ok(()),
+        Some(found) => bail!(
+            "{} already holds item {found:?} (another job's export?); not overwritten: \
+             export into an empty folder",
+            path.display()
+        ),
+        None => bail!(
+            "{} already exists and is not an export of an item (no `id` entry); not \
+             overwritten: export into an empty folder",
+            path.display()
+        ),
+    }
 }
 
 /// The vector-set samples of one item (points, normals, signed distances, occupancy) in
@@ -240,6 +264,8 @@ fn export_row(
     let norm = cubes.normalization;
     let n = cubes.resolution as usize;
     let mut arrays = vec![
+        Array::text("id", &row.id),
+        Array::numbers("item_index", "<i8", vec![], &[row.item_index as i64]),
         Array::numbers("center", "<f8", vec![3], &norm.center),
         Array::numbers("scale", "<f8", vec![], &[norm.scale]),
         Array::numbers("resolution", "<i8", vec![], &[n as i64]),

@@ -1,0 +1,409 @@
+"""Which shards of a job folder are read, checked the way the `sparc3d` CLI checks them
+(docs/RELIABILITY.md, "Finished shards" and "The Python reader").
+
+A job's shards are `shards/part-NNNNN.parquet` for N below `job.json`'s `shards`. One is read
+only when its completion record `part-NNNNN.complete.json` parses, has the job's fingerprint
+(another is an error, as in the CLI: a mixed job), is this shard's, and the file matches it:
+its size and sha256 (`verify=True`, what `inspect`/`show` do), or its size and stamp with the
+sha256 only when the stamp changed (`verify="quick"`, what `run`/`status` do), or its size only
+(`verify=False`). Its footer must name the job's fingerprint, and its rows are checked against
+the frozen manifest before any is returned: one row per item of the shard, in order, with the
+manifest's id and uri, a known status, as many ok rows as the record counts, the job's
+resolution and a normalization the converter can produce.
+
+A shard that is not read for any of these reasons, and any other `.parquet` file in `shards/`
+(a stray `part-00099`), is named in a `ShardWarning`, with its quarantine folder when `run` or
+`verify` moved it aside. `warnings.simplefilter("error", ShardWarning)` makes them errors.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+import os
+import pathlib
+import re
+import sys
+import warnings
+from typing import Dict, List, Optional, Sequence, Tuple, Union
+
+import pyarrow.parquet as pq
+
+Verify = Union[bool, str]
+
+#: The values of `verify`: True (or "full") hashes every shard, "quick" only those whose
+#: stamp changed, False none.
+VERIFY_MODES = (True, "full", "quick", False)
+
+
+def check_verify_mode(verify: Verify) -> None:
+    """A ValueError unless `verify` is one of VERIFY_MODES (1 and 0 are not)."""
+    if not any(verify is m if isinstance(m, bool) else verify == m for m in VERIFY_MODES):
+        raise ValueError(f"verify={verify!r}: one of True, 'full', 'quick', False")
+
+_SHARD_NAME = re.compile(r"^part-(\d{5,})\.parquet$")
+
+# Normalizations the converter can produce (sparcubes/src/normalize.rs): the longest side of a
+# mesh lies in [1e-15, 1e15] and the grid uses at most all of the unit cube, so the scale is at
+# most 1e15; coordinates are float32, so a centre lies within float32's range.
+_MAX_SCALE = 1e15
+_MAX_CENTER = 3.5e38
+
+
+class ShardWarning(UserWarning):
+    """A shard of a job that is not read (not finished, damaged, quarantined) or a file in
+    `shards/` that is not one of the job's shards; the message names it and says why."""
+
+
+@dataclasses.dataclass
+class Job:
+    """What the checks need of a job folder: `job.json` and, on first use, the ids and uris
+    of its frozen manifest."""
+
+    root: pathlib.Path
+    fingerprint: str
+    items: int
+    shards: int
+    shard_size: int
+    resolution: Optional[int]
+    _items: Optional[List[Tuple[str, str]]] = None
+
+    def shard_file(self, shard: int) -> pathlib.Path:
+        """`shards/part-NNNNN.parquet`."""
+        return self.root / "shards" / f"part-{shard:05d}.parquet"
+
+    def record_file(self, shard: int) -> pathlib.Path:
+        """`shards/part-NNNNN.complete.json`, the completion record."""
+        return self.root / "shards" / f"part-{shard:05d}.complete.json"
+
+    def shard_items(self, shard: int) -> range:
+        """Manifest positions of the items of a shard."""
+        start = min(shard * self.shard_size, self.items)
+        return range(start, min(start + self.shard_size, self.items))
+
+    def manifest(self) -> List[Tuple[str, str]]:
+        """(id, uri) of every item of the frozen manifest (`manifest.jsonl`), in order."""
+        if self._items is None:
+            self._items = _manifest_items(self.root / "manifest.jsonl")
+        return self._items
+
+
+def open_job(root: pathlib.Path) -> Job:
+    """The job in folder `root`; a ValueError naming `job.json` when it is not one."""
+    path = root / "job.json"
+    try:
+        job = json.loads(path.read_text())
+        config = job["config"]
+        return Job(root=root, fingerprint=str(job["fingerprint"]), items=int(job["items"]),
+                   shards=int(job["shards"]), shard_size=max(int(config["shard_size"]), 1),
+                   resolution=config.get("params", {}).get("resolution"))
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        raise ValueError(f"{path}: not a readable job file ({type(e).__name__}: {e})") from None
+
+
+def job_of_folder(folder: pathlib.Path) -> Optional[Job]:
+    """The job of a job folder or of its `shards/` folder; None for any other folder."""
+    for root in (folder, folder.parent):
+        if (root / "job.json").is_file() and (root / "shards").resolve() in (
+                (folder / "shards").resolve(), folder.resolve()):
+            return open_job(root)
+    return None
+
+
+def job_of_file(path: pathlib.Path) -> Tuple[Optional[Job], Optional[int]]:
+    """The job and shard index of a shard file named as one of its job's shards
+    (`JOB/shards/part-NNNNN.parquet`); (None, None) for any other file."""
+    m = _SHARD_NAME.match(path.name)
+    if m is None or path.parent.name != "shards" or not (path.parent.parent / "job.json").is_file():
+        return None, None
+    job = open_job(path.parent.parent)
+    shard = int(m.group(1))
+    return (job, shard) if shard < job.shards and path.name == job.shard_file(shard).name else (None, None)
+
+
+def _manifest_items(path: pathlib.Path) -> List[Tuple[str, str]]:
+    items = []
+    try:
+        with open(path, encoding="utf-8") as f:
+            for line in f:
+                if line.strip():
+                    record = json.loads(line)
+                    items.append((record["id"], record["uri"]))
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        raise ValueError(f"{path}: the frozen manifest cannot be read ({type(e).__name__}: {e})") from None
+    return items
+
+
+# --- one shard against its completion record ------------------------------------------------
+
+
+@dataclasses.dataclass
+class Shard:
+    """A shard file to read: its job and index (None for a file outside a job), its completion
+    record (None when it has none) and the file's stamp once checked, to notice a later change."""
+
+    path: pathlib.Path
+    job: Optional[Job] = None
+    index: Optional[int] = None
+    record: Optional[dict] = None
+    stamp: Optional[Tuple[int, int, int, int]] = None
+    #: Why its completion record cannot be used (it does not parse), if so.
+    torn: Optional[str] = None
+
+
+def _stamp(path: pathlib.Path) -> Tuple[int, int, int, int]:
+    st = os.stat(path)
+    return st.st_size, st.st_mtime_ns, st.st_ctime_ns, st.st_ino
+
+
+def file_sha256(path: pathlib.Path) -> str:
+    """Hex sha256 of a file's bytes, read in 4 MiB blocks."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        while block := f.read(4 << 20):
+            h.update(block)
+    return h.hexdigest()
+
+
+# Files that matched their record in this process, by path: (size, mtime, ctime, inode, sha256).
+# A file whose stamp is unchanged since has not been written (the ctime cannot be set back), so
+# opening the same job again, or its shard files one by one, hashes nothing twice.
+_verified: Dict[str, Tuple[int, int, int, int, str]] = {}
+
+
+def read_record(path: pathlib.Path) -> Tuple[Optional[dict], Optional[str]]:
+    """The completion record at `path`: (None, None) when absent, (None, why) when it does
+    not parse, else (record, None)."""
+    try:
+        text = path.read_bytes()
+    except FileNotFoundError:
+        return None, None
+    try:
+        record = json.loads(text)
+        if not isinstance(record, dict):
+            raise ValueError("not a JSON object")
+        return record, None
+    except ValueError as e:
+        return None, f"its completion record {path} does not parse ({e})"
+
+
+def check_against_record(shard: Shard, verify: Verify) -> Optional[str]:
+    """None when the shard file matches its completion record as far as `verify` looks (and
+    `shard.stamp` is set), else why not. A record with another config's fingerprint is a
+    ValueError, as in the CLI."""
+    job, record = shard.job, shard.record or {}
+    if job is not None and record.get("fingerprint") != job.fingerprint:
+        raise ValueError(
+            f"{shard.path}: its completion record has fingerprint {record.get('fingerprint')}, "
+            f"the job {job.root} has {job.fingerprint}: a shard of another config (configs are "
+            "never mixed; use a new job folder)")
+    if job is not None and record.get("shard") != shard.index:
+        return f"its completion record is shard {record.get('shard')}'s"
+    try:
+        stamp = _stamp(shard.path)
+    except FileNotFoundError:
+        return f"{shard.path} is missing"
+    if stamp[0] != record.get("bytes"):
+        return f"{shard.path} has {stamp[0]} bytes, its completion record says {record.get('bytes')}"
+    why = _check_sha(shard, stamp, verify)
+    if why is None:
+        shard.stamp = stamp
+    return why
+
+
+def _check_sha(shard: Shard, stamp: Tuple[int, int, int, int], verify: Verify) -> Optional[str]:
+    record = shard.record or {}
+    if verify is False or _verified.get(str(shard.path)) == (*stamp, record.get("sha256")):
+        return None
+    recorded = record.get("stamp") or {}
+    if verify == "quick" and (recorded.get("modified_ns"), recorded.get("changed_ns"),
+                              recorded.get("inode")) == stamp[1:]:
+        return None
+    sha = file_sha256(shard.path)
+    if sha != record.get("sha256"):
+        return (f"{shard.path} has sha256 {sha}, its completion record says "
+                f"{record.get('sha256')} (the file changed after it was written)")
+    _verified[str(shard.path)] = (*stamp, sha)
+    return None
+
+
+def check_unchanged(shard: Shard) -> None:
+    """A ValueError when the shard file changed since it was checked (a `run` or `verify`
+    replaced or moved it while a dataset was open). A file whose stamp changed but whose bytes
+    still match its record (copied back, touched) is fine, as in the CLI's quick check."""
+    if shard.stamp is None:
+        return
+    try:
+        now: Optional[Tuple[int, int, int, int]] = _stamp(shard.path)
+    except FileNotFoundError:
+        now = None
+    if now == shard.stamp:
+        return
+    why = "it is gone" if now is None or shard.record is None else check_against_record(shard, True)
+    if why is not None:
+        raise ValueError(f"{shard.path} changed since it was checked ({why}): its rows may "
+                         "have moved; open the dataset again")
+
+
+# --- the shards of a job folder -------------------------------------------------------------
+
+
+def job_shards(job: Job, complete_only: bool) -> List[Shard]:
+    """The job's own shards that have a completion record that parses (and, unless
+    `complete_only`, those without one), in order. Every other shard and every stray file in
+    `shards/` is named in a ShardWarning. Records are not checked against files here
+    (`check_against_record` does)."""
+    out: List[Shard] = []
+    notes: List[str] = []
+    for i in range(job.shards):
+        record, torn = read_record(job.record_file(i))
+        path = job.shard_file(i)
+        if torn is not None:
+            notes.append(f"{path.name}: damaged, {torn}")
+        elif record is not None:
+            out.append(Shard(path, job, i, record))
+        elif complete_only or not path.exists():
+            notes.append(f"{path.name}: not finished")
+        else:
+            out.append(Shard(path, job, i, None))
+    _warn_not_read(job, notes, _quarantined(job))
+    _warn_strays(job)
+    return out
+
+
+def _quarantined(job: Job) -> Dict[str, List[str]]:
+    """Shard name → its folders in `quarantine/` with the first line of their reason."""
+    found: Dict[str, List[str]] = {}
+    folder = job.root / "quarantine"
+    for d in sorted(folder.iterdir()) if folder.is_dir() else []:
+        name = d.name.rsplit("-", 1)[0]
+        try:
+            reason = (d / "reason.txt").read_text(errors="replace").strip().splitlines()[0]
+        except (OSError, IndexError):
+            reason = "no reason.txt"
+        found.setdefault(name, []).append(f"quarantine/{d.name} ({reason})")
+    return found
+
+
+def _warn_not_read(job: Job, notes: List[str], quarantined: Dict[str, List[str]]) -> None:
+    if not notes:
+        return
+    lines = []
+    for note in notes:
+        name = note.split(".parquet", 1)[0]
+        moved = quarantined.get(name)
+        lines.append(note + (f"; moved aside to {', '.join(moved)}" if moved else ""))
+    warn_shards(f"{job.root}: {len(notes)} of {job.shards} shards are not read, their items "
+                f"left out: {'; '.join(lines)}. `sparc3d status {job.root}` shows the job; "
+                f"`sparc3d run {job.root}` converts what is left")
+
+
+def _warn_strays(job: Job) -> None:
+    own = {job.shard_file(i).name for i in range(job.shards)}
+    strays = sorted(p.name for p in (job.root / "shards").glob("*.parquet")
+                    if not p.name.startswith(".") and p.name not in own)
+    if strays:
+        last = job.shard_file(max(job.shards - 1, 0)).name
+        warn_shards(f"{job.root}: ignored {', '.join(strays)} in shards/: not one of the "
+                    f"job's {job.shards} shards (part-00000.parquet … {last})")
+
+
+def warn_shards(message: str) -> None:
+    """Issues a ShardWarning, attributed to the first caller outside this package."""
+    package = os.path.dirname(os.path.abspath(__file__))
+    frame, level = sys._getframe(1), 2
+    while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(package):
+        frame, level = frame.f_back, level + 1
+    warnings.warn(message, ShardWarning, stacklevel=level)
+
+
+# --- the rows of a shard against the frozen manifest ----------------------------------------
+
+#: Columns the row checks read (small: no tensors).
+CHECK_COLUMNS = ["item_index", "id", "uri", "status", "resolution", "center_x", "center_y",
+                 "center_z", "scale"]
+
+_STATUSES = ("ok", "failed", "skipped")
+
+
+def check_footer(shard: Shard, f: pq.ParquetFile) -> Optional[str]:
+    """None when a job shard's footer names the job's fingerprint, else what it names."""
+    meta = f.metadata.metadata or {}
+    found = meta.get(b"sparc3d.fingerprint", b"missing").decode(errors="replace")
+    if shard.job is not None and found != shard.job.fingerprint:
+        return f"its footer has fingerprint {found}, the job's is {shard.job.fingerprint}"
+    return None
+
+
+def check_rows(shard: Shard, columns: Dict[str, Sequence]) -> Optional[str]:
+    """None when a job shard's rows (`columns`: CHECK_COLUMNS of every row) are its items: one
+    row each, in manifest order, with the manifest's id and uri and a known status, as many ok
+    rows as its record counts, and every ok row with the job's resolution and a normalization
+    the converter can produce; else what is wrong. Files outside a job are not checked."""
+    job = shard.job
+    if job is None or shard.index is None:
+        return None
+    expected = list(job.shard_items(shard.index))
+    indices = list(columns["item_index"])
+    if indices != expected:
+        return (f"its rows are items {_span(indices)}, shard {shard.index} holds items "
+                f"{_span(expected)} (a file restored into another shard's slot?)")
+    manifest = job.manifest()
+    for r, index in enumerate(indices):
+        row = {k: columns[k][r] for k in CHECK_COLUMNS}
+        why = _not_the_item(row, manifest[index]) or (
+            _implausible(job, row) if row["status"] == "ok" else None)
+        if why:
+            return f"row of item {index} ({row['id']!r}): {why}"
+    ok = sum(1 for s in columns["status"] if s == "ok")
+    if shard.record is not None and ok != shard.record.get("ok"):
+        return f"{ok} ok rows, its completion record counts {shard.record.get('ok')}"
+    return None
+
+
+def _not_the_item(row: Dict, item: Tuple[str, str]) -> Optional[str]:
+    if row["id"] != item[0]:
+        return f"the manifest says id {item[0]!r}"
+    if row["uri"] != item[1]:
+        return f"uri {row['uri']!r}, the manifest says {item[1]!r}"
+    if row["status"] not in _STATUSES:
+        return f"status {row['status']!r} is none of {', '.join(_STATUSES)}"
+    return None
+
+
+def _implausible(job: Job, row: Dict) -> Optional[str]:
+    if job.resolution is not None and row["resolution"] != job.resolution:
+        return f"resolution {row['resolution']}, the job's is {job.resolution}"
+    scale = row["scale"]
+    if scale is None or not (0 < scale <= _MAX_SCALE):
+        return f"scale {scale} is outside (0, {_MAX_SCALE:g}]"
+    for axis in "xyz":
+        c = row[f"center_{axis}"]
+        if c is None or not math.isfinite(c) or abs(c) > _MAX_CENTER:
+            return f"center_{axis} {c} is outside ±{_MAX_CENTER:g}"
+    return None
+
+
+def _span(indices: List[int]) -> str:
+    if not indices:
+        return "none"
+    if indices == list(range(indices[0], indices[0] + len(indices))):
+        return f"{indices[0]}–{indices[-1]}"
+    return ", ".join(map(str, indices[:8])) + (" …" if len(indices) > 8 else "")
+
+
+def read_check_columns(path: pathlib.Path, f: pq.ParquetFile) -> Dict[str, list]:
+    """CHECK_COLUMNS of every row of the shard file `f` (opened from `path`)."""
+    require_columns(path, f.schema_arrow.names, CHECK_COLUMNS)
+    return f.read(columns=CHECK_COLUMNS).to_pydict()
+
+
+def require_columns(path: pathlib.Path, present: Sequence[str], wanted: Sequence[str]) -> None:
+    """A ValueError naming the file and every column of `wanted` it lacks."""
+    missing = [c for c in wanted if c not in set(present)]
+    if missing:
+        raise ValueError(f"{path}: no column {', '.join(map(repr, missing))} (a shard has every "
+                         "column of docs/FORMAT.md, \"Columns\"; a tensor file is read with "
+                         "iter_tensor_rows)")
