@@ -60,8 +60,9 @@ pub struct ConvertStats {
     /// somewhere for the grid (under a cell), or nowhere 0.3 voxel deep (these are shelled
     /// without asking the winding number, so the count includes any such pocket).
     pub shelled_thin_parts: u64,
-    /// Pockets the sealing found solid and took back from the outside: nearly closed parts
-    /// whose openings the walls grown at the sealing scale close ([`crate::seal`]).
+    /// Regions sealed behind small openings and kept solid: nearly closed parts whose
+    /// openings the walls grown at the sealing scale close ([`crate::seal`]), read as solid by
+    /// the winding number on the coarse grid and again as enclosed regions (§2b).
     pub sealed_pockets: u64,
     /// Groups of sealed vertices inside two closed surfaces or more: closed parts overlapping
     /// by less than the grid resolves, left outside so both keep their surfaces
@@ -327,7 +328,6 @@ pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
     let sealing = match &tree {
         Some(tree) if params.seal_openings => {
             let sealing = seal_openings(&mut vox, &mut flood, tree, n);
-            st.stats.sealed_pockets = sealing.solid;
             st.done("seal");
             sealing
         }
@@ -343,7 +343,9 @@ pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
     // is sealed and nothing is nested, which is the conversion without the test, bit for bit.
     let regions = match &tree {
         Some(tree) => {
-            let regions = classify_regions(&vox.walls, &flood, &band, tree);
+            let mut regions = classify_regions(&vox.walls, &flood, &band, tree);
+            // A sealed region must read as solid here too (§3b), or it is unsealed.
+            st.stats.sealed_pockets = regions.unseal_unless_solid(&vox.walls, &sealing.seeds);
             mark_air(&mut flood, &vox.walls, &regions);
             let counts = regions.counts();
             st.stats.enclosed_regions = counts.regions;

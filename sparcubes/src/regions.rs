@@ -50,6 +50,9 @@ pub enum Verdict {
     Air,
     /// In between: the caller keeps the answer the grid alone gives.
     Ambiguous,
+    /// A region sealed behind small openings (docs/ALGORITHM.md §3b) that is not read as
+    /// solid here: back to the outside, the answer of the grid's exact flood.
+    Unsealed,
 }
 
 /// The verdict for a (median) winding number.
@@ -225,10 +228,28 @@ impl Regions {
         near
     }
 
-    /// Whether region `r` is air.
+    /// Whether region `r` goes to the outside: air, or unsealed.
     #[inline]
-    pub fn is_air(&self, r: u32) -> bool {
-        self.verdicts[r as usize] == Verdict::Air
+    pub fn is_outside(&self, r: u32) -> bool {
+        matches!(self.verdicts[r as usize], Verdict::Air | Verdict::Unsealed)
+    }
+
+    /// The regions of the cells `sealed` (one in each region a sealing made, §3b) that do not
+    /// read as solid are unsealed; returns how many sealed regions stay (distinct, solid).
+    pub fn unseal_unless_solid(&mut self, walls: &BrickSet, sealed: &[[i64; 3]]) -> u64 {
+        let mut kept: Vec<u32> = Vec::new();
+        for &c in sealed {
+            let Some(r) = self.region_of(walls, c) else {
+                continue;
+            };
+            match self.verdicts[r as usize] {
+                Verdict::Solid => kept.push(r),
+                _ => self.verdicts[r as usize] = Verdict::Unsealed,
+            }
+        }
+        kept.sort_unstable();
+        kept.dedup();
+        kept.len() as u64
     }
 
     /// How many regions, air regions and ambiguous ones.
@@ -1300,12 +1321,12 @@ fn parts_with_gaps(
     too_thin
 }
 
-/// Adds the cells of every air region to the flood's outside.
+/// Adds the cells of every air (and unsealed) region to the flood's outside.
 pub fn mark_air(flood: &mut Flood, walls: &BrickSet, regions: &Regions) {
     for s in 0..walls.keys.len() {
         let range = regions.part_starts[s] as usize..regions.part_starts[s + 1] as usize;
         for (m, r) in &regions.parts[range] {
-            if regions.is_air(*r) {
+            if regions.is_outside(*r) {
                 for z in 0..8 {
                     flood.wall_outside[s][z] |= m[z];
                 }
@@ -1313,7 +1334,7 @@ pub fn mark_air(flood: &mut Flood, walls: &BrickSet, regions: &Regions) {
         }
     }
     for &(key, r) in &regions.empty {
-        if regions.is_air(r) {
+        if regions.is_outside(r) {
             flood.empty_outside[key as usize] = true;
         }
     }

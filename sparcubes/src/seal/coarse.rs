@@ -236,6 +236,53 @@ impl CoarseGrid {
         }
     }
 
+    /// The `k` bits (`k` ≤ 8, `x0` a multiple of `k`) of row (y, z) from x = `x0`, bit i for
+    /// x0 + i; 0 outside the cube.
+    pub fn row_bits(&self, x0: usize, y: usize, z: usize, k: usize) -> u64 {
+        if y >= self.side || z >= self.side || x0 >= self.side {
+            return 0;
+        }
+        let word = self.bits[self.row(y, z) + x0 / 64];
+        (word >> (x0 % 64)) & ((1u64 << k) - 1)
+    }
+
+    /// Number of cells of row (y, z) in `x0..x1` (clipped to the cube; 0 outside it).
+    pub fn count_in_row(&self, y: i64, z: i64, x0: i64, x1: i64) -> u64 {
+        let s = self.side as i64;
+        if y < 0 || z < 0 || y >= s || z >= s {
+            return 0;
+        }
+        let (x0, x1) = (x0.max(0) as usize, x1.min(s) as usize);
+        let row = self.row_words(y as usize, z as usize);
+        let mut n = 0u64;
+        let mut x = x0;
+        while x < x1 {
+            let (i, b) = (x / 64, x % 64);
+            let take = (64 - b).min(x1 - x);
+            let mask = if take == 64 {
+                u64::MAX
+            } else {
+                ((1u64 << take) - 1) << b
+            };
+            n += (row[i] & mask).count_ones() as u64;
+            x += take;
+        }
+        n
+    }
+
+    /// Number of pairs of face neighbours with one cell in `runs` and the other in the set.
+    pub fn faces_with(&self, runs: &[Run]) -> u64 {
+        let mut n = 0u64;
+        for r in runs {
+            let (y, z, x0, x1) = (r.y as i64, r.z as i64, r.x0 as i64, r.x1 as i64);
+            n += self.count_in_row(y, z, x0 - 1, x0) + self.count_in_row(y, z, x1, x1 + 1);
+            for (dy, dz) in [(-1, 0), (1, 0), (0, -1), (0, 1)] {
+                n += self.count_in_row(y + dy, z + dz, x0, x1);
+            }
+        }
+        n
+    }
+
     /// Words per row.
     pub fn words(&self) -> usize {
         self.words
@@ -314,6 +361,13 @@ impl CoarseGrid {
             }
             word = self.bits[at + i] ^ if set { 0 } else { u64::MAX };
         }
+    }
+
+    /// The cells of `runs`, as a set over `side³` cells.
+    pub fn of_runs<'a>(side: usize, runs: impl IntoIterator<Item = &'a Run>) -> Self {
+        let mut out = Self::new(side);
+        runs.into_iter().for_each(|r| out.set_run(r));
+        out
     }
 
     /// Adds the cells of a run.
@@ -463,7 +517,7 @@ pub fn downsample(fine: &BrickSet, cell: u32, side: usize) -> CoarseGrid {
 
 /// Calls `f(block, word bits)` for each block of `cell³` cells of a brick (`cell` = 1, 2 or
 /// 4): its position in blocks, and the bits of a brick word (x + 8y) that its rows cover.
-pub(super) fn for_each_block(cell: usize, mut f: impl FnMut([usize; 3], u64)) {
+fn for_each_block(cell: usize, mut f: impl FnMut([usize; 3], u64)) {
     let per = BRICK as usize / cell;
     let row = (1u64 << cell) - 1;
     for bz in 0..per {

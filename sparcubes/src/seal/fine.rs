@@ -9,7 +9,7 @@
 //! 8³ bricks, a round reading the previous round's masks, so the result does not depend on
 //! the order or the thread count.
 
-use super::coarse::{for_each_block, CoarseGrid};
+use super::coarse::CoarseGrid;
 use crate::flood::{Flood, FULL};
 use crate::grid::BrickIndex;
 use crate::grid::{face_carry, or_assign, shift, BrickMask, BrickSet, BRICK};
@@ -36,16 +36,24 @@ pub fn coarse_mask(grid: &CoarseGrid, b: [u32; 3], cell: u32) -> BrickMask {
             [0; 8]
         };
     }
+    // Each coarse row the brick crosses gives `per` bits along x, each widened to `cell` fine
+    // bits: one byte of a brick row, for the `cell` fine rows and planes it covers.
+    let (c, per) = (cell as usize, (BRICK / cell) as usize);
+    let corner = origin.map(|v| v as usize / c);
     let mut mask = [0u64; 8];
-    let c = cell as usize;
-    for_each_block(c, |block, bits| {
-        let at: [i64; 3] = std::array::from_fn(|a| origin[a] / cell as i64 + block[a] as i64);
-        if grid.get(at) {
-            for z in block[2] * c..(block[2] + 1) * c {
-                mask[z] |= bits;
+    for cz in 0..per {
+        for cy in 0..per {
+            let bits = grid.row_bits(corner[0], corner[1] + cy, corner[2] + cz, per);
+            if bits == 0 {
+                continue;
+            }
+            let byte = (0..8).fold(0u64, |b, x| b | ((bits >> (x / c)) & 1) << x);
+            let rows = (cy * c..(cy + 1) * c).fold(0u64, |r, y| r | byte << (8 * y));
+            for word in &mut mask[cz * c..(cz + 1) * c] {
+                *word |= rows;
             }
         }
-    });
+    }
     mask
 }
 
@@ -193,4 +201,34 @@ fn round(table: &[Sides], near: &[Option<u32>; 6], i: usize) -> (BrickMask, Bric
     let to_out: BrickMask = std::array::from_fn(|z| reach_out[z] & me.open[z]);
     let to_in: BrickMask = std::array::from_fn(|z| reach_in[z] & me.open[z] & !to_out[z]);
     (to_in, to_out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::grid::test;
+
+    #[test]
+    fn coarse_masks_hold_the_fine_cells_of_coarse_cells() {
+        for cell in [1u32, 2, 4, 8, 16] {
+            let side = (64 / cell) as usize;
+            let mut grid = CoarseGrid::new(side);
+            for i in 0..40usize {
+                grid.set([(i * 7) % side, (i * 11) % side, (i * 5) % side]);
+            }
+            for b in [[0u32, 0, 0], [1, 2, 3], [7, 7, 7], [3, 0, 5]] {
+                let mask = coarse_mask(&grid, b, cell);
+                for z in 0..8u32 {
+                    for y in 0..8u32 {
+                        for x in 0..8u32 {
+                            let fine = [b[0] * 8 + x, b[1] * 8 + y, b[2] * 8 + z];
+                            let want = grid.get(fine.map(|v| (v / cell) as i64));
+                            let got = test(&mask, z as usize, x + 8 * y);
+                            assert_eq!(got, want, "cell {cell} brick {b:?} at {fine:?}");
+                        }
+                    }
+                }
+            }
+        }
+    }
 }

@@ -71,8 +71,9 @@ impl Scale {
 pub struct Sealing {
     /// Sealed pockets found (before their winding vote).
     pub pockets: u64,
-    /// Of those, the solid ones taken back from the outside.
-    pub solid: u64,
+    /// A fine cell of each solid pocket taken back from the outside: the enclosed regions'
+    /// classification (§2b) checks the region each lies in, and unseals it unless solid.
+    pub seeds: Vec<[i64; 3]>,
     /// The fine cells the caps across the openings run through, per brick key (ascending):
     /// candidate cells for the ring (§6b).
     pub caps: Vec<(u32, BrickMask)>,
@@ -81,7 +82,7 @@ pub struct Sealing {
 /// Seals the openings of nearly closed solids (see the module docs): the solid pockets'
 /// cells are taken out of `flood`'s outside (an empty brick split by a cap becomes a wall
 /// brick of `vox.walls` with no wall cell), and the cap cells are returned. Nothing changes
-/// where no solid pocket is found.
+/// where no solid pocket is kept.
 pub fn seal_openings(
     vox: &mut Voxelization,
     flood: &mut Flood,
@@ -89,59 +90,90 @@ pub fn seal_openings(
     n: u32,
 ) -> Sealing {
     let scale = Scale::for_resolution(n);
-    let mut sealing = Sealing::default();
     let walls = downsample(&vox.walls, scale.cell, scale.side);
     let grown = walls.dilate(scale.radius);
+    let pockets = find_pockets(vox, flood, &grown, scale);
+    let mut sealing = Sealing {
+        pockets: pockets.len() as u64,
+        ..Sealing::default()
+    };
+    if pockets.is_empty() {
+        return sealing;
+    }
+    let tree = tree.get();
+    let solid: Vec<Vec<Run>> = pockets
+        .into_iter()
+        .filter(|runs| decide::is_solid(decide::component_winding(tree, runs, scale.cell)))
+        .collect();
+    if solid.is_empty() {
+        return sealing;
+    }
+    // The grown walls given back: their surface-free coarse cells, contested by the solid
+    // pockets and by every other surface-free cell. (Surface-free coarse cells the exact flood
+    // did not reach never share a face with ones it did, so neither side's growth enters them.)
+    let free = walls.complement();
+    let band = free.and(&grown);
+    let others = free
+        .and_not(&band)
+        .and_not(&CoarseGrid::of_runs(scale.side, solid.iter().flatten()));
+    let (inside, outside, kept) = decide::give_back(&solid, &others, &band, &walls);
+    // One fine cell of each pocket kept, for the enclosed regions' check (§2b).
+    sealing.seeds = solid
+        .iter()
+        .zip(&kept)
+        .filter(|(_, &k)| k)
+        .map(|(runs, _)| [runs[0].x0, runs[0].y, runs[0].z].map(|v| (v as u32 * scale.cell) as i64))
+        .collect();
+    if !sealing.seeds.is_empty() {
+        let holding = walls.or(&band.and_not(&inside).and_not(&outside));
+        sealing.caps = seal_fine(vox, flood, &inside, &holding, scale, n);
+    }
+    sealing
+}
+
+/// The sets of coarse cells that the flood over the grown walls does not reach but the exact
+/// flood did: one lookup each, since the fine cells of a connected set of surface-free coarse
+/// cells are all joined.
+fn find_pockets(
+    vox: &Voxelization,
+    flood: &Flood,
+    grown: &CoarseGrid,
+    scale: Scale,
+) -> Vec<Vec<Run>> {
     let grown_bricks = grown.to_bricks();
     let reached = CoarseGrid::from_flood(scale.side, &grown_bricks, &flood_outside(&grown_bricks));
     let unreached = grown.or(&reached).complement();
     if unreached.is_empty() {
-        return sealing;
+        return Vec::new();
     }
-    // A pocket is a part of the unreached cells the exact flood reached: one lookup each,
-    // since the fine cells of a connected set of surface-free coarse cells are joined.
-    let pockets: Vec<Vec<Run>> = decide::components(&unreached)
+    decide::components(&unreached)
         .into_iter()
         .filter(|runs| {
             let r = &runs[0];
             let first = [r.x0, r.y, r.z].map(|v| (v as u32 * scale.cell) as i64);
             flood.cell(&vox.walls, first) == CellSide::Outside
         })
-        .collect();
-    sealing.pockets = pockets.len() as u64;
-    if pockets.is_empty() {
-        return sealing;
-    }
-    let tree = tree.get();
-    let mut inside = CoarseGrid::new(scale.side);
-    for runs in &pockets {
-        if decide::is_solid(decide::component_winding(tree, runs, scale.cell)) {
-            sealing.solid += 1;
-            runs.iter().for_each(|r| inside.set_run(r));
-        }
-    }
-    if sealing.solid == 0 {
-        return sealing;
-    }
-    // The grown walls given back: their surface-free coarse cells, contested by the solid
-    // pockets and by every other surface-free cell.
-    // (Surface-free coarse cells the exact flood did not reach never share a face with
-    // ones it did, so neither side's growth can enter them.)
-    let free = walls.complement();
-    let band = free.and(&grown);
-    let outside = free.and_not(&band).and_not(&inside);
-    let (inside, outside) = decide::compete(&inside, &outside, &band);
-    let holding = walls.or(&band.and_not(&inside).and_not(&outside));
-    let contested = decide::near_inside(&holding, &inside);
-    let won = fine::compete_fine(&vox.walls, flood, &inside, &contested, scale.cell);
-    let sealed = apply::sealed_cells(&vox.walls, flood, &inside, won, scale.cell);
+        .collect()
+}
+
+/// The fine part of the sealing: the competition in the coarse cells with surface (or left to
+/// neither side) joined to the sealed region `inside`, the sealed cells taken out of the
+/// flood, and the cap cells, searched where the region meets anything but itself.
+fn seal_fine(
+    vox: &mut Voxelization,
+    flood: &mut Flood,
+    inside: &CoarseGrid,
+    holding: &CoarseGrid,
+    scale: Scale,
+    n: u32,
+) -> Vec<(u32, BrickMask)> {
+    let contested = decide::near_inside(holding, inside);
+    let won = fine::compete_fine(&vox.walls, flood, inside, &contested, scale.cell);
+    let sealed = apply::sealed_cells(&vox.walls, flood, inside, won, scale.cell);
     apply::apply(vox, flood, &sealed, n);
-    // Caps lie where the pocket meets anything but itself: its coarse cells next to other
-    // cells, and the contested ones.
     let meeting = inside.and(&inside.complement().dilate(1)).or(&contested);
     let near = fine::bricks_of(&meeting, &vox.walls.index, scale.cell);
-    sealing.caps = apply::cap_cells(&vox.walls, flood, &sealed, &near);
-    sealing
+    apply::cap_cells(&vox.walls, flood, &sealed, &near)
 }
 
 #[cfg(test)]
@@ -191,6 +223,8 @@ mod tests {
                 radius: 2
             }
         );
+        // At most 256 coarse cells a side (rows of at most four words, `decide::compete`).
+        assert!((8..=4096).all(|n| s(n).side <= 256));
         for n in [256, 300, 512, 1000, 1024, 2048, 4096] {
             let sc = s(n);
             let sure = ((2 * sc.radius + 1) as u32 * sc.cell - 1) as f64 / n as f64;
