@@ -452,6 +452,49 @@ fn run_help_shows_the_defaults() {
 /// The inside test is on by default (its counts and its `inside` stage in the JSON);
 /// `--no-inside-test` switches it off (no stage ran), `--inside-test` is the default spelled
 /// out, and the two together are refused.
+/// A sphere with a 6-voxel hole at 128³: the exact flood enters it, the sealing keeps it
+/// solid (one sealed region, no thin shell); `--no-seal-openings` gives the shell back, and
+/// `--no-inside-test` switches the sealing off too (it asks the test's winding number).
+#[test]
+fn convert_seals_a_holed_sphere_unless_told_not_to() {
+    let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let unit = 2.0 / 122.0;
+    let mesh = tmp.path().join("holed.obj");
+    let sphere = sparcubes::shapes::sphere_with_hole([0.0; 3], 1.0, 6.0 * unit, 48);
+    sparcubes::io::save(&sphere, &mesh).unwrap_or_else(|e| panic!("{e}"));
+    let run = |extra: &[&str]| -> serde_json::Value {
+        let out = tmp.path().join("o.ply");
+        let mut args = vec![
+            "convert",
+            s(&mesh),
+            "-o",
+            s(&out),
+            "--resolution",
+            "128",
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        serde_json::from_str(&ok(&args)).unwrap_or_else(|e| panic!("{e}"))
+    };
+    let on = run(&[]);
+    assert_eq!(on["seal_openings"], true, "{on}");
+    assert_eq!(on["sealed_pockets"], 1, "{on}");
+    assert_eq!(on["shell_vertices"], 0, "{on}");
+    assert!(on["stage_seconds"].get("seal").is_some(), "{on}");
+    let off = run(&["--no-seal-openings"]);
+    assert_eq!(off["seal_openings"], false, "{off}");
+    assert_eq!(off["sealed_pockets"], 0, "{off}");
+    assert!(off["shell_vertices"].as_u64().unwrap_or(0) > 1000, "{off}");
+    let no_test = run(&["--no-inside-test"]);
+    assert_eq!(no_test["seal_openings"], false, "{no_test}");
+    for v in [&on, &off, &no_test] {
+        assert_eq!(
+            (v["watertight"].clone(), v["manifold"].clone()),
+            (true.into(), true.into())
+        );
+    }
+}
+
 #[test]
 fn convert_inside_test_is_on_by_default() {
     let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));

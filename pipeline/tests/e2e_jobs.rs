@@ -111,6 +111,40 @@ fn a_job_stored_without_the_inside_test_key_resumes_with_it_off() {
     assert!(err.contains("inside_test = false"), "{err}");
 }
 
+/// The same for the sealing of openings (`Params::seal_openings`): a job stored without the
+/// key (every binary before the rule, and `seal_openings = false` now) keeps it off across a
+/// run with its fingerprint, and re-initialising it with the new default is refused naming
+/// `params.seal_openings`, saying how to resume it.
+#[test]
+fn a_job_stored_without_the_sealing_key_resumes_with_it_off() {
+    let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let toml = tmp.path().join("job.toml");
+    std::fs::write(&toml, "[params]\nseal_openings = false\n").unwrap_or_else(|e| panic!("{e}"));
+    let (job, manifest) = setup(tmp.path(), "job", &["--config", &toml.to_string_lossy()]);
+    let before = job_json(&job);
+    let params = &before["config"]["params"];
+    assert!(params.get("seal_openings").is_none(), "{before}");
+    assert_eq!(params["inside_test"], true, "{before}");
+    let j = job.to_string_lossy();
+    ok(&["run", &j, "--workers", "2"]);
+    let after = job_json(&job);
+    assert!(
+        after["config"]["params"].get("seal_openings").is_none(),
+        "{after}"
+    );
+    assert_eq!(after["fingerprint"], before["fingerprint"]);
+    let (new_job, _) = setup(tmp.path(), "new", &[]);
+    assert_eq!(
+        job_json(&new_job)["config"]["params"]["seal_openings"],
+        true
+    );
+    let out = sparc3d(&init_args(&j, &manifest.to_string_lossy(), "48", "8"));
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("params.seal_openings"), "{err}");
+    assert!(err.contains("seal_openings = false"), "{err}");
+}
+
 #[test]
 fn bad_files_become_failed_rows_and_show_matches_convert() {
     let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
