@@ -67,6 +67,7 @@ __all__ = [
     "corner_index",
     "CORNER_OFFSETS",
     "encode_tensor",
+    "write_completion_record",
     "write_tensor_file",
     "iter_tensor_rows",
     "shard_config",
@@ -452,6 +453,19 @@ def write_tensor_file(path: PathLike, rows: Sequence[Dict[str, Any]], tensors: S
     pq.write_table(table, tmp, compression="zstd", use_dictionary=False,
                    write_statistics=False, row_group_size=64)
     os.replace(tmp, path)
+
+
+def write_completion_record(path: PathLike, fields: Optional[Dict[str, Any]] = None) -> pathlib.Path:
+    """Writes the completion record beside a finished tensor file `path` (`part-NNNNN.parquet`
+    → `part-NNNNN.complete.json`): its `bytes` and `sha256`, which the reader checks before it
+    reads the file (`shard_paths`), plus `fields`. Written to a temporary name and renamed."""
+    path = pathlib.Path(path)
+    record = {**(fields or {}), "bytes": path.stat().st_size, "sha256": jobs.file_sha256(path)}
+    out = _record_beside(path)
+    tmp = out.with_name(out.name + ".tmp")
+    tmp.write_text(json.dumps(record, sort_keys=True) + "\n")
+    os.replace(tmp, out)
+    return out
 
 
 def iter_tensor_rows(paths: Union[PathLike, Iterable[PathLike]], tensors: Sequence[str],

@@ -134,8 +134,8 @@ def encode(ckpt: Path, data: Sequence[str], out: Path, device: str) -> Dict[str,
         nonlocal rows, shard
         path = out / f"part-{shard:05d}.parquet"
         reader.write_tensor_file(path, rows, LATENT_TENSORS, meta, LATENT_SCHEMA)
-        (out / f"part-{shard:05d}.complete.json").write_text(
-            json.dumps({"shard": shard, "rows": len(rows), "checkpoint": loaded.digest}) + "\n")
+        reader.write_completion_record(
+            path, {"shard": shard, "rows": len(rows), "checkpoint": loaded.digest})
         rows, shard = [], shard + 1
 
     items = (samples[i] for i in range(len(samples)))
