@@ -4,12 +4,8 @@
 
 mod common;
 
-use common::{ok_env as ok, sparc3d_env as sparc3d};
+use common::{ok_env as ok, s, sparc3d_env as sparc3d};
 use std::path::{Path, PathBuf};
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("test paths are UTF-8")
-}
 
 /// A job over the repository's five example meshes: 3 shards of 2 items at resolution 32.
 fn example_job(dir: &Path) -> PathBuf {

@@ -296,3 +296,41 @@ pub fn kill9(pid: u32) -> bool {
         .map(|s| s.success())
         .unwrap_or(false)
 }
+
+/// A path as a command-line argument (test paths are UTF-8).
+pub fn s(p: &Path) -> &str {
+    p.to_str().expect("test paths are UTF-8")
+}
+
+/// A manifest of 12 meshes of [`corpus`] in `dir`: the bundled examples, a few boxes and
+/// spheres, an open sheet, an open box and one broken file.
+pub fn twelve_mesh_manifest(dir: &Path) -> PathBuf {
+    let meshes = corpus(dir);
+    let full = dir.join("all.csv");
+    ok(&["manifest", "build", s(&meshes), "-o", s(&full)]);
+    let names = [
+        "cube.off",
+        "cube_binary.ply",
+        "sphere.obj",
+        "wuson.stl",
+        "box_textured.glb",
+        "box_00.obj",
+        "box_01.obj",
+        "sphere_00.obj",
+        "sphere_01.obj",
+        "sheet_00.obj",
+        "open_box.obj",
+        "broken_garbage.obj",
+    ];
+    let text = std::fs::read_to_string(&full).unwrap_or_else(|e| panic!("{e}"));
+    let mut lines = text.lines();
+    let header = lines.next().unwrap_or_default().to_string();
+    let rows: Vec<&str> = lines
+        .filter(|l| names.iter().any(|n| l.contains(&format!("/{n},"))))
+        .collect();
+    assert_eq!(rows.len(), names.len(), "fixture rows: {rows:?}");
+    let manifest = dir.join("m.csv");
+    std::fs::write(&manifest, format!("{header}\n{}\n", rows.join("\n")))
+        .unwrap_or_else(|e| panic!("{e}"));
+    manifest
+}

@@ -9,10 +9,6 @@ use common::*;
 use std::path::{Path, PathBuf};
 use std::process::Output;
 
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap_or_else(|| panic!("non-UTF-8 path {p:?}"))
-}
-
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
@@ -452,6 +448,21 @@ fn run_help_shows_the_defaults() {
 /// The inside test is on by default (its counts and its `inside` stage in the JSON);
 /// `--no-inside-test` switches it off (no stage ran), `--inside-test` is the default spelled
 /// out, and the two together are refused.
+/// `convert MESH -o OUT --resolution N --json` with `extra` flags: its summary.
+fn convert_json(mesh: &Path, out: &Path, resolution: &str, extra: &[&str]) -> serde_json::Value {
+    let mut args = vec![
+        "convert",
+        s(mesh),
+        "-o",
+        s(out),
+        "--resolution",
+        resolution,
+        "--json",
+    ];
+    args.extend_from_slice(extra);
+    serde_json::from_str(&ok(&args)).unwrap_or_else(|e| panic!("{e}"))
+}
+
 /// A sphere with a 6-voxel hole at 128³: the exact flood enters it, the sealing keeps it
 /// solid (one sealed region, no thin shell); `--no-seal-openings` gives the shell back, and
 /// `--no-inside-test` switches the sealing off too (it asks the test's winding number).
@@ -462,20 +473,7 @@ fn convert_seals_a_holed_sphere_unless_told_not_to() {
     let mesh = tmp.path().join("holed.obj");
     let sphere = sparcubes::shapes::sphere_with_hole([0.0; 3], 1.0, 6.0 * unit, 48);
     sparcubes::io::save(&sphere, &mesh).unwrap_or_else(|e| panic!("{e}"));
-    let run = |extra: &[&str]| -> serde_json::Value {
-        let out = tmp.path().join("o.ply");
-        let mut args = vec![
-            "convert",
-            s(&mesh),
-            "-o",
-            s(&out),
-            "--resolution",
-            "128",
-            "--json",
-        ];
-        args.extend_from_slice(extra);
-        serde_json::from_str(&ok(&args)).unwrap_or_else(|e| panic!("{e}"))
-    };
+    let run = |extra: &[&str]| convert_json(&mesh, &tmp.path().join("o.ply"), "128", extra);
     let on = run(&[]);
     assert_eq!(on["seal_openings"], true, "{on}");
     assert_eq!(on["sealed_pockets"], 1, "{on}");
@@ -499,20 +497,7 @@ fn convert_seals_a_holed_sphere_unless_told_not_to() {
 fn convert_inside_test_is_on_by_default() {
     let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
     let mesh = examples().join("wuson.stl");
-    let run = |extra: &[&str]| -> serde_json::Value {
-        let out = tmp.path().join("o.ply");
-        let mut args = vec![
-            "convert",
-            s(&mesh),
-            "-o",
-            s(&out),
-            "--resolution",
-            "64",
-            "--json",
-        ];
-        args.extend_from_slice(extra);
-        serde_json::from_str(&ok(&args)).unwrap_or_else(|e| panic!("{e}"))
-    };
+    let run = |extra: &[&str]| convert_json(&mesh, &tmp.path().join("o.ply"), "64", extra);
     let off = run(&["--no-inside-test"]);
     assert_eq!(off["inside_test"], false);
     assert!(off["stage_seconds"].get("inside").is_none(), "{off}");

@@ -27,34 +27,7 @@ fn fixture() -> &'static Fixture {
     static F: OnceLock<Fixture> = OnceLock::new();
     F.get_or_init(|| {
         let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
-        let meshes = corpus(dir.path());
-        let full = dir.path().join("all.csv");
-        ok(&["manifest", "build", s(&meshes), "-o", s(&full)]);
-        // The examples, a few boxes and spheres, an open sheet and a broken file.
-        let names = [
-            "cube.off",
-            "cube_binary.ply",
-            "sphere.obj",
-            "wuson.stl",
-            "box_textured.glb",
-            "box_00.obj",
-            "box_01.obj",
-            "sphere_00.obj",
-            "sphere_01.obj",
-            "sheet_00.obj",
-            "open_box.obj",
-            "broken_garbage.obj",
-        ];
-        let text = std::fs::read_to_string(&full).unwrap_or_else(|e| panic!("{e}"));
-        let mut lines = text.lines();
-        let header = lines.next().unwrap_or_default().to_string();
-        let rows: Vec<&str> = lines
-            .filter(|l| names.iter().any(|n| l.contains(&format!("/{n},"))))
-            .collect();
-        assert_eq!(rows.len(), names.len(), "fixture rows: {rows:?}");
-        let manifest = dir.path().join("m.csv");
-        std::fs::write(&manifest, format!("{header}\n{}\n", rows.join("\n")))
-            .unwrap_or_else(|e| panic!("{e}"));
+        let manifest = twelve_mesh_manifest(dir.path());
         let reference = dir.path().join("reference");
         init(&reference, &manifest);
         ok(&["run", s(&reference), "--workers", "1"]);
@@ -66,10 +39,6 @@ fn fixture() -> &'static Fixture {
             digest,
         }
     })
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("test paths are UTF-8")
 }
 
 fn init(job: &Path, manifest: &Path) {

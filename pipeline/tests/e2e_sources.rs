@@ -11,10 +11,6 @@ use sparc3d_schema::{ItemStatus, ShardRow};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-fn s(p: &Path) -> &str {
-    p.to_str().expect("test paths are UTF-8")
-}
-
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }

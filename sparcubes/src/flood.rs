@@ -17,7 +17,8 @@ pub struct Flood {
 
 /// A brick mask with every bit set.
 pub const FULL: BrickMask = [u64::MAX; 8];
-const DIRS: [(usize, bool); 6] = [
+/// The six face directions (axis, towards +), the order every face-step loop uses.
+pub const DIRS: [(usize, bool); 6] = [
     (0, false),
     (0, true),
     (1, false),

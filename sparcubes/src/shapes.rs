@@ -289,8 +289,6 @@ pub fn parameters(steps: usize, cut: &[f64]) -> (Vec<f64>, Vec<usize>) {
 pub fn torus_with_hole(c: [f64; 3], big: f64, small: f64, hole: f64, segments: u32) -> TriMesh {
     let du = 0.5 * hole / (2.0 * PI * (big + small));
     let dv = 0.5 * hole / (2.0 * PI * small);
-    let (us, cu) = parameters(2 * segments as usize, &[-du, du]);
-    let (vs, cv) = parameters(segments as usize, &[-dv, dv]);
     let at = |u: f64, v: f64| {
         let (u, v) = (2.0 * PI * u, 2.0 * PI * v);
         let rr = big + small * v.cos();
@@ -300,6 +298,19 @@ pub fn torus_with_hole(c: [f64; 3], big: f64, small: f64, hole: f64, segments: u
             c[2] + small * v.sin(),
         ]
     };
+    periodic_with_hole(at, [2 * segments as usize, segments as usize], [du, dv])
+}
+
+/// A closed surface `at(u, v)` periodic over `0..1` in both parameters, on `steps` even
+/// parameter values each, with a hole around (0, 0) of half-widths `half` (parameter units):
+/// the quads between the cuts at −half and +half are left out (none when `half` is 0).
+fn periodic_with_hole(
+    at: impl Fn(f64, f64) -> [f64; 3],
+    steps: [usize; 2],
+    half: [f64; 2],
+) -> TriMesh {
+    let (us, cu) = parameters(steps[0], &[-half[0], half[0]]);
+    let (vs, cv) = parameters(steps[1], &[-half[1], half[1]]);
     // The hole's quads: from the cut at −d (which sorts last, near 1) wrapping to +d.
     let inside = |i: usize, lo: usize, hi: usize| {
         if lo > hi {
@@ -308,8 +319,9 @@ pub fn torus_with_hole(c: [f64; 3], big: f64, small: f64, hole: f64, segments: u
             i >= lo && i < hi
         }
     };
+    let holed = half[0] > 0.0 && half[1] > 0.0;
     periodic_surface(at, &us, &vs, |i, j| {
-        hole > 0.0 && inside(i, cu[0], cu[1]) && inside(j, cv[0], cv[1])
+        holed && inside(i, cu[0], cu[1]) && inside(j, cv[0], cv[1])
     })
 }
 
@@ -356,8 +368,6 @@ pub fn knot_with_hole(c: [f64; 3], scale: f64, radius: f64, hole: f64, segments:
     };
     let du = 0.5 * hole / (2.0 * PI * speed);
     let dv = 0.5 * hole / (2.0 * PI * radius);
-    let (us, cu) = parameters(16 * segments as usize, &[-du, du]);
-    let (vs, cv) = parameters(segments as usize, &[-dv, dv]);
     let at = |u: f64, v: f64| {
         let t = 2.0 * PI * u;
         let tangent = unit(d1(t));
@@ -367,16 +377,7 @@ pub fn knot_with_hole(c: [f64; 3], scale: f64, radius: f64, hole: f64, segments:
         let p = curve(t);
         std::array::from_fn(|a| c[a] + scale * p[a] + radius * (cv * normal[a] + sv * binormal[a]))
     };
-    let inside = |i: usize, lo: usize, hi: usize| {
-        if lo > hi {
-            i >= lo || i < hi
-        } else {
-            i >= lo && i < hi
-        }
-    };
-    periodic_surface(at, &us, &vs, |i, j| {
-        hole > 0.0 && inside(i, cu[0], cu[1]) && inside(j, cv[0], cv[1])
-    })
+    periodic_with_hole(at, [16 * segments as usize, segments as usize], [du, dv])
 }
 
 /// A cup: an open cylinder around the z axis through `c` from z0 to z1 with a flat bottom at

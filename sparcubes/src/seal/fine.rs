@@ -10,20 +10,11 @@
 //! the order or the thread count.
 
 use super::coarse::CoarseGrid;
-use crate::flood::{Flood, FULL};
+use crate::flood::{Flood, DIRS, FULL};
 use crate::grid::BrickIndex;
 use crate::grid::{face_carry, or_assign, shift, BrickMask, BrickSet, BRICK};
 use rayon::prelude::*;
 use std::collections::HashMap;
-
-const DIRS: [(usize, bool); 6] = [
-    (0, false),
-    (0, true),
-    (1, false),
-    (1, true),
-    (2, false),
-    (2, true),
-];
 
 /// The fine cells of a brick that lie in cells of a coarse set (coarse cells of `cell` fine
 /// cells per axis, a power of two).
