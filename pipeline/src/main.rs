@@ -12,7 +12,6 @@ mod job_setup;
 mod local_workers;
 mod manifest_io;
 mod memory;
-mod npz;
 mod path_column;
 mod pictures;
 mod pool;

@@ -250,6 +250,7 @@ fn ids_are_found_by_prefix_or_source_and_misses_suggest() {
                 .to_string_lossy()
                 .into_owned()
         })
+        .filter(|name| name != ".sparc3d-export.json")
         .collect();
     // Named `<manifest index>-<id>.npz` (docs/FORMAT.md, "Exports").
     files.sort();

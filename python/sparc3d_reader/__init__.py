@@ -53,6 +53,7 @@ __all__ = [
     "samples_to_source",
     "collate_vecset",
     "run_export",
+    "CONSUMER_FORMATS",
     "iter_export",
     "ExportDataset",
     "collate_direct3d_s2",
@@ -651,18 +652,28 @@ def read_job_config(job: PathLike) -> Dict[str, Any]:
 # --- Layouts of other codebases, written by `sparc3d export` -------------------------------
 
 #: The formats of `sparc3d export`.
+#: Exports this module reads back (`iter_export`, `ExportDataset`, the `collate_*` functions):
+#: one `<index>-<stem>.npz` per item in our layouts.
 EXPORT_FORMATS = ("vecset-npz", "direct3d-s2", "trellis2", "cubvh")
+#: Exports in another codebase's own layout, read by that codebase's loader (docs/FORMAT.md,
+#: "Exports"); `run_export` writes them too.
+CONSUMER_FORMATS = ("hunyuan3d-2.1", "dora", "step1x-3d", "triposg")
 
 
 def run_export(job: PathLike, fmt: str, out: PathLike, ids: Optional[Sequence[str]] = None,
-               frame: str = "source", binary: str = "sparc3d") -> pathlib.Path:
+               frame: Optional[str] = None, binary: str = "sparc3d") -> pathlib.Path:
     """Runs `sparc3d export JOB --format FMT --out OUT` (the geometry of every layout lives in
-    the Rust CLI, so Python never recomputes it) and returns the output folder."""
+    the Rust CLI, so Python never recomputes it) and returns the output folder. `frame`: None
+    for the format's own (the consumer's cube; `normalized` for vecset-npz), else `consumer`,
+    `normalized` or `source`."""
     import subprocess
 
-    if fmt not in EXPORT_FORMATS:
-        raise ValueError(f"unknown format {fmt!r}; one of {', '.join(EXPORT_FORMATS)}")
-    cmd = [binary, "export", str(job), "--format", fmt, "--out", str(out), "--frame", frame]
+    if fmt not in EXPORT_FORMATS + CONSUMER_FORMATS:
+        raise ValueError(f"unknown format {fmt!r}; one of "
+                         f"{', '.join(EXPORT_FORMATS + CONSUMER_FORMATS)}")
+    cmd = [binary, "export", str(job), "--format", fmt, "--out", str(out)]
+    if frame is not None:
+        cmd += ["--frame", frame]
     if ids:
         cmd += ["--ids", ",".join(ids)]
     r = subprocess.run(cmd, capture_output=True, text=True)

@@ -1,8 +1,8 @@
 """`sparc3d export` gives every item a file of its own, in every format: ids that map to the
 same readable stem (`chair/1`, `chair 1`, `chair_1`; `椅子`, `桌子`), ids of any length (the
-248–251-byte ones whose temporary name used to exceed 255 bytes, and far longer ones), each
-file naming its item inside (`id`, `item_index`), and a file of another item already in the
-output folder is never overwritten silently (docs/FORMAT.md, "Exports")."""
+248–251-byte ones, and far longer ones), each
+file naming its item inside (`id`, `item_index`), and an export replaces only an earlier
+export, whole (docs/FORMAT.md, "Exports")."""
 
 import json
 import os
@@ -51,13 +51,12 @@ def test_every_item_gets_its_own_file_naming_it_inside(job, tmp_path, fmt):
     out = tmp_path / fmt
     r = run("export", job, "--format", fmt, "--out", out)
     assert f"{len(IDS)} items written" in r.stderr, r.stderr
-    files = sorted(os.listdir(out))
+    files = sorted(f for f in os.listdir(out) if f != ".sparc3d-export.json")
     assert len(files) == len(IDS), files  # no file shared, no temporary left behind
     assert all(f.endswith(".npz") and not f.startswith(".") for f in files), files
-    # Unique also where a file system ignores case, and within the limit with room for the
-    # temporary name (`.NAME.PID.tmp`).
+    # Unique also where a file system ignores case, and within the file-name limit.
     assert len({f.lower() for f in files}) == len(files)
-    assert max(len(f.encode()) for f in files) + len(".." + "4294967295" + ".tmp") <= NAME_MAX
+    assert max(len(f.encode()) for f in files) <= NAME_MAX
     found = {}
     for f in files:
         with np.load(out / f) as z:
@@ -74,23 +73,23 @@ def test_every_item_gets_its_own_file_naming_it_inside(job, tmp_path, fmt):
     assert reader.ExportDataset(out)[3]["id"] == "椅子"
 
 
-def test_another_items_file_is_never_overwritten(job, tmp_path):
+def test_an_export_folder_is_replaced_whole_and_any_other_folder_never(job, tmp_path):
     out = tmp_path / "out"
     run("export", job, "--format", "cubvh", "--out", out)
     before = {f: (out / f).read_bytes() for f in os.listdir(out)}
-    # Exporting the same job again replaces its own files: same names, same bytes.
-    run("export", job, "--format", "cubvh", "--out", out)
-    assert {f: (out / f).read_bytes() for f in os.listdir(out)} == before
-    # Item 1's file put where item 2's goes (another job's export with other ids, say), and a
-    # file that is no export at all: both stay as they are, each named, and the exit is 1.
-    taken = sorted(before)
-    (out / taken[2]).write_bytes(before[taken[1]])
-    (out / taken[4]).write_bytes(b"my own notes")
-    r = run("export", job, "--format", "cubvh", "--out", out, check=False)
-    assert r.returncode == 1, r.stderr
-    assert f"{len(IDS) - 2} items written" in r.stderr and "2 failed" in r.stderr, r.stderr
-    assert taken[2] in r.stderr and "already holds item 'chair 1'" in r.stderr.replace('"', "'"), r.stderr
-    assert taken[4] in r.stderr and "not an export" in r.stderr, r.stderr
-    assert (out / taken[2]).read_bytes() == before[taken[1]]
-    assert (out / taken[4]).read_bytes() == b"my own notes"
-    assert sorted(os.listdir(out)) == taken  # no temporary left behind
+    assert ".sparc3d-export.json" in before
+    # Exporting again replaces the earlier export whole: same names, same bytes, and a file
+    # left in it by hand is gone with it; nothing is left beside it.
+    (out / "stray.npz").write_bytes(b"left by hand")
+    run("export", job, "--format", "cubvh", "--out", out, "--ids", IDS[0])
+    after = sorted(f for f in os.listdir(out) if not f.startswith("."))
+    assert after == ["000000-chair_1.npz"], after
+    assert sorted(os.listdir(tmp_path)) == ["out"]
+    # A folder that holds files and is no export is never written into: the error names it.
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("my own notes")
+    r = run("export", job, "--format", "cubvh", "--out", mine, check=False)
+    assert r.returncode == 1 and "not an export" in r.stderr, r.stderr
+    assert os.listdir(mine) == ["notes.txt"]
+    assert sorted(os.listdir(tmp_path)) == ["mine", "out"]

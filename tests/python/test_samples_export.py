@@ -125,9 +125,10 @@ def test_every_export_loads_with_numpy_alone_and_with_the_reader(job, tmp_path):
 def test_frames_and_ids(job, tmp_path):
     ok, _ = ok_rows(job)
     one = ok[0]["id"]
-    src = reader.run_export(job, "vecset-npz", tmp_path / "s", ids=[one], binary=sparc3d_bin())
-    nrm = reader.run_export(job, "vecset-npz", tmp_path / "n", ids=[one], frame="normalized",
+    src = reader.run_export(job, "vecset-npz", tmp_path / "s", ids=[one], frame="source",
                             binary=sparc3d_bin())
+    # The default frame of vecset-npz is the job's normalized frame, where our VAE trains.
+    nrm = reader.run_export(job, "vecset-npz", tmp_path / "n", ids=[one], binary=sparc3d_bin())
     (a,), (b,) = list(reader.iter_export(src)), list(reader.iter_export(nrm))
     assert str(a["frame"]) == "source" and str(b["frame"]) == "normalized"
     assert b["near_points"].dtype == np.float16 and a["near_points"].dtype == np.float32

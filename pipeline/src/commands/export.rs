@@ -1,78 +1,99 @@
-//! `sparc3d export JOB --format F --out DIR [--ids …] [--frame source|normalized]`: writes one
-//! `.npz` per ok item in another codebase's on-disk layout (docs/FORMAT.md, "Exports"). The
-//! sparse layouts are computed from the stored grid by `sparcubes::layouts`; the vector-set
-//! samples come from the shard's sample columns. Every file carries the item it holds (`id`,
-//! `item_index`) and its normalization (`center`, `scale`, `resolution`); file names come from
-//! `export_name` (unique per item, within the file-name limit).
+//! `sparc3d export JOB --format CONSUMER --out DIR [--ids …] [--frame …]`: writes the ok items
+//! of a job in a consumer's own on-disk layout (docs/FORMAT.md, "Exports"), through
+//! `sparc3d_formats`, which holds each consumer's recipe. The export is built in a folder
+//! beside `--out` and moved into place at the end, so `--out` is never half written: it is
+//! either absent, or a finished export, or (after a rerun) the new finished export.
+//! `.sparc3d-export.json` in it says which job, consumer, frame and items it holds.
 
-use crate::export_name::{self, ExportNames};
+use crate::export_name::ExportNames;
 use crate::item_lookup;
-use crate::npz::{self, npz_bytes, Array};
 use anyhow::{bail, Context, Result};
+use clap::builder::TypedValueParser;
+use sparc3d_formats::{Consumer, ExportFile, Frame, Item, Listed, StoredSamples};
 use sparc3d_schema::ShardRow;
 use sparc3d_workers::store::read::shard_rows;
 use sparc3d_workers::store::state::Check;
 use sparc3d_workers::Job;
-use sparcubes::layouts::{cubvh, direct3d_s2, trellis2};
-use sparcubes::samples::Precision;
 use std::collections::BTreeSet;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-/// The layouts `export` writes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum Format {
-    /// Vector-set VAE samples (surface, sharp, near, volume) from the sample columns.
-    VecsetNpz,
-    /// Direct3D-S2's sparse SDF: `sparse_index`, `sparse_sdf`.
-    Direct3dS2,
-    /// TRELLIS.2's flexible dual grid in o_voxel's npz layout: `coord`, `vertices`,
-    /// `intersected`.
-    Trellis2,
-    /// cubvh's sparse voxels: `active_cells`, `active_cells_sdf` (packed u64).
-    Cubvh,
-}
-
-/// The frame of exported sample coordinates.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum Frame {
-    /// The source mesh's frame (as `convert` and `show` write meshes).
-    Source,
-    /// The job's normalized frame, [−1, 1]³ (`p = 2·(source − center)·scale`).
-    Normalized,
-}
+/// The file that marks a folder as a finished export and says what it holds.
+/// Hidden, so a loader that globs the folder for items (Hunyuan3D-2.1's) never meets it.
+pub const EXPORT_RECORD: &str = ".sparc3d-export.json";
 
 /// Arguments of `sparc3d export`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Job folder.
     pub job: PathBuf,
-    /// Layout to write.
-    #[arg(long, value_enum)]
-    pub format: Format,
-    /// Output folder (created); one `<index>-<id>.npz` per item (docs/FORMAT.md, "Exports").
+    /// The consumer whose layout to write (docs/FORMAT.md, "Exports", has the table).
+    #[arg(long, value_parser = consumer_parser())]
+    pub format: Consumer,
+    /// Output folder: created, or replaced whole when it holds an earlier export.
     #[arg(long)]
     pub out: PathBuf,
     /// Only these items (comma-separated or repeated), each named as `--id` elsewhere: its id,
     /// a unique prefix of it, or its source file (path or file name); default: every ok item.
     #[arg(long, value_delimiter = ',')]
     pub ids: Vec<String>,
-    /// Frame of sample coordinates and distances (vecset-npz only).
-    #[arg(long, value_enum, default_value = "source")]
-    pub frame: Frame,
+    /// Frame of the points: the consumer's own by default (`consumer` for the grid layouts,
+    /// `normalized` for vecset-npz); `source` and `normalized` where the layout allows them.
+    #[arg(long, value_parser = frame_parser())]
+    pub frame: Option<Frame>,
+}
+
+/// `--format`'s parser: the consumers' names, each with its `--help` line.
+fn consumer_parser() -> impl clap::builder::TypedValueParser<Value = Consumer> {
+    let values = Consumer::ALL.map(|c| clap::builder::PossibleValue::new(c.name()).help(c.about()));
+    clap::builder::PossibleValuesParser::new(values).map(|name| {
+        Consumer::from_name(&name).unwrap_or(Consumer::Vecset) // clap only passes listed names
+    })
+}
+
+/// `--frame`'s parser.
+fn frame_parser() -> impl clap::builder::TypedValueParser<Value = Frame> {
+    let frames = [Frame::Consumer, Frame::Normalized, Frame::Source];
+    clap::builder::PossibleValuesParser::new(frames.map(|f| f.name())).map(move |name| {
+        frames
+            .into_iter()
+            .find(|f| f.name() == name)
+            .unwrap_or(Frame::Consumer)
+    })
 }
 
 /// Runs `sparc3d export`.
 pub fn run(args: Args) -> Result<ExitCode> {
     let job = Job::open(&args.job)?;
-    let samples_on = job.file.config.samples.enabled;
-    if args.format == Format::VecsetNpz && !samples_on {
-        bail!(
-            "{}: the job has no samples (config key samples.enabled is false); \
-             vecset-npz needs a job initialised with `[samples] enabled = true`",
-            args.job.display()
+    let consumer = args.format;
+    let frame = args.frame.unwrap_or(consumer.frames()[0]);
+    if !consumer.frames().contains(&frame) {
+        eprintln!(
+            "error: --format {} is written in the frame{} {}, not {}",
+            consumer.name(),
+            if consumer.frames().len() > 1 { "s" } else { "" },
+            consumer
+                .frames()
+                .iter()
+                .map(|f| f.name())
+                .collect::<Vec<_>>()
+                .join(", "),
+            frame.name()
         );
+        return Ok(ExitCode::from(2));
+    }
+    let samples = &job.file.config.samples;
+    let missing = consumer.missing(samples.enabled.then_some(&samples.params));
+    if !missing.is_empty() {
+        eprintln!(
+            "error: {}: --format {} needs samples this job does not draw; initialise a job with \
+             these [samples] keys (nothing was written):\n  {}",
+            args.job.display(),
+            consumer.name(),
+            missing.join("\n  ")
+        );
+        return Ok(ExitCode::from(2));
     }
     // Each `--ids` entry names an item as `--id` does elsewhere (whole id, unique prefix or
     // source file); a miss fails before anything is written, with the closest names.
@@ -80,41 +101,31 @@ pub fn run(args: Args) -> Result<ExitCode> {
     for query in &args.ids {
         wanted.insert(item_lookup::find(&job, query)?.record.id.as_str());
     }
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("creating {}", args.out.display()))?;
-    let shards: BTreeSet<u64> = job
-        .items
-        .iter()
-        .filter(|i| wanted.is_empty() || wanted.contains(i.record.id.as_str()))
-        .map(|i| i.shard)
-        .collect();
-    let dtype = job.file.config.samples.params.dtype;
-    let names = ExportNames::for_job(job.file.items);
-    let (mut written, mut failed) = (0u64, 0u64);
-    for shard in shards {
-        for row in shard_rows(&job, shard, Check::Full)? {
-            if !(wanted.is_empty() || wanted.contains(row.id.as_str())) || row.tensors.is_none() {
-                continue;
-            }
-            let name = names.file_name(row.item_index, &row.id, "npz");
-            match export_row(&row, args.format, args.frame, dtype)
-                .and_then(|arrays| write_item_file(&args.out, &name, &row.id, &npz_bytes(&arrays)?))
-            {
-                Ok(()) => written += 1,
-                Err(e) => {
-                    failed += 1;
-                    eprintln!("error: item {:?}: {e:#}", row.id);
-                }
-            }
+    refuse_a_folder_that_is_not_an_export(&args.out)?;
+    let staging = Staging::create(&args.out)?;
+    let written = write_items(&job, consumer, frame, &wanted, &staging.dir);
+    let root = std::path::absolute(&args.out)
+        .with_context(|| format!("resolving {}", args.out.display()))?;
+    let outcome = written.and_then(|w| {
+        write_listing(consumer, &w.listed, &root, &staging.dir)?;
+        write_record(&job, consumer, frame, &w, &staging.dir)?;
+        Ok(w)
+    });
+    let outcome = match outcome {
+        Ok(w) => w,
+        Err(e) => {
+            staging.discard();
+            return Err(e);
         }
-    }
-    // The renames last, once: the files were fsynced one by one.
-    if written > 0 {
-        sparc3d_workers::fsutil::sync_dir(&args.out)?;
-    }
+    };
+    staging.move_to(&args.out)?;
+    let failed = outcome.failed.len();
     eprintln!(
-        "{written} items written to {}{}",
+        "{} items written to {} ({}, frame {}){}",
+        outcome.listed.len(),
         args.out.display(),
+        consumer.name(),
+        frame.name(),
         if failed > 0 {
             format!(", {failed} failed")
         } else {
@@ -128,187 +139,244 @@ pub fn run(args: Args) -> Result<ExitCode> {
     })
 }
 
-/// Writes item `id`'s file `name` in `dir`: to a temporary name, fsynced, then renamed. A
-/// file already there is replaced only when it holds the same item (a second export of the
-/// job); one that holds another item, or that is not an export at all, is an error and stays.
-fn write_item_file(dir: &Path, name: &str, id: &str, bytes: &[u8]) -> Result<()> {
-    let path = dir.join(name);
-    refuse_another_items_file(&path, id)?;
-    let tmp = dir.join(export_name::tmp_name(name));
-    let written = (|| -> Result<()> {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        Ok(std::fs::rename(&tmp, &path)?)
-    })()
-    .with_context(|| format!("writing {} (through {})", path.display(), tmp.display()));
-    if written.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    written
+/// What the items' pass wrote.
+struct Written {
+    /// The items written, in manifest order.
+    listed: Vec<Listed>,
+    /// The items that failed, with why.
+    failed: Vec<(String, String)>,
 }
 
-/// An error when `path` exists and holds anything but item `id`'s export.
-fn refuse_another_items_file(path: &Path, id: &str) -> Result<()> {
-    let bytes = match std::fs::read(path) {
-        Ok(b) => b,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
-        Err(e) => return Err(e).with_context(|| format!("reading {}", path.display())),
-    };
-    match npz::read_text(&bytes, "id") {
-        Some(found) if found == id => Ok(()),
-        Some(found) => bail!(
-            "{} already holds item {found:?} (another job's export?); not overwritten: \
-             export into an empty folder",
-            path.display()
-        ),
-        None => bail!(
-            "{} already exists and is not an export of an item (no `id` entry); not \
-             overwritten: export into an empty folder",
-            path.display()
-        ),
-    }
-}
-
-/// The vector-set samples of one item (points, normals, signed distances, occupancy) in
-/// `frame`, with the frame's name; distances scale with the frame.
-fn vecset_arrays(
-    row: &ShardRow,
-    norm: &sparcubes::Normalization,
+/// Writes every wanted ok item's files under `dir`; an item that fails is named on stderr and
+/// the rest go on. Errors only when a shard cannot be read or a file cannot be written.
+fn write_items(
+    job: &Job,
+    consumer: Consumer,
     frame: Frame,
-    dtype: Precision,
-) -> Result<Vec<Array>> {
-    let Some(t) = row.tensors.as_ref().and_then(|t| t.samples.as_ref()) else {
-        bail!("no sample columns (config key samples.enabled was off when it converted)");
+    wanted: &BTreeSet<&str>,
+    dir: &Path,
+) -> Result<Written> {
+    let shards: BTreeSet<u64> = job
+        .items
+        .iter()
+        .filter(|i| wanted.is_empty() || wanted.contains(i.record.id.as_str()))
+        .map(|i| i.shard)
+        .collect();
+    let names = ExportNames::for_job(job.file.items);
+    let mut out = Written {
+        listed: Vec::new(),
+        failed: Vec::new(),
     };
-    let s = t.to_samples()?;
-    // Normalized p = 2·(source − center)·scale: source = p·k + center with
-    // k = 1 / (2·scale), and distances scale by k.
-    let (k, offset) = match frame {
-        Frame::Normalized => (1.0, [0.0; 3]),
-        Frame::Source => (1.0 / (2.0 * norm.scale), norm.center),
-    };
-    let to_point =
-        |p: [f32; 3]| -> [f32; 3] { std::array::from_fn(|a| (p[a] as f64 * k + offset[a]) as f32) };
-    let dist = k;
-    // The source frame is written as f32 (its coordinates may not fit f16 well).
-    let descr = match (frame, dtype) {
-        (Frame::Normalized, Precision::F16) => "<f2",
-        _ => "<f4",
-    };
-    let floats = |name: &str, shape: Vec<usize>, v: Vec<f32>| -> Array {
-        if descr == "<f2" {
-            let h: Vec<u16> = v
-                .iter()
-                .map(|&x| half::f16::from_f32(x).to_bits())
-                .collect();
-            Array::numbers(name, descr, shape, &h)
-        } else {
-            Array::numbers(name, descr, shape, &v)
+    for shard in shards {
+        for row in shard_rows(job, shard, Check::Full)? {
+            if !(wanted.is_empty() || wanted.contains(row.id.as_str())) || row.tensors.is_none() {
+                continue;
+            }
+            let stem = names.stem(row.item_index, &row.id);
+            match export_row(job, &row, consumer, frame, &stem) {
+                Ok(export) => {
+                    for f in &export.files {
+                        write_file(dir, f)?;
+                    }
+                    out.listed.push(Listed {
+                        id: row.id.clone(),
+                        stem,
+                        files: export.files.into_iter().map(|f| f.path).collect(),
+                        columns: export.listing,
+                    });
+                }
+                Err(e) => {
+                    eprintln!("error: item {:?}: {e:#}", row.id);
+                    out.failed.push((row.id.clone(), format!("{e:#}")));
+                }
+            }
         }
-    };
-    let points = |name: &str, v: &[[f32; 3]]| {
-        floats(
-            name,
-            vec![v.len(), 3],
-            v.iter().flat_map(|p| to_point(*p)).collect(),
-        )
-    };
-    let vectors = |name: &str, v: &[[f32; 3]]| {
-        floats(
-            name,
-            vec![v.len(), 3],
-            v.iter().flatten().copied().collect(),
-        )
-    };
-    let distances = |name: &str, v: &[f32]| {
-        floats(
-            name,
-            vec![v.len()],
-            v.iter().map(|&d| (d as f64 * dist) as f32).collect(),
-        )
-    };
-    Ok(vec![
-        points("surface_points", &s.surface_points),
-        vectors("surface_normals", &s.surface_normals),
-        points("sharp_points", &s.sharp_points),
-        vectors("sharp_normals", &s.sharp_normals),
-        points("near_points", &s.near_points),
-        distances("near_sdf", &s.near_sdf),
-        points("volume_points", &s.volume_points),
-        distances("volume_sdf", &s.volume_sdf),
-        Array::numbers(
-            "volume_occupancy",
-            "|u1",
-            vec![s.volume_occupancy.len()],
-            &s.volume_occupancy,
-        ),
-        Array::text(
-            "frame",
-            match frame {
-                Frame::Source => "source",
-                Frame::Normalized => "normalized",
-            },
-        ),
-    ])
+    }
+    Ok(out)
 }
 
-/// The arrays of one item in `format`.
+/// The files of one item.
 fn export_row(
+    job: &Job,
     row: &ShardRow,
-    format: Format,
+    consumer: Consumer,
     frame: Frame,
-    dtype: Precision,
-) -> Result<Vec<Array>> {
+    stem: &str,
+) -> Result<sparc3d_formats::ItemExport> {
     let cubes = row.cubes()?;
-    let norm = cubes.normalization;
-    let n = cubes.resolution as usize;
-    let mut arrays = vec![
-        Array::text("id", &row.id),
-        Array::numbers("item_index", "<i8", vec![], &[row.item_index as i64]),
-        Array::numbers("center", "<f8", vec![3], &norm.center),
-        Array::numbers("scale", "<f8", vec![], &[norm.scale]),
-        Array::numbers("resolution", "<i8", vec![], &[n as i64]),
-    ];
-    match format {
-        Format::VecsetNpz => arrays.extend(vecset_arrays(row, &norm, frame, dtype)?),
-        Format::Direct3dS2 => {
-            let s = direct3d_s2::sparse_sdf(&cubes, direct3d_s2::TRUNCATION);
-            let index: Vec<i32> = s.coords.iter().flatten().map(|&c| c as i32).collect();
-            arrays.extend([
-                Array::numbers("sparse_index", "<i4", vec![s.coords.len(), 3], &index),
-                Array::numbers("sparse_sdf", "<f4", vec![s.sdf.len(), 1], &s.sdf),
-            ]);
+    let samples = match row.tensors.as_ref().and_then(|t| t.samples.as_ref()) {
+        Some(t) => Some(t.to_samples()?),
+        None => None,
+    };
+    let config = &job.file.config;
+    let source_sha256 = job
+        .items
+        .get(row.item_index as usize)
+        .and_then(|i| i.record.sha256.as_deref());
+    let item = Item {
+        id: &row.id,
+        item_index: row.item_index,
+        stem,
+        source_sha256,
+        cubes: &cubes,
+        samples: samples.as_ref().map(|s| StoredSamples {
+            samples: s,
+            params: &config.samples.params,
+        }),
+        margin_cells: config.params.margin_cells,
+        frame,
+    };
+    Ok(consumer.files(&item)?)
+}
+
+/// Writes the consumer's listing files (its `{split}.json`, `metadata.csv`, …).
+fn write_listing(consumer: Consumer, listed: &[Listed], root: &Path, dir: &Path) -> Result<()> {
+    for f in consumer.listing(listed, root)? {
+        write_file(dir, &f)?;
+    }
+    Ok(())
+}
+
+/// Writes [`EXPORT_RECORD`]: the job, consumer, frame, and each item's files (and the failures).
+fn write_record(
+    job: &Job,
+    consumer: Consumer,
+    frame: Frame,
+    written: &Written,
+    dir: &Path,
+) -> Result<()> {
+    let items: Vec<serde_json::Value> = written
+        .listed
+        .iter()
+        .map(|l| {
+            serde_json::json!({
+                "id": l.id,
+                "stem": l.stem,
+                "files": l.files.iter().map(|p| p.to_string_lossy()).collect::<Vec<_>>(),
+            })
+        })
+        .collect();
+    let failed: Vec<serde_json::Value> = written
+        .failed
+        .iter()
+        .map(|(id, why)| serde_json::json!({"id": id, "error": why}))
+        .collect();
+    let record = serde_json::json!({
+        "job": job.layout.root.to_string_lossy(),
+        "fingerprint": job.fingerprint(),
+        "format": consumer.name(),
+        "frame": frame.name(),
+        "items": items,
+        "failed": failed,
+    });
+    let bytes = serde_json::to_vec_pretty(&record)?;
+    write_file(
+        dir,
+        &ExportFile {
+            path: EXPORT_RECORD.into(),
+            bytes,
+        },
+    )
+}
+
+/// Writes one file under `dir` (its parent folders created) and fsyncs it.
+fn write_file(dir: &Path, file: &ExportFile) -> Result<()> {
+    let path = dir.join(&file.path);
+    if let Some(parent) = path.parent() {
+        std::fs::create_dir_all(parent)
+            .with_context(|| format!("creating {}", parent.display()))?;
+    }
+    (|| -> std::io::Result<()> {
+        let mut f = std::fs::File::create(&path)?;
+        f.write_all(&file.bytes)?;
+        f.sync_all()
+    })()
+    .with_context(|| format!("writing {}", path.display()))
+}
+
+/// An error when `out` exists and is neither empty nor an earlier export (no
+/// [`EXPORT_RECORD`]): such a folder is never replaced.
+fn refuse_a_folder_that_is_not_an_export(out: &Path) -> Result<()> {
+    let mut entries = match std::fs::read_dir(out) {
+        Ok(e) => e,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(e).with_context(|| format!("reading {}", out.display())),
+    };
+    if entries.next().is_none() || out.join(EXPORT_RECORD).is_file() {
+        return Ok(());
+    }
+    bail!(
+        "{} holds files and is not an export (no {EXPORT_RECORD}); not overwritten: export \
+         into a new or empty folder",
+        out.display()
+    )
+}
+
+/// The folder an export is built in, beside its destination: `.NAME.partial-PID`.
+struct Staging {
+    dir: PathBuf,
+}
+
+impl Staging {
+    /// Creates the staging folder for `out` (removing one a killed export left).
+    fn create(out: &Path) -> Result<Self> {
+        let dir = sibling(out, "partial")?;
+        if dir.exists() {
+            std::fs::remove_dir_all(&dir)
+                .with_context(|| format!("removing a stale {}", dir.display()))?;
         }
-        Format::Trellis2 => {
-            let g = trellis2::dual_grid(&cubes);
-            let coord: Vec<u16> = g.voxels.iter().flatten().copied().collect();
-            let vertices: Vec<u8> = g.quantized.iter().flatten().copied().collect();
-            arrays.extend([
-                Array::numbers("coord", "<u2", vec![g.voxels.len(), 3], &coord),
-                Array::numbers("vertices", "|u1", vec![g.voxels.len(), 3], &vertices),
-                Array::numbers(
-                    "intersected",
-                    "|u1",
-                    vec![g.voxels.len(), 1],
-                    &g.intersected,
-                ),
-            ]);
+        std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+        Ok(Self { dir })
+    }
+
+    /// Removes the staging folder (after an error).
+    fn discard(self) {
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+
+    /// Moves the finished export to `out`: an earlier export there is moved aside first and
+    /// removed after, so `out` is always a whole export.
+    fn move_to(self, out: &Path) -> Result<()> {
+        sync_tree(&self.dir)?;
+        let old = sibling(out, "old")?;
+        let replaced = out.exists();
+        if replaced {
+            if old.exists() {
+                std::fs::remove_dir_all(&old)
+                    .with_context(|| format!("removing a stale {}", old.display()))?;
+            }
+            std::fs::rename(out, &old)
+                .with_context(|| format!("moving {} aside to {}", out.display(), old.display()))?;
         }
-        Format::Cubvh => {
-            let v = cubvh::cubvh_voxels(&cubes);
-            let n = n as u64;
-            let cells: Vec<u64> = v
-                .cells
-                .iter()
-                .map(|c| (c[0] as u64 * n + c[1] as u64) * n + c[2] as u64)
-                .collect();
-            let codes: Vec<u64> = v.codes.iter().map(|c| u64::from_le_bytes(*c)).collect();
-            arrays.extend([
-                Array::numbers("active_cells", "<u8", vec![cells.len()], &cells),
-                Array::numbers("active_cells_sdf", "<u8", vec![codes.len()], &codes),
-            ]);
+        std::fs::rename(&self.dir, out)
+            .with_context(|| format!("moving {} to {}", self.dir.display(), out.display()))?;
+        if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+            sparc3d_workers::fsutil::sync_dir(parent)?;
+        }
+        if replaced {
+            std::fs::remove_dir_all(&old)
+                .with_context(|| format!("removing the earlier export {}", old.display()))?;
+        }
+        Ok(())
+    }
+}
+
+/// `.NAME.KIND-PID` beside `out`.
+fn sibling(out: &Path, kind: &str) -> Result<PathBuf> {
+    let Some(name) = out.file_name() else {
+        bail!("--out {}: not a folder name", out.display());
+    };
+    let name = format!(".{}.{kind}-{}", name.to_string_lossy(), std::process::id());
+    Ok(out.with_file_name(name))
+}
+
+/// fsyncs every folder under `dir` (the files were fsynced as written).
+fn sync_tree(dir: &Path) -> Result<()> {
+    for entry in std::fs::read_dir(dir).with_context(|| format!("reading {}", dir.display()))? {
+        let entry = entry.with_context(|| format!("reading {}", dir.display()))?;
+        if entry.file_type().map(|t| t.is_dir()).unwrap_or(false) {
+            sync_tree(&entry.path())?;
         }
     }
-    Ok(arrays)
+    Ok(sparc3d_workers::fsutil::sync_dir(dir)?)
 }

@@ -2,7 +2,7 @@
 //! file (format version 1.0) per array, as `numpy.savez` writes them. `numpy.load` reads them
 //! without any other package.
 
-use anyhow::{bail, Result};
+use crate::error::{Error, Result};
 
 /// One array of an `.npz` file.
 #[derive(Debug, Clone)]
@@ -118,7 +118,10 @@ pub fn npz_bytes(arrays: &[Array]) -> Result<Vec<u8>> {
         let npy = a.npy();
         let name = format!("{}.npy", a.name);
         if npy.len() >= u32::MAX as usize || out.len() >= u32::MAX as usize {
-            bail!("array {:?} is too large for an .npz without ZIP64", a.name);
+            return Err(Error::TooLarge(format!(
+                "array {:?} is too large for an .npz without ZIP64",
+                a.name
+            )));
         }
         let (crc, size, offset) = (crc32(&npy), npy.len() as u32, out.len() as u32);
         // Local file header: version 2.0, no flags, stored, fixed time 1980-01-01 00:00.
@@ -149,7 +152,7 @@ pub fn npz_bytes(arrays: &[Array]) -> Result<Vec<u8>> {
         central.extend_from_slice(name.as_bytes());
     }
     if out.len() + central.len() >= u32::MAX as usize {
-        bail!("the .npz would exceed 4 GiB");
+        return Err(Error::TooLarge("the .npz would exceed 4 GiB".into()));
     }
     let (cd_offset, cd_size) = (out.len() as u32, central.len() as u32);
     out.extend_from_slice(&central);

@@ -1,0 +1,213 @@
+//! The on-disk layouts other codebases train on, one module per consumer, each written from
+//! what [`sparcubes`] computes for one item (its sparse cubes, its samples) and nothing else:
+//! the geometry stays in `sparcubes`, which knows nothing of who reads it; here live each
+//! consumer's recipe (which of our arrays, in which frame, with which sign and index range),
+//! its folder layout and file names, and its listing files.
+//!
+//! A consumer module exposes the same three functions, which [`Consumer`] dispatches to:
+//! `files` (one item's files), `listing` (the files that list the items, when the consumer
+//! reads one) and `missing` (the `[samples]` keys a job lacks for it). Adding a consumer is one
+//! file and one variant. docs/FORMAT.md ("Exports") has the table of consumers, files and the
+//! loaders each was checked against.
+
+#![deny(missing_docs)]
+
+mod arrays;
+pub mod cubvh;
+pub mod direct3d_s2;
+mod error;
+pub mod frame;
+pub mod npz;
+pub mod pickle;
+pub mod trellis2;
+pub mod vecset;
+
+pub use error::{Error, Result};
+pub use frame::{Frame, Placement};
+
+use sparcubes::cubes::SparseCubes;
+use sparcubes::samples::{SampleParams, Samples};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// A codebase whose loader reads our exports as they are.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Consumer {
+    /// Our own vector-set samples, one `.npz` per item, in the job's frames.
+    Vecset,
+    /// Direct3D-S2's sparse SDF.
+    Direct3dS2,
+    /// TRELLIS.2's flexible dual grid.
+    Trellis2,
+    /// cubvh's sparse voxels.
+    Cubvh,
+}
+
+impl Consumer {
+    /// Every consumer, in the order of `sparc3d export --help`.
+    pub const ALL: [Consumer; 4] = [
+        Consumer::Vecset,
+        Consumer::Direct3dS2,
+        Consumer::Trellis2,
+        Consumer::Cubvh,
+    ];
+
+    /// The name `--format` takes.
+    pub fn name(self) -> &'static str {
+        match self {
+            Consumer::Vecset => "vecset-npz",
+            Consumer::Direct3dS2 => "direct3d-s2",
+            Consumer::Trellis2 => "trellis2",
+            Consumer::Cubvh => "cubvh",
+        }
+    }
+
+    /// One line for `--help`: what it writes.
+    pub fn about(self) -> &'static str {
+        match self {
+            Consumer::Vecset => vecset::ABOUT,
+            Consumer::Direct3dS2 => direct3d_s2::ABOUT,
+            Consumer::Trellis2 => trellis2::ABOUT,
+            Consumer::Cubvh => cubvh::ABOUT,
+        }
+    }
+
+    /// The consumer named `name` ([`Consumer::name`]).
+    pub fn from_name(name: &str) -> Option<Consumer> {
+        Consumer::ALL.into_iter().find(|c| c.name() == name)
+    }
+
+    /// The frames this consumer's files can be written in; the first is its default.
+    pub fn frames(self) -> &'static [Frame] {
+        match self {
+            Consumer::Vecset => &[Frame::Normalized, Frame::Source],
+            Consumer::Direct3dS2 | Consumer::Trellis2 | Consumer::Cubvh => &[Frame::Consumer],
+        }
+    }
+
+    /// The `[samples]` keys a job with `samples` (None: samples off) lacks for this consumer,
+    /// each with what it needs (empty when nothing is missing).
+    pub fn missing(self, samples: Option<&SampleParams>) -> Vec<String> {
+        match self {
+            Consumer::Vecset => vecset::missing(samples),
+            Consumer::Direct3dS2 | Consumer::Trellis2 | Consumer::Cubvh => Vec::new(),
+        }
+    }
+
+    /// The files of one item, paths relative to the export folder.
+    pub fn files(self, item: &Item) -> Result<ItemExport> {
+        match self {
+            Consumer::Vecset => vecset::files(item),
+            Consumer::Direct3dS2 => direct3d_s2::files(item),
+            Consumer::Trellis2 => trellis2::files(item),
+            Consumer::Cubvh => cubvh::files(item),
+        }
+    }
+
+    /// The listing files of the items written (in item order), when this consumer reads one;
+    /// `root` is where the export folder ends up (absolute), for listings of paths.
+    pub fn listing(self, items: &[Listed], root: &Path) -> Result<Vec<ExportFile>> {
+        match self {
+            Consumer::Vecset | Consumer::Direct3dS2 | Consumer::Trellis2 | Consumer::Cubvh => {
+                let _ = (items, root);
+                Ok(Vec::new())
+            }
+        }
+    }
+}
+
+/// One item to export: what the job stored for it.
+#[derive(Debug, Clone, Copy)]
+pub struct Item<'a> {
+    /// The item's id.
+    pub id: &'a str,
+    /// Its row in the frozen manifest.
+    pub item_index: u64,
+    /// Its file stem in the export, unique within the job (`<index>-<id>`, shortened).
+    pub stem: &'a str,
+    /// sha256 of its source file, when the manifest has it (TRELLIS.2 names files by it).
+    pub source_sha256: Option<&'a str>,
+    /// Its sparse cubes (with the job's normalization).
+    pub cubes: &'a SparseCubes,
+    /// Its samples, when the job draws them.
+    pub samples: Option<StoredSamples<'a>>,
+    /// The job's margin around the object, in cells (`params.margin_cells`).
+    pub margin_cells: u32,
+    /// The frame the files are written in (one of [`Consumer::frames`]).
+    pub frame: Frame,
+}
+
+impl Item<'_> {
+    /// The placement of points in this item's frame: the consumer's cube (its bounding box
+    /// centred, its longest side on ±`half_extent`), the normalized frame or the source's.
+    pub fn placement(&self, half_extent: f64) -> Placement {
+        match self.frame {
+            Frame::Consumer => {
+                Placement::centred(self.cubes.resolution, self.margin_cells, half_extent)
+            }
+            Frame::Normalized => Placement::IDENTITY,
+            Frame::Source => Placement::to_source(&self.cubes.normalization),
+        }
+    }
+}
+
+/// An item's samples with how the job drew and stored them.
+#[derive(Debug, Clone, Copy)]
+pub struct StoredSamples<'a> {
+    /// The samples (normalized frame).
+    pub samples: &'a Samples,
+    /// The job's sample parameters (counts, σ lists).
+    pub params: &'a SampleParams,
+}
+
+/// One file of an export.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExportFile {
+    /// Path relative to the export folder.
+    pub path: PathBuf,
+    /// The file's bytes.
+    pub bytes: Vec<u8>,
+}
+
+/// The files of one item, and what the consumer's listing says of it.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ItemExport {
+    /// The item's files.
+    pub files: Vec<ExportFile>,
+    /// The item's columns in the consumer's listing (name → value), if it reads one.
+    pub listing: BTreeMap<String, String>,
+}
+
+/// One exported item as the listing files see it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Listed {
+    /// The item's id.
+    pub id: String,
+    /// Its file stem.
+    pub stem: String,
+    /// Its files, relative to the export folder.
+    pub files: Vec<PathBuf>,
+    /// Its listing columns ([`ItemExport::listing`]).
+    pub columns: BTreeMap<String, String>,
+}
+
+/// The entries every npz we write carries, so a file names its item: `id`, `item_index` and
+/// the job's normalization (`center`, `scale`, `resolution`).
+pub(crate) fn identity_arrays(item: &Item) -> Vec<npz::Array> {
+    let norm = item.cubes.normalization;
+    vec![
+        npz::Array::text("id", item.id),
+        npz::Array::numbers("item_index", "<i8", vec![], &[item.item_index as i64]),
+        npz::Array::numbers("center", "<f8", vec![3], &norm.center),
+        npz::Array::numbers("scale", "<f8", vec![], &[norm.scale]),
+        npz::Array::numbers("resolution", "<i8", vec![], &[item.cubes.resolution as i64]),
+    ]
+}
+
+/// One `.npz` file at `path` holding `arrays`.
+pub(crate) fn npz_file(path: impl Into<PathBuf>, arrays: &[npz::Array]) -> Result<ExportFile> {
+    Ok(ExportFile {
+        path: path.into(),
+        bytes: npz::npz_bytes(arrays)?,
+    })
+}
