@@ -24,8 +24,10 @@
 //! too small for the precision keeps its sign as the smallest subnormal.
 //!
 //! Every random number is drawn from `(seed, kind, sample index)` ([`rng`]), so the samples
-//! are the same whatever the thread count.
+//! are the same whatever the thread count. [`farthest_points`] picks the farthest-point
+//! subset that Dora's files hold from drawn points.
 
+mod fps;
 pub mod rng;
 mod sharp;
 mod surface;
@@ -38,6 +40,7 @@ use crate::sides::GridSides;
 use rayon::prelude::*;
 use rng::Draw;
 use serde::{Deserialize, Serialize};
+pub use fps::farthest_points;
 pub use sharp::sharp_edges;
 use surface::AreaTable;
 
