@@ -228,7 +228,7 @@ fn vecset_arrays(
             v.iter().map(|&d| (d as f64 * dist) as f32).collect(),
         )
     };
-    Ok(vec![
+    let mut arrays = vec![
         points("surface_points", &s.surface_points),
         vectors("surface_normals", &s.surface_normals),
         points("sharp_points", &s.sharp_points),
@@ -243,14 +243,22 @@ fn vecset_arrays(
             vec![s.volume_occupancy.len()],
             &s.volume_occupancy,
         ),
-        Array::text(
-            "frame",
-            match frame {
-                Frame::Source => "source",
-                Frame::Normalized => "normalized",
-            },
-        ),
-    ])
+    ];
+    // Only where the job draws them (not in jobs from before the kind existed).
+    if t.sharp_near.is_some() {
+        arrays.extend([
+            points("sharp_near_points", &s.sharp_near_points),
+            distances("sharp_near_sdf", &s.sharp_near_sdf),
+        ]);
+    }
+    arrays.push(Array::text(
+        "frame",
+        match frame {
+            Frame::Source => "source",
+            Frame::Normalized => "normalized",
+        },
+    ));
+    Ok(arrays)
 }
 
 /// The arrays of one item in `format`.
