@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The cost of vector-set samples and the size of every export layout, on a folder of meshes:
 # two jobs on the same manifest, without and with [samples] (250k surface + 250k near + 250k
-# volume points by default, sharp off), run one after the other; then `sparc3d export` in each
+# volume points by default, sharp and sharp-near off, near offsets σ 0.005 and 0.05 as the
+# figures of docs/PERFORMANCE.md were measured), run one after the other; then `sparc3d export` in each
 # format. Prints wall seconds per job, their ratio, and bytes per item per layout.
 #
 #   ops/bench/samples_overhead.sh MESH_DIR OUT_DIR [RESOLUTION] [WORKERS]
@@ -18,6 +19,8 @@ enabled = true
 surface = ${SURFACE:-250000}
 sharp = ${SHARP:-0}
 near = ${NEAR:-250000}
+near_sigmas = ${NEAR_SIGMAS:-[0.005, 0.05]}
+sharp_near = ${SHARP_NEAR:-0}
 volume = ${VOLUME:-250000}
 dtype = "${DTYPE:-f16}"
 TOML

@@ -50,6 +50,7 @@ from .jobs import ShardWarning, Verify
 __all__ = [
     "TENSORS",
     "SAMPLE_TENSORS",
+    "OPTIONAL_SAMPLE_TENSORS",
     "samples_to_source",
     "collate_vecset",
     "run_export",
@@ -90,12 +91,25 @@ TENSORS = {
 META_COLUMNS = ["item_index", "id", "uri", "status", "resolution",
                 "center_x", "center_y", "center_z", "scale"]
 
-#: Vector-set sample columns (docs/FORMAT.md, "Samples"), present when the job has `[samples]`.
+#: Vector-set sample columns (docs/FORMAT.md, "Samples"), present when the job has `[samples]`;
+#: the last ones, OPTIONAL_SAMPLE_TENSORS, only where the job draws that kind.
 SAMPLE_TENSORS = ["surface_points", "surface_normals", "sharp_points", "sharp_normals",
-                  "near_points", "near_sdf", "volume_points", "volume_sdf", "volume_occupancy"]
+                  "near_points", "near_sdf", "volume_points", "volume_sdf", "volume_occupancy",
+                  "sharp_near_points", "sharp_near_sdf"]
+
+#: Sample columns of kinds added later: absent from older shards, null in rows of jobs that
+#: draw none of them (`sharp_near = 0`, every job from before the kind existed).
+OPTIONAL_SAMPLE_TENSORS = ["sharp_near_points", "sharp_near_sdf"]
 
 _READ_COLUMNS = META_COLUMNS + [f"{t}{s}" for t in TENSORS for s in ("", "_dtype", "_shape")]
-_SAMPLE_COLUMNS = [f"{t}{s}" for t in SAMPLE_TENSORS for s in ("", "_dtype", "_shape")]
+
+
+def _columns_of(tensors: Iterable[str]) -> List[str]:
+    return [f"{t}{s}" for t in tensors for s in ("", "_dtype", "_shape")]
+
+
+_SAMPLE_COLUMNS = _columns_of(t for t in SAMPLE_TENSORS if t not in OPTIONAL_SAMPLE_TENSORS)
+_OPTIONAL_SAMPLE_COLUMNS = _columns_of(OPTIONAL_SAMPLE_TENSORS)
 
 PathLike = Union[str, os.PathLike]
 
@@ -237,7 +251,8 @@ def row_to_item(row: Dict[str, Any]) -> Dict[str, Any]:
             t = t.reshape(-1, 3)
         item[name] = t.astype(dtype, copy=True)
     if row.get("surface_points") is not None:
-        item["samples"] = {name: decode_tensor(row, name) for name in SAMPLE_TENSORS}
+        item["samples"] = {name: decode_tensor(row, name) for name in SAMPLE_TENSORS
+                           if name not in OPTIONAL_SAMPLE_TENSORS or row.get(name) is not None}
     return item
 
 
@@ -263,9 +278,10 @@ def collate_vecset(batch: Sequence[Dict[str, Any]], to_torch: bool = False) -> D
     `vecset-npz`) into float32 arrays [B, n, ...]: `surface` [B, n, 6] (points + normals, as
     Hunyuan3D-2.1 and Dora feed their encoders), `sharp_surface` [B, m, 6], `near_points`
     [B, q, 3], `near_sdf` [B, q], `volume_points` [B, p, 3], `volume_sdf` [B, p],
-    `volume_occupancy` [B, p]. Every item must have the same counts (a job's config fixes
-    them; `sharp` is empty for a mesh without sharp edges, so it is stacked only when all
-    items have the same number)."""
+    `volume_occupancy` [B, p], and where every item has them `sharp_near_points` [B, r, 3] and
+    `sharp_near_sdf` [B, r]. Every item must have the same counts (a job's config fixes
+    them; the sharp kinds are empty for a mesh without sharp edges, so they are stacked only
+    when all items have the same number, else given as lists)."""
     def get(it, name):
         s = it["samples"] if "samples" in it else it
         return np.asarray(s[name])
@@ -280,6 +296,11 @@ def collate_vecset(batch: Sequence[Dict[str, Any]], to_torch: bool = False) -> D
         out["sharp_surface"] = [x.astype(np.float32) for x in sharp]
     for name in ("near_points", "near_sdf", "volume_points", "volume_sdf", "volume_occupancy"):
         out[name] = np.stack([get(it, name) for it in batch]).astype(np.float32)
+    for name in OPTIONAL_SAMPLE_TENSORS:
+        if all(name in (it["samples"] if "samples" in it else it) for it in batch):
+            parts = [get(it, name).astype(np.float32) for it in batch]
+            same = len({len(x) for x in parts}) == 1
+            out[name] = np.stack(parts) if same else parts
     out["ids"] = [it.get("id") for it in batch]
     if to_torch:
         import torch
@@ -317,8 +338,9 @@ def _item_columns(path: pathlib.Path, f: pq.ParquetFile, samples: bool) -> List[
     _check_version(path, f)
     names = f.schema_arrow.names
     jobs.require_columns(path, names, _READ_COLUMNS)
-    with_samples = samples and all(c in names for c in _SAMPLE_COLUMNS)
-    return _READ_COLUMNS + (_SAMPLE_COLUMNS if with_samples else [])
+    if not (samples and all(c in names for c in _SAMPLE_COLUMNS)):
+        return _READ_COLUMNS
+    return _READ_COLUMNS + _SAMPLE_COLUMNS + [c for c in _OPTIONAL_SAMPLE_COLUMNS if c in names]
 
 
 def _rows(path: pathlib.Path, batch_size: int, samples: bool = True) -> Iterator[Dict[str, Any]]:

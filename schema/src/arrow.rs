@@ -201,7 +201,13 @@ fn opt_f64(a: &Float64Array, i: usize) -> Option<f64> {
     a.is_valid(i).then(|| a.value(i))
 }
 
+/// The tensor `stem` of row `i`; `None` when its blob is null, or when the batch has no such
+/// column and the tensor is one of [`c::OPTIONAL_SAMPLE_TENSORS`] (a shard written before
+/// that kind existed).
 fn read_tensor(batch: &RecordBatch, stem: &str, i: usize) -> Result<Option<EncodedTensor>> {
+    if batch.column_by_name(stem).is_none() && c::OPTIONAL_SAMPLE_TENSORS.contains(&stem) {
+        return Ok(None);
+    }
     let blob = col::<BinaryArray>(batch, stem)?;
     if !blob.is_valid(i) {
         return Ok(None);
@@ -458,6 +464,68 @@ pub(crate) mod tests {
         let cubes = back[0].cubes()?;
         assert_eq!(cubes.coords, vec![[1, 2, 3], [1, 2, 4]]);
         assert!(back[1].cubes().is_err());
+        Ok(())
+    }
+
+    /// [`sample_rows`] with samples in the ok row, drawn by a job whose config draws
+    /// `sharp_near` sharp-near points per item, `drawn` of them here (0: no sharp edge).
+    fn rows_with_samples(sharp_near: usize, drawn: usize) -> Result<Vec<ShardRow>> {
+        let s = sparcubes::samples::Samples {
+            surface_points: vec![[0.125, 0.25, 0.5]; 4],
+            surface_normals: vec![[0.0, 0.0, 1.0]; 4],
+            near_points: vec![[0.5; 3]; 2],
+            near_sdf: vec![0.25, -0.5],
+            sharp_near_points: vec![[0.25; 3]; drawn],
+            sharp_near_sdf: vec![-0.125; drawn],
+            volume_points: vec![[1.0; 3]],
+            volume_sdf: vec![0.5],
+            volume_occupancy: vec![0],
+            ..Default::default()
+        };
+        let params = sparcubes::samples::SampleParams {
+            sharp_near,
+            ..Default::default()
+        };
+        let mut rows = sample_rows();
+        if let Some(t) = rows[0].tensors.as_mut() {
+            t.samples = Some(SampleTensors::from_samples(&s, &params, 3)?);
+        }
+        Ok(rows)
+    }
+
+    #[test]
+    fn sharp_near_columns_are_stored_when_drawn_and_optional_when_read() -> Result<()> {
+        let samples = |rows: &[ShardRow]| rows[0].tensors.as_ref()?.samples.clone();
+        for (sharp_near, drawn) in [(3, 3), (3, 0), (0, 0)] {
+            let rows = rows_with_samples(sharp_near, drawn)?;
+            let stored = samples(&rows).and_then(|s| s.sharp_near);
+            assert_eq!(stored.is_some(), sharp_near > 0);
+            let batch = rows_to_batch(&rows)?;
+            let back = batch_to_rows(&batch)?;
+            assert_eq!(back, rows);
+            let decoded = samples(&back).map(|s| s.to_samples()).transpose()?;
+            assert_eq!(decoded.map(|s| s.sharp_near_points.len()), Some(drawn));
+        }
+        // A shard written before the kind existed: no sharp-near columns at all. Its rows read
+        // with every other sample, and digest as the same rows written now.
+        let rows = rows_with_samples(0, 0)?;
+        let full = rows_to_batch(&rows)?;
+        let schema = full.schema();
+        let keep: Vec<usize> = (0..schema.fields().len())
+            .filter(|&i| !schema.field(i).name().starts_with("sharp_near"))
+            .collect();
+        assert_eq!(keep.len(), schema.fields().len() - 6);
+        let old = batch_to_rows(&full.project(&keep)?)?;
+        assert_eq!(old, rows);
+        assert_eq!(
+            crate::digest::rows_digest(&old),
+            crate::digest::rows_digest(&rows)
+        );
+        // Cube columns stay required.
+        let no_coords: Vec<usize> = (0..schema.fields().len())
+            .filter(|&i| schema.field(i).name() != "coords")
+            .collect();
+        assert!(batch_to_rows(&full.project(&no_coords)?).is_err());
         Ok(())
     }
 

@@ -95,6 +95,11 @@ pub const SHARP_NORMALS: &str = "sharp_normals";
 pub const NEAR_POINTS: &str = "near_points";
 /// Signed distance of the near samples, `q` (normalized units, negative inside).
 pub const NEAR_SDF: &str = "near_sdf";
+/// Samples near sharp edges, `r × 3` (`r` is 0 when the mesh has no sharp edge; the column
+/// is null in rows of jobs whose config draws none, and absent from shards written before it).
+pub const SHARP_NEAR_POINTS: &str = "sharp_near_points";
+/// Signed distance of the sharp-near samples, `r` (normalized units, negative inside).
+pub const SHARP_NEAR_SDF: &str = "sharp_near_sdf";
 /// Volume samples, `p × 3`.
 pub const VOLUME_POINTS: &str = "volume_points";
 /// Signed distance of the volume samples, `p`.
@@ -102,8 +107,9 @@ pub const VOLUME_SDF: &str = "volume_sdf";
 /// Occupancy of the volume samples, `p` bytes (1 inside).
 pub const VOLUME_OCCUPANCY: &str = "volume_occupancy";
 
-/// The sample tensors, in column order.
-pub const SAMPLE_TENSORS: [&str; 9] = [
+/// The sample tensors, in column order: the ones every row with samples has, then
+/// [`OPTIONAL_SAMPLE_TENSORS`] (last, so the columns of earlier shards keep their places).
+pub const SAMPLE_TENSORS: [&str; 11] = [
     SURFACE_POINTS,
     SURFACE_NORMALS,
     SHARP_POINTS,
@@ -113,7 +119,14 @@ pub const SAMPLE_TENSORS: [&str; 9] = [
     VOLUME_POINTS,
     VOLUME_SDF,
     VOLUME_OCCUPANCY,
+    SHARP_NEAR_POINTS,
+    SHARP_NEAR_SDF,
 ];
+
+/// The sample tensors of kinds added after the schema's first shards: a row with samples may
+/// lack them (its job draws none), and a shard written before them has no such column; both
+/// read as absent.
+pub const OPTIONAL_SAMPLE_TENSORS: [&str; 2] = [SHARP_NEAR_POINTS, SHARP_NEAR_SDF];
 
 /// Name of a tensor's dtype column.
 pub fn dtype_column(tensor: &str) -> String {

@@ -189,6 +189,10 @@ impl JobConfig {
         })?;
         Ok(Self {
             params: config.params.settled(),
+            samples: SampleConfig {
+                params: config.samples.params.settled(),
+                ..config.samples
+            },
             ..config
         })
     }
@@ -427,6 +431,71 @@ mod tests {
             JobConfig::from_overrides(&serde_json::json!({"params": {"seal_openings": false}}))?;
         assert_eq!(off.fingerprint()?, INSIDE_TEST_ERA_FINGERPRINT);
         assert_eq!(off.diff_keys(&new)?, vec!["params.seal_openings"]);
+        Ok(())
+    }
+
+    /// The canonical JSON of a samples job as `init` wrote it before the sharp-near samples
+    /// existed (`SampleParams::sharp_near`): `[samples] enabled = true` gave 124928 surface,
+    /// 249856 near points at σ 0.005 and 0.05, and no `sharp_near` keys. Its fingerprint was
+    /// computed outside Rust as `OLD_DEFAULT_FINGERPRINT`'s (sha256 of `sparc3d-shard-v3`, a
+    /// newline and the sorted text without `limits`, the f32 fields widened).
+    const SHARP_NEAR_ERA_SAMPLES_CONFIG: &str = r#"{"extract_mesh":true,"limits":{"item_memory_bytes":8589934592,"item_timeout_s":600.0,"max_crash_retries":2,"max_interrupted_attempts":5},"params":{"deform":false,"deform_max":0.45,"deform_step":0.5,"inside_test":true,"margin_cells":3,"resolution":512,"seal_openings":true,"shell_half_thickness":0.9},"samples":{"dtype":"f16","enabled":true,"near":249856,"near_bound":0.25,"near_sigmas":[0.005,0.05],"seed":0,"sharp":124928,"sharp_angle_deg":15.0,"surface":124928,"volume":249856,"volume_bound":1.05},"shard_size":256,"store_mesh":false,"validation_sample_rate":0.01,"zstd_level":3}"#;
+    const SHARP_NEAR_ERA_SAMPLES_FINGERPRINT: &str =
+        "31439e9d48c33892e8d79a745ee3781dca9b630063467e681ad210fb2d25996b";
+
+    #[test]
+    fn a_stored_samples_config_keeps_its_counts_draws_no_sharp_near_and_keeps_its_fingerprint(
+    ) -> Result<()> {
+        let old: JobConfig =
+            serde_json::from_str(SHARP_NEAR_ERA_SAMPLES_CONFIG).map_err(|source| {
+                SchemaError::Json {
+                    context: "test".into(),
+                    source,
+                }
+            })?;
+        let p = &old.samples.params;
+        assert!(old.samples.enabled);
+        assert_eq!((p.surface, p.near, p.volume), (124_928, 249_856, 249_856));
+        assert_eq!(p.near_sigmas, vec![0.005, 0.05]);
+        assert_eq!((p.sharp_near, p.sharp_near_sigmas.len()), (0, 0));
+        old.validate()?;
+        assert_eq!(old.fingerprint()?, SHARP_NEAR_ERA_SAMPLES_FINGERPRINT);
+        // Written back (a resumed job's job.json), it has no sharp-near key and reads back
+        // as the same config.
+        let text = old.to_canonical_json()?;
+        assert!(!text.contains("sharp_near"));
+        let back: JobConfig = serde_json::from_str(&text).map_err(|source| SchemaError::Json {
+            context: "test".into(),
+            source,
+        })?;
+        assert_eq!(back, old);
+        // `enabled = true` alone now has the new defaults and a fingerprint of its own.
+        let new = JobConfig::from_overrides(&serde_json::json!({"samples": {"enabled": true}}))?;
+        let d = sparcubes::samples::SampleParams::default();
+        assert_eq!(new.samples.params, d);
+        assert_eq!(
+            (d.surface, d.near, d.sharp_near),
+            (204_800, 600_000, 262_144)
+        );
+        assert_eq!(d.near_sigmas, vec![0.001, 0.005, 0.05]);
+        assert_eq!(d.sharp_near_sigmas.len(), 8);
+        assert!(new.to_canonical_json()?.contains("\"sharp_near\":262144"));
+        assert_ne!(new.fingerprint()?, SHARP_NEAR_ERA_SAMPLES_FINGERPRINT);
+        // The old counts given explicitly, with `sharp_near = 0`, are the old job again.
+        let again = JobConfig::from_overrides(&serde_json::json!({"samples": {
+            "enabled": true, "surface": 124_928, "near": 249_856, "near_sigmas": [0.005, 0.05],
+            "sharp_near": 0}}))?;
+        assert_eq!(again.fingerprint()?, SHARP_NEAR_ERA_SAMPLES_FINGERPRINT);
+        assert_eq!(
+            again.diff_keys(&new)?,
+            vec![
+                "samples.near",
+                "samples.near_sigmas",
+                "samples.sharp_near",
+                "samples.sharp_near_sigmas",
+                "samples.surface"
+            ]
+        );
         Ok(())
     }
 

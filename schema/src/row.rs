@@ -6,7 +6,7 @@ use crate::error::{Result, SchemaError};
 use crate::manifest::FrozenItem;
 use crate::tensor::{DType, EncodedTensor};
 use serde::{Deserialize, Serialize};
-use sparcubes::samples::{Precision, Samples};
+use sparcubes::samples::{Precision, SampleParams, Samples};
 use sparcubes::{Normalization, SparseCubes};
 
 /// Counts of an ok item.
@@ -88,12 +88,41 @@ pub struct SampleTensors {
     pub volume_sdf: EncodedTensor,
     /// Their occupancy, `p` bytes.
     pub volume_occupancy: EncodedTensor,
+    /// Points near sharp edges and their signed distances, `r × 3` and `r`; `None` when the
+    /// job draws none (every job from before the kind existed: its rows, journals and digests
+    /// stay as they were).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sharp_near: Option<SharpNearTensors>,
+}
+
+/// The encoded sharp-near samples of an item (columns
+/// [`crate::columns::OPTIONAL_SAMPLE_TENSORS`]).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct SharpNearTensors {
+    /// Points near sharp edges, `r × 3`.
+    pub points: EncodedTensor,
+    /// Their signed distances, `r`.
+    pub sdf: EncodedTensor,
+}
+
+/// Decodes an `[n, 3]` float tensor into points.
+fn float_rows(t: &EncodedTensor, name: &str) -> Result<Vec<[f32; 3]>> {
+    let v = t.to_floats(name)?;
+    if t.shape.len() != 2 || t.shape[1] != 3 {
+        return Err(SchemaError::Tensor {
+            name: name.into(),
+            reason: format!("expected shape [n, 3], found {:?}", t.shape),
+        });
+    }
+    Ok(v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
 }
 
 impl SampleTensors {
-    /// Encodes samples at `dtype` (their values are already rounded to it).
-    pub fn from_samples(s: &Samples, dtype: Precision, level: i32) -> Result<Self> {
-        let dt = match dtype {
+    /// Encodes samples drawn with `params` (their values are already rounded to its dtype).
+    /// The sharp-near columns are stored when `params` draws sharp-near points (empty for a
+    /// mesh without sharp edges), else left out.
+    pub fn from_samples(s: &Samples, params: &SampleParams, level: i32) -> Result<Self> {
+        let dt = match params.dtype {
             Precision::F16 => DType::F16,
             Precision::F32 => DType::F32,
         };
@@ -101,6 +130,13 @@ impl SampleTensors {
             EncodedTensor::from_floats(v.as_flattened(), vec![v.len() as u64, 3], dt, level)
         };
         let column = |v: &[f32]| EncodedTensor::from_floats(v, vec![v.len() as u64], dt, level);
+        let sharp_near = match params.sharp_near {
+            0 => None,
+            _ => Some(SharpNearTensors {
+                points: rows(&s.sharp_near_points)?,
+                sdf: column(&s.sharp_near_sdf)?,
+            }),
+        };
         Ok(Self {
             surface_points: rows(&s.surface_points)?,
             surface_normals: rows(&s.surface_normals)?,
@@ -111,51 +147,77 @@ impl SampleTensors {
             volume_points: rows(&s.volume_points)?,
             volume_sdf: column(&s.volume_sdf)?,
             volume_occupancy: EncodedTensor::from_u8(&s.volume_occupancy, level)?,
+            sharp_near,
         })
     }
 
-    /// Decodes the samples (values as `f32`; `sharp_edges` is not stored and reads 0).
+    /// Decodes the samples (values as `f32`; `sharp_edges` is not stored and reads 0; no
+    /// sharp-near columns read as no sharp-near samples).
     pub fn to_samples(&self) -> Result<Samples> {
-        let rows = |t: &EncodedTensor, name: &str| -> Result<Vec<[f32; 3]>> {
-            let v = t.to_floats(name)?;
-            if t.shape.len() != 2 || t.shape[1] != 3 {
-                return Err(SchemaError::Tensor {
-                    name: name.into(),
-                    reason: format!("expected shape [n, 3], found {:?}", t.shape),
-                });
-            }
-            Ok(v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
+        let (sharp_near_points, sharp_near_sdf) = match &self.sharp_near {
+            Some(t) => (
+                float_rows(&t.points, c::SHARP_NEAR_POINTS)?,
+                t.sdf.to_floats(c::SHARP_NEAR_SDF)?,
+            ),
+            None => Default::default(),
         };
         Ok(Samples {
-            surface_points: rows(&self.surface_points, c::SURFACE_POINTS)?,
-            surface_normals: rows(&self.surface_normals, c::SURFACE_NORMALS)?,
-            sharp_points: rows(&self.sharp_points, c::SHARP_POINTS)?,
-            sharp_normals: rows(&self.sharp_normals, c::SHARP_NORMALS)?,
-            near_points: rows(&self.near_points, c::NEAR_POINTS)?,
+            surface_points: float_rows(&self.surface_points, c::SURFACE_POINTS)?,
+            surface_normals: float_rows(&self.surface_normals, c::SURFACE_NORMALS)?,
+            sharp_points: float_rows(&self.sharp_points, c::SHARP_POINTS)?,
+            sharp_normals: float_rows(&self.sharp_normals, c::SHARP_NORMALS)?,
+            near_points: float_rows(&self.near_points, c::NEAR_POINTS)?,
             near_sdf: self.near_sdf.to_floats(c::NEAR_SDF)?,
-            volume_points: rows(&self.volume_points, c::VOLUME_POINTS)?,
+            sharp_near_points,
+            sharp_near_sdf,
+            volume_points: float_rows(&self.volume_points, c::VOLUME_POINTS)?,
             volume_sdf: self.volume_sdf.to_floats(c::VOLUME_SDF)?,
             volume_occupancy: self.volume_occupancy.to_u8(c::VOLUME_OCCUPANCY)?,
             sharp_edges: 0,
         })
     }
 
-    /// The tensors with their column stems, in column order.
-    pub fn iter(&self) -> [(&'static str, &EncodedTensor); 9] {
+    /// The tensors with their column stems, in column order (the sharp-near ones `None` when
+    /// not stored).
+    pub fn iter(&self) -> [(&'static str, Option<&EncodedTensor>); 11] {
+        let near = self.sharp_near.as_ref();
         [
-            (c::SURFACE_POINTS, &self.surface_points),
-            (c::SURFACE_NORMALS, &self.surface_normals),
-            (c::SHARP_POINTS, &self.sharp_points),
-            (c::SHARP_NORMALS, &self.sharp_normals),
-            (c::NEAR_POINTS, &self.near_points),
-            (c::NEAR_SDF, &self.near_sdf),
-            (c::VOLUME_POINTS, &self.volume_points),
-            (c::VOLUME_SDF, &self.volume_sdf),
-            (c::VOLUME_OCCUPANCY, &self.volume_occupancy),
+            (c::SURFACE_POINTS, Some(&self.surface_points)),
+            (c::SURFACE_NORMALS, Some(&self.surface_normals)),
+            (c::SHARP_POINTS, Some(&self.sharp_points)),
+            (c::SHARP_NORMALS, Some(&self.sharp_normals)),
+            (c::NEAR_POINTS, Some(&self.near_points)),
+            (c::NEAR_SDF, Some(&self.near_sdf)),
+            (c::VOLUME_POINTS, Some(&self.volume_points)),
+            (c::VOLUME_SDF, Some(&self.volume_sdf)),
+            (c::VOLUME_OCCUPANCY, Some(&self.volume_occupancy)),
+            (c::SHARP_NEAR_POINTS, near.map(|t| &t.points)),
+            (c::SHARP_NEAR_SDF, near.map(|t| &t.sdf)),
         ]
     }
 
-    /// Builds the set from tensors looked up by column stem; `None` when any is missing.
+    /// Mutable access to every present blob, in column order.
+    fn blobs_mut(&mut self) -> Vec<&mut Vec<u8>> {
+        let mut v = vec![
+            &mut self.surface_points.blob,
+            &mut self.surface_normals.blob,
+            &mut self.sharp_points.blob,
+            &mut self.sharp_normals.blob,
+            &mut self.near_points.blob,
+            &mut self.near_sdf.blob,
+            &mut self.volume_points.blob,
+            &mut self.volume_sdf.blob,
+            &mut self.volume_occupancy.blob,
+        ];
+        if let Some(t) = self.sharp_near.as_mut() {
+            v.extend([&mut t.points.blob, &mut t.sdf.blob]);
+        }
+        v
+    }
+
+    /// Builds the set from tensors looked up by column stem; `None` when any of those every
+    /// row with samples has is missing. The sharp-near pair is read when both are present;
+    /// one without the other is an error.
     pub fn from_lookup(
         get: impl FnMut(&'static str) -> Result<Option<EncodedTensor>>,
     ) -> Result<Option<Self>> {
@@ -173,6 +235,16 @@ impl SampleTensors {
         ) else {
             return Ok(None);
         };
+        let sharp_near = match (take(c::SHARP_NEAR_POINTS)?, take(c::SHARP_NEAR_SDF)?) {
+            (Some(points), Some(sdf)) => Some(SharpNearTensors { points, sdf }),
+            (None, None) => None,
+            _ => {
+                return Err(SchemaError::Tensor {
+                    name: "sharp_near_points/sharp_near_sdf".into(),
+                    reason: "one of the pair is stored without the other".into(),
+                })
+            }
+        };
         Ok(Some(Self {
             surface_points: a,
             surface_normals: b,
@@ -183,6 +255,7 @@ impl SampleTensors {
             volume_points: g,
             volume_sdf: h,
             volume_occupancy: i,
+            sharp_near,
         }))
     }
 }
@@ -259,17 +332,7 @@ impl RowTensors {
             v.push(&mut t.blob);
         }
         if let Some(s) = self.samples.as_mut() {
-            v.extend([
-                &mut s.surface_points.blob,
-                &mut s.surface_normals.blob,
-                &mut s.sharp_points.blob,
-                &mut s.sharp_normals.blob,
-                &mut s.near_points.blob,
-                &mut s.near_sdf.blob,
-                &mut s.volume_points.blob,
-                &mut s.volume_sdf.blob,
-                &mut s.volume_occupancy.blob,
-            ]);
+            v.extend(s.blobs_mut());
         }
         v
     }
@@ -285,7 +348,7 @@ impl RowTensors {
             ("mesh_faces", self.mesh_faces.as_ref()),
         ];
         match &self.samples {
-            Some(s) => v.extend(s.iter().map(|(n, t)| (n, Some(t)))),
+            Some(s) => v.extend(s.iter()),
             None => v.extend(c::SAMPLE_TENSORS.map(|n| (n, None))),
         }
         v

@@ -38,7 +38,7 @@ def job(tmp_path_factory):
             f.write(json.dumps({"id": item_id, "uri": str(uri)}, ensure_ascii=False) + "\n")
     config = tmp / "job.toml"
     config.write_text("[samples]\nenabled = true\nsurface = 64\nsharp = 16\nnear = 64\n"
-                      "volume = 64\n")
+                      "sharp_near = 16\nvolume = 64\n")
     path = tmp / "job"
     run("init", path, "--manifest", manifest, "--resolution", 32, "--shard-size", 5,
         "--config", config)

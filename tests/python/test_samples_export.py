@@ -18,7 +18,7 @@ except ImportError:  # not installed: use the checkout's copy
     sys.path.insert(0, str(ROOT / "python"))
     import sparc3d_reader as reader
 
-COUNTS = {"surface": 300, "sharp": 200, "near": 400, "volume": 500}
+COUNTS = {"surface": 300, "sharp": 200, "near": 400, "sharp_near": 250, "volume": 500}
 
 
 def snippet(name):
@@ -75,8 +75,15 @@ def test_sample_columns_hold_the_configured_counts_in_f16(job):
         # Near points lie near the surface: most within a few sigma (0.05 at most).
         assert np.median(np.abs(s["near_sdf"].astype(np.float32))) < 0.05
         assert len(s["sharp_points"]) in (0, COUNTS["sharp"])
+        assert len(s["sharp_near_points"]) in (0, COUNTS["sharp_near"])
+        assert s["sharp_near_sdf"].shape == (len(s["sharp_near_points"]),)
     cube = next(it for it in items if it["uri"].endswith("cube.off"))
     assert len(cube["samples"]["sharp_points"]) == COUNTS["sharp"]
+    # Sharp-near points straddle the cube's edges: both sides, close to the surface.
+    sharp_near_sdf = cube["samples"]["sharp_near_sdf"].astype(np.float32)
+    assert len(sharp_near_sdf) == COUNTS["sharp_near"]
+    assert (sharp_near_sdf < 0).any() and (sharp_near_sdf > 0).any()
+    assert np.median(np.abs(sharp_near_sdf)) < 0.05
     # Inside points of the unit cube: the volume occupancy matches the cube in the source frame.
     src = reader.samples_to_source(cube)
     inside = np.all(np.abs(src["volume_points"]) < 0.5, axis=1)  # cube.off spans [-0.5, 0.5]^3
@@ -103,6 +110,7 @@ def test_every_export_loads_with_numpy_alone_and_with_the_reader(job, tmp_path):
         if fmt == "vecset-npz":
             b = reader.collate_vecset(items)
             assert b["near_points"].shape == (len(ok), COUNTS["near"], 3)
+            assert "sharp_near_points" in b and "sharp_near_sdf" in b
         elif fmt == "direct3d-s2":
             b = reader.collate_direct3d_s2(items)
             assert b["coords"].dtype == np.int32 and b["coords"].shape[1] == 4
@@ -161,3 +169,20 @@ def test_bad_requests_are_named(job, tmp_path):
     big.write_text("[samples]\nenabled = true\nvolume = 100000000000\n")
     r = run("init", tmp_path / "big", "--manifest", manifest, "--config", big, check=False)
     assert r.returncode != 0 and "samples.volume" in r.stderr
+
+
+def test_a_shard_without_the_sharp_near_columns_reads_as_before(job, tmp_path):
+    # A shard written before the sharp-near kind existed has no such columns; its items read
+    # with the other samples, and collate_vecset leaves the kind out.
+    shard = job / "shards" / "part-00000.parquet"
+    old = pq.read_table(shard).drop_columns(["%s%s" % (t, s) for t in reader.OPTIONAL_SAMPLE_TENSORS
+                                            for s in ("", "_dtype", "_shape")])
+    path = tmp_path / "old.parquet"
+    # With the shard's key-value metadata (schema version, config).
+    pq.write_table(old.replace_schema_metadata(pq.ParquetFile(shard).metadata.metadata), path)
+    items = list(reader.iter_items(path))
+    assert len(items) == 3
+    for it in items:
+        assert it["samples"]["near_sdf"].shape == (COUNTS["near"],)
+        assert "sharp_near_points" not in it["samples"]
+    assert "sharp_near_points" not in reader.collate_vecset(items)

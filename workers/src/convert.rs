@@ -8,7 +8,7 @@ use sparc3d_schema::{
     RowTimings, SampleTensors, SchemaError, ShardRow,
 };
 use sparcubes::io::LoadStats;
-use sparcubes::samples::{Precision, SampleParams, Samples};
+use sparcubes::samples::{SampleParams, Samples};
 use sparcubes::{Conversion, Params, TriMesh};
 use std::path::Path;
 use std::time::Instant;
@@ -205,10 +205,7 @@ pub fn convert_bytes(
         None => None,
         Some(encoding) => {
             let t = Instant::now();
-            let drawn = samples
-                .as_ref()
-                .zip(steps.samples)
-                .map(|(s, p)| (s, p.dtype));
+            let drawn = samples.as_ref().zip(steps.samples);
             match encode(&conversion, mesh.as_ref(), drawn, encoding) {
                 Ok(tensors) => {
                     seconds.timings.encode_s = t.elapsed().as_secs_f64();
@@ -236,7 +233,7 @@ pub fn convert_bytes(
 fn encode(
     conversion: &Conversion,
     mesh: Option<&TriMesh>,
-    samples: Option<(&Samples, Precision)>,
+    samples: Option<(&Samples, &SampleParams)>,
     encoding: Encoding,
 ) -> Result<RowTensors, SchemaError> {
     let level = encoding.zstd_level;
@@ -245,8 +242,8 @@ fn encode(
         tensors.mesh_vertices = Some(EncodedTensor::from_f32x3(&m.positions, level)?);
         tensors.mesh_faces = Some(EncodedTensor::from_u32x3(&m.triangles, level)?);
     }
-    if let Some((s, dtype)) = samples {
-        tensors.samples = Some(SampleTensors::from_samples(s, dtype, level)?);
+    if let Some((s, params)) = samples {
+        tensors.samples = Some(SampleTensors::from_samples(s, params, level)?);
     }
     Ok(tensors)
 }

@@ -53,6 +53,7 @@ fn small_params(seed: u64) -> SampleParams {
         surface: 500,
         sharp: 500,
         near: 1500,
+        sharp_near: 1500,
         volume: 1500,
         dtype: Precision::F32,
         seed,
@@ -206,6 +207,109 @@ fn sharp_points_lie_on_edges_above_the_angle() {
     params.sharp_angle_deg = 60.0;
     let s = sample(&cubes, &mesh, &params).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!((s.sharp_edges, s.sharp_points.len()), (0, 0));
+    assert_eq!((s.sharp_near_points.len(), s.sharp_near_sdf.len()), (0, 0));
+}
+
+/// A box with sharp edges and its samples at `f32`, with sharp-near offsets of three σ far
+/// below the bound (so the truncation leaves their spread as it is).
+fn box_with_sharp_near(sigmas: &[f64]) -> (SparseCubes, TriMesh, SampleParams, Samples) {
+    let (cubes, mesh) = convert(&cuboid([-0.5; 3], [0.5, 0.3, 0.2], &[]), 40, false);
+    let params = SampleParams {
+        sharp_near: 3000,
+        sharp_near_sigmas: sigmas.to_vec(),
+        sharp_angle_deg: 30.0,
+        ..small_params(4)
+    };
+    let s = sample(&cubes, &mesh, &params).unwrap_or_else(|e| panic!("{e}"));
+    (cubes, mesh, params, s)
+}
+
+#[test]
+fn sharp_near_offsets_have_the_spread_of_their_sigma() {
+    let sigmas = [0.002, 0.01, 0.04];
+    let (cubes, mesh, params, s) = box_with_sharp_near(&sigmas);
+    assert_eq!(s.sharp_near_points.len(), 3000);
+    assert_eq!(s.sharp_near_sdf.len(), 3000);
+    // Each point's place on the edges, drawn again from its own numbers: the offset is what
+    // the point moved from it.
+    let edges = sharp_edges(&mesh, params.sharp_angle_deg);
+    let n = cubes.resolution as f64;
+    for &sigma in &sigmas {
+        let rows: Vec<usize> = sigma_rows(params.sharp_near, &sigmas, sigma).collect();
+        assert_eq!(rows.len(), 1000);
+        let mut sum2 = 0.0;
+        for &i in &rows {
+            let (on_edge, _) = edges.draw(&Draw::new(params.seed, SHARP_NEAR, i as u64));
+            let base = on_edge.map(|c| 2.0 * c / n - 1.0);
+            let p = s.sharp_near_points[i].map(f64::from);
+            sum2 += (0..3).map(|a| (p[a] - base[a]).powi(2)).sum::<f64>();
+        }
+        let spread = (sum2 / (3.0 * rows.len() as f64)).sqrt();
+        assert!(
+            (spread / sigma - 1.0).abs() < 0.06,
+            "σ {sigma}: offsets spread {spread}"
+        );
+    }
+}
+
+#[test]
+fn sharp_near_signs_agree_with_winding_number_and_distances_are_exact() {
+    let (cubes, mesh, params, s) = box_with_sharp_near(&[0.001, 0.005, 0.05]);
+    assert!(s.sharp_edges > 0);
+    let (agree, err) = check(&cubes, &mesh, &s.sharp_near_points, &s.sharp_near_sdf);
+    assert!(agree >= 0.999, "sharp near: {agree}");
+    assert!(err < 1e-6, "sharp near: {err}");
+    // Inside and outside both (the offsets straddle the edges).
+    let inside = s.sharp_near_sdf.iter().filter(|d| **d < 0.0).count();
+    assert!(inside > 300 && inside < 2700, "{inside} of 3000 inside");
+    // The same on one thread, and the other kinds as they are without sharp-near points.
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap_or_else(|e| panic!("{e}"));
+    let one = pool
+        .install(|| sample(&cubes, &mesh, &params))
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(one, s);
+    let without = SampleParams {
+        sharp_near: 0,
+        ..params
+    };
+    let w = sample(&cubes, &mesh, &without).unwrap_or_else(|e| panic!("{e}"));
+    assert!(w.sharp_near_points.is_empty() && w.sharp_near_sdf.is_empty());
+    assert_eq!(
+        Samples {
+            sharp_near_points: Vec::new(),
+            sharp_near_sdf: Vec::new(),
+            ..s
+        },
+        w
+    );
+}
+
+#[test]
+fn sigma_rows_follow_the_cycle() {
+    let sigmas = [0.001, 0.005, 0.05];
+    let rows: Vec<usize> = sigma_rows(10, &sigmas, 0.005).collect();
+    assert_eq!(rows, vec![1, 4, 7]);
+    assert_eq!(sigma_rows(10, &sigmas, 0.001).count(), 4);
+    assert_eq!(sigma_rows(10, &sigmas, 0.002).count(), 0);
+    assert_eq!(sigma_rows(10, &[], 0.002).count(), 0);
+    assert_eq!(
+        sigma_rows(6, &[0.1, 0.2, 0.1], 0.1).collect::<Vec<_>>(),
+        vec![0, 2, 3, 5]
+    );
+    // The defaults give every consumer its rows (SampleParams::default's doc).
+    let d = SampleParams::default();
+    assert_eq!(sigma_rows(d.near, &d.near_sigmas, 0.001).count(), 200_000);
+    assert_eq!(sigma_rows(d.near, &d.near_sigmas, 0.05).count(), 200_000);
+    for sigma in [0.001, 0.003, 0.005, 0.007, 0.01, 0.02, 0.04, 0.06] {
+        assert_eq!(
+            sigma_rows(d.sharp_near, &d.sharp_near_sigmas, sigma).count(),
+            32_768
+        );
+    }
+    assert!(d.validate().is_ok());
 }
 
 #[test]
@@ -244,6 +348,19 @@ fn bad_parameters_name_their_key() {
     p.near_sigmas = vec![];
     let e = sample(&cubes, &mesh, &p).err().map(|e| e.to_string());
     assert!(e.is_some_and(|e| e.contains("samples.near_sigmas")));
+    let mut p = small_params(0);
+    p.sharp_near_sigmas = vec![];
+    let e = sample(&cubes, &mesh, &p).err().map(|e| e.to_string());
+    assert!(e.is_some_and(|e| e.contains("samples.sharp_near_sigmas")));
+    p.sharp_near_sigmas = vec![0.01, -1.0];
+    let e = sample(&cubes, &mesh, &p).err().map(|e| e.to_string());
+    assert!(e.is_some_and(|e| e.contains("samples.sharp_near_sigmas")));
+    p.sharp_near = 0;
+    p.sharp_near_sigmas = vec![];
+    assert!(p.validate().is_ok());
+    p.sharp_near = MAX_PER_KIND + 1;
+    let e = p.validate().err().map(|e| e.to_string());
+    assert!(e.is_some_and(|e| e.contains("samples.sharp_near")));
     let e = sample(&cubes, &TriMesh::default(), &small_params(0)).err();
     assert!(matches!(e, Some(Error::EmptyMesh { .. })));
 }
