@@ -37,7 +37,6 @@ pub(crate) fn placed(points: &[[f32; 3]], place: &Placement) -> Vec<f64> {
 
 /// Rows `[x, y, z, nx, ny, nz]`: points moved by `place`, their unit normals as they are (a
 /// similarity keeps directions).
-#[allow(dead_code)] // used by the sample consumers (branch in progress)
 pub(crate) fn point_normal_rows(
     points: &[[f32; 3]],
     normals: &[[f32; 3]],
@@ -55,7 +54,6 @@ pub(crate) fn point_normal_rows(
 
 /// Rows `[x, y, z, d]`: points moved by `place` with their distance scaled and multiplied by
 /// `sign` (−1 for consumers whose distance is positive inside; ours is negative inside).
-#[allow(dead_code)] // used by the sample consumers (branch in progress)
 pub(crate) fn point_distance_rows(
     points: &[[f32; 3]],
     distances: &[f32],

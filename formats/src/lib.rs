@@ -15,11 +15,16 @@
 mod arrays;
 pub mod cubvh;
 pub mod direct3d_s2;
+pub mod dora;
 mod error;
 pub mod frame;
+pub mod hunyuan3d;
 pub mod npz;
 pub mod pickle;
+mod select;
+pub mod step1x3d;
 pub mod trellis2;
+pub mod triposg;
 pub mod vecset;
 
 pub use error::{Error, Result};
@@ -33,6 +38,14 @@ use std::path::{Path, PathBuf};
 /// A codebase whose loader reads our exports as they are.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Consumer {
+    /// Hunyuan3D-2.1's surface and SDF samples.
+    Hunyuan3d21,
+    /// Dora's FPS surfaces and SDF samples.
+    Dora,
+    /// Step1X-3D's surfaces and SDF samples.
+    Step1x3d,
+    /// TripoSG's surface points.
+    Triposg,
     /// Our own vector-set samples, one `.npz` per item, in the job's frames.
     Vecset,
     /// Direct3D-S2's sparse SDF.
@@ -45,7 +58,11 @@ pub enum Consumer {
 
 impl Consumer {
     /// Every consumer, in the order of `sparc3d export --help`.
-    pub const ALL: [Consumer; 4] = [
+    pub const ALL: [Consumer; 8] = [
+        Consumer::Hunyuan3d21,
+        Consumer::Dora,
+        Consumer::Step1x3d,
+        Consumer::Triposg,
         Consumer::Vecset,
         Consumer::Direct3dS2,
         Consumer::Trellis2,
@@ -55,6 +72,10 @@ impl Consumer {
     /// The name `--format` takes.
     pub fn name(self) -> &'static str {
         match self {
+            Consumer::Hunyuan3d21 => "hunyuan3d-2.1",
+            Consumer::Dora => "dora",
+            Consumer::Step1x3d => "step1x-3d",
+            Consumer::Triposg => "triposg",
             Consumer::Vecset => "vecset-npz",
             Consumer::Direct3dS2 => "direct3d-s2",
             Consumer::Trellis2 => "trellis2",
@@ -65,6 +86,10 @@ impl Consumer {
     /// One line for `--help`: what it writes.
     pub fn about(self) -> &'static str {
         match self {
+            Consumer::Hunyuan3d21 => hunyuan3d::ABOUT,
+            Consumer::Dora => dora::ABOUT,
+            Consumer::Step1x3d => step1x3d::ABOUT,
+            Consumer::Triposg => triposg::ABOUT,
             Consumer::Vecset => vecset::ABOUT,
             Consumer::Direct3dS2 => direct3d_s2::ABOUT,
             Consumer::Trellis2 => trellis2::ABOUT,
@@ -80,6 +105,9 @@ impl Consumer {
     /// The frames this consumer's files can be written in; the first is its default.
     pub fn frames(self) -> &'static [Frame] {
         match self {
+            Consumer::Hunyuan3d21 | Consumer::Dora | Consumer::Step1x3d | Consumer::Triposg => {
+                &[Frame::Consumer, Frame::Normalized, Frame::Source]
+            }
             Consumer::Vecset => &[Frame::Normalized, Frame::Source],
             Consumer::Direct3dS2 | Consumer::Trellis2 | Consumer::Cubvh => &[Frame::Consumer],
         }
@@ -89,6 +117,10 @@ impl Consumer {
     /// each with what it needs (empty when nothing is missing).
     pub fn missing(self, samples: Option<&SampleParams>) -> Vec<String> {
         match self {
+            Consumer::Hunyuan3d21 => hunyuan3d::missing(samples),
+            Consumer::Dora => dora::missing(samples),
+            Consumer::Step1x3d => step1x3d::missing(samples),
+            Consumer::Triposg => triposg::missing(samples),
             Consumer::Vecset => vecset::missing(samples),
             Consumer::Direct3dS2 | Consumer::Trellis2 | Consumer::Cubvh => Vec::new(),
         }
@@ -97,6 +129,10 @@ impl Consumer {
     /// The files of one item, paths relative to the export folder.
     pub fn files(self, item: &Item) -> Result<ItemExport> {
         match self {
+            Consumer::Hunyuan3d21 => hunyuan3d::files(item),
+            Consumer::Dora => dora::files(item),
+            Consumer::Step1x3d => step1x3d::files(item),
+            Consumer::Triposg => triposg::files(item),
             Consumer::Vecset => vecset::files(item),
             Consumer::Direct3dS2 => direct3d_s2::files(item),
             Consumer::Trellis2 => trellis2::files(item),
@@ -108,10 +144,14 @@ impl Consumer {
     /// `root` is where the export folder ends up (absolute), for listings of paths.
     pub fn listing(self, items: &[Listed], root: &Path) -> Result<Vec<ExportFile>> {
         match self {
-            Consumer::Vecset | Consumer::Direct3dS2 | Consumer::Trellis2 | Consumer::Cubvh => {
-                let _ = (items, root);
-                Ok(Vec::new())
-            }
+            Consumer::Dora => dora::listing(items, root),
+            Consumer::Step1x3d => step1x3d::listing(items),
+            Consumer::Hunyuan3d21
+            | Consumer::Triposg
+            | Consumer::Vecset
+            | Consumer::Direct3dS2
+            | Consumer::Trellis2
+            | Consumer::Cubvh => Ok(Vec::new()),
         }
     }
 }

@@ -57,8 +57,15 @@ pub fn files(item: &Item) -> Result<ItemExport> {
             vec![s.samples.volume_occupancy.len()],
             &s.samples.volume_occupancy,
         ),
-        Array::text("frame", item.frame.name()),
     ]);
+    // Only where the job draws them (not in jobs from before the kind existed).
+    if s.params.sharp_near > 0 {
+        arrays.extend([
+            points("sharp_near_points", &s.samples.sharp_near_points),
+            distances("sharp_near_sdf", &s.samples.sharp_near_sdf),
+        ]);
+    }
+    arrays.push(Array::text("frame", item.frame.name()));
     Ok(ItemExport {
         files: vec![npz_file(format!("{}.npz", item.stem), &arrays)?],
         ..Default::default()

@@ -1,0 +1,213 @@
+//! Dora (Seed3D/Dora, read at a166e21): one `float32` `<stem>.npz` per item as
+//! `sharp_edge_sampling/sharp_sample.py` (`process_mesh`, L37-270) writes it, listed in
+//! `train.json`, what `craftsman/data/objaverse.py` (`ObjaverseDataset._load_shape` L121-164,
+//! `_load_shape_supervision` L166-210) reads:
+//!
+//! - `fps_coarse_surface` `[32768, 1, 6]`: farthest-point samples of the surface points (xyz +
+//!   normal; Dora draws them from 200000 area-uniform points, L224-233, we from ours);
+//! - `fps_sharp_surface` `[32768, 1, 6]`: the same of the sharp-edge points (L235-244);
+//! - `sharp_near_surface` `[131072, 4]`: sharp-edge points moved at σ 0.001, 0.005, 0.007,
+//!   0.01 (32768 each, L194-205), with their signed distance;
+//! - `rand_points` `[400000 + v, 4]`: 200000 near points at σ 0.001, 200000 at σ 0.005, then
+//!   `v` uniform in ±1.05 (L208-222); its loader takes the first 400000 rows as near and the
+//!   rest as volume, so the order is fixed. `v` is 200000 as its producer writes where the job's
+//!   volume samples that fall in ±1.05 of Dora's cube are that many (at 256³ and finer with the
+//!   defaults), else all of them (its loader draws 10000; at 64³ the job's volume cube maps to
+//!   ±1.16 and about 186000 fall inside).
+//!
+//! Distances are **positive inside** (pysdf's sign), in its frame: the bounding box centred,
+//! its longest side onto ±1 (`to_watertight_mesh.py` `remesh` L48-54). A mesh without a sharp
+//! edge gets no file (its producer writes none, L257-258) and is named as failed.
+//! `train.json` lists the files by absolute path (its loader opens each entry as it is, L123).
+
+use crate::arrays::{floats, point_distance_rows, point_normal_rows, Width};
+use crate::select::{rows_at, rows_in_cube, samples_off, unmet, Need};
+use crate::{npz_file, Error, ExportFile, Item, ItemExport, Listed, Placement, Result};
+use sparcubes::samples::{farthest_points, SampleParams, Samples};
+use std::path::Path;
+
+/// `--help` line.
+pub const ABOUT: &str =
+    "Dora: <item>.npz (fps_coarse_surface, fps_sharp_surface, sharp_near_surface, rand_points; f32, sdf > 0 inside) + train.json";
+
+/// Farthest-point samples per surface kind (`point_number // 2`, L123, README's 65536).
+const FPS_ROWS: usize = 32_768;
+/// σ of the sharp-near blocks, each [`FPS_ROWS`] rows (L194-205).
+const SHARP_NEAR_SIGMAS: [f64; 4] = [0.001, 0.005, 0.007, 0.01];
+/// σ of the two near blocks of `rand_points`, each [`NEAR_BLOCK`] rows (L208-222).
+pub(crate) const NEAR_SIGMAS: [f64; 2] = [0.001, 0.005];
+/// Rows of each near block, and most rows of the volume block (L208-222).
+pub(crate) const NEAR_BLOCK: usize = 200_000;
+/// Fewest rows of the volume block: what its loader draws from it without replacement
+/// (`n_supervision[2]`, `configs/shape-autoencoder/Dora-VAE-train.yaml` L7-14).
+pub(crate) const VOLUME_LEAST: usize = 10_000;
+/// Half side of the volume cube.
+pub(crate) const VOLUME_BOUND: f64 = 1.05;
+/// Half extent of the longest side in its frame.
+pub const HALF_EXTENT: f64 = 1.0;
+
+/// The `[samples]` counts it needs.
+pub fn missing(samples: Option<&SampleParams>) -> Vec<String> {
+    let Some(p) = samples else {
+        return samples_off();
+    };
+    let mut needs = vec![
+        Need::rows("surface", p.surface, FPS_ROWS),
+        Need::rows("sharp", p.sharp, FPS_ROWS),
+    ];
+    needs.extend(near_and_volume_needs(p));
+    for s in SHARP_NEAR_SIGMAS {
+        needs.push(Need::at_sigma(
+            "sharp_near",
+            p.sharp_near,
+            &p.sharp_near_sigmas,
+            s,
+            FPS_ROWS,
+        ));
+    }
+    unmet(&needs)
+}
+
+/// What Dora's near and volume blocks need (Step1X-3D follows the same recipe).
+pub(crate) fn near_and_volume_needs(p: &SampleParams) -> Vec<Need> {
+    let mut needs: Vec<Need> = NEAR_SIGMAS
+        .iter()
+        .map(|&s| Need::at_sigma("near", p.near, &p.near_sigmas, s, NEAR_BLOCK))
+        .collect();
+    needs.push(Need::rows("volume", p.volume, VOLUME_LEAST));
+    needs
+}
+
+/// The item's `<stem>.npz`.
+pub fn files(item: &Item) -> Result<ItemExport> {
+    let Some(stored) = item.samples else {
+        return Err(Error::Missing("no sample columns".into()));
+    };
+    let (s, p) = (stored.samples, stored.params);
+    require_sharp(s, p.sharp_angle_deg, FPS_ROWS, "Dora")?;
+    let place = item.placement(HALF_EXTENT);
+    let fps = |points: &[[f32; 3]], normals: &[[f32; 3]], name: &str| {
+        let picked = farthest_points(points, FPS_ROWS);
+        let pts: Vec<[f32; 3]> = picked.iter().map(|&i| points[i as usize]).collect();
+        let nrm: Vec<[f32; 3]> = picked.iter().map(|&i| normals[i as usize]).collect();
+        floats(
+            name,
+            vec![pts.len(), 1, 6],
+            &point_normal_rows(&pts, &nrm, &place),
+            Width::F32,
+        )
+    };
+    let mut sharp_near = Vec::new();
+    for sigma in SHARP_NEAR_SIGMAS {
+        sharp_near.extend(rows_at(
+            s.sharp_near_points.len(),
+            &p.sharp_near_sigmas,
+            sigma,
+            FPS_ROWS,
+            "sharp_near",
+        )?);
+    }
+    let (near, volume) = near_and_volume(s, p, &place)?;
+    let mut rand = signed_rows(&s.near_points, &s.near_sdf, &near, &place);
+    rand.extend(signed_rows(
+        &s.volume_points,
+        &s.volume_sdf,
+        &volume,
+        &place,
+    ));
+    let mut arrays = crate::identity_arrays(item);
+    arrays.extend([
+        fps(&s.surface_points, &s.surface_normals, "fps_coarse_surface"),
+        fps(&s.sharp_points, &s.sharp_normals, "fps_sharp_surface"),
+        floats(
+            "sharp_near_surface",
+            vec![sharp_near.len(), 4],
+            &signed_rows(&s.sharp_near_points, &s.sharp_near_sdf, &sharp_near, &place),
+            Width::F32,
+        ),
+        floats(
+            "rand_points",
+            vec![near.len() + volume.len(), 4],
+            &rand,
+            Width::F32,
+        ),
+    ]);
+    Ok(ItemExport {
+        files: vec![npz_file(format!("{}.npz", item.stem), &arrays)?],
+        ..Default::default()
+    })
+}
+
+/// `train.json`: the absolute paths of the items' files, in item order.
+pub fn listing(items: &[Listed], root: &Path) -> Result<Vec<ExportFile>> {
+    let paths: Vec<String> = items
+        .iter()
+        .flat_map(|l| {
+            l.files
+                .iter()
+                .map(|f| root.join(f).to_string_lossy().into_owned())
+        })
+        .collect();
+    Ok(vec![json_list("train.json", &paths)?])
+}
+
+/// A JSON list of strings as a file.
+pub(crate) fn json_list(path: &str, entries: &[String]) -> Result<ExportFile> {
+    let bytes =
+        serde_json::to_vec_pretty(entries).map_err(|e| Error::Invalid(format!("{path}: {e}")))?;
+    Ok(ExportFile {
+        path: path.into(),
+        bytes,
+    })
+}
+
+/// The rows of Dora's near blocks (σ 0.001, then σ 0.005) and of its volume block (inside
+/// ±1.05 in the frame of `place`).
+pub(crate) fn near_and_volume(
+    s: &Samples,
+    p: &SampleParams,
+    place: &Placement,
+) -> Result<(Vec<usize>, Vec<usize>)> {
+    let mut near = Vec::new();
+    for sigma in NEAR_SIGMAS {
+        near.extend(rows_at(
+            s.near_points.len(),
+            &p.near_sigmas,
+            sigma,
+            NEAR_BLOCK,
+            "near",
+        )?);
+    }
+    let volume = rows_in_cube(&s.volume_points, place, VOLUME_BOUND, NEAR_BLOCK);
+    if volume.len() < VOLUME_LEAST {
+        return Err(Error::Missing(format!(
+            "{} volume points inside ±{VOLUME_BOUND}, {VOLUME_LEAST} needed (raise samples.volume)",
+            volume.len()
+        )));
+    }
+    Ok((near, volume))
+}
+
+/// Rows `[x, y, z, sdf]` of the chosen points, the distance positive inside.
+pub(crate) fn signed_rows(
+    points: &[[f32; 3]],
+    sdf: &[f32],
+    rows: &[usize],
+    place: &Placement,
+) -> Vec<f64> {
+    let pts: Vec<[f32; 3]> = rows.iter().map(|&i| points[i]).collect();
+    let d: Vec<f32> = rows.iter().map(|&i| sdf[i]).collect();
+    point_distance_rows(&pts, &d, place, -1.0)
+}
+
+/// An error unless the item has at least `want` sharp-edge points.
+pub(crate) fn require_sharp(s: &Samples, angle: f64, want: usize, who: &str) -> Result<()> {
+    if s.sharp_points.len() >= want {
+        return Ok(());
+    }
+    Err(Error::Missing(format!(
+        "{} sharp-edge points, {who} needs {want} (the mesh has no edge sharper than \
+         samples.sharp_angle_deg = {angle}°; {who}'s own producer writes no file for such a mesh)",
+        s.sharp_points.len()
+    )))
+}

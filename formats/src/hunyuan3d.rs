@@ -1,0 +1,192 @@
+//! Hunyuan3D-2.1 (Tencent-Hunyuan/Hunyuan3D-2.1, read at 5e3ec6d): per item the folder
+//! `<stem>/geo_data/` with the two files `hy3dshape/tools/watertight/watertight_and_sample.py`
+//! writes (`SampleMesh` L139-158, `sample_sdf` L62-137, saved L219-220), all `float16`:
+//!
+//! - `<stem>_surface.npz`: `random_surface` and `sharp_surface`, `[124928, 6]` (xyz + unit
+//!   normal), what its DiT loader `hy3dshape/data/dit_asl.py` (`AlignedShapeLatentDataset.decode`
+//!   L247-259) reads as `<item>/geo_data/<uid>_surface.npz`, drawing `pc_size` and
+//!   `pc_sharpedge_size` rows without replacement;
+//! - `<stem>_sdf.npz`: `vol_points` uniform in ±1.05, `random_near_points` (124928 at σ 0.005
+//!   then 124928 at σ 0.05, truncated at ±0.25), `sharp_near_points` (six blocks at σ 0.001,
+//!   0.003, 0.06, 0.01, 0.02, 0.04 of 20821 rows, the last 20823), each with its `*_label`
+//!   `[K]` = −sdf: **positive inside**, as the code writes it (L125-127), although
+//!   `tools/README.md` L74-77 says positive outside.
+//!
+//! The frame is the one its inference encodes meshes in (`hy3dshape/surface_loaders.py`
+//! `normalize_mesh`, L23-44: the bounding box centred, its longest side onto ±0.9999). Its
+//! public producer instead anchors meshes at the origin in [0, 0.99] (`normalize_to_unit_box`
+//! L160-170) while drawing volume points in the centred ±1.05: we follow the inference frame,
+//! which the released VAE decodes (docs/FORMAT.md, "Exports"). Its DiT loader also reads 24
+//! RGBA renders in `<item>/render_cond/`, which are not ours to make.
+
+use crate::arrays::{floats, placed, point_normal_rows, Width};
+use crate::select::{rows_at, rows_in_cube, samples_off, unmet, Need};
+use crate::{npz::Array, npz_file, Error, Item, ItemExport, Placement, Result};
+use sparcubes::samples::SampleParams;
+
+/// `--help` line.
+pub const ABOUT: &str =
+    "Hunyuan3D-2.1: <item>/geo_data/<item>_surface.npz and _sdf.npz (f16, label > 0 inside)";
+
+/// Rows of `random_surface` and `sharp_surface` (`499712 // 4`, L143).
+const SURFACE_ROWS: usize = 124_928;
+/// σ of the two halves of `random_near_points` (L66-75).
+const NEAR_SIGMAS: [f64; 2] = [0.005, 0.05];
+/// σ of the six blocks of `sharp_near_points`, in order (L77-85).
+const SHARP_NEAR_SIGMAS: [f64; 6] = [0.001, 0.003, 0.06, 0.01, 0.02, 0.04];
+/// Rows of each block but the last (`S // 6`); the last takes the rest.
+const SHARP_NEAR_BLOCK: usize = SURFACE_ROWS / 6;
+/// Rows of `vol_points` (`2·S`), uniform in ±[`VOLUME_BOUND`] (L63-64).
+const VOLUME_ROWS: usize = 2 * SURFACE_ROWS;
+/// Half side of the volume cube.
+const VOLUME_BOUND: f64 = 1.05;
+/// Half extent of the longest side in its frame (`normalize_mesh(scale=0.9999)`).
+pub const HALF_EXTENT: f64 = 0.9999;
+
+/// The `[samples]` counts it needs.
+pub fn missing(samples: Option<&SampleParams>) -> Vec<String> {
+    let Some(p) = samples else {
+        return samples_off();
+    };
+    let mut needs = vec![
+        Need::rows("surface", p.surface, SURFACE_ROWS),
+        Need::rows("sharp", p.sharp, SURFACE_ROWS),
+        Need::rows("volume", p.volume, VOLUME_ROWS),
+    ];
+    for s in NEAR_SIGMAS {
+        needs.push(Need::at_sigma(
+            "near",
+            p.near,
+            &p.near_sigmas,
+            s,
+            SURFACE_ROWS,
+        ));
+    }
+    for (k, s) in SHARP_NEAR_SIGMAS.into_iter().enumerate() {
+        needs.push(Need::at_sigma(
+            "sharp_near",
+            p.sharp_near,
+            &p.sharp_near_sigmas,
+            s,
+            block_rows(k),
+        ));
+    }
+    unmet(&needs)
+}
+
+/// Rows of sharp-near block `k`.
+fn block_rows(k: usize) -> usize {
+    if k + 1 == SHARP_NEAR_SIGMAS.len() {
+        SURFACE_ROWS - SHARP_NEAR_BLOCK * (SHARP_NEAR_SIGMAS.len() - 1)
+    } else {
+        SHARP_NEAR_BLOCK
+    }
+}
+
+/// The item's two files under `<stem>/geo_data/`.
+pub fn files(item: &Item) -> Result<ItemExport> {
+    let Some(stored) = item.samples else {
+        return Err(Error::Missing("no sample columns".into()));
+    };
+    let (s, p) = (stored.samples, stored.params);
+    if s.sharp_points.len() < SURFACE_ROWS {
+        return Err(Error::Missing(format!(
+            "{} sharp-edge points, Hunyuan3D-2.1's surface file holds {SURFACE_ROWS} (the mesh \
+             has no edge sharper than samples.sharp_angle_deg = {}°)",
+            s.sharp_points.len(),
+            p.sharp_angle_deg
+        )));
+    }
+    let place = item.placement(HALF_EXTENT);
+    let take = |v: &[[f32; 3]], n: usize| v[..n.min(v.len())].to_vec();
+    let mut surface = crate::identity_arrays(item);
+    surface.extend([
+        surface_rows(
+            "random_surface",
+            &take(&s.surface_points, SURFACE_ROWS),
+            &take(&s.surface_normals, SURFACE_ROWS),
+            &place,
+        ),
+        surface_rows(
+            "sharp_surface",
+            &take(&s.sharp_points, SURFACE_ROWS),
+            &take(&s.sharp_normals, SURFACE_ROWS),
+            &place,
+        ),
+    ]);
+    let mut near = Vec::new();
+    for sigma in NEAR_SIGMAS {
+        near.extend(rows_at(
+            s.near_points.len(),
+            &p.near_sigmas,
+            sigma,
+            SURFACE_ROWS,
+            "near",
+        )?);
+    }
+    let mut sharp_near = Vec::new();
+    for (k, sigma) in SHARP_NEAR_SIGMAS.into_iter().enumerate() {
+        let count = s.sharp_near_points.len();
+        sharp_near.extend(rows_at(
+            count,
+            &p.sharp_near_sigmas,
+            sigma,
+            block_rows(k),
+            "sharp_near",
+        )?);
+    }
+    let volume = rows_in_cube(&s.volume_points, &place, VOLUME_BOUND, VOLUME_ROWS);
+    let labelled = |points: &str, label: &str, pts: &[[f32; 3]], sdf: &[f32], rows: &[usize]| {
+        let chosen: Vec<[f32; 3]> = rows.iter().map(|&i| pts[i]).collect();
+        let labels: Vec<f64> = rows.iter().map(|&i| -place.distance(sdf[i])).collect();
+        [
+            floats(
+                points,
+                vec![rows.len(), 3],
+                &placed(&chosen, &place),
+                Width::F16,
+            ),
+            floats(label, vec![rows.len()], &labels, Width::F16),
+        ]
+    };
+    let mut sdf: Vec<Array> = Vec::new();
+    sdf.extend(labelled(
+        "vol_points",
+        "vol_label",
+        &s.volume_points,
+        &s.volume_sdf,
+        &volume,
+    ));
+    sdf.extend(labelled(
+        "random_near_points",
+        "random_near_label",
+        &s.near_points,
+        &s.near_sdf,
+        &near,
+    ));
+    sdf.extend(labelled(
+        "sharp_near_points",
+        "sharp_near_label",
+        &s.sharp_near_points,
+        &s.sharp_near_sdf,
+        &sharp_near,
+    ));
+    let dir = format!("{0}/geo_data/{0}", item.stem);
+    Ok(ItemExport {
+        files: vec![
+            npz_file(format!("{dir}_surface.npz"), &surface)?,
+            npz_file(format!("{dir}_sdf.npz"), &sdf)?,
+        ],
+        ..Default::default()
+    })
+}
+
+/// `[n, 6]` f16 rows of points and normals.
+fn surface_rows(name: &str, points: &[[f32; 3]], normals: &[[f32; 3]], place: &Placement) -> Array {
+    floats(
+        name,
+        vec![points.len(), 6],
+        &point_normal_rows(points, normals, place),
+        Width::F16,
+    )
+}

@@ -1,0 +1,113 @@
+//! Picking a consumer's rows out of one item's samples: the rows of a kind drawn with a given
+//! σ (row `i` of near and sharp-near points has σ `sigmas[i mod len]`,
+//! [`sparcubes::samples::sigma_rows`]), volume points inside a consumer's cube, and the counts
+//! a job's `[samples]` must reach for a consumer (its `missing` list).
+
+use crate::{Error, Placement, Result};
+use sparcubes::samples::sigma_rows;
+
+/// How many of `count` rows a kind with `sigmas` draws at `sigma`.
+pub(crate) fn count_at(count: usize, sigmas: &[f64], sigma: f64) -> usize {
+    sigma_rows(count, sigmas, sigma).count()
+}
+
+/// The first `take` rows drawn at `sigma`, or an error naming the kind's keys.
+pub(crate) fn rows_at(
+    count: usize,
+    sigmas: &[f64],
+    sigma: f64,
+    take: usize,
+    kind: &str,
+) -> Result<Vec<usize>> {
+    let rows: Vec<usize> = sigma_rows(count, sigmas, sigma).take(take).collect();
+    if rows.len() < take {
+        return Err(Error::Missing(format!(
+            "{take} {kind} points at σ {sigma} needed, the job drew {} (samples.{kind} and \
+             samples.{kind}_sigmas)",
+            rows.len()
+        )));
+    }
+    Ok(rows)
+}
+
+/// The first `take` rows (fewer when fewer lie there) whose point, moved by `place`, lies in
+/// the cube `[−bound, bound]³`.
+pub(crate) fn rows_in_cube(
+    points: &[[f32; 3]],
+    place: &Placement,
+    bound: f64,
+    take: usize,
+) -> Vec<usize> {
+    points
+        .iter()
+        .enumerate()
+        .filter(|(_, &p)| place.point(p).iter().all(|c| c.abs() <= bound))
+        .map(|(i, _)| i)
+        .take(take)
+        .collect()
+}
+
+/// One requirement a consumer puts on `[samples]`: at least `want` rows of `key` (at σ
+/// `sigma` when given), the job draws `have`.
+pub(crate) struct Need {
+    /// The `[samples]` key.
+    pub key: &'static str,
+    /// The σ the rows must be drawn at, if any.
+    pub sigma: Option<f64>,
+    /// Rows the job draws (at that σ).
+    pub have: usize,
+    /// Rows the consumer needs.
+    pub want: usize,
+}
+
+impl Need {
+    /// A count of `key` rows.
+    pub fn rows(key: &'static str, have: usize, want: usize) -> Self {
+        Self {
+            key,
+            sigma: None,
+            have,
+            want,
+        }
+    }
+
+    /// A count of `key` rows at `sigma` among `count` rows drawn with `sigmas`.
+    pub fn at_sigma(
+        key: &'static str,
+        count: usize,
+        sigmas: &[f64],
+        sigma: f64,
+        want: usize,
+    ) -> Self {
+        Self {
+            key,
+            sigma: Some(sigma),
+            have: count_at(count, sigmas, sigma),
+            want,
+        }
+    }
+}
+
+/// The unmet needs, each as one line naming the key.
+pub(crate) fn unmet(needs: &[Need]) -> Vec<String> {
+    needs
+        .iter()
+        .filter(|n| n.have < n.want)
+        .map(|n| match n.sigma {
+            Some(s) => format!(
+                "samples.{}: at least {} rows at σ {s} (samples.{}_sigmas must list {s}); the \
+                 job draws {}",
+                n.key, n.want, n.key, n.have
+            ),
+            None => format!(
+                "samples.{}: at least {} rows; the job draws {}",
+                n.key, n.want, n.have
+            ),
+        })
+        .collect()
+}
+
+/// The one line for a job without samples.
+pub(crate) fn samples_off() -> Vec<String> {
+    vec!["samples.enabled = true (the job draws no samples)".into()]
+}
