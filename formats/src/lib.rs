@@ -21,6 +21,7 @@ pub mod npz;
 pub mod pickle;
 pub mod trellis2;
 pub mod vecset;
+pub mod vxz;
 
 pub use error::{Error, Result};
 pub use frame::{Frame, Placement};
