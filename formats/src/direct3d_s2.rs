@@ -1,23 +1,94 @@
-//! Direct3D-S2's sparse SDF (`SparseSDFVAE.encode`: `sparse_index` [N, 3], `sparse_sdf`
-//! [N, 1]), computed from the stored grid by [`sparcubes::layouts::direct3d_s2`].
+//! Direct3D-S2's sparse SDF (`SparseSDFVAE.encode`, `direct3d_s2/models/autoencoders/ss_vae.py`
+//! L75-91 of DreamTechAI/Direct3D-S2: `sparse_index` [N, 3], `sparse_sdf` [N, 1]), computed
+//! from the stored grid by [`sparcubes::layouts::direct3d_s2`]: the grid points within 4
+//! voxels of the surface, signed distance / 4 voxels, positive outside.
+//!
+//! Frame: its `sparse2mesh` (ss_vae.py L107-129) fills a `res³` grid with +1 and puts index
+//! `i` at `2i/res − 1` (L126), which is our normalized frame (`p = 2g/N − 1`) as it is; its
+//! objects span ±0.95 of that cube (`normalize_mesh(mesh, scale=0.95)`, `utils/mesh.py`
+//! L14-23). A job converted with `params.object_span = 0.95` has its object's longest side on
+//! exactly ±0.95, centred up to the grid's sub-voxel shift (`GRID_OFFSET`, under 0.04 voxel),
+//! so the indices are written as they are, with no resampling. Any other job is refused in the
+//! consumer frame ([`check`]); `--frame normalized` writes it in the job's own frame.
 
-use crate::{identity_arrays, npz::Array, npz_file, Item, ItemExport, Result};
+use crate::{identity_arrays, npz::Array, npz_file, Frame, Item, ItemExport, JobCheck, Result};
 use sparcubes::layouts::direct3d_s2;
+use sparcubes::Params;
 
 /// `--help` line.
 pub const ABOUT: &str = "Direct3D-S2's sparse SDF: sparse_index, sparse_sdf";
 
-/// One `<stem>.npz` with `sparse_index` and `sparse_sdf`.
+/// The share of its cube Direct3D-S2's objects span: ±0.95 of [−1, 1] (`utils/mesh.py`
+/// L14-23), the `params.object_span` a job needs for this export.
+pub const OBJECT_SPAN: f64 = 0.95;
+
+/// The resolutions of Direct3D-S2's two sparse VAEs (`pipeline.py` L26-29, L126-137).
+pub const RESOLUTIONS: [u32; 2] = [512, 1024];
+
+/// In the consumer frame, a job must have been converted with `params.object_span = 0.95`
+/// (refused otherwise); a resolution other than 512 or 1024 is written with a warning.
+pub fn check(params: &Params, frame: Frame) -> JobCheck {
+    let mut out = JobCheck::default();
+    if frame == Frame::Consumer && params.object_span != Some(OBJECT_SPAN) {
+        out.required.push(format!(
+            "params.object_span = {OBJECT_SPAN} (Direct3D-S2's objects span ±0.95 of its cube; \
+             this job's span {:.6} of the grid; or export with --frame normalized to write the \
+             job's own frame)",
+            params.span()
+        ));
+    }
+    if !RESOLUTIONS.contains(&params.resolution) {
+        out.warnings.push(format!(
+            "resolution {} is neither 512 nor 1024, the grids Direct3D-S2's sparse VAEs read",
+            params.resolution
+        ));
+    }
+    out
+}
+
+/// One `<stem>.npz` with `sparse_index` and `sparse_sdf` (and `frame`). Grid points at index
+/// N (the grid's upper faces) are left out: `sparse2mesh` has no such point (its grid is
+/// `res³`, indices 0..res), and they are outside and at least 3 voxels from the object (the
+/// job's margin), where its fill value +1 has the right sign.
 pub fn files(item: &Item) -> Result<ItemExport> {
+    let n = item.cubes.resolution;
     let s = direct3d_s2::sparse_sdf(item.cubes, direct3d_s2::TRUNCATION);
-    let index: Vec<i32> = s.coords.iter().flatten().map(|&c| c as i32).collect();
+    let (index, sdf): (Vec<[i32; 3]>, Vec<f32>) = s
+        .coords
+        .iter()
+        .zip(&s.sdf)
+        .filter(|(c, _)| c.iter().all(|&v| u32::from(v) < n))
+        .map(|(c, &d)| (c.map(i32::from), d))
+        .unzip();
+    let flat: Vec<i32> = index.iter().flatten().copied().collect();
     let mut arrays = identity_arrays(item);
     arrays.extend([
-        Array::numbers("sparse_index", "<i4", vec![s.coords.len(), 3], &index),
-        Array::numbers("sparse_sdf", "<f4", vec![s.sdf.len(), 1], &s.sdf),
+        Array::numbers("sparse_index", "<i4", vec![index.len(), 3], &flat),
+        Array::numbers("sparse_sdf", "<f4", vec![sdf.len(), 1], &sdf),
+        Array::text("frame", item.frame.name()),
     ]);
     Ok(ItemExport {
         files: vec![npz_file(format!("{}.npz", item.stem), &arrays)?],
         ..Default::default()
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_consumer_frame_needs_the_span_of_its_cube() {
+        let mut p = Params::with_resolution(512);
+        let c = check(&p, Frame::Consumer);
+        assert!(
+            c.required[0].starts_with("params.object_span = 0.95"),
+            "{c:?}"
+        );
+        assert!(check(&p, Frame::Normalized).required.is_empty());
+        p.object_span = Some(0.95);
+        assert_eq!(check(&p, Frame::Consumer), JobCheck::default());
+        p.resolution = 128;
+        assert_eq!(check(&p, Frame::Consumer).warnings.len(), 1);
+    }
 }

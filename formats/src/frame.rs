@@ -55,13 +55,13 @@ impl Placement {
 
     /// Normalized → a cube where the object's bounding box is centred on the origin and its
     /// longest side spans `[−half_extent, half_extent]` (what a consumer's
-    /// `normalize_mesh` does to a mesh), for a job at `resolution` with `margin_cells`.
-    pub fn centred(resolution: u32, margin_cells: u32, half_extent: f64) -> Placement {
+    /// `normalize_mesh` does to a mesh), for a job at `resolution` whose object's longest
+    /// side spans `span` of the grid (`sparcubes::Params::span`).
+    pub fn centred(resolution: u32, span: f64, half_extent: f64) -> Placement {
         let n = resolution as f64;
-        // The fitted box's longest side spans (N − 2·margin)/N of the unit cube, i.e. that
-        // half extent in the normalized frame, around 2·GRID_OFFSET/N (normalize.rs, `fit`).
-        let usable = (n - 2.0 * margin_cells as f64) / n;
-        let factor = half_extent / usable;
+        // The fitted box's longest side spans `span` of the unit cube, i.e. that half extent
+        // in the normalized frame, around 2·GRID_OFFSET/N (normalize.rs, `fit_span`).
+        let factor = half_extent / span;
         Placement {
             factor,
             offset: GRID_OFFSET.map(|o| -2.0 * o / n * factor),
@@ -96,7 +96,8 @@ mod tests {
                 let g = norm.source_to_grid(s, n);
                 g.map(|c| (2.0 * c / n as f64 - 1.0) as f32)
             };
-            let place = Placement::centred(n, margin, 0.9999);
+            let span = (n - 2 * margin) as f64 / n as f64;
+            let place = Placement::centred(n, span, 0.9999);
             let (a, b) = (place.point(to_norm(lo)), place.point(to_norm(hi)));
             assert!(
                 (a[0] + 0.9999).abs() < 1e-6 && (b[0] - 0.9999).abs() < 1e-6,

@@ -4,9 +4,10 @@
 //! consumer's recipe (which of our arrays, in which frame, with which sign and index range),
 //! its folder layout and file names, and its listing files.
 //!
-//! A consumer module exposes the same three functions, which [`Consumer`] dispatches to:
+//! A consumer module exposes the same functions, which [`Consumer`] dispatches to:
 //! `files` (one item's files), `listing` (the files that list the items, when the consumer
-//! reads one) and `missing` (the `[samples]` keys a job lacks for it). Adding a consumer is one
+//! reads one), `missing` (the `[samples]` keys a job lacks for it) and, for the grid
+//! consumers, `check` (the job settings its frame needs). Adding a consumer is one
 //! file and one variant. docs/FORMAT.md ("Exports") has the table of consumers, files and the
 //! loaders each was checked against.
 
@@ -26,12 +27,14 @@ pub mod step1x3d;
 pub mod trellis2;
 pub mod triposg;
 pub mod vecset;
+pub mod vxz;
 
 pub use error::{Error, Result};
 pub use frame::{Frame, Placement};
 
 use sparcubes::cubes::SparseCubes;
 use sparcubes::samples::{SampleParams, Samples};
+use sparcubes::Params;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -109,7 +112,8 @@ impl Consumer {
                 &[Frame::Consumer, Frame::Normalized, Frame::Source]
             }
             Consumer::Vecset => &[Frame::Normalized, Frame::Source],
-            Consumer::Direct3dS2 | Consumer::Trellis2 | Consumer::Cubvh => &[Frame::Consumer],
+            Consumer::Direct3dS2 => &[Frame::Consumer, Frame::Normalized],
+            Consumer::Trellis2 | Consumer::Cubvh => &[Frame::Consumer],
         }
     }
 
@@ -123,6 +127,16 @@ impl Consumer {
             Consumer::Triposg => triposg::missing(samples),
             Consumer::Vecset => vecset::missing(samples),
             Consumer::Direct3dS2 | Consumer::Trellis2 | Consumer::Cubvh => Vec::new(),
+        }
+    }
+
+    /// What this consumer says of a job converted with `params`, written in `frame`, before
+    /// anything is written: the settings it needs and the warnings to show.
+    pub fn check(self, params: &Params, frame: Frame) -> JobCheck {
+        match self {
+            Consumer::Direct3dS2 => direct3d_s2::check(params, frame),
+            Consumer::Trellis2 => trellis2::check(params),
+            Consumer::Vecset | Consumer::Cubvh => JobCheck::default(),
         }
     }
 
@@ -146,11 +160,11 @@ impl Consumer {
         match self {
             Consumer::Dora => dora::listing(items, root),
             Consumer::Step1x3d => step1x3d::listing(items),
+            Consumer::Trellis2 => trellis2::listing(items, root),
             Consumer::Hunyuan3d21
             | Consumer::Triposg
             | Consumer::Vecset
             | Consumer::Direct3dS2
-            | Consumer::Trellis2
             | Consumer::Cubvh => Ok(Vec::new()),
         }
     }
@@ -171,8 +185,10 @@ pub struct Item<'a> {
     pub cubes: &'a SparseCubes,
     /// Its samples, when the job draws them.
     pub samples: Option<StoredSamples<'a>>,
-    /// The job's margin around the object, in cells (`params.margin_cells`).
-    pub margin_cells: u32,
+    /// The fraction of the grid's side the object's longest side spans
+    /// (`sparcubes::Params::span`: `params.object_span`, else what `params.margin_cells`
+    /// leaves).
+    pub object_span: f64,
     /// The frame the files are written in (one of [`Consumer::frames`]).
     pub frame: Frame,
 }
@@ -183,12 +199,22 @@ impl Item<'_> {
     pub fn placement(&self, half_extent: f64) -> Placement {
         match self.frame {
             Frame::Consumer => {
-                Placement::centred(self.cubes.resolution, self.margin_cells, half_extent)
+                Placement::centred(self.cubes.resolution, self.object_span, half_extent)
             }
             Frame::Normalized => Placement::IDENTITY,
             Frame::Source => Placement::to_source(&self.cubes.normalization),
         }
     }
+}
+
+/// What a consumer needs of a job's settings before anything is written.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct JobCheck {
+    /// Settings the job lacks, each `key = value` with why; the export is refused while any
+    /// is listed.
+    pub required: Vec<String>,
+    /// What the export will not match in the consumer's own pipeline, written anyway.
+    pub warnings: Vec<String>,
 }
 
 /// An item's samples with how the job drew and stored them.

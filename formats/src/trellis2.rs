@@ -1,30 +1,288 @@
-//! TRELLIS.2's flexible dual grid in o_voxel's npz layout (`coord`, `vertices`,
-//! `intersected`), computed from the stored grid by [`sparcubes::layouts::trellis2`].
+//! TRELLIS.2's flexible dual grid as its `FlexiDualGridDataset`
+//! (`trellis2/datasets/flexi_dual_grid.py` of microsoft/TRELLIS.2) reads it, computed from the
+//! stored grid by [`sparcubes::layouts::trellis2`]:
+//!
+//! - `dual_grid_<N>/<key>.vxz`: o_voxel's container ([`crate::vxz`]) of the active voxels with
+//!   `vertices` (3 × `u8`, the dual vertex inside its voxel, `floor(255·local)`) and
+//!   `intersected` (1 × `u8`, bits 1/2/4 for x/y/z), what `data_toolkit/dual_grid.py`
+//!   L58-77 writes and `read_dual_grid` (flexi_dual_grid.py L128-139) reads;
+//! - `mesh_dumps/<key>.pickle`: `{'objects': [{'vertices': f32 (V, 3), 'faces': i32 (F, 3)}]}`
+//!   (the layout of `data_toolkit/blender_script/dump_mesh.py` L192-230), the watertight mesh
+//!   extracted from the item's cubes, which `read_mesh` (L106-126) loads;
+//! - the `metadata.csv` of each folder of `data_dir.json` (`components.py`
+//!   `StandardDatasetBase.__init__` L21-56 reads one per listed folder), with the columns
+//!   `filter_metadata` (L92-104) asks for, and `data_dir.json` itself ([`listing`]).
+//!
+//! `<key>` is the item's source sha256 when the manifest has it (TRELLIS.2 names files by the
+//! asset's sha256), else the item's export stem.
+//!
+//! Frame: TRELLIS.2's grid spans the aabb [−0.5, 0.5]³ at resolution N (`dual_grid.py`
+//! L58-66), our grid cube as it is, so voxel indices are ours; the mesh dump is written in
+//! that frame (`grid / N − 0.5`), so `(coord + vertices/255)/N − 0.5` lies on it. But its
+//! dataset rescales every mesh so that its longest side spans 0.99999 (`read_mesh`, as
+//! `dual_grid.py` L36-56), while a job's object spans `params.span()` of the grid (at most
+//! `(N − 6)/N`, the 3-cell margin the converter needs): [`check`] warns with the factor.
+//! The axes are the source's (TRELLIS.2's own dumps are Blender's Z-up world).
+//!
+//! `intersected` differs in kind: TRELLIS.2 sets a bit where a triangle of the source crosses
+//! the edge (`flexible_dual_grid.cpp` L148-156, any number of crossings), we set it where φ
+//! changes sign along the edge of our watertight surface: an edge crossed an even number of
+//! times, or by an open sheet we thickened, reads differently.
 
-use crate::{identity_arrays, npz::Array, npz_file, Item, ItemExport, Result};
+use crate::pickle::{self, Value};
+use crate::vxz::{self, Attr};
+use crate::{Error, ExportFile, Item, ItemExport, JobCheck, Listed, Result};
 use sparcubes::layouts::trellis2;
+use sparcubes::Params;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 
 /// `--help` line.
-pub const ABOUT: &str = "TRELLIS.2's flexible dual grid: coord, vertices, intersected";
+pub const ABOUT: &str =
+    "TRELLIS.2's dual grid dataset: dual_grid_<N>/<sha256>.vxz, mesh_dumps/, metadata.csv";
 
-/// One `<stem>.npz` with `coord`, `vertices` and `intersected`.
+/// The share of the grid TRELLIS.2 scales a mesh's longest side to (`dual_grid.py` L36-56,
+/// `flexi_dual_grid.py` `read_mesh`).
+pub const OBJECT_SPAN: f64 = 0.99999;
+
+/// The name of the dataset in `data_dir.json`.
+pub const DATASET: &str = "sparc3d";
+
+/// Warns that the dataset's rescaled mesh and the grid differ by `0.99999 / span` (a job
+/// cannot reach 0.99999: the converter keeps 3 free cells per side).
+pub fn check(params: &Params) -> JobCheck {
+    let span = params.span();
+    let factor = OBJECT_SPAN / span;
+    let cells = (OBJECT_SPAN - span) * params.resolution as f64 / 2.0;
+    JobCheck {
+        required: Vec::new(),
+        warnings: vec![format!(
+            "TRELLIS.2's dataset rescales each mesh dump to span {OBJECT_SPAN} of the grid \
+             (flexi_dual_grid.py read_mesh) while this job's objects span {span:.5} of it: the \
+             mesh it reads is {:.2} % larger than the grid's surface ({cells:.2} voxels at each \
+             side of the longest axis); the files as written overlay exactly",
+            (factor - 1.0) * 100.0
+        )],
+    }
+}
+
+/// The item's `.vxz` and mesh dump, and its columns for the listings.
 pub fn files(item: &Item) -> Result<ItemExport> {
+    let n = item.cubes.resolution;
+    let key = item.source_sha256.unwrap_or(item.stem);
     let g = trellis2::dual_grid(item.cubes);
-    let coord: Vec<u16> = g.voxels.iter().flatten().copied().collect();
+    let coords: Vec<[u32; 3]> = g.voxels.iter().map(|c| c.map(u32::from)).collect();
+    if coords.iter().flatten().any(|&v| v >= n) {
+        return Err(Error::Invalid(format!(
+            "a voxel lies outside the grid of {n}"
+        )));
+    }
     let vertices: Vec<u8> = g.quantized.iter().flatten().copied().collect();
-    let mut arrays = identity_arrays(item);
-    arrays.extend([
-        Array::numbers("coord", "<u2", vec![g.voxels.len(), 3], &coord),
-        Array::numbers("vertices", "|u1", vec![g.voxels.len(), 3], &vertices),
-        Array::numbers(
-            "intersected",
-            "|u1",
-            vec![g.voxels.len(), 1],
-            &g.intersected,
-        ),
+    let attrs = [
+        Attr {
+            name: "vertices",
+            channels: 3,
+            data: &vertices,
+        },
+        Attr {
+            name: "intersected",
+            channels: 1,
+            data: &g.intersected,
+        },
+    ];
+    let grid = vxz::vxz_bytes(&coords, &attrs, vxz::CHUNK_SIZE)?;
+    let mesh = sparcubes::extract(item.cubes);
+    let dump = mesh_dump(&mesh, n);
+    let listing = BTreeMap::from([
+        ("sha256".to_string(), key.to_string()),
+        ("dual_grid_size".to_string(), coords.len().to_string()),
+        ("num_vertices".to_string(), mesh.positions.len().to_string()),
+        ("num_faces".to_string(), mesh.triangles.len().to_string()),
     ]);
     Ok(ItemExport {
-        files: vec![npz_file(format!("{}.npz", item.stem), &arrays)?],
-        ..Default::default()
+        files: vec![
+            ExportFile {
+                path: PathBuf::from(format!("dual_grid_{n}")).join(format!("{key}.vxz")),
+                bytes: grid,
+            },
+            ExportFile {
+                path: PathBuf::from("mesh_dumps").join(format!("{key}.pickle")),
+                bytes: dump,
+            },
+        ],
+        listing,
     })
+}
+
+/// The pickle of `mesh` (grid coordinates at resolution `n`) in TRELLIS.2's aabb frame.
+fn mesh_dump(mesh: &sparcubes::TriMesh, n: u32) -> Vec<u8> {
+    let scale = 1.0 / n as f64;
+    let positions: Vec<f64> = mesh
+        .positions
+        .iter()
+        .flat_map(|p| p.map(|v| v as f64 * scale - 0.5))
+        .collect();
+    let faces: Vec<u8> = mesh
+        .triangles
+        .iter()
+        .flatten()
+        .flat_map(|&i| (i as i32).to_le_bytes())
+        .collect();
+    let object = Value::Dict(vec![
+        ("vertices".into(), pickle::f32_rows(&positions, 3)),
+        (
+            "faces".into(),
+            Value::Array {
+                descr: "<i4",
+                shape: vec![mesh.triangles.len(), 3],
+                data: faces,
+            },
+        ),
+    ]);
+    pickle::dumps(&Value::Dict(vec![(
+        "objects".into(),
+        Value::List(vec![object]),
+    )]))
+}
+
+/// The folders' `metadata.csv` (base, `mesh_dumps`, `dual_grid_<N>`, `asset_stats`) and
+/// `data_dir.json` naming them under `root`, the JSON object `--data_dir` takes (README.md
+/// L228-238). `aesthetic_score` is not known here: add the column to `metadata.csv` or pass
+/// `min_aesthetic_score: null` to the dataset. Refuses two items with the same key.
+pub fn listing(items: &[Listed], root: &Path) -> Result<Vec<ExportFile>> {
+    let Some(grid_dir) = items
+        .first()
+        .and_then(|i| i.files.first())
+        .and_then(|f| f.parent())
+        .map(Path::to_path_buf)
+    else {
+        return Ok(Vec::new());
+    };
+    refuse_repeated_keys(items)?;
+    let col = |i: &Listed, k: &str| i.columns.get(k).cloned().unwrap_or_default();
+    let table = |dir: &Path, header: &str, row: &dyn Fn(&Listed) -> Vec<String>| ExportFile {
+        path: dir.join("metadata.csv"),
+        bytes: csv(header, items.iter().map(row)).into_bytes(),
+    };
+    let data_dir = serde_json::json!({ DATASET: {
+        "base": root,
+        "mesh_dump": root.join("mesh_dumps"),
+        "dual_grid": root.join(&grid_dir),
+        "asset_stats": root.join("asset_stats"),
+    }});
+    let data_dir = serde_json::to_vec_pretty(&data_dir)
+        .map_err(|e| Error::Invalid(format!("writing data_dir.json: {e}")))?;
+    Ok(vec![
+        table(Path::new(""), "sha256,id", &|i| {
+            vec![col(i, "sha256"), i.id.clone()]
+        }),
+        table(Path::new("mesh_dumps"), "sha256,mesh_dumped", &|i| {
+            vec![col(i, "sha256"), "True".into()]
+        }),
+        table(
+            &grid_dir,
+            "sha256,dual_grid_converted,dual_grid_size",
+            &|i| vec![col(i, "sha256"), "True".into(), col(i, "dual_grid_size")],
+        ),
+        table(
+            Path::new("asset_stats"),
+            "sha256,num_vertices,num_faces",
+            &|i| {
+                vec![
+                    col(i, "sha256"),
+                    col(i, "num_vertices"),
+                    col(i, "num_faces"),
+                ]
+            },
+        ),
+        ExportFile {
+            path: "data_dir.json".into(),
+            bytes: data_dir,
+        },
+    ])
+}
+
+/// Two items of one source (the same sha256) would share their files.
+fn refuse_repeated_keys(items: &[Listed]) -> Result<()> {
+    let mut seen: BTreeMap<&str, &str> = BTreeMap::new();
+    for i in items {
+        let key = i.columns.get("sha256").map_or("", String::as_str);
+        if let Some(first) = seen.insert(key, &i.id) {
+            return Err(Error::Invalid(format!(
+                "items {first:?} and {:?} have the same source sha256 {key}: TRELLIS.2 names \
+                 files by it; export one of them (--ids)",
+                i.id
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// A CSV text: `header`, then one line per row, fields quoted where they need it.
+fn csv(header: &str, rows: impl Iterator<Item = Vec<String>>) -> String {
+    let mut out = format!("{header}\n");
+    for row in rows {
+        let fields: Vec<String> = row.iter().map(|f| csv_field(f)).collect();
+        out.push_str(&fields.join(","));
+        out.push('\n');
+    }
+    out
+}
+
+/// A field as CSV writes it: quoted, with quotes doubled, when it holds `,`, `"` or a line
+/// break.
+fn csv_field(f: &str) -> String {
+    if f.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", f.replace('"', "\"\""))
+    } else {
+        f.to_string()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn listed(id: &str, sha: &str) -> Listed {
+        Listed {
+            id: id.into(),
+            stem: id.into(),
+            files: vec![PathBuf::from("dual_grid_64").join(format!("{sha}.vxz"))],
+            columns: BTreeMap::from([
+                ("sha256".to_string(), sha.to_string()),
+                ("dual_grid_size".to_string(), "7".to_string()),
+            ]),
+        }
+    }
+
+    #[test]
+    fn every_listed_folder_gets_a_metadata_file() {
+        let files = listing(
+            &[listed("a,\"b\"", "f00"), listed("c", "ba5")],
+            Path::new("/x"),
+        )
+        .unwrap_or_default();
+        let names: Vec<String> = files
+            .iter()
+            .map(|f| f.path.to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(
+            names,
+            [
+                "metadata.csv",
+                "mesh_dumps/metadata.csv",
+                "dual_grid_64/metadata.csv",
+                "asset_stats/metadata.csv",
+                "data_dir.json"
+            ]
+        );
+        let base = String::from_utf8_lossy(&files[0].bytes).into_owned();
+        assert_eq!(base, "sha256,id\nf00,\"a,\"\"b\"\"\"\nba5,c\n");
+        let grid = String::from_utf8_lossy(&files[2].bytes).into_owned();
+        assert_eq!(
+            grid,
+            "sha256,dual_grid_converted,dual_grid_size\nf00,True,7\nba5,True,7\n"
+        );
+        assert!(listing(&[listed("a", "f00"), listed("b", "f00")], Path::new("/x")).is_err());
+    }
 }

@@ -20,7 +20,8 @@ latents with it.
 Jobs with `[samples]` also give `item["samples"]` (vector-set VAE samples in the normalized
 frame; `samples_to_source` maps them to the source frame), batched by `collate_vecset`. The
 layouts of other codebases are written by `sparc3d export` (`run_export`) and read back with
-`iter_export` / `ExportDataset` and `collate_direct3d_s2`, `collate_trellis2`, `collate_cubvh`.
+`iter_export` / `ExportDataset` and `collate_direct3d_s2`, `collate_cubvh` (TRELLIS.2's export is
+its own dataset folder, read by its `FlexiDualGridDataset`).
 
 A job folder is read as the CLI reads it (`jobs.py`): only its own shards, each checked against
 its completion record (`verify=True`: the sha256; "quick"; False) and its rows against the
@@ -58,7 +59,6 @@ __all__ = [
     "iter_export",
     "ExportDataset",
     "collate_direct3d_s2",
-    "collate_trellis2",
     "collate_cubvh",
     "shard_paths",
     "ShardWarning",
@@ -676,10 +676,10 @@ def read_job_config(job: PathLike) -> Dict[str, Any]:
 #: The formats of `sparc3d export`.
 #: Exports this module reads back (`iter_export`, `ExportDataset`, the `collate_*` functions):
 #: one `<index>-<stem>.npz` per item in our layouts.
-EXPORT_FORMATS = ("vecset-npz", "direct3d-s2", "trellis2", "cubvh")
+EXPORT_FORMATS = ("vecset-npz", "direct3d-s2", "cubvh")
 #: Exports in another codebase's own layout, read by that codebase's loader (docs/FORMAT.md,
 #: "Exports"); `run_export` writes them too.
-CONSUMER_FORMATS = ("hunyuan3d-2.1", "dora", "step1x-3d", "triposg")
+CONSUMER_FORMATS = ("hunyuan3d-2.1", "dora", "step1x-3d", "triposg", "trellis2")
 
 
 def run_export(job: PathLike, fmt: str, out: PathLike, ids: Optional[Sequence[str]] = None,
@@ -772,21 +772,6 @@ def collate_direct3d_s2(batch: Sequence[Dict[str, Any]], to_torch: bool = False)
         "batch_idx": coords[:, 0].astype(np.int64),
         "sparse_sdf": np.concatenate([np.asarray(it["sparse_sdf"], np.float32).reshape(-1, 1)
                                       for it in batch]),
-        "ids": [it.get("id") for it in batch],
-    }
-    return _torch(out, to_torch)
-
-
-def collate_trellis2(batch: Sequence[Dict[str, Any]], to_torch: bool = False) -> Dict[str, Any]:
-    """TRELLIS.2 items → its flexible-dual-grid batch (as `FlexiDualGridDataset` builds it):
-    `coords` int32 [ΣN, 4] (batch index first), `vertices` float32 [ΣN, 3] = u8 / 255 (the dual
-    vertex inside its voxel), `intersected` bool [ΣN, 3] (x, y, z edge flags)."""
-    coords = _batch_coords([np.asarray(it["coord"]).astype(np.int32) for it in batch])
-    flags = np.concatenate([np.asarray(it["intersected"]).reshape(-1) for it in batch])
-    out = {
-        "coords": coords,
-        "vertices": np.concatenate([np.asarray(it["vertices"]) for it in batch]).astype(np.float32) / 255.0,
-        "intersected": np.stack([flags & 1, flags >> 1 & 1, flags >> 2 & 1], axis=1).astype(bool),
         "ids": [it.get("id") for it in batch],
     }
     return _torch(out, to_torch)

@@ -181,6 +181,10 @@ impl JobConfig {
                 }
             })?;
             m.insert("samples".into(), samples);
+            // `params.object_span` is left out while unset (`Params::object_span`); offer it.
+            if let Some(Value::Object(params)) = m.get_mut("params") {
+                params.entry("object_span").or_insert(Value::Null);
+            }
         }
         merge(&mut base, overrides, "")?;
         let config: Self = serde_json::from_value(base).map_err(|source| SchemaError::Json {
@@ -495,6 +499,27 @@ mod tests {
                 "samples.sharp_near_sigmas",
                 "samples.surface"
             ]
+        );
+        Ok(())
+    }
+
+    #[test]
+    fn an_object_span_is_stored_only_when_set_and_refused_when_it_leaves_no_margin() -> Result<()> {
+        // Unset (every job stored before the key existed), the canonical JSON has no key, so
+        // the pinned fingerprints above hold.
+        let new = JobConfig::default();
+        assert!(!new.to_canonical_json()?.contains("object_span"));
+        let d3 = JobConfig::from_overrides(&serde_json::json!({"params": {"object_span": 0.95}}))?;
+        assert_eq!(d3.params.object_span, Some(0.95));
+        assert!(d3.to_canonical_json()?.contains("\"object_span\":0.95"));
+        assert_eq!(d3.diff_keys(&new)?, vec!["params.object_span"]);
+        // 0.95 at resolution 64 leaves 1.6 cells per side: refused, naming the key.
+        let e = JobConfig::from_overrides(
+            &serde_json::json!({"params": {"object_span": 0.95, "resolution": 64}}),
+        );
+        assert!(
+            matches!(e, Err(ref err) if err.to_string().contains("object_span")),
+            "{e:?}"
         );
         Ok(())
     }

@@ -304,7 +304,7 @@ pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
         last: Instant::now(),
     };
     let bounds = checked_bounds(mesh)?;
-    let norm = Normalization::fit(bounds, n, params.margin_cells);
+    let norm = Normalization::fit_span(bounds, n, params.span());
     let (grid, degenerate) = to_grid(mesh, &norm, n);
     st.stats.degenerate_faces = degenerate;
     if grid.tris.is_empty() {

@@ -67,6 +67,13 @@ impl Normalization {
     /// `(N − 2·margin) / N` of the unit cube. A degenerate (flat or point) box keeps scale
     /// finite by treating its longest side as at least 1e-12 of the coordinates' magnitude.
     pub fn fit(bounds: ([f64; 3], [f64; 3]), resolution: u32, margin_cells: u32) -> Self {
+        let usable = (resolution - 2 * margin_cells) as f64 / resolution as f64;
+        Self::fit_span(bounds, resolution, usable)
+    }
+
+    /// The normalization that centres `bounds` and fits its longest side into `span` of the
+    /// unit cube (`span · N` cells; [`crate::Params::span`]), as [`Normalization::fit`].
+    pub fn fit_span(bounds: ([f64; 3], [f64; 3]), resolution: u32, span: f64) -> Self {
         let (lo, hi) = bounds;
         let center = [
             0.5 * (lo[0] + hi[0]),
@@ -78,8 +85,7 @@ impl Normalization {
             .map(|a| lo[a].abs().max(hi[a].abs()))
             .fold(1e-30, f64::max);
         let extent = extent.max(magnitude * 1e-12);
-        let usable = (resolution - 2 * margin_cells) as f64 / resolution as f64;
-        let scale = usable / extent;
+        let scale = span / extent;
         // Shift by a small, different irrational fraction of a voxel per axis, so that the
         // axis-aligned and diagonal faces common in real meshes (at "round" coordinates) never
         // lie exactly on grid planes or through grid vertices, where every predicate of the

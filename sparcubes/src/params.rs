@@ -53,6 +53,32 @@ pub struct Params {
     /// a job stored before the rule existed resumes without it and keeps its fingerprint.
     #[serde(default, skip_serializing_if = "is_false")]
     pub seal_openings: bool,
+    /// The fraction of the grid's side that the object's longest side spans, when a consumer's
+    /// frame fixes it (Direct3D-S2's objects span 0.95 of its cube, `normalize_mesh(mesh,
+    /// scale=0.95)` in its `direct3d_s2/utils/mesh.py` L14-23); `None`: `(N − 2·margin_cells)/N`,
+    /// the object as large as the margin allows. The margin it leaves, `(1 − span)·N/2` cells
+    /// per side, must be at least 3 cells, as [`Params::margin_cells`].
+    ///
+    /// Serialized only when set, and missing reads as `None`: every job stored before the key
+    /// existed keeps its normalization and its fingerprint.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub object_span: Option<f64>,
+}
+
+/// Refuses an object span outside (0, 1) or one that leaves fewer than 3 free cells per side
+/// at `resolution` (one for the shell, one for the band, one for the flood, as
+/// [`Params::margin_cells`]).
+fn check_span(span: f64, resolution: u32) -> Result<()> {
+    let n = resolution as f64;
+    let margin = (1.0 - span) * n / 2.0;
+    if !(span > 0.0 && span < 1.0) || margin < 3.0 {
+        let largest = (n - 6.0) / n;
+        return Err(Error::InvalidParams(format!(
+            "object_span must be in (0, 1) and leave at least 3 free cells per side \
+             (at most {largest} at resolution {resolution}), got {span} ({margin:.2} cells)"
+        )));
+    }
+    Ok(())
 }
 
 /// Whether a flag is off (serde's `skip_serializing_if` for [`Params::inside_test`] and
@@ -72,6 +98,7 @@ impl Default for Params {
             deform_max: 0.45,
             inside_test: true,
             seal_openings: true,
+            object_span: None,
         }
     }
 }
@@ -95,6 +122,15 @@ impl Params {
         }
     }
 
+    /// The fraction of the grid's side that the object's longest side spans:
+    /// [`Params::object_span`], else `(N − 2·margin_cells)/N`.
+    pub fn span(&self) -> f64 {
+        self.object_span.unwrap_or_else(|| {
+            let n = self.resolution as f64;
+            (n - 2.0 * self.margin_cells as f64) / n
+        })
+    }
+
     /// Checks every field's range; the error names the field.
     pub fn validate(&self) -> Result<()> {
         if self.margin_cells < 3 {
@@ -109,6 +145,9 @@ impl Params {
                 "resolution must be in {min_res}..={MAX_RESOLUTION}, got {}",
                 self.resolution
             )));
+        }
+        if let Some(span) = self.object_span {
+            check_span(span, self.resolution)?;
         }
         if !(self.shell_half_thickness > 0.0 && self.shell_half_thickness < 1.0) {
             return Err(Error::InvalidParams(format!(
@@ -129,5 +168,35 @@ impl Params {
             )));
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::normalize::Normalization;
+
+    #[test]
+    fn an_object_span_sets_the_fit_and_must_leave_three_cells() {
+        // Unset, the span is what the margin leaves; set, the longest side spans it exactly.
+        let p = Params::with_resolution(512);
+        assert_eq!(p.span(), 506.0 / 512.0);
+        let p = Params {
+            object_span: Some(0.95),
+            ..p
+        };
+        assert!(p.validate().is_ok());
+        let norm = Normalization::fit_span(([-2.0, 0.0, 0.0], [2.0, 1.0, 1.0]), 512, p.span());
+        assert!((norm.scale * 4.0 - 0.95).abs() < 1e-15);
+        // 0.95 leaves 12.8 cells at 512 but 1.6 at 64; 0 and 1 are no spans.
+        for (span, n) in [(0.95, 64), (0.0, 512), (1.0, 512), (f64::NAN, 512)] {
+            let p = Params {
+                object_span: Some(span),
+                ..Params::with_resolution(n)
+            };
+            assert!(
+                matches!(p.validate(), Err(Error::InvalidParams(m)) if m.contains("object_span"))
+            );
+        }
     }
 }

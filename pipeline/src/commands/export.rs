@@ -95,6 +95,21 @@ pub fn run(args: Args) -> Result<ExitCode> {
         );
         return Ok(ExitCode::from(2));
     }
+    let check = consumer.check(&job.file.config.params, frame);
+    if !check.required.is_empty() {
+        eprintln!(
+            "error: {}: --format {} --frame {} needs a job converted with these settings; \
+             initialise one with them (nothing was written):\n  {}",
+            args.job.display(),
+            consumer.name(),
+            frame.name(),
+            check.required.join("\n  ")
+        );
+        return Ok(ExitCode::from(2));
+    }
+    for w in &check.warnings {
+        eprintln!("warning: --format {}: {w}", consumer.name());
+    }
     // Each `--ids` entry names an item as `--id` does elsewhere (whole id, unique prefix or
     // source file); a miss fails before anything is written, with the closest names.
     let mut wanted: BTreeSet<&str> = BTreeSet::new();
@@ -223,7 +238,7 @@ fn export_row(
             samples: s,
             params: &config.samples.params,
         }),
-        margin_cells: config.params.margin_cells,
+        object_span: config.params.span(),
         frame,
     };
     Ok(consumer.files(&item)?)

@@ -1,0 +1,304 @@
+"""The grid consumers' exports read back the way each consumer reads them.
+
+TRELLIS.2 (`--format trellis2`): `trellis2/datasets/flexi_dual_grid.py` `FlexiDualGridDataset`
+(`filter_metadata`, `read_mesh`, `read_dual_grid`) over the folders of `data_dir.json`
+(`trellis2/datasets/components.py` `StandardDatasetBase.__init__`), and
+`o-voxel/o_voxel/io/vxz.py` `read_vxz` for the `.vxz` container, here decoded by a reader written
+from the format's description (docs/FORMAT.md, "Exports").
+
+Direct3D-S2 (`--format direct3d-s2`): `direct3d_s2/models/autoencoders/ss_vae.py`
+`SparseSDFVAE.encode` (the batch) and `sparse2mesh` (the dense res³ grid filled with +1, index i at
+2i/res − 1); signs checked against the winding number of the item's watertight mesh."""
+
+import json
+import pickle
+import struct
+import sys
+
+import numpy as np
+import pytest
+
+from sparc3d_cli import ROOT, run
+
+try:
+    import sparc3d_reader as reader
+except ImportError:  # not installed: use the checkout's copy
+    sys.path.insert(0, str(ROOT / "python"))
+    import sparc3d_reader as reader
+
+zstandard = pytest.importorskip("zstandard")
+
+MESHES = ["cube.off", "wuson.stl"]
+T2_RES = 48
+D3_RES = 128  # object_span 0.95 leaves 3.2 free cells per side (3 needed)
+
+
+def make_job(tmp, resolution, config=""):
+    meshes = tmp / "meshes"
+    meshes.mkdir()
+    for name in MESHES:
+        (meshes / name).write_bytes((ROOT / "examples" / name).read_bytes())
+    manifest = tmp / "m.jsonl"
+    run("manifest", "build", meshes, "-o", manifest)
+    toml = tmp / "job.toml"
+    toml.write_text(config)
+    path = tmp / "job"
+    run("init", path, "--manifest", manifest, "--resolution", resolution, "--config", toml)
+    run("run", path, "--workers", "1")
+    records = [json.loads(line) for line in manifest.read_text().splitlines()]
+    return path, records
+
+
+# --- .vxz, from the format's description ------------------------------------------------------
+
+def unmorton(code):
+    """(x, y, z) of a Morton code whose bit 3b+2 is x's bit b, 3b+1 y's, 3b z's."""
+    xyz = [0, 0, 0]
+    for b in range(10):
+        for axis in range(3):
+            xyz[axis] |= (code >> (3 * b + 2 - axis) & 1) << b
+    return xyz
+
+
+def octree_codes(data, depth):
+    """Morton codes of an octree stored as occupancy bytes in depth-first pre-order."""
+    codes, pos = [], 0
+
+    def walk(prefix, level):
+        nonlocal pos
+        mask = data[pos]
+        pos += 1
+        for child in range(8):
+            if mask >> child & 1:
+                code = prefix << 3 | child
+                if level + 1 == depth:
+                    codes.append(code)
+                else:
+                    walk(code, level + 1)
+
+    walk(0, 0)
+    assert pos == len(data), "octree bytes left over"
+    return codes
+
+
+def read_vxz(path):
+    """Voxels int [N, 3], attributes {name: uint8 [N, channels]} and the JSON header."""
+    data = path.read_bytes()
+    assert data[:3] == b"VXZ" and data[3] == 0
+    start = struct.unpack(">I", data[4:8])[0]
+    header = json.loads(data[8:start])
+    blob = data[start:]
+    for key in ("chunk_size", "filter", "compression", "compression_level", "attr_interleave",
+                "attr", "chunks"):
+        assert key in header, key
+    assert header["filter"] == "none" and header["attr_interleave"] == "as_is"
+    assert header["compression"] == "zstd"
+    size = header["chunk_size"]
+    depth = size.bit_length() - 1
+    attrs = sorted(header["attr"])  # read back in sorted order; rows follow the voxels
+    coords, rows = [], {name: [] for name, _ in attrs}
+    for chunk in header["chunks"]:
+        assert set(chunk) == {"idx", "ptr", "svo"} | set(rows)
+        off, length = chunk["ptr"]
+        part = blob[off:off + length]
+
+        def stream(key):
+            o, n = chunk[key]
+            # python-zstandard's one-shot decompress needs the size in the frame header.
+            return zstandard.ZstdDecompressor().decompress(part[o:o + n])
+
+        codes = octree_codes(stream("svo"), depth)
+        assert codes == sorted(set(codes))
+        coords += [[c * size + u for c, u in zip(chunk["idx"], unmorton(k))] for k in codes]
+        for name, channels in attrs:
+            raw = np.frombuffer(stream(name), np.uint8)
+            assert len(raw) == len(codes) * channels
+            rows[name].append(raw.reshape(-1, channels))
+    assert len(coords) == header["num_voxel"]
+    return (np.array(coords, np.int64),
+            {k: np.concatenate(v) for k, v in rows.items()}, header)
+
+
+def load_item(root, sha):
+    """`FlexiDualGridDataset.get_instance`: `read_mesh` (objects concatenated, the longest side
+    scaled to 0.99999 around the box centre) and `read_dual_grid`."""
+    dump = pickle.loads((pathlib_join(root["mesh_dump"], sha + ".pickle")).read_bytes())
+    vs, fs, start = [], [], 0
+    for o in dump["objects"]:
+        if o["vertices"].size == 0 or o["faces"].size == 0:
+            continue
+        vs.append(o["vertices"])
+        fs.append(o["faces"] + start)
+        start += len(o["vertices"])
+    v, f = np.concatenate(vs).astype(np.float32), np.concatenate(fs).astype(np.int64)
+    coords, attrs, header = read_vxz(pathlib_join(root["dual_grid"], sha + ".vxz"))
+    return v, f, coords, attrs, header
+
+
+def pathlib_join(folder, name):
+    import pathlib
+    return pathlib.Path(folder) / name
+
+
+def filter_metadata(root_dirs, max_active_voxels=1_000_000, max_num_faces=None):
+    """`StandardDatasetBase.__init__` (one metadata.csv per listed folder, combined on sha256)
+    and `FlexiDualGridDataset.filter_metadata` with `min_aesthetic_score=None`: with pandas as
+    upstream when it is installed, else the same steps with the csv module (pandas reads the
+    literal `True` as a boolean)."""
+    try:
+        import pandas as pd
+    except ImportError:
+        return _filter_metadata_csv(root_dirs, max_active_voxels, max_num_faces)
+    metadata = None
+    for folder in root_dirs.values():
+        m = pd.read_csv(pathlib_join(folder, "metadata.csv")).set_index("sha256")
+        metadata = m if metadata is None else metadata.combine_first(m)
+    metadata = metadata[metadata["dual_grid_converted"] == True]  # noqa: E712 (as upstream)
+    metadata = metadata[metadata["dual_grid_size"] <= max_active_voxels]
+    if max_num_faces is not None:
+        metadata = metadata[metadata["num_faces"] <= max_num_faces]
+    return {sha: dict(row) for sha, row in metadata.iterrows()}
+
+
+def _filter_metadata_csv(root_dirs, max_active_voxels, max_num_faces):
+    import csv
+
+    rows = {}
+    for folder in root_dirs.values():
+        with open(pathlib_join(folder, "metadata.csv"), newline="") as f:
+            for row in csv.DictReader(f):
+                rows.setdefault(row["sha256"], {}).update(row)
+    return {sha: r for sha, r in rows.items()
+            if r.get("dual_grid_converted") == "True"
+            and int(r["dual_grid_size"]) <= max_active_voxels
+            and (max_num_faces is None or int(r["num_faces"]) <= max_num_faces)}
+
+
+@pytest.fixture(scope="module")
+def trellis2(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("trellis2")
+    job, records = make_job(tmp, T2_RES)
+    out = tmp / "out"
+    r = run("export", job, "--format", "trellis2", "--out", out)
+    assert "warning" in r.stderr and "0.99999" in r.stderr, r.stderr  # the frame is named
+    return out, records
+
+
+def test_trellis2_data_dir_lists_folders_each_with_its_metadata(trellis2):
+    out, records = trellis2
+    data_dir = json.loads((out / "data_dir.json").read_text())
+    (root,) = data_dir.values()
+    assert set(root) == {"base", "mesh_dump", "dual_grid", "asset_stats"}
+    assert root["dual_grid"].endswith("dual_grid_%d" % T2_RES)
+    shas = sorted(r["sha256"] for r in records)
+    for folder in root.values():
+        assert (pathlib_join(folder, "metadata.csv")).is_file(), folder
+    kept = filter_metadata(root)
+    assert sorted(kept) == shas
+    assert all(int(r["num_faces"]) > 0 for r in kept.values())
+
+
+def test_trellis2_dual_vertices_lie_in_their_voxels_and_overlay_the_mesh(trellis2):
+    out, records = trellis2
+    (root,) = json.loads((out / "data_dir.json").read_text()).values()
+    for rec in records:
+        v, f, coords, attrs, header = load_item(root, rec["sha256"])
+        assert header["attr"] == [["vertices", 3], ["intersected", 1]]
+        assert coords.min() >= 0 and coords.max() < T2_RES
+        assert len(np.unique(coords, axis=0)) == len(coords)
+        local = attrs["vertices"] / 255.0  # in [0, 1]: inside its voxel by construction
+        assert attrs["intersected"].max() < 8 and attrs["intersected"].any()
+        # World positions in TRELLIS.2's aabb [-0.5, 0.5]^3 (flexible_dual_grid_to_mesh).
+        dual = (coords + local) / T2_RES - 0.5
+        # The dump's vertices are in the same frame: every dual vertex is within a voxel of
+        # the mesh (nearest vertex, the extracted mesh having one per crossed edge) and every
+        # mesh vertex lies in or next to an active voxel.
+        from scipy.spatial import cKDTree
+        d, _ = cKDTree(v).query(dual)
+        assert d.max() < np.sqrt(3) / T2_RES, (rec["uri"], d.max() * T2_RES)
+        voxel = np.floor((v + 0.5) * T2_RES).astype(np.int64)
+        active = {tuple(c) for c in coords}
+        near = [any(tuple(c + o) in active for o in np.ndindex(2, 2, 2))
+                for c in voxel - 1]
+        assert np.mean(near) == 1.0
+        # Rescaled as read_mesh does (inside [-0.5, 0.5], as it asserts), the mesh is larger
+        # than the grid's surface by the factor the export warns of (a 3-cell margin kept).
+        lo, hi = v.min(0), v.max(0)
+        assert abs((hi - lo).max() - (T2_RES - 6) / T2_RES) < 1.0 / T2_RES
+        rescaled = (v - (lo + hi) / 2) * (0.99999 / (hi - lo).max())
+        assert np.all(np.abs(rescaled) <= 0.5)
+
+
+def test_trellis2_filter_drops_items_over_the_limits(trellis2):
+    out, _ = trellis2
+    (root,) = json.loads((out / "data_dir.json").read_text()).values()
+    sizes = [int(r["dual_grid_size"]) for r in filter_metadata(root).values()]
+    assert len(filter_metadata(root, max_active_voxels=min(sizes))) == 1
+    assert len(filter_metadata(root, max_num_faces=0)) == 0
+
+
+# --- Direct3D-S2 -------------------------------------------------------------------------------
+
+def winding_number(points, v, f, chunk=64):
+    """Generalised winding number of a triangle mesh at `points` (solid angles, Van Oosterom
+    and Strackee), ≈1 inside a closed outward mesh and ≈0 outside."""
+    tri = v[f]
+    out = np.empty(len(points))
+    for lo in range(0, len(points), chunk):
+        p = points[lo:lo + chunk, None, None, :]
+        a, b, c = (tri[None, :, k, :] - p[:, :, 0, :] for k in range(3))
+        la, lb, lc = (np.linalg.norm(x, axis=-1) for x in (a, b, c))
+        det = np.einsum("ijk,ijk->ij", a, np.cross(b, c))
+        den = (la * lb * lc + np.einsum("ijk,ijk->ij", a, b) * lc
+               + np.einsum("ijk,ijk->ij", b, c) * la + np.einsum("ijk,ijk->ij", c, a) * lb)
+        out[lo:lo + chunk] = np.arctan2(det, den).sum(1) / (2 * np.pi)
+    return out
+
+
+@pytest.fixture(scope="module")
+def direct3d(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("direct3d")
+    job, _ = make_job(tmp, D3_RES, "[params]\nobject_span = 0.95\n")
+    out = tmp / "out"
+    run("export", job, "--format", "direct3d-s2", "--out", out)
+    return job, out
+
+
+def test_direct3d_s2_needs_the_span_of_its_cube(tmp_path):
+    job, _ = make_job(tmp_path, 32)
+    r = run("export", job, "--format", "direct3d-s2", "--out", tmp_path / "o", check=False)
+    assert r.returncode == 2 and "params.object_span = 0.95" in r.stderr, r.stderr
+    assert not (tmp_path / "o").exists()
+    run("export", job, "--format", "direct3d-s2", "--frame", "normalized", "--out", tmp_path / "o")
+
+
+def test_direct3d_s2_indices_frame_and_signs(direct3d):
+    job, out = direct3d
+    items = list(reader.iter_export(out))
+    assert len(items) == len(MESHES)
+    batch = reader.collate_direct3d_s2(items)  # SparseSDFVAE.encode's batch keys
+    assert batch["sparse_sdf"].shape[1] == 1 and batch["sparse_index"].shape[1] == 3
+    for it in items:
+        res = int(it["resolution"])
+        idx = np.asarray(it["sparse_index"], np.int64)
+        sdf = np.asarray(it["sparse_sdf"], np.float32).reshape(-1)
+        # sparse2mesh: grid[idx] = sdf in a res³ grid, so every index is in [0, res).
+        assert idx.min() >= 0 and idx.max() < res
+        assert len(np.unique(idx, axis=0)) == len(idx)
+        assert np.all(np.abs(sdf) <= 1)
+        # Frame: grid point i at 2i/res - 1; the object's longest side on ±0.95.
+        inside = idx[sdf < 0] * 2.0 / res - 1
+        extent = (inside.max(0) - inside.min(0)).max()
+        assert abs(extent - 1.9) < 4.0 / res, extent
+        # Signs: positive outside, as the winding number of the watertight mesh says, for the
+        # points farther than a voxel (|sdf| > 1/4 of the 4-voxel band).
+        mesh_path = out.parent / ("%s.ply" % it["item_index"])
+        run("show", job, "--id", it["id"], "-o", mesh_path)
+        import trimesh
+        m = trimesh.load(mesh_path, process=False)
+        far = np.flatnonzero(np.abs(sdf) > 0.25)
+        pick = np.random.default_rng(0).choice(far, size=min(300, len(far)), replace=False)
+        center, scale = np.asarray(it["center"]), float(it["scale"])
+        src = (idx[pick] / res - 0.5) / scale + center  # source frame of `show`
+        w = winding_number(src, np.asarray(m.vertices, np.float64), np.asarray(m.faces))
+        np.testing.assert_array_equal(w > 0.5, sdf[pick] < 0)
