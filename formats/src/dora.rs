@@ -21,7 +21,7 @@
 //! `train.json` lists the files by absolute path (its loader opens each entry as it is, L123).
 
 use crate::arrays::{floats, point_distance_rows, point_normal_rows, Width};
-use crate::select::{rows_at, rows_in_cube, samples_off, unmet, Need};
+use crate::select::{block_needs, block_rows, rows_in_cube, samples_off, unmet, Need};
 use crate::{npz_file, Error, ExportFile, Item, ItemExport, Listed, Placement, Result};
 use sparcubes::samples::{farthest_points, SampleParams, Samples};
 use std::path::Path;
@@ -32,10 +32,15 @@ pub const ABOUT: &str =
 
 /// Farthest-point samples per surface kind (`point_number // 2`, L123, README's 65536).
 const FPS_ROWS: usize = 32_768;
-/// σ of the sharp-near blocks, each [`FPS_ROWS`] rows (L194-205).
-const SHARP_NEAR_SIGMAS: [f64; 4] = [0.001, 0.005, 0.007, 0.01];
-/// σ of the two near blocks of `rand_points`, each [`NEAR_BLOCK`] rows (L208-222).
-pub(crate) const NEAR_SIGMAS: [f64; 2] = [0.001, 0.005];
+/// The sharp-near blocks, σ 0.001, 0.005, 0.007, 0.01, each [`FPS_ROWS`] rows (L194-205).
+const SHARP_NEAR_BLOCKS: [(f64, usize); 4] = [
+    (0.001, FPS_ROWS),
+    (0.005, FPS_ROWS),
+    (0.007, FPS_ROWS),
+    (0.01, FPS_ROWS),
+];
+/// The two near blocks of `rand_points`, σ 0.001 and 0.005 (L208-222).
+const NEAR_BLOCKS: [(f64, usize); 2] = [(0.001, NEAR_BLOCK), (0.005, NEAR_BLOCK)];
 /// Rows of each near block, and most rows of the volume block (L208-222).
 pub(crate) const NEAR_BLOCK: usize = 200_000;
 /// Fewest rows of the volume block: what its loader draws from it without replacement
@@ -56,24 +61,18 @@ pub fn missing(samples: Option<&SampleParams>) -> Vec<String> {
         Need::rows("sharp", p.sharp, FPS_ROWS),
     ];
     needs.extend(near_and_volume_needs(p));
-    for s in SHARP_NEAR_SIGMAS {
-        needs.push(Need::at_sigma(
-            "sharp_near",
-            p.sharp_near,
-            &p.sharp_near_sigmas,
-            s,
-            FPS_ROWS,
-        ));
-    }
+    needs.extend(block_needs(
+        "sharp_near",
+        p.sharp_near,
+        &p.sharp_near_sigmas,
+        &SHARP_NEAR_BLOCKS,
+    ));
     unmet(&needs)
 }
 
 /// What Dora's near and volume blocks need (Step1X-3D follows the same recipe).
 pub(crate) fn near_and_volume_needs(p: &SampleParams) -> Vec<Need> {
-    let mut needs: Vec<Need> = NEAR_SIGMAS
-        .iter()
-        .map(|&s| Need::at_sigma("near", p.near, &p.near_sigmas, s, NEAR_BLOCK))
-        .collect();
+    let mut needs = block_needs("near", p.near, &p.near_sigmas, &NEAR_BLOCKS);
     needs.push(Need::rows("volume", p.volume, VOLUME_LEAST));
     needs
 }
@@ -97,16 +96,12 @@ pub fn files(item: &Item) -> Result<ItemExport> {
             Width::F32,
         )
     };
-    let mut sharp_near = Vec::new();
-    for sigma in SHARP_NEAR_SIGMAS {
-        sharp_near.extend(rows_at(
-            s.sharp_near_points.len(),
-            &p.sharp_near_sigmas,
-            sigma,
-            FPS_ROWS,
-            "sharp_near",
-        )?);
-    }
+    let sharp_near = block_rows(
+        s.sharp_near_points.len(),
+        &p.sharp_near_sigmas,
+        &SHARP_NEAR_BLOCKS,
+        "sharp_near",
+    )?;
     let (near, volume) = near_and_volume(s, p, &place)?;
     let mut rand = signed_rows(&s.near_points, &s.near_sdf, &near, &place);
     rand.extend(signed_rows(
@@ -168,16 +163,7 @@ pub(crate) fn near_and_volume(
     p: &SampleParams,
     place: &Placement,
 ) -> Result<(Vec<usize>, Vec<usize>)> {
-    let mut near = Vec::new();
-    for sigma in NEAR_SIGMAS {
-        near.extend(rows_at(
-            s.near_points.len(),
-            &p.near_sigmas,
-            sigma,
-            NEAR_BLOCK,
-            "near",
-        )?);
-    }
+    let near = block_rows(s.near_points.len(), &p.near_sigmas, &NEAR_BLOCKS, "near")?;
     let volume = rows_in_cube(&s.volume_points, place, VOLUME_BOUND, NEAR_BLOCK);
     if volume.len() < VOLUME_LEAST {
         return Err(Error::Missing(format!(

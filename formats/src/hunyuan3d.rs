@@ -20,7 +20,7 @@
 //! RGBA renders in `<item>/render_cond/`, which are not ours to make.
 
 use crate::arrays::{floats, placed, point_normal_rows, Width};
-use crate::select::{rows_at, rows_in_cube, samples_off, unmet, Need};
+use crate::select::{block_needs, block_rows, rows_in_cube, samples_off, unmet, Need};
 use crate::{npz::Array, npz_file, Error, Item, ItemExport, Placement, Result};
 use sparcubes::samples::SampleParams;
 
@@ -30,12 +30,19 @@ pub const ABOUT: &str =
 
 /// Rows of `random_surface` and `sharp_surface` (`499712 // 4`, L143).
 const SURFACE_ROWS: usize = 124_928;
-/// σ of the two halves of `random_near_points` (L66-75).
-const NEAR_SIGMAS: [f64; 2] = [0.005, 0.05];
-/// σ of the six blocks of `sharp_near_points`, in order (L77-85).
-const SHARP_NEAR_SIGMAS: [f64; 6] = [0.001, 0.003, 0.06, 0.01, 0.02, 0.04];
-/// Rows of each block but the last (`S // 6`); the last takes the rest.
+/// The two halves of `random_near_points`, σ 0.005 and 0.05 (L66-75).
+const NEAR_BLOCKS: [(f64, usize); 2] = [(0.005, SURFACE_ROWS), (0.05, SURFACE_ROWS)];
+/// Rows of each sharp-near block but the last (`S // 6`); the last takes the rest.
 const SHARP_NEAR_BLOCK: usize = SURFACE_ROWS / 6;
+/// The six blocks of `sharp_near_points`, in order (L77-85).
+const SHARP_NEAR_BLOCKS: [(f64, usize); 6] = [
+    (0.001, SHARP_NEAR_BLOCK),
+    (0.003, SHARP_NEAR_BLOCK),
+    (0.06, SHARP_NEAR_BLOCK),
+    (0.01, SHARP_NEAR_BLOCK),
+    (0.02, SHARP_NEAR_BLOCK),
+    (0.04, SURFACE_ROWS - 5 * SHARP_NEAR_BLOCK),
+];
 /// Rows of `vol_points` (`2·S`), uniform in ±[`VOLUME_BOUND`] (L63-64).
 const VOLUME_ROWS: usize = 2 * SURFACE_ROWS;
 /// Half side of the volume cube.
@@ -53,34 +60,14 @@ pub fn missing(samples: Option<&SampleParams>) -> Vec<String> {
         Need::rows("sharp", p.sharp, SURFACE_ROWS),
         Need::rows("volume", p.volume, VOLUME_ROWS),
     ];
-    for s in NEAR_SIGMAS {
-        needs.push(Need::at_sigma(
-            "near",
-            p.near,
-            &p.near_sigmas,
-            s,
-            SURFACE_ROWS,
-        ));
-    }
-    for (k, s) in SHARP_NEAR_SIGMAS.into_iter().enumerate() {
-        needs.push(Need::at_sigma(
-            "sharp_near",
-            p.sharp_near,
-            &p.sharp_near_sigmas,
-            s,
-            block_rows(k),
-        ));
-    }
+    needs.extend(block_needs("near", p.near, &p.near_sigmas, &NEAR_BLOCKS));
+    needs.extend(block_needs(
+        "sharp_near",
+        p.sharp_near,
+        &p.sharp_near_sigmas,
+        &SHARP_NEAR_BLOCKS,
+    ));
     unmet(&needs)
-}
-
-/// Rows of sharp-near block `k`.
-fn block_rows(k: usize) -> usize {
-    if k + 1 == SHARP_NEAR_SIGMAS.len() {
-        SURFACE_ROWS - SHARP_NEAR_BLOCK * (SHARP_NEAR_SIGMAS.len() - 1)
-    } else {
-        SHARP_NEAR_BLOCK
-    }
 }
 
 /// The item's two files under `<stem>/geo_data/`.
@@ -114,27 +101,13 @@ pub fn files(item: &Item) -> Result<ItemExport> {
             &place,
         ),
     ]);
-    let mut near = Vec::new();
-    for sigma in NEAR_SIGMAS {
-        near.extend(rows_at(
-            s.near_points.len(),
-            &p.near_sigmas,
-            sigma,
-            SURFACE_ROWS,
-            "near",
-        )?);
-    }
-    let mut sharp_near = Vec::new();
-    for (k, sigma) in SHARP_NEAR_SIGMAS.into_iter().enumerate() {
-        let count = s.sharp_near_points.len();
-        sharp_near.extend(rows_at(
-            count,
-            &p.sharp_near_sigmas,
-            sigma,
-            block_rows(k),
-            "sharp_near",
-        )?);
-    }
+    let near = block_rows(s.near_points.len(), &p.near_sigmas, &NEAR_BLOCKS, "near")?;
+    let sharp_near = block_rows(
+        s.sharp_near_points.len(),
+        &p.sharp_near_sigmas,
+        &SHARP_NEAR_BLOCKS,
+        "sharp_near",
+    )?;
     let volume = rows_in_cube(&s.volume_points, &place, VOLUME_BOUND, VOLUME_ROWS);
     let labelled = |points: &str, label: &str, pts: &[[f32; 3]], sdf: &[f32], rows: &[usize]| {
         let chosen: Vec<[f32; 3]> = rows.iter().map(|&i| pts[i]).collect();

@@ -12,7 +12,7 @@ pub(crate) fn count_at(count: usize, sigmas: &[f64], sigma: f64) -> usize {
 }
 
 /// The first `take` rows drawn at `sigma`, or an error naming the kind's keys.
-pub(crate) fn rows_at(
+fn rows_at(
     count: usize,
     sigmas: &[f64],
     sigma: f64,
@@ -28,6 +28,36 @@ pub(crate) fn rows_at(
         )));
     }
     Ok(rows)
+}
+
+/// Consecutive blocks of a kind's rows, each `(σ, rows)`: the first rows drawn at that σ.
+pub(crate) type Blocks = [(f64, usize)];
+
+/// The rows of `blocks` in turn, or an error naming the kind's keys.
+pub(crate) fn block_rows(
+    count: usize,
+    sigmas: &[f64],
+    blocks: &Blocks,
+    kind: &str,
+) -> Result<Vec<usize>> {
+    let mut out = Vec::with_capacity(blocks.iter().map(|b| b.1).sum());
+    for &(sigma, take) in blocks {
+        out.extend(rows_at(count, sigmas, sigma, take, kind)?);
+    }
+    Ok(out)
+}
+
+/// What `blocks` need of `[samples]` key `key` (drawing `count` rows with `sigmas`).
+pub(crate) fn block_needs(
+    key: &'static str,
+    count: usize,
+    sigmas: &[f64],
+    blocks: &Blocks,
+) -> Vec<Need> {
+    blocks
+        .iter()
+        .map(|&(sigma, want)| Need::at_sigma(key, count, sigmas, sigma, want))
+        .collect()
 }
 
 /// The first `take` rows (fewer when fewer lie there) whose point, moved by `place`, lies in
