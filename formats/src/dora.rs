@@ -102,7 +102,7 @@ pub fn files(item: &Item) -> Result<ItemExport> {
         &SHARP_NEAR_BLOCKS,
         "sharp_near",
     )?;
-    let (near, volume) = near_and_volume(s, p, &place)?;
+    let (near, volume) = near_and_volume(s, p, &item.consumer_cube(HALF_EXTENT))?;
     let mut rand = signed_rows(&s.near_points, &s.near_sdf, &near, &place);
     rand.extend(signed_rows(
         &s.volume_points,
@@ -157,14 +157,14 @@ pub(crate) fn json_list(path: &str, entries: &[String]) -> Result<ExportFile> {
 }
 
 /// The rows of Dora's near blocks (σ 0.001, then σ 0.005) and of its volume block (inside
-/// ±1.05 in the frame of `place`).
+/// ±1.05 of its cube, `cube`).
 pub(crate) fn near_and_volume(
     s: &Samples,
     p: &SampleParams,
-    place: &Placement,
+    cube: &Placement,
 ) -> Result<(Vec<usize>, Vec<usize>)> {
     let near = block_rows(s.near_points.len(), &p.near_sigmas, &NEAR_BLOCKS, "near")?;
-    let volume = rows_in_cube(&s.volume_points, place, VOLUME_BOUND, NEAR_BLOCK);
+    let volume = rows_in_cube(&s.volume_points, cube, VOLUME_BOUND, NEAR_BLOCK);
     if volume.len() < VOLUME_LEAST {
         return Err(Error::Missing(format!(
             "{} volume points inside ±{VOLUME_BOUND}, {VOLUME_LEAST} needed (raise samples.volume)",

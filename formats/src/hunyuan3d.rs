@@ -108,7 +108,8 @@ pub fn files(item: &Item) -> Result<ItemExport> {
         &SHARP_NEAR_BLOCKS,
         "sharp_near",
     )?;
-    let volume = rows_in_cube(&s.volume_points, &place, VOLUME_BOUND, VOLUME_ROWS);
+    let cube = item.consumer_cube(HALF_EXTENT);
+    let volume = rows_in_cube(&s.volume_points, &cube, VOLUME_BOUND, VOLUME_ROWS);
     let labelled = |points: &str, label: &str, pts: &[[f32; 3]], sdf: &[f32], rows: &[usize]| {
         let chosen: Vec<[f32; 3]> = rows.iter().map(|&i| pts[i]).collect();
         let labels: Vec<f64> = rows.iter().map(|&i| -place.distance(sdf[i])).collect();

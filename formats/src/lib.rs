@@ -204,12 +204,16 @@ impl Item<'_> {
     /// centred, its longest side on ±`half_extent`), the normalized frame or the source's.
     pub fn placement(&self, half_extent: f64) -> Placement {
         match self.frame {
-            Frame::Consumer => {
-                Placement::centred(self.cubes.resolution, self.object_span, half_extent)
-            }
+            Frame::Consumer => self.consumer_cube(half_extent),
             Frame::Normalized => Placement::IDENTITY,
             Frame::Source => Placement::to_source(&self.cubes.normalization),
         }
+    }
+
+    /// The placement into the consumer's cube, whatever the frame written: a consumer's rule
+    /// such as "volume points in ±1.05" picks the same rows in every frame.
+    pub fn consumer_cube(&self, half_extent: f64) -> Placement {
+        Placement::centred(self.cubes.resolution, self.object_span, half_extent)
     }
 }
 

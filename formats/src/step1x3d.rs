@@ -43,7 +43,7 @@ pub fn files(item: &Item) -> Result<ItemExport> {
     dora::require_sharp(s, p.sharp_angle_deg, SURFACE_ROWS, "Step1X-3D")?;
     let place = item.placement(dora::HALF_EXTENT);
     let n = SURFACE_ROWS.min(s.surface_points.len());
-    let (near, volume) = near_and_volume(s, p, &place)?;
+    let (near, volume) = near_and_volume(s, p, &item.consumer_cube(dora::HALF_EXTENT))?;
     let mut arrays = crate::identity_arrays(item);
     arrays.extend([
         floats(
