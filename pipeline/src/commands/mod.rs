@@ -71,8 +71,8 @@ enum Command {
     Inspect(inspect::Args),
     /// Decode one item of a job and write its mesh.
     Show(show::Args),
-    /// Write per-item .npz files in another codebase's layout: vector-set samples, Direct3D-S2
-    /// sparse SDF, TRELLIS.2 flexible dual grid, cubvh sparse voxels.
+    /// Write a job's items in the layout another codebase's loader reads: Hunyuan3D-2.1, Dora,
+    /// Step1X-3D, TripoSG, TRELLIS.2, Direct3D-S2, cubvh, or our vector-set samples.
     Export(export::Args),
     /// Hash every finished shard against its completion record; move damaged ones aside.
     Verify(verify::Args),
