@@ -9,6 +9,7 @@ use crate::export_name::ExportNames;
 use crate::item_lookup;
 use anyhow::{bail, Context, Result};
 use clap::builder::TypedValueParser;
+use rayon::prelude::*;
 use sparc3d_formats::{Consumer, ExportFile, Frame, Item, Listed, StoredSamples};
 use sparc3d_schema::ShardRow;
 use sparc3d_workers::store::read::shard_rows;
@@ -182,32 +183,58 @@ fn write_items(
         listed: Vec::new(),
         failed: Vec::new(),
     };
+    // Items are exported a few at a time in parallel (as many as the pool has threads, so at
+    // most that many items' files are in memory), then written in manifest order.
+    let at_once = rayon::current_num_threads().max(1);
     for shard in shards {
-        for row in shard_rows(job, shard, Check::Full)? {
-            if !(wanted.is_empty() || wanted.contains(row.id.as_str())) || row.tensors.is_none() {
-                continue;
-            }
-            let stem = names.stem(row.item_index, &row.id);
-            match export_row(job, &row, consumer, frame, &stem) {
-                Ok(export) => {
-                    for f in &export.files {
-                        write_file(dir, f)?;
-                    }
-                    out.listed.push(Listed {
-                        id: row.id.clone(),
-                        stem,
-                        files: export.files.into_iter().map(|f| f.path).collect(),
-                        columns: export.listing,
-                    });
-                }
-                Err(e) => {
-                    eprintln!("error: item {:?}: {e:#}", row.id);
-                    out.failed.push((row.id.clone(), format!("{e:#}")));
-                }
+        let rows: Vec<ShardRow> = shard_rows(job, shard, Check::Full)?
+            .into_iter()
+            .filter(|r| wanted.is_empty() || wanted.contains(r.id.as_str()))
+            .filter(|r| r.tensors.is_some())
+            .collect();
+        for batch in rows.chunks(at_once) {
+            let exports: Vec<(String, Result<sparc3d_formats::ItemExport>)> = batch
+                .par_iter()
+                .map(|row| {
+                    let stem = names.stem(row.item_index, &row.id);
+                    let export = export_row(job, row, consumer, frame, &stem);
+                    (stem, export)
+                })
+                .collect();
+            for (row, (stem, export)) in batch.iter().zip(exports) {
+                record_item(dir, row, stem, export, &mut out)?;
             }
         }
     }
     Ok(out)
+}
+
+/// Writes one item's files and lists it, or names it as failed.
+fn record_item(
+    dir: &Path,
+    row: &ShardRow,
+    stem: String,
+    export: Result<sparc3d_formats::ItemExport>,
+    out: &mut Written,
+) -> Result<()> {
+    match export {
+        Ok(export) => {
+            for f in &export.files {
+                write_file(dir, f)?;
+            }
+            out.listed.push(Listed {
+                id: row.id.clone(),
+                stem,
+                files: export.files.into_iter().map(|f| f.path).collect(),
+                columns: export.listing,
+            });
+        }
+        Err(e) => {
+            eprintln!("error: item {:?}: {e:#}", row.id);
+            out.failed.push((row.id.clone(), format!("{e:#}")));
+        }
+    }
+    Ok(())
 }
 
 /// The files of one item.
