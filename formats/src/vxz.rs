@@ -85,8 +85,10 @@ pub fn vxz_bytes(coords: &[[u32; 3]], attrs: &[Attr], chunk_size: u32) -> Result
         let chunk = c.map(|v| v / chunk_size);
         (chunk, morton(c.map(|v| v % chunk_size)))
     };
+    // Each voxel's key once (a sort by a computed key would compute it on every comparison).
+    let keys: Vec<([u32; 3], u32)> = coords.iter().map(key).collect();
     let mut order: Vec<usize> = (0..coords.len()).collect();
-    order.sort_unstable_by_key(|&i| key(&coords[i]));
+    order.sort_unstable_by_key(|&i| keys[i]);
     if order.windows(2).any(|w| coords[w[0]] == coords[w[1]]) {
         return Err(Error::Invalid("a voxel is listed twice".into()));
     }
@@ -94,10 +96,10 @@ pub fn vxz_bytes(coords: &[[u32; 3]], attrs: &[Attr], chunk_size: u32) -> Result
     let mut chunks = Vec::new();
     let mut start = 0;
     while start < order.len() {
-        let chunk = key(&coords[order[start]]).0;
-        let len = order[start..].partition_point(|&i| key(&coords[i]).0 == chunk);
+        let chunk = keys[order[start]].0;
+        let len = order[start..].partition_point(|&i| keys[i].0 == chunk);
         let members = &order[start..start + len];
-        let codes: Vec<u32> = members.iter().map(|&i| key(&coords[i]).1).collect();
+        let codes: Vec<u32> = members.iter().map(|&i| keys[i].1).collect();
         let mut entry = serde_json::Map::new();
         entry.insert("idx".into(), json!(chunk));
         let at = blob.len();
