@@ -21,7 +21,9 @@
 //! `train.json` lists the files by absolute path (its loader opens each entry as it is, L123).
 
 use crate::arrays::{floats, point_distance_rows, point_normal_rows, Width};
-use crate::select::{block_needs, block_rows, rows_in_cube, samples_off, unmet, Need};
+use crate::select::{
+    block_needs, block_rows, require_sharp, rows_in_cube, samples_off, unmet, Need,
+};
 use crate::{npz_file, Error, ExportFile, Item, ItemExport, Listed, Placement, Result};
 use sparcubes::samples::{farthest_points, SampleParams, Samples};
 use std::path::Path;
@@ -184,16 +186,4 @@ pub(crate) fn signed_rows(
     let pts: Vec<[f32; 3]> = rows.iter().map(|&i| points[i]).collect();
     let d: Vec<f32> = rows.iter().map(|&i| sdf[i]).collect();
     point_distance_rows(&pts, &d, place, -1.0)
-}
-
-/// An error unless the item has at least `want` sharp-edge points.
-pub(crate) fn require_sharp(s: &Samples, angle: f64, want: usize, who: &str) -> Result<()> {
-    if s.sharp_points.len() >= want {
-        return Ok(());
-    }
-    Err(Error::Missing(format!(
-        "{} sharp-edge points, {who} needs {want} (the mesh has no edge sharper than \
-         samples.sharp_angle_deg = {angle}°; {who}'s own producer writes no file for such a mesh)",
-        s.sharp_points.len()
-    )))
 }

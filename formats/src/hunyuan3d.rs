@@ -20,7 +20,9 @@
 //! RGBA renders in `<item>/render_cond/`, which are not ours to make.
 
 use crate::arrays::{floats, placed, point_normal_rows, Width};
-use crate::select::{block_needs, block_rows, rows_in_cube, samples_off, unmet, Need};
+use crate::select::{
+    block_needs, block_rows, require_sharp, rows_in_cube, samples_off, unmet, Need,
+};
 use crate::{npz::Array, npz_file, Error, Item, ItemExport, Placement, Result};
 use sparcubes::samples::SampleParams;
 
@@ -76,14 +78,7 @@ pub fn files(item: &Item) -> Result<ItemExport> {
         return Err(Error::Missing("no sample columns".into()));
     };
     let (s, p) = (stored.samples, stored.params);
-    if s.sharp_points.len() < SURFACE_ROWS {
-        return Err(Error::Missing(format!(
-            "{} sharp-edge points, Hunyuan3D-2.1's surface file holds {SURFACE_ROWS} (the mesh \
-             has no edge sharper than samples.sharp_angle_deg = {}°)",
-            s.sharp_points.len(),
-            p.sharp_angle_deg
-        )));
-    }
+    require_sharp(s, p.sharp_angle_deg, SURFACE_ROWS, "Hunyuan3D-2.1")?;
     let place = item.placement(HALF_EXTENT);
     let take = |v: &[[f32; 3]], n: usize| v[..n.min(v.len())].to_vec();
     let mut surface = crate::identity_arrays(item);

@@ -4,7 +4,7 @@
 //! a job's `[samples]` must reach for a consumer (its `missing` list).
 
 use crate::{Error, Placement, Result};
-use sparcubes::samples::sigma_rows;
+use sparcubes::samples::{sigma_rows, Samples};
 
 /// How many of `count` rows a kind with `sigmas` draws at `sigma`.
 pub(crate) fn count_at(count: usize, sigmas: &[f64], sigma: f64) -> usize {
@@ -140,4 +140,17 @@ pub(crate) fn unmet(needs: &[Need]) -> Vec<String> {
 /// The one line for a job without samples.
 pub(crate) fn samples_off() -> Vec<String> {
     vec!["samples.enabled = true (the job draws no samples)".into()]
+}
+
+/// An error unless the item has at least `want` sharp-edge points: consumers whose loaders read
+/// sharp points (Hunyuan3D-2.1, Dora, Step1X-3D) cannot take a mesh without a sharp edge.
+pub(crate) fn require_sharp(s: &Samples, angle: f64, want: usize, who: &str) -> Result<()> {
+    if s.sharp_points.len() >= want {
+        return Ok(());
+    }
+    Err(Error::Missing(format!(
+        "{} sharp-edge points, {who} needs {want} (the mesh has no edge sharper than \
+         samples.sharp_angle_deg = {angle}°)",
+        s.sharp_points.len()
+    )))
 }

@@ -10,7 +10,7 @@
 
 use crate::arrays::{floats, point_normal_rows, Width};
 use crate::dora::{self, json_list, near_and_volume, near_and_volume_needs, signed_rows};
-use crate::select::{samples_off, unmet, Need};
+use crate::select::{require_sharp, samples_off, unmet, Need};
 use crate::{npz::Array, npz_file, Error, ExportFile, Item, ItemExport, Listed, Result};
 use sparcubes::samples::SampleParams;
 
@@ -40,7 +40,7 @@ pub fn files(item: &Item) -> Result<ItemExport> {
         return Err(Error::Missing("no sample columns".into()));
     };
     let (s, p) = (stored.samples, stored.params);
-    dora::require_sharp(s, p.sharp_angle_deg, SURFACE_ROWS, "Step1X-3D")?;
+    require_sharp(s, p.sharp_angle_deg, SURFACE_ROWS, "Step1X-3D")?;
     let place = item.placement(dora::HALF_EXTENT);
     let n = SURFACE_ROWS.min(s.surface_points.len());
     let (near, volume) = near_and_volume(s, p, &item.consumer_cube(dora::HALF_EXTENT))?;
