@@ -79,6 +79,15 @@ pub fn file_stamp(meta: &std::fs::Metadata) -> FileStamp {
     }
 }
 
+/// Whether a failed `hard_link` says the file system has no hard links (FAT, some network
+/// and FUSE file systems), so the caller falls back to another way of writing.
+pub fn hard_links_unsupported(e: &std::io::Error) -> bool {
+    matches!(
+        e.raw_os_error(),
+        Some(libc::EPERM) | Some(libc::EOPNOTSUPP) | Some(libc::ENOSYS)
+    )
+}
+
 /// Gives the file `from` the name `to` unless `to` exists: a hard link, which fails when the
 /// target exists, so two writers never replace each other's file. `Ok(false)` when `to`
 /// exists. On file systems without hard links, a rename after checking that `to` is absent
@@ -87,12 +96,7 @@ pub fn link_no_replace(from: &Path, to: &Path) -> std::io::Result<bool> {
     match std::fs::hard_link(from, to) {
         Ok(()) => Ok(true),
         Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Ok(false),
-        Err(e)
-            if matches!(
-                e.raw_os_error(),
-                Some(libc::EPERM) | Some(libc::EOPNOTSUPP) | Some(libc::ENOSYS)
-            ) =>
-        {
+        Err(e) if hard_links_unsupported(&e) => {
             if to.symlink_metadata().is_ok() {
                 return Ok(false);
             }

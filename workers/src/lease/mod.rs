@@ -149,12 +149,7 @@ fn create(path: &Path, content: &[u8], owner: &str) -> std::io::Result<bool> {
     match linked {
         Ok(()) => Ok(true),
         Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Ok(false),
-        Err(e)
-            if matches!(
-                e.raw_os_error(),
-                Some(libc::EPERM) | Some(libc::EOPNOTSUPP) | Some(libc::ENOSYS)
-            ) =>
-        {
+        Err(e) if crate::fsutil::hard_links_unsupported(&e) => {
             match OpenOptions::new().write(true).create_new(true).open(path) {
                 Ok(mut f) => {
                     f.write_all(content)?;
