@@ -167,63 +167,6 @@ pub fn npz_bytes(arrays: &[Array]) -> Result<Vec<u8>> {
     Ok(out)
 }
 
-/// The value of the 0-d unicode member `name` (as [`Array::text`] writes it) of the `.npz`
-/// archive `bytes`, or `None` when the archive has no such stored member (another writer's
-/// file, a compressed member, not an `.npz` at all). Walks the local headers, so it reads
-/// archives this module writes and `numpy.savez`'s (stored members, sizes in the headers).
-pub fn read_text(bytes: &[u8], name: &str) -> Option<String> {
-    let member = format!("{name}.npy");
-    let mut at = 0usize;
-    while bytes.get(at..at + 4)? == 0x0403_4b50u32.to_le_bytes() {
-        let u16_at = |o: usize| -> Option<usize> {
-            Some(u16::from_le_bytes(bytes.get(at + o..at + o + 2)?.try_into().ok()?) as usize)
-        };
-        let size = u32::from_le_bytes(bytes.get(at + 18..at + 22)?.try_into().ok()?) as usize;
-        let (flags, method) = (u16_at(6)?, u16_at(8)?);
-        let (name_len, extra_len) = (u16_at(26)?, u16_at(28)?);
-        let data = at.checked_add(30 + name_len + extra_len)?;
-        let stored = bytes.get(at + 30..at + 30 + name_len)?;
-        // A data descriptor (flag bit 3) leaves the size out of the header: not walkable.
-        if flags & 0x08 != 0 {
-            return None;
-        }
-        if stored == member.as_bytes() {
-            return (method == 0)
-                .then(|| npy_text(bytes.get(data..data.checked_add(size)?)?))
-                .flatten();
-        }
-        at = data.checked_add(size)?;
-    }
-    None
-}
-
-/// The string held by a 0-d `<U{n}` `.npy` file (trailing NULs dropped, as numpy does).
-fn npy_text(npy: &[u8]) -> Option<String> {
-    if npy.get(..6)? != b"\x93NUMPY" {
-        return None;
-    }
-    let (header_len, start) = match npy.get(6)? {
-        1 => (
-            u16::from_le_bytes(npy.get(8..10)?.try_into().ok()?) as usize,
-            10,
-        ),
-        _ => (
-            u32::from_le_bytes(npy.get(8..12)?.try_into().ok()?) as usize,
-            12,
-        ),
-    };
-    let header = std::str::from_utf8(npy.get(start..start + header_len)?).ok()?;
-    if !header.contains("'descr': '<U") || !header.contains("'shape': ()") {
-        return None;
-    }
-    let chars = npy
-        .get(start + header_len..)?
-        .chunks_exact(4)
-        .map(|c| char::from_u32(u32::from_le_bytes([c[0], c[1], c[2], c[3]])))
-        .collect::<Option<String>>()?;
-    Some(chars.trim_end_matches('\0').to_string())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -242,21 +185,5 @@ mod tests {
         let bytes = npz_bytes(&[a, Array::text("frame", "source")]).unwrap_or_default();
         assert_eq!(&bytes[..4], b"PK\x03\x04");
         assert_eq!(&bytes[bytes.len() - 22..bytes.len() - 18], b"PK\x05\x06");
-    }
-
-    #[test]
-    fn a_text_member_reads_back() {
-        let arrays = [
-            Array::numbers("x", "<f4", vec![2], &[1f32, 2.0]),
-            Array::text("id", "椅子/1 ü"),
-            Array::text("empty", ""),
-        ];
-        let bytes = npz_bytes(&arrays).unwrap_or_default();
-        assert_eq!(read_text(&bytes, "id").as_deref(), Some("椅子/1 ü"));
-        assert_eq!(read_text(&bytes, "empty").as_deref(), Some(""));
-        assert_eq!(read_text(&bytes, "x"), None); // not text
-        assert_eq!(read_text(&bytes, "missing"), None);
-        assert_eq!(read_text(b"not a zip", "id"), None);
-        assert_eq!(read_text(&bytes[..40], "id"), None); // torn
     }
 }
