@@ -5,7 +5,7 @@
 //! (in cubvh's [−1, 1] frame, δ = 2/N · √3 / 127). Stored files pack a cell's 8 bytes into a
 //! little-endian `u64` (corner 0 in the low byte) and the cell as `x·N² + y·N + z`.
 
-use super::cell_corners;
+use super::cells_with_corners;
 use crate::cubes::SparseCubes;
 use rayon::prelude::*;
 
@@ -52,14 +52,13 @@ pub fn decode(code: u8) -> f32 {
 
 /// cubvh's layout of `cubes` (cells whose corners are not all stored are skipped).
 pub fn cubvh_voxels(cubes: &SparseCubes) -> CubvhVoxels {
-    let (cells, codes) = cubes
-        .cells
-        .par_iter()
-        .filter_map(|&c| {
-            cell_corners(cubes, c)?;
+    let (cells, codes) = cells_with_corners(cubes)
+        .filter_map(|(c, idx)| {
+            let idx = idx?;
+            // Our corner k sits at (k & 1, k >> 1 & 1, k >> 2); cubvh's order is CORNER_ORDER.
             let codes = CORNER_ORDER.map(|o| {
-                let v = [c[0] + o[0], c[1] + o[1], c[2] + o[2]];
-                cubes.vertex_index(v).map_or(0, |i| encode(cubes.sdf[i]))
+                let k = usize::from(o[0] | (o[1] << 1) | (o[2] << 2));
+                encode(cubes.sdf[idx[k]])
             });
             Some((c, codes))
         })

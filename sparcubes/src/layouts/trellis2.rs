@@ -14,7 +14,7 @@
 //!   voxels TRELLIS.2 joins into a quad): for x the edge (0,1,1)–(1,1,1), for y (1,0,1)–(1,1,1),
 //!   for z (1,1,0)–(1,1,1), i.e. a sign change of φ between those corners.
 
-use super::cell_corners;
+use super::cells_with_corners;
 use crate::cubes::SparseCubes;
 use crate::extract::{cell_triangles, edge_point};
 use crate::mc_table::EDGES;
@@ -40,11 +40,9 @@ pub struct DualGrid {
 
 /// The flexible dual grid of `cubes` (cells whose corners are not all stored are skipped).
 pub fn dual_grid(cubes: &SparseCubes) -> DualGrid {
-    let rows: Vec<([u16; 3], [f32; 3], u8)> = cubes
-        .cells
-        .par_iter()
-        .map_init(Vec::new, |tris, &c| {
-            let idx = cell_corners(cubes, c)?;
+    let rows: Vec<([u16; 3], [f32; 3], u8)> = cells_with_corners(cubes)
+        .map_init(Vec::new, |tris, (c, idx)| {
+            let idx = idx?;
             let inside = idx.map(|i| cubes.sdf[i] < 0.0);
             let flags = u8::from(inside[6] != inside[7])
                 | (u8::from(inside[5] != inside[7]) << 1)
