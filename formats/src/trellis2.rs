@@ -16,13 +16,19 @@
 //! `<key>` is the item's source sha256 when the manifest has it (TRELLIS.2 names files by the
 //! asset's sha256), else the item's export stem.
 //!
-//! Frame: TRELLIS.2's grid spans the aabb [−0.5, 0.5]³ at resolution N (`dual_grid.py`
-//! L58-66), our grid cube as it is, so voxel indices are ours; the mesh dump is written in
-//! that frame (`grid / N − 0.5`), so `(coord + vertices/255)/N − 0.5` lies on it. But its
-//! dataset rescales every mesh so that its longest side spans 0.99999 (`read_mesh`, as
-//! `dual_grid.py` L36-56), while a job's object spans `params.span()` of the grid (at most
-//! `(N − 6)/N`, the 3-cell margin the converter needs): [`check`] warns with the factor.
-//! The axes are the source's (TRELLIS.2's own dumps are Blender's Z-up world).
+//! Frame: TRELLIS.2's grid spans the aabb [−0.5, 0.5]³ at resolution G (`dual_grid.py`
+//! L58-66), and its dataset rescales every mesh dump so that its longest side spans 0.99999
+//! of it, centred (`read_mesh`, as `dual_grid.py` L36-56). A job cannot place its object so
+//! (the converter keeps 3 free cells per side), so a job made for TRELLIS.2 converts on a
+//! grid 6 cells larger with the object at TRELLIS.2's size, and the export cuts the free
+//! cells off ([`Trellis2Grid`]): `resolution = G + 6` and
+//! `object_span = 0.99999 · G / (G + 6)` give TRELLIS.2's grid of G exactly (voxel `i` of the
+//! export is cell `i + 3` of the job). Any other job is exported on its own grid as it is,
+//! where the object spans `params.span()` of it (at most `(N − 6)/N`): the files overlay each
+//! other, but `read_mesh` enlarges the dump to 0.99999 and [`check`] warns with the factor.
+//! The mesh dump is written in the export's aabb frame (`(cell − offset) / G − 0.5`), so
+//! `(coord + vertices/255)/G − 0.5` lies on it. The axes are the source's (TRELLIS.2's own
+//! dumps are Blender's Z-up world).
 //!
 //! `intersected` differs in kind: TRELLIS.2 sets a bit where a triangle of the source crosses
 //! the edge (`flexible_dual_grid.cpp` L148-156, any number of crossings), we set it where φ
@@ -48,35 +54,99 @@ pub const OBJECT_SPAN: f64 = 0.99999;
 /// The name of the dataset in `data_dir.json`.
 pub const DATASET: &str = "sparc3d";
 
-/// Warns that the dataset's rescaled mesh and the grid differ by `0.99999 / span` (a job
-/// cannot reach 0.99999: the converter keeps 3 free cells per side).
+/// Cells a TRELLIS.2-framed job keeps free on each side, cut off by the export.
+pub const FREE_CELLS: u32 = 3;
+
+/// Room left between the object and each side of TRELLIS.2's grid, in voxels: the
+/// normalization shifts the object by up to 0.037 voxel per axis
+/// (`sparcubes::normalize::GRID_OFFSET`) so that faces never lie on grid planes, and a surface
+/// that crossed TRELLIS.2's last grid plane would need a voxel outside its grid.
+pub const ROOM_CELLS: f64 = 0.05;
+
+/// Largest gap, in cells, between a job's object size and the one [`span_for`] gives for the
+/// job to count as converted in TRELLIS.2's frame (a span written with 7 digits is within
+/// 1e-4 cells).
+const SPAN_TOLERANCE_CELLS: f64 = 1e-4;
+
+/// TRELLIS.2's grid within a job's grid.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Trellis2Grid {
+    /// Voxels per axis of the exported grid (`dual_grid_<size>`).
+    pub size: u32,
+    /// The job's cell at the export's voxel 0, per axis.
+    pub offset: u32,
+}
+
+impl Trellis2Grid {
+    /// The grid a job at `resolution` whose object spans `span` of it exports: TRELLIS.2's
+    /// own of `resolution − 6` when the object has TRELLIS.2's size there, else the job's.
+    pub fn of(resolution: u32, span: f64) -> Self {
+        match resolution.checked_sub(2 * FREE_CELLS) {
+            Some(size) if size > 0 && in_trellis2_frame(resolution, span, size) => Self {
+                size,
+                offset: FREE_CELLS,
+            },
+            _ => Self {
+                size: resolution,
+                offset: 0,
+            },
+        }
+    }
+
+    /// Whether the object sits in this grid as TRELLIS.2's dataset places its mesh.
+    pub fn is_exact(&self) -> bool {
+        self.offset == FREE_CELLS
+    }
+}
+
+/// Whether an object spanning `span` of a grid of `resolution` spans what [`span_for`] gives
+/// for TRELLIS.2's grid of `size`.
+fn in_trellis2_frame(resolution: u32, span: f64, size: u32) -> bool {
+    (span - span_for(size)).abs() * resolution as f64 <= SPAN_TOLERANCE_CELLS
+}
+
+/// The `object_span` of a job at `size + 6` whose object TRELLIS.2's dataset sees in a grid of
+/// `size`: its longest side 0.99999 of the grid less [`ROOM_CELLS`] at each end, so that
+/// `read_mesh`'s rescaling of the dump moves each end of it by [`ROOM_CELLS`] (plus the
+/// normalization's shift) against the dual grid, 0.02 % of a 512 grid.
+pub fn span_for(size: u32) -> f64 {
+    (OBJECT_SPAN * size as f64 - 2.0 * ROOM_CELLS) / (size + 2 * FREE_CELLS) as f64
+}
+
+/// Nothing to say for a job converted in TRELLIS.2's frame; otherwise a warning that the
+/// dataset's rescaled mesh and the grid differ by `0.99999 / span`, with the settings that
+/// make them one.
 pub fn check(params: &Params) -> JobCheck {
     let span = params.span();
+    let n = params.resolution;
+    if Trellis2Grid::of(n, span).is_exact() {
+        return JobCheck::default();
+    }
     let factor = OBJECT_SPAN / span;
-    let cells = (OBJECT_SPAN - span) * params.resolution as f64 / 2.0;
+    let cells = (OBJECT_SPAN - span) * n as f64 / 2.0;
     JobCheck {
         required: Vec::new(),
         warnings: vec![format!(
             "TRELLIS.2's dataset rescales each mesh dump to span {OBJECT_SPAN} of the grid \
              (flexi_dual_grid.py read_mesh) while this job's objects span {span:.5} of it: the \
              mesh it reads is {:.2} % larger than the grid's surface ({cells:.2} voxels at each \
-             side of the longest axis); the files as written overlay exactly",
-            (factor - 1.0) * 100.0
+             side of the longest axis); the files as written overlay exactly. For TRELLIS.2's \
+             grid of {n} exactly, convert with --resolution {} and [params] object_span = {} \
+             (docs/FORMAT.md)",
+            (factor - 1.0) * 100.0,
+            n + 2 * FREE_CELLS,
+            span_for(n)
         )],
     }
 }
 
 /// The item's `.vxz` and mesh dump, and its columns for the listings.
 pub fn files(item: &Item) -> Result<ItemExport> {
-    let n = item.cubes.resolution;
+    let grid = Trellis2Grid::of(item.cubes.resolution, item.object_span);
+    let n = grid.size;
     let key = item.source_sha256.unwrap_or(item.stem);
     let g = trellis2::dual_grid(item.cubes);
-    let coords: Vec<[u32; 3]> = g.voxels.iter().map(|c| c.map(u32::from)).collect();
-    if coords.iter().flatten().any(|&v| v >= n) {
-        return Err(Error::Invalid(format!(
-            "a voxel lies outside the grid of {n}"
-        )));
-    }
+    let coords = voxels_in(&g.voxels, grid)?;
     let vertices: Vec<u8> = g.quantized.iter().flatten().copied().collect();
     let attrs = [
         Attr {
@@ -90,9 +160,9 @@ pub fn files(item: &Item) -> Result<ItemExport> {
             data: &g.intersected,
         },
     ];
-    let grid = vxz::vxz_bytes(&coords, &attrs, vxz::CHUNK_SIZE)?;
+    let dual = vxz::vxz_bytes(&coords, &attrs, vxz::CHUNK_SIZE)?;
     let mesh = sparcubes::extract(item.cubes);
-    let dump = mesh_dump(&mesh, n);
+    let dump = mesh_dump(&mesh, grid);
     let listing = BTreeMap::from([
         ("sha256".to_string(), key.to_string()),
         ("dual_grid_size".to_string(), coords.len().to_string()),
@@ -103,7 +173,7 @@ pub fn files(item: &Item) -> Result<ItemExport> {
         files: vec![
             ExportFile {
                 path: PathBuf::from(format!("dual_grid_{n}")).join(format!("{key}.vxz")),
-                bytes: grid,
+                bytes: dual,
             },
             ExportFile {
                 path: PathBuf::from("mesh_dumps").join(format!("{key}.pickle")),
@@ -114,13 +184,42 @@ pub fn files(item: &Item) -> Result<ItemExport> {
     })
 }
 
-/// The pickle of `mesh` (grid coordinates at resolution `n`) in TRELLIS.2's aabb frame.
-fn mesh_dump(mesh: &sparcubes::TriMesh, n: u32) -> Vec<u8> {
-    let scale = 1.0 / n as f64;
+/// The job's voxels as indices of `grid`; refuses a voxel outside it (a surface in the
+/// job's free cells, which TRELLIS.2's grid does not have).
+fn voxels_in(voxels: &[[u16; 3]], grid: Trellis2Grid) -> Result<Vec<[u32; 3]>> {
+    let shifted = |c: &[u16; 3]| -> Option<[u32; 3]> {
+        let mut out = [0u32; 3];
+        for (o, &v) in out.iter_mut().zip(c) {
+            *o = u32::from(v)
+                .checked_sub(grid.offset)
+                .filter(|&i| i < grid.size)?;
+        }
+        Some(out)
+    };
+    voxels
+        .iter()
+        .map(|c| {
+            shifted(c).ok_or_else(|| {
+                Error::Invalid(format!(
+                    "voxel {c:?} lies outside TRELLIS.2's grid of {} (cells {}..{} of the \
+                     job's): the surface reaches into the free cells",
+                    grid.size,
+                    grid.offset,
+                    grid.offset + grid.size
+                ))
+            })
+        })
+        .collect()
+}
+
+/// The pickle of `mesh` (the job's grid coordinates) in the aabb frame of `grid`.
+fn mesh_dump(mesh: &sparcubes::TriMesh, grid: Trellis2Grid) -> Vec<u8> {
+    let scale = 1.0 / grid.size as f64;
+    let offset = grid.offset as f64;
     let positions: Vec<f64> = mesh
         .positions
         .iter()
-        .flat_map(|p| p.map(|v| v as f64 * scale - 0.5))
+        .flat_map(|p| p.map(|v| (v as f64 - offset) * scale - 0.5))
         .collect();
     let faces: Vec<u8> = mesh
         .triangles
@@ -252,6 +351,48 @@ mod tests {
                 ("sha256".to_string(), sha.to_string()),
                 ("dual_grid_size".to_string(), "7".to_string()),
             ]),
+        }
+    }
+
+    #[test]
+    fn a_job_six_cells_larger_at_trellis2_size_exports_its_grid() {
+        for size in [48, 256, 512, 1024] {
+            let exact = Trellis2Grid::of(size + 6, span_for(size));
+            assert_eq!(exact, Trellis2Grid { size, offset: 3 });
+            assert!(exact.is_exact());
+            // Seven digits of the span are enough; a default job keeps its own grid.
+            let rounded = (span_for(size) * 1e7).round() / 1e7;
+            assert!(Trellis2Grid::of(size + 6, rounded).is_exact(), "{size}");
+            let default = Trellis2Grid::of(size, (size - 6) as f64 / size as f64);
+            assert_eq!(default, Trellis2Grid { size, offset: 0 });
+            assert!(!Trellis2Grid::of(size + 6, span_for(size) * 0.999).is_exact());
+        }
+        let shift = sparcubes::normalize::GRID_OFFSET
+            .iter()
+            .fold(0.0f64, |m, &v| m.max(v));
+        assert!(ROOM_CELLS > shift);
+        let mut params = Params {
+            resolution: 518,
+            object_span: Some(span_for(512)),
+            ..Params::default()
+        };
+        assert!(params.validate().is_ok());
+        assert!(check(&params).warnings.is_empty());
+        params.object_span = None;
+        let warned = check(&params).warnings.join(" ");
+        assert!(warned.contains("--resolution 524"), "{warned}");
+    }
+
+    #[test]
+    fn voxels_move_into_the_export_grid_or_are_refused() {
+        let grid = Trellis2Grid {
+            size: 10,
+            offset: 3,
+        };
+        let moved = voxels_in(&[[3, 4, 12]], grid).unwrap_or_default();
+        assert_eq!(moved, vec![[0, 1, 9]]);
+        for outside in [[2, 4, 5], [3, 4, 13]] {
+            assert!(voxels_in(&[outside], grid).is_err(), "{outside:?}");
         }
     }
 

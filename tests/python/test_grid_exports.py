@@ -229,6 +229,45 @@ def test_trellis2_dual_vertices_lie_in_their_voxels_and_overlay_the_mesh(trellis
         assert np.all(np.abs(rescaled) <= 0.5)
 
 
+def trellis2_span(size):
+    """The `object_span` of a job at `size + 6` that TRELLIS.2 sees in a grid of `size`
+    (docs/FORMAT.md: 0.99999 of the grid less 0.05 voxel at each end)."""
+    return (0.99999 * size - 0.1) / (size + 6)
+
+
+@pytest.fixture(scope="module")
+def trellis2_exact(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("trellis2_exact")
+    job, records = make_job(tmp, T2_RES + 6, "[params]\nobject_span = %.7f\n"
+                            % trellis2_span(T2_RES))
+    out = tmp / "out"
+    r = run("export", job, "--format", "trellis2", "--out", out)
+    assert "warning" not in r.stderr, r.stderr
+    return out, records
+
+
+def test_trellis2_job_in_its_frame_exports_its_grid_exactly(trellis2_exact):
+    out, records = trellis2_exact
+    (root,) = json.loads((out / "data_dir.json").read_text()).values()
+    assert root["dual_grid"].endswith("dual_grid_%d" % T2_RES)
+    for rec in records:
+        v, f, coords, attrs, _ = load_item(root, rec["sha256"])
+        assert coords.min() >= 0 and coords.max() < T2_RES
+        assert coords.max() == T2_RES - 1 and coords.min() == 0  # the object spans the grid
+        # As read_mesh places it (the longest side scaled to 0.99999, centred), the dump moves
+        # by less than a quarter voxel: the room left, the normalization's sub-voxel shift and
+        # marching cubes cutting the tips (a job in its own frame: 2.3 % at 256, above).
+        lo, hi = v.min(0), v.max(0)
+        rescaled = (v - (lo + hi) / 2) * (0.99999 / (hi - lo).max())
+        assert np.abs(rescaled).max() <= 0.5
+        assert np.abs(rescaled - v).max() * T2_RES < 0.25, (rec["uri"], np.abs(rescaled - v).max())
+        # And the dual vertices lie on it as read.
+        from scipy.spatial import cKDTree
+        dual = (coords + attrs["vertices"] / 255.0) / T2_RES - 0.5
+        d, _ = cKDTree(rescaled).query(dual)
+        assert d.max() < np.sqrt(3) / T2_RES, (rec["uri"], d.max() * T2_RES)
+
+
 def test_trellis2_filter_drops_items_over_the_limits(trellis2):
     out, _ = trellis2
     (root,) = json.loads((out / "data_dir.json").read_text()).values()
