@@ -5,7 +5,7 @@
 use crate::{identity_arrays, npz::Array, npz_file, Item, ItemExport, Result};
 
 /// `--help` line.
-pub const ABOUT: &str = "cubvh's sparse voxels: active_cells, active_cells_sdf (packed u64)";
+pub const ABOUT: &str = "cubvh's sparse voxels: <item>.npz (active_cells, active_cells_sdf, packed u64); checked against test/sparse_voxel.py";
 
 /// One `<stem>.npz` with `active_cells` and `active_cells_sdf`.
 pub fn files(item: &Item) -> Result<ItemExport> {

@@ -16,7 +16,7 @@ use sparcubes::layouts::direct3d_s2;
 use sparcubes::Params;
 
 /// `--help` line.
-pub const ABOUT: &str = "Direct3D-S2's sparse SDF: sparse_index, sparse_sdf";
+pub const ABOUT: &str = "Direct3D-S2's sparse SDF: <item>.npz (sparse_index, sparse_sdf; a job with object_span = 0.95); checked against SparseSDFVAE.encode, sparse2mesh";
 
 /// The share of its cube Direct3D-S2's objects span: ±0.95 of [−1, 1] (`utils/mesh.py`
 /// L14-23), the `params.object_span` a job needs for this export.

@@ -30,7 +30,7 @@ use std::path::Path;
 
 /// `--help` line.
 pub const ABOUT: &str =
-    "Dora: <item>.npz (fps_coarse_surface, fps_sharp_surface, sharp_near_surface, rand_points; f32, sdf > 0 inside) + train.json";
+    "Dora: <item>.npz (fps_coarse_surface, fps_sharp_surface, sharp_near_surface, rand_points; f32, sdf > 0 inside) + train.json; checked against craftsman/data/objaverse.py ObjaverseDataset";
 
 /// Farthest-point samples per surface kind (`point_number // 2`, L123, README's 65536).
 const FPS_ROWS: usize = 32_768;

@@ -28,7 +28,7 @@ use sparcubes::samples::SampleParams;
 
 /// `--help` line.
 pub const ABOUT: &str =
-    "Hunyuan3D-2.1: <item>/geo_data/<item>_surface.npz and _sdf.npz (f16, label > 0 inside)";
+    "Hunyuan3D-2.1: <item>/geo_data/<item>_surface.npz and _sdf.npz (f16, label > 0 inside); checked against hy3dshape/data/dit_asl.py AlignedShapeLatentDataset";
 
 /// Rows of `random_surface` and `sharp_surface` (`499712 // 4`, L143).
 const SURFACE_ROWS: usize = 124_928;

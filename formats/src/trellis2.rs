@@ -45,7 +45,7 @@ use std::path::{Path, PathBuf};
 
 /// `--help` line.
 pub const ABOUT: &str =
-    "TRELLIS.2's dual grid dataset: dual_grid_<N>/<sha256>.vxz, mesh_dumps/, metadata.csv";
+    "TRELLIS.2's dual grid dataset: dual_grid_<G>/<sha256>.vxz, mesh_dumps/, metadata.csv, data_dir.json (exact for a job at G + 6, docs/FORMAT.md); checked against trellis2/datasets/flexi_dual_grid.py FlexiDualGridDataset";
 
 /// The share of the grid TRELLIS.2 scales a mesh's longest side to (`dual_grid.py` L36-56,
 /// `flexi_dual_grid.py` `read_mesh`).

@@ -12,7 +12,7 @@ use crate::{Error, ExportFile, Item, ItemExport, Result};
 use sparcubes::samples::SampleParams;
 
 /// `--help` line.
-pub const ABOUT: &str = "TripoSG: <item>.npy (pickled dict: surface_points, surface_normals; f32)";
+pub const ABOUT: &str = "TripoSG: <item>.npy (pickled dict: surface_points, surface_normals; f32); checked against scripts/inference_vae.py load_surface";
 
 /// Rows its VAE script draws.
 const SURFACE_ROWS: usize = 204_800;

@@ -10,7 +10,7 @@ use sparcubes::samples::{Precision, SampleParams};
 
 /// `--help` line.
 pub const ABOUT: &str =
-    "our vector-set samples: surface, sharp, near, volume (points, normals, signed distances)";
+    "our vector-set samples: surface, sharp, near, volume (points, normals, signed distances); read by sparc3d_reader.iter_export";
 
 /// `samples.enabled` when the job draws no samples.
 pub fn missing(samples: Option<&SampleParams>) -> Vec<String> {
