@@ -57,11 +57,12 @@ pub const DATASET: &str = "sparc3d";
 /// Cells a TRELLIS.2-framed job keeps free on each side, cut off by the export.
 pub const FREE_CELLS: u32 = 3;
 
-/// Room left between the object and each side of TRELLIS.2's grid, in voxels: the
-/// normalization shifts the object by up to 0.037 voxel per axis
-/// (`sparcubes::normalize::GRID_OFFSET`) so that faces never lie on grid planes, and a surface
-/// that crossed TRELLIS.2's last grid plane would need a voxel outside its grid.
-pub const ROOM_CELLS: f64 = 0.05;
+/// Room left between the object's box and each side of TRELLIS.2's grid, in voxels: an open
+/// surface becomes a shell reaching 0.9 voxel beyond it (`t` of docs/ALGORITHM.md §5), and
+/// the normalization shifts the object by up to 0.037 voxel per axis
+/// (`sparcubes::normalize::GRID_OFFSET`) so that faces never lie on grid planes; a surface
+/// past TRELLIS.2's last grid plane would need a voxel outside its grid.
+pub const ROOM_CELLS: f64 = 1.0;
 
 /// Largest gap, in cells, between a job's object size and the one [`span_for`] gives for the
 /// job to count as converted in TRELLIS.2's frame (a span written with 7 digits is within
@@ -107,8 +108,8 @@ fn in_trellis2_frame(resolution: u32, span: f64, size: u32) -> bool {
 
 /// The `object_span` of a job at `size + 6` whose object TRELLIS.2's dataset sees in a grid of
 /// `size`: its longest side 0.99999 of the grid less [`ROOM_CELLS`] at each end, so that
-/// `read_mesh`'s rescaling of the dump moves each end of it by [`ROOM_CELLS`] (plus the
-/// normalization's shift) against the dual grid, 0.02 % of a 512 grid.
+/// `read_mesh`'s rescaling of a closed object's dump moves each end of it by about
+/// [`ROOM_CELLS`] against the dual grid (0.2 % of a 512 grid), an open one's by less.
 pub fn span_for(size: u32) -> f64 {
     (OBJECT_SPAN * size as f64 - 2.0 * ROOM_CELLS) / (size + 2 * FREE_CELLS) as f64
 }
@@ -370,7 +371,7 @@ mod tests {
         let shift = sparcubes::normalize::GRID_OFFSET
             .iter()
             .fold(0.0f64, |m, &v| m.max(v));
-        assert!(ROOM_CELLS > shift);
+        assert!(ROOM_CELLS > 0.9 + shift);
         let mut params = Params {
             resolution: 518,
             object_span: Some(span_for(512)),
