@@ -18,7 +18,8 @@
 //! Distances are **positive inside** (pysdf's sign), in its frame: the bounding box centred,
 //! its longest side onto ±1 (`to_watertight_mesh.py` `remesh` L48-54). A mesh without a sharp
 //! edge gets no file (its producer writes none, L257-258) and is named as failed.
-//! `train.json` lists the files by absolute path (its loader opens each entry as it is, L123).
+//! `train.json` lists the files by absolute path (its loader opens each entry as it is, L123),
+//! `val.json` and `test.json` a few of them ([`split_lists`]).
 
 use crate::arrays::{floats, point_distance_rows, point_normal_rows, Width};
 use crate::select::{
@@ -30,7 +31,7 @@ use std::path::Path;
 
 /// `--help` line.
 pub const ABOUT: &str =
-    "Dora: <item>.npz (fps_coarse_surface, fps_sharp_surface, sharp_near_surface, rand_points; f32, sdf > 0 inside) + train.json; checked against craftsman/data/objaverse.py ObjaverseDataset";
+    "Dora: <item>.npz (fps_coarse_surface, fps_sharp_surface, sharp_near_surface, rand_points; f32, sdf > 0 inside) + train/val/test.json; checked against craftsman/data/objaverse.py ObjaverseDataset";
 
 /// Farthest-point samples per surface kind (`point_number // 2`, L123, README's 65536).
 const FPS_ROWS: usize = 32_768;
@@ -135,17 +136,43 @@ pub fn files(item: &Item) -> Result<ItemExport> {
     })
 }
 
-/// `train.json`: the absolute paths of the items' files, in item order.
+/// `train.json`, `val.json` and `test.json` ([`split_lists`]): the absolute paths of the
+/// items' files.
 pub fn listing(items: &[Listed], root: &Path) -> Result<Vec<ExportFile>> {
-    let paths: Vec<String> = items
-        .iter()
-        .flat_map(|l| {
-            l.files
-                .iter()
-                .map(|f| root.join(f).to_string_lossy().into_owned())
-        })
-        .collect();
-    Ok(vec![json_list("train.json", &paths)?])
+    split_lists(items, |l| {
+        l.files
+            .iter()
+            .map(|f| root.join(f).to_string_lossy().into_owned())
+            .collect()
+    })
+}
+
+/// Items in `val.json` and `test.json`, at most.
+pub(crate) const CHECK_ITEMS: usize = 16;
+
+/// The split lists Dora's and Step1X-3D's data modules open: `train.json` with every item's
+/// `entries`, and `val.json` and `test.json` with those of the [`CHECK_ITEMS`] items of
+/// smallest id (ids are content hashes, so a fair draw that stays put as a job grows), in item
+/// order. Both data modules build a `val` split when training starts and their launch scripts
+/// run `test` after it (Dora `craftsman/data/objaverse.py` L246-247 and `launch.py` L263-264;
+/// Step1X-3D `step1x3d_geometry/data/Objaverse.py` L40-43 and `train.py` L288-289), so a
+/// missing file stops a run. They are for those checks, not held out: they stay in
+/// `train.json`.
+pub(crate) fn split_lists(
+    items: &[Listed],
+    entries: impl Fn(&Listed) -> Vec<String>,
+) -> Result<Vec<ExportFile>> {
+    let all: Vec<String> = items.iter().flat_map(&entries).collect();
+    let mut by_id: Vec<usize> = (0..items.len()).collect();
+    by_id.sort_by(|&a, &b| items[a].id.cmp(&items[b].id));
+    by_id.truncate(CHECK_ITEMS);
+    by_id.sort_unstable();
+    let checks: Vec<String> = by_id.iter().flat_map(|&i| entries(&items[i])).collect();
+    Ok(vec![
+        json_list("train.json", &all)?,
+        json_list("val.json", &checks)?,
+        json_list("test.json", &checks)?,
+    ])
 }
 
 /// A JSON list of strings as a file.
@@ -186,4 +213,41 @@ pub(crate) fn signed_rows(
     let pts: Vec<[f32; 3]> = rows.iter().map(|&i| points[i]).collect();
     let d: Vec<f32> = rows.iter().map(|&i| sdf[i]).collect();
     point_distance_rows(&pts, &d, place, -1.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::collections::BTreeMap;
+    use std::path::PathBuf;
+
+    #[test]
+    fn val_and_test_hold_the_items_of_smallest_id_in_item_order() {
+        // 20 items whose ids do not follow their order.
+        let items: Vec<Listed> = (0..20u32)
+            .map(|i| Listed {
+                id: format!("{:02}", (i * 7) % 20),
+                stem: format!("s{i}"),
+                files: vec![PathBuf::from(format!("s{i}.npz"))],
+                columns: BTreeMap::new(),
+            })
+            .collect();
+        let files = split_lists(&items, |l| vec![l.stem.clone()]).unwrap_or_default();
+        let read = |k: usize| -> Vec<String> {
+            serde_json::from_slice(&files[k].bytes).unwrap_or_default()
+        };
+        let names: Vec<_> = files.iter().map(|f| f.path.clone()).collect();
+        assert_eq!(
+            names,
+            ["train.json", "val.json", "test.json"].map(PathBuf::from)
+        );
+        assert_eq!(read(0).len(), 20);
+        let val = read(1);
+        assert_eq!(val, read(2));
+        let expected: Vec<String> = (0..20u32)
+            .filter(|i| (i * 7) % 20 < CHECK_ITEMS as u32)
+            .map(|i| format!("s{i}"))
+            .collect();
+        assert_eq!(val, expected);
+    }
 }

@@ -9,14 +9,14 @@
 //! inside** (its occupancy is `sdf ≥ 1e-3`, L186-188), the frame Dora's (longest side ±1).
 
 use crate::arrays::{floats, point_normal_rows, Width};
-use crate::dora::{self, json_list, near_and_volume, near_and_volume_needs, signed_rows};
+use crate::dora::{self, near_and_volume, near_and_volume_needs, signed_rows};
 use crate::select::{require_sharp, samples_off, unmet, Need};
 use crate::{npz::Array, npz_file, Error, ExportFile, Item, ItemExport, Listed, Result};
 use sparcubes::samples::SampleParams;
 
 /// `--help` line.
 pub const ABOUT: &str =
-    "Step1X-3D: surfaces/<item>.npz (surface, sharp_surface, near_surface_points, volume_rand_points; f32, sdf > 0 inside) + train.json; checked against step1x3d_geometry/data/base.py BaseDataset";
+    "Step1X-3D: surfaces/<item>.npz (surface, sharp_surface, near_surface_points, volume_rand_points; f32, sdf > 0 inside) + train/val/test.json; checked against step1x3d_geometry/data/base.py BaseDataset";
 
 /// Rows of `surface` and of `sharp_surface`.
 const SURFACE_ROWS: usize = 124_928;
@@ -78,8 +78,8 @@ pub fn files(item: &Item) -> Result<ItemExport> {
     })
 }
 
-/// `train.json`: the items' stems (its uids), in item order.
+/// `train.json`, `val.json` and `test.json` (as Dora's, [`dora::split_lists`]): the items'
+/// stems (its uids).
 pub fn listing(items: &[Listed]) -> Result<Vec<ExportFile>> {
-    let uids: Vec<String> = items.iter().map(|l| l.stem.clone()).collect();
-    Ok(vec![json_list("train.json", &uids)?])
+    dora::split_lists(items, |l| vec![l.stem.clone()])
 }

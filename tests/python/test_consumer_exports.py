@@ -172,6 +172,11 @@ def test_dora_reads_every_listed_item_in_its_frame_and_sign(job, items, tmp_path
     listed = json.load(open(out / "train.json"))  # paths opened as they are (L123)
     records = json.loads((out / ".sparc3d-export.json").read_text())["items"]
     assert len(listed) == len(MESHES)
+    # Its data module also opens val.json, its launch script test.json (both drawn from the
+    # items, at most 16).
+    checks = json.load(open(out / "val.json"))
+    assert checks == json.load(open(out / "test.json")) and 0 < len(checks) <= 16
+    assert set(checks) <= set(listed)
     for path, rec in zip(listed, records):
         coarse, sharp, sup, d = read_dora(path, rng=rng)
         rp = d["rand_points"]  # 400000 near rows, then up to 200000 volume rows
@@ -192,6 +197,8 @@ def test_step1x3d_reads_every_listed_uid_in_its_frame_and_sign(job, items, tmp_p
     uids = json.load(open(out / "train.json"))
     records = json.loads((out / ".sparc3d-export.json").read_text())["items"]
     assert len(uids) == len(MESHES)
+    checks = json.load(open(out / "val.json"))  # Objaverse.py L40-43 builds a val split
+    assert checks == json.load(open(out / "test.json")) and set(checks) <= set(uids)
     for uid, rec in zip(uids, records):
         # step1x3d_geometry/data/base.py, BaseDataset (L104-202).
         d = np.load(out / "surfaces" / f"{uid}.npz")
