@@ -47,7 +47,9 @@ def parser() -> argparse.ArgumentParser:
                        "jobs. Writes RUN/config.json, RUN/loss.csv, RUN/tensorboard/ (when "
                        "TensorBoard is installed) and RUN/checkpoint.pt every "
                        "train.checkpoint_every steps. bf16 autocast on CUDA; on CPU a run with "
-                       "the same seed gives the same weights, also across --resume.")
+                       "the same seed gives the same weights, also across --resume. Several "
+                       "processes: `torchrun --nproc_per_node N -m sparc3d_vae train ...` "
+                       "(train.batch_size is the global batch, a multiple of N).")
     p.add_argument("--data", nargs="+", required=True, metavar="JOB",
                    help="job folders (or shard files) to train on")
     p.add_argument("--config", type=Path, metavar="vae.toml",
@@ -123,7 +125,9 @@ def main(argv: Optional[List[str]] = None) -> int:
     try:
         return _run(args)
     except (ConfigError, DataError, UsageError, TooManyVoxels) as e:
-        print(f"error: {e}", file=sys.stderr)
+        # Under torchrun every process meets the same bad input: rank 0 says it once.
+        if os.environ.get("RANK", "0") in ("", "0"):
+            print(f"error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)

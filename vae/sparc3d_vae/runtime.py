@@ -28,10 +28,17 @@ class UsageError(RuntimeError):
     """Something the user asked for that cannot be done; the message says what and why."""
 
 
-def pick_device(name: str) -> torch.device:
-    """`auto`: CUDA when torch sees a GPU, else CPU. `cuda` without a usable GPU is refused."""
+def pick_device(name: str, index: Optional[int] = None) -> torch.device:
+    """`auto`: CUDA when torch sees a GPU, else CPU. `cuda` without a usable GPU is refused.
+    `index`: the GPU of this process when several train together (torchrun's LOCAL_RANK)."""
     if name == "auto":
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+        name = "cuda" if torch.cuda.is_available() else "cpu"
+    if name == "cuda" and index is not None and torch.cuda.is_available():
+        if index >= torch.cuda.device_count():
+            raise UsageError(f"LOCAL_RANK={index}, but torch sees {torch.cuda.device_count()} "
+                             "CUDA device(s): start at most that many processes per machine")
+        torch.cuda.set_device(index)
+        return torch.device("cuda", index)
     if name == "cuda":
         if not torch.cuda.is_available():
             built = torch.version.cuda
