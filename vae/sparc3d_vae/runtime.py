@@ -105,14 +105,15 @@ def load_checkpoint(path: Path) -> Dict[str, Any]:
 
 
 def model_from_checkpoint(state: Dict[str, Any], device: torch.device, source: str):
-    """(config, model in eval mode) from a loaded checkpoint."""
+    """(config, model in eval mode) from a loaded checkpoint: its EMA weights when it has them."""
     try:
         cfg = Config.from_dict(state["config"], f"{source} (its config)")
     except ConfigError as e:
         raise UsageError(str(e)) from None
     model = SparconvVAE(cfg.model)
     try:
-        model.load_state_dict(state["model"])
+        # The moving average of the weights when the run kept one (train.ema_decay).
+        model.load_state_dict(state.get("ema") or state["model"])
     except RuntimeError as e:
         first = str(e).splitlines()[0] if str(e) else "mismatch"
         raise UsageError(f"{source}: its weights do not fit its own config ({first}); written "

@@ -27,7 +27,7 @@ import numpy as np
 import torch
 from torch.nn.parallel import DistributedDataParallel
 
-from . import distributed
+from . import augment, distributed
 from .config import Config, load_config
 from .data import DataError, Sample, Samples, job_info, make_batch
 from .loss import vae_loss
@@ -118,6 +118,30 @@ class Progress:
             sys.stderr.write("\n")
 
 
+class EMA:
+    """Exponential moving average of the weights (float32), what inference loads when the
+    checkpoint holds it: w̄ ← d·w̄ + (1 − d)·w after every step, with d = min(decay,
+    (1 + step) / (10 + step)) so early weights fade fast (the warm-up of TensorFlow's
+    `ExponentialMovingAverage(num_updates=...)`). TRELLIS evaluates its VAEs with an EMA too."""
+
+    def __init__(self, model: torch.nn.Module, decay: float):
+        self.model = model
+        self.decay = decay
+        self.shadow = {k: v.detach().float().clone() for k, v in model.state_dict().items()}
+
+    @torch.no_grad()
+    def update(self, step: int) -> None:
+        d = min(self.decay, (1 + step) / (10 + step))
+        for k, v in self.model.state_dict().items():
+            self.shadow[k].mul_(d).add_(v.detach().float(), alpha=1 - d)
+
+    def state_dict(self) -> Dict[str, torch.Tensor]:
+        return {k: v.clone() for k, v in self.shadow.items()}
+
+    def load(self, state: Dict[str, torch.Tensor]) -> None:
+        self.shadow = {k: v.detach().float().clone().to(self.shadow[k].device) for k, v in state.items()}
+
+
 def _tensorboard(out: Path):
     try:
         from torch.utils.tensorboard import SummaryWriter
@@ -140,7 +164,8 @@ def _rewind_log(path: Path, step: int) -> None:
 
 #: [train] keys that decide which batches a run sees and how it learns them: a resumed run
 #: must keep them (the others, such as `steps`, `lr` or `checkpoint_every`, may change).
-TRAJECTORY_KEYS = ("batch_size", "seed", "teacher_forcing")
+TRAJECTORY_KEYS = ("batch_size", "seed", "teacher_forcing", "structure", "augment_rotations",
+                   "ema_decay")
 
 
 def _placeholder(width: int) -> Sample:
@@ -236,11 +261,14 @@ def _loop(cfg: Config, state: Optional[Dict[str, Any]], samples: Samples, info, 
     seed_everything(cfg.train.seed)
     model = SparconvVAE(cfg.model).to(device)
     opt = torch.optim.AdamW(model.parameters(), lr=cfg.train.lr, weight_decay=cfg.train.weight_decay)
+    ema = EMA(model, cfg.train.ema_decay) if cfg.train.ema_decay > 0 else None
     start = 0
     if state is not None:
         model.load_state_dict(state["model"])
         opt.load_state_dict(state["optimizer"])
         start = int(state["step"])
+        if ema is not None:
+            ema.load(state.get("ema") or model.state_dict())
     # Every rank starts from the same weights (same seed); DDP checks the shapes and
     # broadcasts rank 0's weights once more.
     net = DistributedDataParallel(model) if world.distributed else model
@@ -268,6 +296,7 @@ def _loop(cfg: Config, state: Optional[Dict[str, Any]], samples: Samples, info, 
                 "config": cfg.to_dict(), "model": model.state_dict(),
                 "optimizer": opt.state_dict(), "step": step, "world_size": world.size,
                 "rank_digests": digests,
+                **({"ema": ema.state_dict()} if ema is not None else {}),
                 "rng": {"torch": torch.get_rng_state(),
                         "cuda": torch.cuda.get_rng_state() if device.type == "cuda" else None},
                 "data": {"ids_digest": ids_digest, "items": len(samples),
@@ -288,8 +317,13 @@ def _loop(cfg: Config, state: Optional[Dict[str, Any]], samples: Samples, info, 
         # The latent noise of a step is a function of (seed, step, rank): a resumed run draws
         # the same noise as an uninterrupted one.
         torch.manual_seed((t.seed * 1_000_003 + step) * 4099 + world.rank)
-        mine = distributed.shard(batch_indices(step, len(samples), t.batch_size, t.seed), world)
-        batch = [samples[i] for i in mine]
+        everyone = batch_indices(step, len(samples), t.batch_size, t.seed)
+        mine = distributed.shard(list(enumerate(everyone)), world)
+        if t.augment_rotations:
+            batch = [augment.rotate_sample(samples[i], augment.rotation_for(t.seed, step, pos))
+                     for pos, i in mine]
+        else:
+            batch = [samples[i] for _, i in mine]
         fits = [s for s in batch if len(s.cells) <= t.max_cells_per_batch]
         for s in batch:
             if len(s.cells) > t.max_cells_per_batch and s.id not in skipped:
@@ -314,13 +348,16 @@ def _loop(cfg: Config, state: Optional[Dict[str, Any]], samples: Samples, info, 
             sync = p == len(parts) - 1 or not world.distributed
             with (contextlib.nullcontext() if sync else net.no_sync()):
                 with autocast(device):
-                    dec, mean, logvar, structure = net(x, sample=True, teacher_forcing=t.teacher_forcing)
+                    dec, mean, logvar, structure = net(x, sample=True, teacher_forcing=t.teacher_forcing,
+                                                      siblings=t.structure == "siblings")
                     loss, part_terms = vae_loss(dec, logvar, mean, structure, x.feats, cfg.loss)
                 (loss * (weight * world.size)).backward()
             sums += torch.tensor([part_terms[k] for k in LOSS_TERMS], dtype=torch.float64) * weight
         if t.grad_clip > 0:
             torch.nn.utils.clip_grad_norm_(model.parameters(), t.grad_clip)
         opt.step()
+        if ema is not None:
+            ema.update(step)
         terms = dict(zip(LOSS_TERMS, distributed.all_sum(sums, world).tolist()))
         done = step + 1
         if world.main and (done % t.log_every == 0 or done == t.steps):

@@ -16,7 +16,7 @@ import trimesh
 
 import sparc3d_reader as reader
 from sparc3d_vae import infer, train
-from sparc3d_vae.runtime import load_checkpoint
+from sparc3d_vae.runtime import load_checkpoint, model_from_checkpoint
 
 #: A small network (so the test takes seconds on 2 cores) with the default loss and schedule.
 SMALL = """
@@ -85,9 +85,21 @@ def test_encode_decode_extract_gives_closed_manifold_meshes(trained, job32, tmp_
         assert (np.bincount(edges) == 2).all()
 
 
-def test_resumed_run_matches_an_uninterrupted_one(job32, tmp_path):
+#: The training options that add state or randomness: rotations, the EMA, sibling cells and
+#: the finest convolution.
+EXTRAS = """augment_rotations = true
+ema_decay = 0.9
+structure = "siblings"
+"""
+
+
+@pytest.mark.parametrize("extras", ["", EXTRAS], ids=["plain", "rotations-ema-siblings"])
+def test_resumed_run_matches_an_uninterrupted_one(job32, tmp_path, extras):
     config = tmp_path / "small.toml"
-    config.write_text(SMALL.replace("checkpoint_every = 40", "checkpoint_every = 3"))
+    text = SMALL.replace("checkpoint_every = 40", "checkpoint_every = 3") + extras
+    if extras:
+        text = text.replace("heads = 2", "heads = 2\nfinest_conv = 4")
+    config.write_text(text)
     train.train([str(job32)], tmp_path / "straight", config, 6, "cpu", resume=False)
     train.train([str(job32)], tmp_path / "stopped", config, 3, "cpu", resume=False)
     train.train([str(job32)], tmp_path / "stopped", config, 6, "cpu", resume=True)
@@ -96,6 +108,14 @@ def test_resumed_run_matches_an_uninterrupted_one(job32, tmp_path):
     assert a["step"] == b["step"] == 6
     for k, v in a["model"].items():
         assert torch.equal(v, b["model"][k]), k
+    if extras:
+        # The EMA is kept, resumed and is what inference loads.
+        for k, v in a["ema"].items():
+            assert torch.equal(v, b["ema"][k]), k
+        assert any(not torch.equal(a["ema"][k], v) for k, v in a["model"].items())
+        _, model = model_from_checkpoint(a, torch.device("cpu"), "a")
+        for k, v in model.state_dict().items():
+            assert torch.equal(v, a["ema"][k]), k
     assert json.loads((tmp_path / "stopped" / "config.json").read_text())["train"]["steps"] == 6
 
 
