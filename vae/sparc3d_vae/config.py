@@ -92,6 +92,11 @@ class TrainConfig:
     #: Decay of the exponential moving average of the weights that inference uses (0: none;
     #: the decay ramps up as min(decay, (1 + step) / (10 + step))).
     ema_decay: float = 0.0
+    #: Items left out of training: those `sparc3d-vae evaluate --sample hold_out --seed
+    #: hold_out_seed` (and `sparc3d eval --sample`) picks from the same jobs, so that one
+    #: converted job gives a training set and unseen items (0: train on every item).
+    hold_out: int = 0
+    hold_out_seed: int = 0
     #: CPU threads for torch (0: torch's default).
     threads: int = 2
     #: Cells one forward pass may hold; a larger batch is split into parts whose gradients
@@ -154,6 +159,8 @@ class Config:
             raise ConfigError(f"{source}: train.ema_decay = {self.train.ema_decay}, expected 0 ≤ decay < 1")
         if m.finest_conv < 0:
             raise ConfigError(f"{source}: model.finest_conv = {m.finest_conv}, expected ≥ 0")
+        if self.train.hold_out < 0:
+            raise ConfigError(f"{source}: train.hold_out = {self.train.hold_out}, expected ≥ 0")
         if self.train.batch_size < 1 or self.train.steps < 0:
             raise ConfigError(f"{source}: train.batch_size must be ≥ 1 and train.steps ≥ 0")
 

@@ -28,7 +28,7 @@ import sparc3d_reader as reader
 from .data import (Cubes, DataError, Sample, Samples, corners_to_cubes, cubes_row, job_info,
                    make_batch, write_cubes)
 from .runtime import (UsageError, autocast, checkpoint_path, find_sparc3d, load_checkpoint,
-                      model_from_checkpoint, pick_device, run_sparc3d)
+                      memory_guard, model_from_checkpoint, pick_device, run_sparc3d)
 from .sparse import SparseTensor
 
 LATENT_TENSORS = ("coords", "mean", "logvar")
@@ -80,7 +80,9 @@ class Loaded:
     def encode(self, samples: Sequence[Sample]) -> List[Dict[str, np.ndarray]]:
         """Latent mean / logvar of each sample: coords int32 [n, 3], mean, logvar float32 [n, C]."""
         x = make_batch(samples, self.device)
-        with autocast(self.device):
+        what = f"encoding {', '.join(repr(s.id) for s in samples)}"
+        with memory_guard(what, len(x.coords), self.cfg.train.max_cells_per_batch, self.device), \
+                autocast(self.device):
             mean, logvar, _ = self.model.encode(x)
         out = []
         for b in range(len(samples)):
@@ -100,8 +102,10 @@ class Loaded:
         z = SparseTensor.build(torch.from_numpy(coords).to(self.device),
                                torch.from_numpy(feats).to(self.device),
                                level=self.cfg.model.levels(), batch_size=len(latents))
-        with autocast(self.device):
-            dec = self.model.decoder(z, None, max_voxels=self.cfg.train.max_cells_per_batch * 8)
+        limit = self.cfg.train.max_cells_per_batch
+        what = f"decoding {len(latents)} latent(s), at most 8× the budget"
+        with memory_guard(what, 8 * limit, limit, self.device), autocast(self.device):
+            dec = self.model.decoder(z, None, max_voxels=limit * 8)
         return corners_to_cubes(dec.cells, dec.sign_logits, dec.magnitude, dec.delta)
 
 

@@ -3,6 +3,7 @@ binary (its `extract`, `eval` commands)."""
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
@@ -49,6 +50,24 @@ def pick_device(name: str, index: Optional[int] = None) -> torch.device:
     if name == "cpu":
         return torch.device("cpu")
     raise UsageError(f"--device {name!r}: expected cpu, cuda or auto")
+
+
+#: What PyTorch raises when the GPU runs out of memory (torch.OutOfMemoryError since 2.5).
+OutOfMemory = getattr(torch, "OutOfMemoryError", None) or torch.cuda.OutOfMemoryError
+
+
+@contextlib.contextmanager
+def memory_guard(what: str, cells: int, limit: int, device: torch.device):
+    """Turns a GPU out-of-memory error inside the block into a UsageError naming the batch
+    (`what`, its `cells`) and the budget key to lower, instead of a stack trace."""
+    try:
+        yield
+    except OutOfMemory:
+        if device.type == "cuda":
+            torch.cuda.empty_cache()
+        raise UsageError(f"{device} ran out of memory on {what} ({cells} cells; "
+                         f"train.max_cells_per_batch = {limit}): lower train.max_cells_per_batch "
+                         f"(e.g. to {max(1, min(cells, limit) // 2)}) in --config") from None
 
 
 def seed_everything(seed: int) -> None:

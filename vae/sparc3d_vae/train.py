@@ -33,7 +33,8 @@ from .data import DataError, Sample, Samples, job_info, make_batch
 from .loss import vae_loss
 from .model import SparconvVAE
 from .runtime import (CHECKPOINT_NAME, UsageError, autocast, config_diff, digest_ids,
-                      load_checkpoint, pick_device, save_checkpoint, seed_everything)
+                      load_checkpoint, memory_guard, pick_device, save_checkpoint,
+                      seed_everything)
 
 #: The loss terms `vae_loss` returns, in the log's order.
 LOSS_TERMS = ["loss", "occ", "sign", "mag", "delta", "kl"]
@@ -165,7 +166,7 @@ def _rewind_log(path: Path, step: int) -> None:
 #: [train] keys that decide which batches a run sees and how it learns them: a resumed run
 #: must keep them (the others, such as `steps`, `lr` or `checkpoint_every`, may change).
 TRAJECTORY_KEYS = ("batch_size", "seed", "teacher_forcing", "structure", "augment_rotations",
-                   "ema_decay")
+                   "ema_decay", "hold_out", "hold_out_seed")
 
 
 def _placeholder(width: int) -> Sample:
@@ -202,9 +203,11 @@ def _resume_config(state: Dict[str, Any], ckpt_path: Path, config: Optional[Path
 
 
 def train(data: List[str], out: Path, config: Optional[Path], steps: Optional[int],
-          device_name: str, resume: bool, seed: Optional[int] = None) -> Dict[str, Any]:
+          device_name: str, resume: bool, seed: Optional[int] = None,
+          hold_out: Optional[int] = None, hold_out_seed: Optional[int] = None) -> Dict[str, Any]:
     """Trains (or resumes) a run; returns a summary (steps, final loss terms, seconds). Under
-    torchrun every process calls it (see `distributed`); rank 0 writes the run folder."""
+    torchrun every process calls it (see `distributed`); rank 0 writes the run folder.
+    `seed`, `hold_out`, `hold_out_seed` override the config's train keys of those names."""
     out = Path(out)
     try:
         world = distributed.world_from_env()
@@ -222,10 +225,15 @@ def train(data: List[str], out: Path, config: Optional[Path], steps: Optional[in
         cfg = load_config(config)
     if steps is not None:
         cfg.train.steps = steps
-    if seed is not None:
-        if state is not None and seed != cfg.train.seed:
-            raise UsageError(f"--seed {seed}: the run was started with seed {cfg.train.seed}")
-        cfg.train.seed = seed
+    for flag, key, value in (("--seed", "seed", seed), ("--hold-out", "hold_out", hold_out),
+                             ("--hold-out-seed", "hold_out_seed", hold_out_seed)):
+        if value is None:
+            continue
+        if state is not None and value != getattr(cfg.train, key):
+            raise UsageError(f"{flag} {value}: the run was started with train.{key} = "
+                             f"{getattr(cfg.train, key)}")
+        setattr(cfg.train, key, value)
+    cfg.validate()
     if cfg.train.batch_size % world.size:
         raise UsageError(f"train.batch_size = {cfg.train.batch_size} does not divide among "
                          f"{world.size} processes (WORLD_SIZE): use a multiple of {world.size}")
@@ -242,6 +250,15 @@ def train(data: List[str], out: Path, config: Optional[Path], steps: Optional[in
     samples = Samples(info, cache=cfg.train.cache_items)
     if len(samples) == 0:
         raise DataError(f"{', '.join(data)}: no ok items to train on")
+    pool = list(range(len(samples)))
+    if cfg.train.hold_out:
+        from .infer import choose
+
+        held = set(choose(samples.ids, cfg.train.hold_out, cfg.train.hold_out_seed))
+        pool = [i for i, item_id in enumerate(samples.ids) if item_id not in held]
+        if not pool:
+            raise DataError(f"{', '.join(data)}: train.hold_out = {cfg.train.hold_out} leaves "
+                            f"none of its {len(samples)} items to train on")
     ids_digest = digest_ids(samples.ids)
     if world.main and state is not None and state.get("data", {}).get("ids_digest") != ids_digest:
         print(f"warning: the data differs from the checkpoint's ({len(samples)} items now); "
@@ -249,12 +266,13 @@ def train(data: List[str], out: Path, config: Optional[Path], steps: Optional[in
 
     distributed.init(world, device)
     try:
-        return _loop(cfg, state, samples, info, ids_digest, out, ckpt_path, device, world)
+        return _loop(cfg, state, samples, pool, info, ids_digest, out, ckpt_path, device, world)
     finally:
         distributed.shutdown(world)
 
 
-def _loop(cfg: Config, state: Optional[Dict[str, Any]], samples: Samples, info, ids_digest: str,
+def _loop(cfg: Config, state: Optional[Dict[str, Any]], samples: Samples, pool: List[int],
+          info, ids_digest: str,
           out: Path, ckpt_path: Path, device: torch.device,
           world: distributed.World) -> Dict[str, Any]:
     """The optimisation steps of `train` (in the process group when there is one)."""
@@ -308,6 +326,7 @@ def _loop(cfg: Config, state: Optional[Dict[str, Any]], samples: Samples, info, 
     skipped: Dict[str, int] = {}
     terms: Dict[str, float] = {}
     began = time.monotonic()
+    cells_done = 0
     model.train()
     width = 8 + (24 if cfg.model.deformation else 0)
     for step in range(start, t.steps):
@@ -317,7 +336,7 @@ def _loop(cfg: Config, state: Optional[Dict[str, Any]], samples: Samples, info, 
         # The latent noise of a step is a function of (seed, step, rank): a resumed run draws
         # the same noise as an uninterrupted one.
         torch.manual_seed((t.seed * 1_000_003 + step) * 4099 + world.rank)
-        everyone = batch_indices(step, len(samples), t.batch_size, t.seed)
+        everyone = [pool[j] for j in batch_indices(step, len(pool), t.batch_size, t.seed)]
         mine = distributed.shard(list(enumerate(everyone)), world)
         if t.augment_rotations:
             batch = [augment.rotate_sample(samples[i], augment.rotation_for(t.seed, step, pos))
@@ -346,7 +365,9 @@ def _loop(cfg: Config, state: Optional[Dict[str, Any]], samples: Samples, info, 
             x = make_batch(chosen, device)
             weight = len(x.coords) / total_cells if local_cells else 0.0
             sync = p == len(parts) - 1 or not world.distributed
-            with (contextlib.nullcontext() if sync else net.no_sync()):
+            what = f"step {step + 1}, a batch part of {len(chosen)} item(s)"
+            with memory_guard(what, len(x.coords), t.max_cells_per_batch, device), \
+                    (contextlib.nullcontext() if sync else net.no_sync()):
                 with autocast(device):
                     dec, mean, logvar, structure = net(x, sample=True, teacher_forcing=t.teacher_forcing,
                                                       siblings=t.structure == "siblings")
@@ -359,6 +380,7 @@ def _loop(cfg: Config, state: Optional[Dict[str, Any]], samples: Samples, info, 
         if ema is not None:
             ema.update(step)
         terms = dict(zip(LOSS_TERMS, distributed.all_sum(sums, world).tolist()))
+        cells_done += total_cells
         done = step + 1
         if world.main and (done % t.log_every == 0 or done == t.steps):
             row = {**{k: f"{v:.6g}" for k, v in terms.items()}, "step": done, "lr": f"{lr:.6g}",
@@ -383,4 +405,6 @@ def _loop(cfg: Config, state: Optional[Dict[str, Any]], samples: Samples, info, 
     seconds = time.monotonic() - began
     return {"steps": t.steps, "resumed_from": start, "terms": terms, "seconds": seconds,
             "steps_per_second": (t.steps - start) / seconds if seconds > 0 else 0.0,
-            "skipped": skipped, "items": len(samples), "world_size": world.size}
+            "skipped": skipped, "items": len(pool), "world_size": world.size,
+            "peak_gpu_bytes": torch.cuda.max_memory_allocated(device) if device.type == "cuda" else None,
+            "cells_per_second": cells_done / seconds if seconds > 0 else 0.0}
