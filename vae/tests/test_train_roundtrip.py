@@ -138,3 +138,31 @@ def test_deformation_is_read_and_predicted_when_the_job_stores_it(tmp_path, bina
     assert out["faces"] > 0  # (30 steps: not asked to be watertight yet)
     cubes = next(reader.iter_tensor_rows(tmp_path / "cubes.parquet", ["deformation"]))
     assert np.abs(cubes["deformation"]).max() > 0  # the decoded δ reaches the extractor
+
+
+def test_mesh_components_counts_pieces(tmp_path, trained, job32, binary):
+    """`infer.mesh_components` against trimesh's count: on two tetrahedra written in the PLY
+    layout `sparc3d extract` uses, and on the decoded meshes of the trained model."""
+    import struct
+
+    from sparc3d_vae.infer import mesh_components
+
+    # Two tetrahedra, far apart, in the layout sparc3d writes.
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], np.float32)
+    verts = np.concatenate([v, v + 5])
+    tet = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    faces = np.concatenate([tet, tet + 4])
+    head = ("ply\nformat binary_little_endian 1.0\nelement vertex 8\nproperty float x\n"
+            "property float y\nproperty float z\nelement face 8\n"
+            "property list uchar uint vertex_indices\nend_header\n").encode()
+    body = verts.tobytes() + b"".join(struct.pack("<B3I", 3, *f) for f in faces.tolist())
+    (tmp_path / "two.ply").write_bytes(head + body)
+    assert mesh_components(tmp_path / "two.ply") == 2
+    assert len(trimesh.load(tmp_path / "two.ply", process=False).split(only_watertight=False)) == 2
+    run, _, _ = trained
+    summary = infer.evaluate(run, [str(job32)], 2, 0, tmp_path / "eval", "cpu", binary)
+    for row in summary["items"]:
+        for key, name in (("components", "vae"), ("sparcubes_components", "sparcubes")):
+            mesh = tmp_path / "eval" / f"{infer.safe_name(row['id'])}.{name}.ply"
+            assert row[key] == len(trimesh.load(mesh, process=True).split(only_watertight=False))
+    assert "components_within_20pct" in summary["aggregate"]
