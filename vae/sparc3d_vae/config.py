@@ -86,7 +86,7 @@ class TrainConfig:
     #: Which cells the decoder's last level holds while training: "true" (the true cells,
     #: teacher forcing) or "siblings" (every child of the true parents: the cells it may wrongly
     #: add at inference are trained too, where their corners are known vertices).
-    structure: str = "true"
+    structure: str = "siblings"
     #: Rotate each training item by one of the 24 rotations of the cube (exact on the grid).
     augment_rotations: bool = False
     #: Decay of the exponential moving average of the weights that inference uses (0: none;
