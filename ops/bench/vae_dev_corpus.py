@@ -6,7 +6,12 @@ reconstructions of the unseen items and of as many training items against their 
 meshes and sources.
 
     ops/bench/vae_dev_corpus.py --job dev64 --work out/vae-dev --train 128 --unseen 16 \\
-        --minutes 30 --steps-per-second 0.75 [--config vae.toml]
+        --minutes 30 --steps-per-second 0.75 [--config vae.toml] [--run NAME] [--steps S]
+        [--unseen-only]
+
+Several runs may share one WORK folder (`--run NAME`: WORK/NAME/ holds the run, its
+evaluations and its report; the split jobs are converted once). `--steps` fixes the step count
+instead of the time budget (for ablations that compare settings at equal steps).
 
 The step count is minutes × 60 × --steps-per-second (train stops at a step count, and the
 learning-rate schedule depends on it): measure the rate with a short `train` first.
@@ -77,9 +82,12 @@ def main():
     ap.add_argument("--unseen", type=int, default=16)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--minutes", type=float, default=30.0, help="training time budget")
-    ap.add_argument("--steps-per-second", type=float, required=True,
+    ap.add_argument("--steps-per-second", type=float, default=0.5,
                     help="measured rate, to turn the budget into a step count")
     ap.add_argument("--config", type=pathlib.Path)
+    ap.add_argument("--run", default="run", help="name of the run folder under WORK")
+    ap.add_argument("--steps", type=int, help="step count (instead of minutes × rate)")
+    ap.add_argument("--unseen-only", action="store_true", help="evaluate the unseen items only")
     args = ap.parse_args()
     args.work.mkdir(parents=True, exist_ok=True)
     config = json.loads((pathlib.Path(args.job) / "job.json").read_text())["config"]
@@ -90,8 +98,11 @@ def main():
     train_job = make_job(args.job, training, args.work, "train", resolution)
     unseen_job = make_job(args.job, unseen, args.work, "unseen", resolution)
 
-    steps = int(args.minutes * 60 * args.steps_per_second)
-    cmd = vae("train", "--data", train_job, "--out", args.work / "run", "--steps", steps, "--device", "cpu")
+    steps = args.steps or int(args.minutes * 60 * args.steps_per_second)
+    home = args.work if args.run == "run" else args.work / args.run
+    home.mkdir(parents=True, exist_ok=True)
+    run_dir = args.work / "run" if args.run == "run" else home / "run"
+    cmd = vae("train", "--data", train_job, "--out", run_dir, "--steps", steps, "--device", "cpu")
     if args.config:
         cmd += ["--config", args.config]
     began = time.monotonic()
@@ -101,12 +112,13 @@ def main():
     report = {"split": {"train": len(training), "unseen": len(unseen), "seed": args.seed},
               "resolution": resolution, "steps": steps, "train_seconds": seconds,
               "steps_per_second": steps / seconds, "train_peak_rss_bytes": peak}
-    for name, job, n in (("unseen", unseen_job, len(unseen)), ("train", train_job, len(unseen))):
-        out = args.work / f"eval-{name}"
-        run(vae("evaluate", "--ckpt", args.work / "run", "--data", job, "--sample", n,
+    evals = (("unseen", unseen_job, len(unseen)), ("train", train_job, len(unseen)))
+    for name, job, n in evals[:1] if args.unseen_only else evals:
+        out = home / f"eval-{name}"
+        run(vae("evaluate", "--ckpt", run_dir, "--data", job, "--sample", n,
                 "--out", out, "--device", "cpu"), stdout=subprocess.DEVNULL)
         report[f"eval_{name}"] = json.loads((out / "summary.json").read_text())["aggregate"]
-    (args.work / "report.json").write_text(json.dumps(report, indent=2) + "\n")
+    (home / "report.json").write_text(json.dumps(report, indent=2) + "\n")
     print(json.dumps(report, indent=2))
 
 

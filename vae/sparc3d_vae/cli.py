@@ -47,7 +47,9 @@ def parser() -> argparse.ArgumentParser:
                        "jobs. Writes RUN/config.json, RUN/loss.csv, RUN/tensorboard/ (when "
                        "TensorBoard is installed) and RUN/checkpoint.pt every "
                        "train.checkpoint_every steps. bf16 autocast on CUDA; on CPU a run with "
-                       "the same seed gives the same weights, also across --resume.")
+                       "the same seed gives the same weights, also across --resume. Several "
+                       "processes: `torchrun --nproc_per_node N -m sparc3d_vae train ...` "
+                       "(train.batch_size is the global batch, a multiple of N).")
     p.add_argument("--data", nargs="+", required=True, metavar="JOB",
                    help="job folders (or shard files) to train on")
     p.add_argument("--config", type=Path, metavar="vae.toml",
@@ -57,6 +59,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, help="seed (default: train.seed)")
     p.add_argument("--resume", action="store_true",
                    help="continue the run in RUN from its last checkpoint")
+    p.add_argument("--hold-out", type=int, metavar="N",
+                   help="leave out the N items `evaluate --sample N --seed S` picks (train.hold_out)")
+    p.add_argument("--hold-out-seed", type=int, metavar="S", help="their seed (train.hold_out_seed)")
     _device(p)
 
     p = sub.add_parser("encode", help="write the latents of a job's items as Parquet shards",
@@ -123,7 +128,9 @@ def main(argv: Optional[List[str]] = None) -> int:
     try:
         return _run(args)
     except (ConfigError, DataError, UsageError, TooManyVoxels) as e:
-        print(f"error: {e}", file=sys.stderr)
+        # Under torchrun every process meets the same bad input: rank 0 says it once.
+        if os.environ.get("RANK", "0") in ("", "0"):
+            print(f"error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
@@ -135,12 +142,17 @@ def _run(args: argparse.Namespace) -> int:
 
     if args.command == "train":
         summary = train.train(args.data, args.out, args.config, args.steps, args.device,
-                              args.resume, args.seed)
+                              args.resume, args.seed, args.hold_out, args.hold_out_seed)
+        if os.environ.get("RANK", "0") not in ("", "0"):
+            return 0
         t = summary["terms"]
         print(f"trained {summary['steps']} steps (from {summary['resumed_from']}) on "
               f"{summary['items']} items in {summary['seconds']:.0f} s "
               f"({summary['steps_per_second']:.2f} steps/s); last loss "
               f"{t.get('loss', float('nan')):.4f}; checkpoint {args.out / 'checkpoint.pt'}")
+        peak = summary["peak_gpu_bytes"]
+        print(f"{summary['cells_per_second']:.0f} cells/s on {summary['world_size']} process(es)"
+              + (f"; peak GPU memory {peak / 2**30:.2f} GiB (rank 0)" if peak is not None else ""))
     elif args.command == "encode":
         s = infer.encode(args.ckpt, args.data, args.out, args.device)
         print(f"{s['items']} items encoded into {s['shards']} shard(s) in {args.out}; "

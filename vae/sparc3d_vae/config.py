@@ -43,6 +43,10 @@ class ModelConfig:
     attention_blocks: int = 1
     #: Heads of the local attention.
     heads: int = 4
+    #: Channels of the 3×3×3 submanifold convolution at full resolution in the decoder, just
+    #: before the heads (0: none, each cell's corner values then come from its parent's
+    #: feature through the subdivision alone).
+    finest_conv: int = 0
     #: Whether the model reads and predicts the deformation δ (set from the job's config).
     deformation: bool = True
 
@@ -79,6 +83,20 @@ class TrainConfig:
     seed: int = 0
     #: Decoder keeps the true children during training (teacher forcing); false: its own.
     teacher_forcing: bool = True
+    #: Which cells the decoder's last level holds while training: "true" (the true cells,
+    #: teacher forcing) or "siblings" (every child of the true parents: the cells it may wrongly
+    #: add at inference are trained too, where their corners are known vertices).
+    structure: str = "siblings"
+    #: Rotate each training item by one of the 24 rotations of the cube (exact on the grid).
+    augment_rotations: bool = False
+    #: Decay of the exponential moving average of the weights that inference uses (0: none;
+    #: the decay ramps up as min(decay, (1 + step) / (10 + step))).
+    ema_decay: float = 0.0
+    #: Items left out of training: those `sparc3d-vae evaluate --sample hold_out --seed
+    #: hold_out_seed` (and `sparc3d eval --sample`) picks from the same jobs, so that one
+    #: converted job gives a training set and unseen items (0: train on every item).
+    hold_out: int = 0
+    hold_out_seed: int = 0
     #: CPU threads for torch (0: torch's default).
     threads: int = 2
     #: Cells one forward pass may hold; a larger batch is split into parts whose gradients
@@ -134,11 +152,28 @@ class Config:
         if m.channels[-1] % m.heads:
             raise ConfigError(f"{source}: model.channels[-1] = {m.channels[-1]} does not split "
                               f"into model.heads = {m.heads}")
+        if self.train.structure not in STRUCTURES:
+            raise ConfigError(f"{source}: train.structure = {self.train.structure!r}, expected "
+                              f"one of {', '.join(map(repr, STRUCTURES))}")
+        if not 0.0 <= self.train.ema_decay < 1.0:
+            raise ConfigError(f"{source}: train.ema_decay = {self.train.ema_decay}, expected 0 ≤ decay < 1")
+        if m.finest_conv < 0:
+            raise ConfigError(f"{source}: model.finest_conv = {m.finest_conv}, expected ≥ 0")
+        if self.train.hold_out < 0:
+            raise ConfigError(f"{source}: train.hold_out = {self.train.hold_out}, expected ≥ 0")
         if self.train.batch_size < 1 or self.train.steps < 0:
             raise ConfigError(f"{source}: train.batch_size must be ≥ 1 and train.steps ≥ 0")
 
 
+#: Values of `train.structure`.
+STRUCTURES = ("true", "siblings")
+
+
 def _typed(value: Any, default: Any, where: str) -> Any:
+    if isinstance(default, str):
+        if not isinstance(value, str):
+            raise ConfigError(f"{where} = {value!r}: expected a string")
+        return value
     if isinstance(default, bool):
         if not isinstance(value, bool):
             raise ConfigError(f"{where} = {value!r}: expected true or false")

@@ -28,7 +28,7 @@ import sparc3d_reader as reader
 from .data import (Cubes, DataError, Sample, Samples, corners_to_cubes, cubes_row, job_info,
                    make_batch, write_cubes)
 from .runtime import (UsageError, autocast, checkpoint_path, find_sparc3d, load_checkpoint,
-                      model_from_checkpoint, pick_device, run_sparc3d)
+                      memory_guard, model_from_checkpoint, pick_device, run_sparc3d)
 from .sparse import SparseTensor
 
 LATENT_TENSORS = ("coords", "mean", "logvar")
@@ -80,7 +80,9 @@ class Loaded:
     def encode(self, samples: Sequence[Sample]) -> List[Dict[str, np.ndarray]]:
         """Latent mean / logvar of each sample: coords int32 [n, 3], mean, logvar float32 [n, C]."""
         x = make_batch(samples, self.device)
-        with autocast(self.device):
+        what = f"encoding {', '.join(repr(s.id) for s in samples)}"
+        with memory_guard(what, len(x.coords), self.cfg.train.max_cells_per_batch, self.device), \
+                autocast(self.device):
             mean, logvar, _ = self.model.encode(x)
         out = []
         for b in range(len(samples)):
@@ -100,8 +102,10 @@ class Loaded:
         z = SparseTensor.build(torch.from_numpy(coords).to(self.device),
                                torch.from_numpy(feats).to(self.device),
                                level=self.cfg.model.levels(), batch_size=len(latents))
-        with autocast(self.device):
-            dec = self.model.decoder(z, None, max_voxels=self.cfg.train.max_cells_per_batch * 8)
+        limit = self.cfg.train.max_cells_per_batch
+        what = f"decoding {len(latents)} latent(s), at most 8× the budget"
+        with memory_guard(what, 8 * limit, limit, self.device), autocast(self.device):
+            dec = self.model.decoder(z, None, max_voxels=limit * 8)
         return corners_to_cubes(dec.cells, dec.sign_logits, dec.magnitude, dec.delta)
 
 
@@ -166,6 +170,50 @@ def extract(binary: str, cubes_file: Path, item_id: str, out: Path, fill_holes: 
     if fill_holes:
         args.append("--fill-holes")
     return run_sparc3d(binary, *args)
+
+
+def mesh_components(path: Path) -> int:
+    """Connected pieces (faces sharing vertices) of a triangle mesh as `sparc3d extract` writes
+    it: binary little-endian PLY, float x y z per vertex, `list uchar uint` triangles."""
+    data = Path(path).read_bytes()
+    end = data.find(b"end_header\n")
+    if end < 0:
+        raise UsageError(f"{path}: not a PLY file")
+    end += len(b"end_header\n")
+    header = data[:end].decode("ascii", "replace").split("\n")
+    counts = {w[1]: int(w[2]) for w in (l.split() for l in header) if len(w) == 3 and w[0] == "element"}
+    props = [l for l in header if l.startswith("property")]
+    expected = ["property float x", "property float y", "property float z",
+                "property list uchar uint vertex_indices"]
+    if "format binary_little_endian 1.0" not in header or props != expected:
+        raise UsageError(f"{path}: not a PLY as sparc3d writes it (binary, float xyz, uint faces)")
+    nv, nf = counts.get("vertex", 0), counts.get("face", 0)
+    tri = np.frombuffer(data, np.dtype([("n", "u1"), ("v", "<u4", (3,))]), count=nf, offset=end + 12 * nv)
+    if nf and not (tri["n"] == 3).all():
+        raise UsageError(f"{path}: a face that is not a triangle")
+    f = tri["v"].astype(np.int64)
+    if nf == 0:
+        return 0
+    # Label propagation with pointer jumping: every vertex ends with the smallest index of
+    # its piece.
+    label = np.arange(nv, dtype=np.int64)
+    a = np.concatenate([f[:, 0], f[:, 1]])
+    b = np.concatenate([f[:, 1], f[:, 2]])
+    while True:
+        la, lb = label[a], label[b]
+        low = np.minimum(la, lb)
+        new = label.copy()
+        np.minimum.at(new, la, low)
+        np.minimum.at(new, lb, low)
+        while True:
+            jumped = new[new]
+            if np.array_equal(jumped, new):
+                break
+            new = jumped
+        if np.array_equal(new, label):
+            break
+        label = new
+    return int(len(np.unique(label[np.unique(f)])))
 
 
 def _check_latents(rows: List[Dict[str, Any]], loaded: Loaded, source: str) -> None:
@@ -314,6 +362,8 @@ def evaluate(ckpt: Path, data: Sequence[str], sample: int, seed: int, out: Path,
         ref = out / f"{safe_name(s.id)}.sparcubes.ply"
         run_sparc3d(binary, "extract", shard, "--id", s.id, "-o", ref)
         row["vs_sparcubes"] = _metrics(run_sparc3d(binary, "eval", ref, mesh, "--resolution", res))
+        row["components"] = mesh_components(mesh)
+        row["sparcubes_components"] = mesh_components(ref)
         src = Path(s.meta["uri"])
         if src.is_file():
             # The VAE's output and, as the floor it cannot beat, the Sparcubes mesh itself.
@@ -347,6 +397,14 @@ def _aggregate(rows: List[Dict[str, Any]]) -> Dict[str, Any]:
     agg["watertight_after_fill"] = sum(r["watertight"] for r in rows) / n
     agg["latent_voxels_mean"] = _mean([r["latent_voxels"] for r in rows])
     agg["latent_floats_mean"] = _mean([r["latent_floats"] for r in rows])
+    pieces = [r for r in rows if "components" in r]
+    if pieces:
+        # The issue's bar: the output's pieces within ±20 % of the Sparcubes mesh's.
+        agg["components_median"] = _median([r["components"] for r in pieces])
+        agg["sparcubes_components_median"] = _median([r["sparcubes_components"] for r in pieces])
+        agg["components_within_20pct"] = sum(
+            abs(r["components"] - r["sparcubes_components"]) <= 0.2 * r["sparcubes_components"]
+            for r in pieces) / len(pieces)
     for against in ("vs_sparcubes", "vs_source", "sparcubes_vs_source"):
         have = [r[against] for r in rows if against in r]
         if not have:
@@ -365,7 +423,12 @@ def _markdown(summary: Dict[str, Any]) -> str:
         lines += [f"- watertight before hole filling: {100 * agg['watertight_before_fill']:.0f}%, "
                   f"after: {100 * agg['watertight_after_fill']:.0f}%"
                   + (f" ({agg['failed']} items failed, counted as not watertight)" if agg["failed"] else ""),
-                  f"- latent: {agg['latent_voxels_mean']:.1f} voxels, {agg['latent_floats_mean']:.0f} floats per shape (mean)", ""]
+                  f"- latent: {agg['latent_voxels_mean']:.1f} voxels, {agg['latent_floats_mean']:.0f} floats per shape (mean)"]
+        if "components_median" in agg:
+            lines.append(f"- pieces: median {agg['components_median']:g} (Sparcubes meshes: "
+                         f"{agg['sparcubes_components_median']:g}); within ±20 % of the "
+                         f"Sparcubes mesh's: {100 * agg['components_within_20pct']:.0f}% of items")
+        lines.append("")
         titles = {"vs_sparcubes": "VAE output against the item's Sparcubes mesh",
                   "vs_source": "VAE output against the source mesh",
                   "sparcubes_vs_source": "Sparcubes mesh against the source mesh (the floor)"}

@@ -77,6 +77,26 @@ class AttentionBlock(nn.Module):
         return x.replace(f + self.mlp(self.norm2(f)))
 
 
+class FineConv(nn.Module):
+    """x + W·SiLU(conv(SiLU(LN(x)))): one 3×3×3 submanifold convolution at full resolution,
+    C → `width` channels (narrower than C to keep the costliest level cheap), projected back
+    by W, which starts at zero. Every peer decoder convolves at full resolution (TRELLIS'
+    sparse structured-latent decoders end in residual conv blocks at the output resolution);
+    without it a cell's corner values are a function of its parent's feature alone."""
+
+    def __init__(self, channels: int, width: int):
+        super().__init__()
+        self.norm = nn.LayerNorm(channels)
+        self.conv = SubmConv3d(channels, width)
+        self.out = nn.Linear(width, channels)
+        nn.init.zeros_(self.out.weight)
+        nn.init.zeros_(self.out.bias)
+
+    def forward(self, x: SparseTensor) -> SparseTensor:
+        h = self.conv(x.replace(F.silu(self.norm(x.feats))))
+        return x.replace(x.feats + self.out(F.silu(h.feats)))
+
+
 class Down(nn.Module):
     """LN → SiLU → 2×2×2 stride-2 sparse convolution, one level up."""
 
@@ -166,14 +186,17 @@ class Decoder(nn.Module):
         self.bottom = nn.Sequential(*[ResBlock(ch[-1]) for _ in range(cfg.blocks[-1])],
                                     *[AttentionBlock(ch[-1], cfg.heads) for _ in range(cfg.attention_blocks)])
         self.ups = nn.ModuleList(Up(ch[l + 1], ch[l], cfg.blocks[l]) for l in reversed(range(cfg.levels())))
+        self.fine = FineConv(ch[0], cfg.finest_conv) if cfg.finest_conv else None
         self.norm = nn.LayerNorm(ch[0])
         self.head = nn.Sequential(nn.Linear(ch[0], ch[0]), nn.SiLU(),
                                   nn.Linear(ch[0], 8 + 8 + (24 if cfg.deformation else 0)))
 
     def forward(self, z: SparseTensor, targets: Optional[List[SparseTensor]] = None,
-                max_voxels: Optional[int] = None) -> Decoded:
+                max_voxels: Optional[int] = None, siblings: bool = False) -> Decoded:
         """`targets`: the encoder's structure per level (teacher forcing), or None to keep the
-        children predicted occupied (logit > 0). `max_voxels` bounds any predicted level."""
+        children predicted occupied (logit > 0). `max_voxels` bounds any predicted level.
+        `siblings` (with `targets`): the last level holds every child of the true parents,
+        not only the true cells (`train.structure = "siblings"`)."""
         h = self.bottom(z.replace(self.proj(z.feats)))
         parents, logits = [], []
         for i, up in enumerate(self.ups):
@@ -181,10 +204,11 @@ class Decoder(nn.Module):
             occ = up.occupancy(h)
             parents.append(h)
             logits.append(occ)
-            if targets is not None:
+            if targets is not None and not (siblings and level == 0):
                 child = targets[level]
             else:
-                coords = expand_children(h, occ > 0)
+                keep = occ > 0 if targets is None else torch.ones_like(occ, dtype=torch.bool)
+                coords = expand_children(h, keep)
                 if max_voxels is not None and len(coords) > max_voxels:
                     raise TooManyVoxels(
                         f"the decoder predicted {len(coords)} voxels at level {level} "
@@ -192,6 +216,8 @@ class Decoder(nn.Module):
                 child = SparseTensor(coords, coords.new_zeros(len(coords), 0, dtype=torch.float32),
                                      level, h.batch_size)
             h = up(h, child)
+        if self.fine is not None:
+            h = self.fine(h)
         out = self.head(self.norm(h.feats)).float()
         delta = None
         if self.cfg.deformation:
@@ -212,12 +238,14 @@ class SparconvVAE(nn.Module):
         """(mean as a sparse tensor on the latent grid, logvar [M, C], structure per level)."""
         return self.encoder(x)
 
-    def forward(self, x: SparseTensor, sample: bool = True, teacher_forcing: bool = True):
-        """Encodes, samples the latent (or takes the mean), decodes. Returns
-        (decoded, mean, logvar, structure)."""
+    def forward(self, x: SparseTensor, sample: bool = True, teacher_forcing: bool = True,
+                siblings: bool = False):
+        """Encodes, samples the latent (or takes the mean), decodes (see `Decoder.forward` for
+        `siblings`). Returns (decoded, mean, logvar, structure)."""
         mean, logvar, structure = self.encoder(x)
         z = mean.feats
         if sample:
             z = z + torch.exp(0.5 * logvar) * torch.randn_like(z)
-        dec = self.decoder(mean.replace(z), structure if teacher_forcing else None)
+        dec = self.decoder(mean.replace(z), structure if teacher_forcing else None,
+                           siblings=siblings)
         return dec, mean, logvar, structure

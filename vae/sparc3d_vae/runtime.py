@@ -3,6 +3,7 @@ binary (its `extract`, `eval` commands)."""
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
@@ -28,10 +29,17 @@ class UsageError(RuntimeError):
     """Something the user asked for that cannot be done; the message says what and why."""
 
 
-def pick_device(name: str) -> torch.device:
-    """`auto`: CUDA when torch sees a GPU, else CPU. `cuda` without a usable GPU is refused."""
+def pick_device(name: str, index: Optional[int] = None) -> torch.device:
+    """`auto`: CUDA when torch sees a GPU, else CPU. `cuda` without a usable GPU is refused.
+    `index`: the GPU of this process when several train together (torchrun's LOCAL_RANK)."""
     if name == "auto":
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+        name = "cuda" if torch.cuda.is_available() else "cpu"
+    if name == "cuda" and index is not None and torch.cuda.is_available():
+        if index >= torch.cuda.device_count():
+            raise UsageError(f"LOCAL_RANK={index}, but torch sees {torch.cuda.device_count()} "
+                             "CUDA device(s): start at most that many processes per machine")
+        torch.cuda.set_device(index)
+        return torch.device("cuda", index)
     if name == "cuda":
         if not torch.cuda.is_available():
             built = torch.version.cuda
@@ -42,6 +50,24 @@ def pick_device(name: str) -> torch.device:
     if name == "cpu":
         return torch.device("cpu")
     raise UsageError(f"--device {name!r}: expected cpu, cuda or auto")
+
+
+#: What PyTorch raises when the GPU runs out of memory (torch.OutOfMemoryError since 2.5).
+OutOfMemory = getattr(torch, "OutOfMemoryError", None) or torch.cuda.OutOfMemoryError
+
+
+@contextlib.contextmanager
+def memory_guard(what: str, cells: int, limit: int, device: torch.device):
+    """Turns a GPU out-of-memory error inside the block into a UsageError naming the batch
+    (`what`, its `cells`) and the budget key to lower, instead of a stack trace."""
+    try:
+        yield
+    except OutOfMemory:
+        if device.type == "cuda":
+            torch.cuda.empty_cache()
+        raise UsageError(f"{device} ran out of memory on {what} ({cells} cells; "
+                         f"train.max_cells_per_batch = {limit}): lower train.max_cells_per_batch "
+                         f"(e.g. to {max(1, min(cells, limit) // 2)}) in --config") from None
 
 
 def seed_everything(seed: int) -> None:
@@ -98,14 +124,15 @@ def load_checkpoint(path: Path) -> Dict[str, Any]:
 
 
 def model_from_checkpoint(state: Dict[str, Any], device: torch.device, source: str):
-    """(config, model in eval mode) from a loaded checkpoint."""
+    """(config, model in eval mode) from a loaded checkpoint: its EMA weights when it has them."""
     try:
         cfg = Config.from_dict(state["config"], f"{source} (its config)")
     except ConfigError as e:
         raise UsageError(str(e)) from None
     model = SparconvVAE(cfg.model)
     try:
-        model.load_state_dict(state["model"])
+        # The moving average of the weights when the run kept one (train.ema_decay).
+        model.load_state_dict(state.get("ema") or state["model"])
     except RuntimeError as e:
         first = str(e).splitlines()[0] if str(e) else "mismatch"
         raise UsageError(f"{source}: its weights do not fit its own config ({first}); written "

@@ -3,40 +3,63 @@
 The run folder holds `config.json` (the settings in force), `loss.csv` (one row per logged
 step), `tensorboard/` (when TensorBoard is installed) and `checkpoint.pt` (model, optimizer,
 step, RNG state), written every `train.checkpoint_every` steps and at the end. `--resume`
-continues from the checkpoint: the batches are a pure function of (seed, step) and the RNG
-state is restored, so on CPU a resumed run ends with the same weights as one never stopped.
+continues from the checkpoint: the batches and the latent noise are pure functions of (seed,
+step, rank), so on CPU a resumed run ends with the same weights as one never stopped.
+
+Several processes (`torchrun --nproc_per_node N -m sparc3d_vae train ...`) share each global
+batch; `distributed` says how.
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import functools
 import json
 import math
 import sys
 import time
 from pathlib import Path
-from typing import Any, Dict, List, Optional
+from typing import Any, Dict, List, Optional, Tuple
+
+import numpy as np
 
 import torch
+from torch.nn.parallel import DistributedDataParallel
 
+from . import augment, distributed
 from .config import Config, load_config
-from .data import DataError, Samples, job_info, make_batch
+from .data import DataError, Sample, Samples, job_info, make_batch
 from .loss import vae_loss
 from .model import SparconvVAE
 from .runtime import (CHECKPOINT_NAME, UsageError, autocast, config_diff, digest_ids,
-                      load_checkpoint, pick_device, save_checkpoint, seed_everything)
+                      load_checkpoint, memory_guard, pick_device, save_checkpoint,
+                      seed_everything)
 
-LOG_FIELDS = ["step", "loss", "occ", "sign", "mag", "delta", "kl", "lr", "cells", "seconds"]
+#: The loss terms `vae_loss` returns, in the log's order.
+LOSS_TERMS = ["loss", "occ", "sign", "mag", "delta", "kl"]
+LOG_FIELDS = ["step", *LOSS_TERMS, "lr", "cells", "seconds"]
+
+
+@functools.lru_cache(maxsize=4)
+def _epoch_order(seed: int, epoch: int, n: int) -> Tuple[int, ...]:
+    g = torch.Generator().manual_seed(seed * 1_000_003 + epoch)
+    return tuple(torch.randperm(n, generator=g).tolist())
 
 
 def batch_indices(step: int, n: int, batch_size: int, seed: int) -> List[int]:
-    """Items of a step: each epoch is a permutation of the items seeded by (seed, epoch), cut
-    into batches of `batch_size` (the last one of an epoch may be smaller)."""
-    per_epoch = math.ceil(n / batch_size)
-    epoch, j = divmod(step, per_epoch)
-    g = torch.Generator().manual_seed(seed * 1_000_003 + epoch)
-    perm = torch.randperm(n, generator=g).tolist()
-    return perm[j * batch_size:(j + 1) * batch_size]
+    """Items of a step's global batch. The items form an endless stream, one permutation per
+    epoch seeded by (seed, epoch); step s takes positions s·B .. s·B + B − 1 of it, so every
+    batch is full (an epoch's tail continues into the next one) and can be cut into equal
+    shares for the ranks."""
+    out: List[int] = []
+    pos = step * batch_size
+    while len(out) < batch_size:
+        epoch, j = divmod(pos, n)
+        take = min(batch_size - len(out), n - j)
+        out += _epoch_order(seed, epoch, n)[j:j + take]
+        pos += take
+    return out
 
 
 def learning_rate(step: int, cfg: Config) -> float:
@@ -96,6 +119,30 @@ class Progress:
             sys.stderr.write("\n")
 
 
+class EMA:
+    """Exponential moving average of the weights (float32), what inference loads when the
+    checkpoint holds it: w̄ ← d·w̄ + (1 − d)·w after every step, with d = min(decay,
+    (1 + step) / (10 + step)) so early weights fade fast (the warm-up of TensorFlow's
+    `ExponentialMovingAverage(num_updates=...)`). TRELLIS evaluates its VAEs with an EMA too."""
+
+    def __init__(self, model: torch.nn.Module, decay: float):
+        self.model = model
+        self.decay = decay
+        self.shadow = {k: v.detach().float().clone() for k, v in model.state_dict().items()}
+
+    @torch.no_grad()
+    def update(self, step: int) -> None:
+        d = min(self.decay, (1 + step) / (10 + step))
+        for k, v in self.model.state_dict().items():
+            self.shadow[k].mul_(d).add_(v.detach().float(), alpha=1 - d)
+
+    def state_dict(self) -> Dict[str, torch.Tensor]:
+        return {k: v.clone() for k, v in self.shadow.items()}
+
+    def load(self, state: Dict[str, torch.Tensor]) -> None:
+        self.shadow = {k: v.detach().float().clone().to(self.shadow[k].device) for k, v in state.items()}
+
+
 def _tensorboard(out: Path):
     try:
         from torch.utils.tensorboard import SummaryWriter
@@ -116,23 +163,61 @@ def _rewind_log(path: Path, step: int) -> None:
         w.writerows(rows)
 
 
+#: [train] keys that decide which batches a run sees and how it learns them: a resumed run
+#: must keep them (the others, such as `steps`, `lr` or `checkpoint_every`, may change).
+TRAJECTORY_KEYS = ("batch_size", "seed", "teacher_forcing", "structure", "augment_rotations",
+                   "ema_decay", "hold_out", "hold_out_seed")
+
+
+def _placeholder(width: int) -> Sample:
+    """One cell with zero features: what a rank trains on (with weight 0) when every item of
+    its share is over the cell budget, so that it still joins the gradient average."""
+    return Sample("", {}, np.zeros((1, 3), np.int32), np.zeros((1, width), np.float32))
+
+
+def _resume_config(state: Dict[str, Any], ckpt_path: Path, config: Optional[Path],
+                   world: distributed.World) -> Config:
+    """The config of a resumed run: the checkpoint's, with [loss] and [train] from `config`
+    when given. Refused, naming the keys: another [model], another value of a
+    `TRAJECTORY_KEYS` key, another world size."""
+    cfg = Config.from_dict(state["config"], str(ckpt_path))
+    trained_world = int(state.get("world_size", 1))
+    if trained_world != world.size:
+        raise UsageError(f"{ckpt_path}: trained with world size {trained_world}, resumed with "
+                         f"{world.size} (WORLD_SIZE; torchrun --nproc_per_node): the batches "
+                         "would differ; resume with the same number of processes")
+    if config is None:
+        return cfg
+    asked = load_config(config)
+    asked.model.deformation = cfg.model.deformation
+    diff = config_diff(cfg.to_dict()["model"], asked.to_dict()["model"], "model.")
+    old_t, new_t = cfg.to_dict()["train"], asked.to_dict()["train"]
+    diff += config_diff({k: old_t[k] for k in TRAJECTORY_KEYS},
+                        {k: new_t[k] for k in TRAJECTORY_KEYS}, "train.")
+    if diff:
+        raise UsageError(f"{config}: differs from the checkpoint {ckpt_path} in "
+                         f"{'; '.join(diff)} ([model] differs or the batches would); start a new "
+                         "run with another --out")
+    cfg.loss, cfg.train = asked.loss, asked.train
+    return cfg
+
+
 def train(data: List[str], out: Path, config: Optional[Path], steps: Optional[int],
-          device_name: str, resume: bool, seed: Optional[int] = None) -> Dict[str, Any]:
-    """Trains (or resumes) a run; returns a summary (steps, final loss terms, seconds)."""
+          device_name: str, resume: bool, seed: Optional[int] = None,
+          hold_out: Optional[int] = None, hold_out_seed: Optional[int] = None) -> Dict[str, Any]:
+    """Trains (or resumes) a run; returns a summary (steps, final loss terms, seconds). Under
+    torchrun every process calls it (see `distributed`); rank 0 writes the run folder.
+    `seed`, `hold_out`, `hold_out_seed` override the config's train keys of those names."""
     out = Path(out)
+    try:
+        world = distributed.world_from_env()
+    except ValueError as e:
+        raise UsageError(str(e)) from None
     ckpt_path = out / CHECKPOINT_NAME
     state = None
     if resume:
         state = load_checkpoint(ckpt_path)
-        cfg = Config.from_dict(state["config"], str(ckpt_path))
-        if config is not None:
-            asked = load_config(config)
-            asked.model.deformation = cfg.model.deformation
-            diff = config_diff(cfg.to_dict()["model"], asked.to_dict()["model"], "model.")
-            if diff:
-                raise UsageError(f"{config}: its [model] differs from the checkpoint's "
-                                 f"({'; '.join(diff)}); start a new run with another --out")
-            cfg.loss, cfg.train = asked.loss, asked.train
+        cfg = _resume_config(state, ckpt_path, config, world)
     else:
         if ckpt_path.exists():
             raise UsageError(f"{out} already holds a checkpoint: pass --resume to continue it, "
@@ -140,11 +225,19 @@ def train(data: List[str], out: Path, config: Optional[Path], steps: Optional[in
         cfg = load_config(config)
     if steps is not None:
         cfg.train.steps = steps
-    if seed is not None:
-        if state is not None and seed != cfg.train.seed:
-            raise UsageError(f"--seed {seed}: the run was started with seed {cfg.train.seed}")
-        cfg.train.seed = seed
-    device = pick_device(device_name)
+    for flag, key, value in (("--seed", "seed", seed), ("--hold-out", "hold_out", hold_out),
+                             ("--hold-out-seed", "hold_out_seed", hold_out_seed)):
+        if value is None:
+            continue
+        if state is not None and value != getattr(cfg.train, key):
+            raise UsageError(f"{flag} {value}: the run was started with train.{key} = "
+                             f"{getattr(cfg.train, key)}")
+        setattr(cfg.train, key, value)
+    cfg.validate()
+    if cfg.train.batch_size % world.size:
+        raise UsageError(f"train.batch_size = {cfg.train.batch_size} does not divide among "
+                         f"{world.size} processes (WORLD_SIZE): use a multiple of {world.size}")
+    device = pick_device(device_name, world.local_rank if world.distributed else None)
     if cfg.train.threads > 0:
         torch.set_num_threads(cfg.train.threads)
 
@@ -157,55 +250,99 @@ def train(data: List[str], out: Path, config: Optional[Path], steps: Optional[in
     samples = Samples(info, cache=cfg.train.cache_items)
     if len(samples) == 0:
         raise DataError(f"{', '.join(data)}: no ok items to train on")
+    pool = list(range(len(samples)))
+    if cfg.train.hold_out:
+        from .infer import choose
+
+        held = set(choose(samples.ids, cfg.train.hold_out, cfg.train.hold_out_seed))
+        pool = [i for i, item_id in enumerate(samples.ids) if item_id not in held]
+        if not pool:
+            raise DataError(f"{', '.join(data)}: train.hold_out = {cfg.train.hold_out} leaves "
+                            f"none of its {len(samples)} items to train on")
     ids_digest = digest_ids(samples.ids)
-    if state is not None and state.get("data", {}).get("ids_digest") != ids_digest:
+    if world.main and state is not None and state.get("data", {}).get("ids_digest") != ids_digest:
         print(f"warning: the data differs from the checkpoint's ({len(samples)} items now); "
               "the resumed run will not repeat the original one", file=sys.stderr)
 
+    distributed.init(world, device)
+    try:
+        return _loop(cfg, state, samples, pool, info, ids_digest, out, ckpt_path, device, world)
+    finally:
+        distributed.shutdown(world)
+
+
+def _loop(cfg: Config, state: Optional[Dict[str, Any]], samples: Samples, pool: List[int],
+          info, ids_digest: str,
+          out: Path, ckpt_path: Path, device: torch.device,
+          world: distributed.World) -> Dict[str, Any]:
+    """The optimisation steps of `train` (in the process group when there is one)."""
     seed_everything(cfg.train.seed)
     model = SparconvVAE(cfg.model).to(device)
     opt = torch.optim.AdamW(model.parameters(), lr=cfg.train.lr, weight_decay=cfg.train.weight_decay)
+    ema = EMA(model, cfg.train.ema_decay) if cfg.train.ema_decay > 0 else None
     start = 0
     if state is not None:
         model.load_state_dict(state["model"])
         opt.load_state_dict(state["optimizer"])
         start = int(state["step"])
-        torch.set_rng_state(state["rng"]["torch"])
-        if device.type == "cuda" and state["rng"].get("cuda") is not None:
-            torch.cuda.set_rng_state(state["rng"]["cuda"])
+        if ema is not None:
+            ema.load(state.get("ema") or model.state_dict())
+    # Every rank starts from the same weights (same seed); DDP checks the shapes and
+    # broadcasts rank 0's weights once more.
+    net = DistributedDataParallel(model) if world.distributed else model
 
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "config.json").write_text(json.dumps(cfg.to_dict(), indent=2) + "\n")
-    log_path = out / "loss.csv"
-    if state is not None:
-        _rewind_log(log_path, start)
-    new_log = not log_path.exists()
-    log_file = open(log_path, "a", newline="")
-    log = csv.DictWriter(log_file, LOG_FIELDS)
-    if new_log:
-        log.writeheader()
-    tb = _tensorboard(out)
+    log = log_file = tb = None
+    if world.main:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "config.json").write_text(json.dumps(cfg.to_dict(), indent=2) + "\n")
+        log_path = out / "loss.csv"
+        if state is not None:
+            _rewind_log(log_path, start)
+        new_log = not log_path.exists()
+        log_file = open(log_path, "a", newline="")
+        log = csv.DictWriter(log_file, LOG_FIELDS)
+        if new_log:
+            log.writeheader()
+        tb = _tensorboard(out)
 
     def checkpoint(step: int) -> None:
-        save_checkpoint(ckpt_path, {
-            "config": cfg.to_dict(), "model": model.state_dict(), "optimizer": opt.state_dict(),
-            "step": step,
-            "rng": {"torch": torch.get_rng_state(),
-                    "cuda": torch.cuda.get_rng_state() if device.type == "cuda" else None},
-            "data": {"ids_digest": ids_digest, "items": len(samples),
-                     "resolutions": info.resolutions}})
+        digests = distributed.gather_digests(distributed.weights_digest(model.state_dict()), world)
+        if len(set(digests)) > 1:
+            raise RuntimeError(f"the ranks' weights differ at step {step} ({digests}): a bug")
+        if world.main:
+            save_checkpoint(ckpt_path, {
+                "config": cfg.to_dict(), "model": model.state_dict(),
+                "optimizer": opt.state_dict(), "step": step, "world_size": world.size,
+                "rank_digests": digests,
+                **({"ema": ema.state_dict()} if ema is not None else {}),
+                "rng": {"torch": torch.get_rng_state(),
+                        "cuda": torch.cuda.get_rng_state() if device.type == "cuda" else None},
+                "data": {"ids_digest": ids_digest, "items": len(samples),
+                         "resolutions": info.resolutions}})
+        distributed.barrier(world)
 
     t = cfg.train
-    progress = Progress(t.steps)
+    progress = Progress(t.steps) if world.main else None
     skipped: Dict[str, int] = {}
     terms: Dict[str, float] = {}
     began = time.monotonic()
+    cells_done = 0
     model.train()
+    width = 8 + (24 if cfg.model.deformation else 0)
     for step in range(start, t.steps):
         lr = learning_rate(step, cfg)
         for group in opt.param_groups:
             group["lr"] = lr
-        batch = [samples[i] for i in batch_indices(step, len(samples), t.batch_size, t.seed)]
+        # The latent noise of a step is a function of (seed, step, rank): a resumed run draws
+        # the same noise as an uninterrupted one.
+        torch.manual_seed((t.seed * 1_000_003 + step) * 4099 + world.rank)
+        everyone = [pool[j] for j in batch_indices(step, len(pool), t.batch_size, t.seed)]
+        mine = distributed.shard(list(enumerate(everyone)), world)
+        if t.augment_rotations:
+            batch = [augment.rotate_sample(samples[i], augment.rotation_for(t.seed, step, pos))
+                     for pos, i in mine]
+        else:
+            batch = [samples[i] for _, i in mine]
         fits = [s for s in batch if len(s.cells) <= t.max_cells_per_batch]
         for s in batch:
             if len(s.cells) > t.max_cells_per_batch and s.id not in skipped:
@@ -213,27 +350,39 @@ def train(data: List[str], out: Path, config: Optional[Path], steps: Optional[in
                 print(f"\nwarning: item {s.id!r} has {len(s.cells)} cells, more than "
                       f"train.max_cells_per_batch = {t.max_cells_per_batch}; skipped",
                       file=sys.stderr)
-        if not fits:
+        local_cells = sum(len(s.cells) for s in fits)
+        total_cells = int(distributed.all_sum(torch.tensor([local_cells], dtype=torch.int64), world))
+        if total_cells == 0:
             continue
-        total_cells = sum(len(s.cells) for s in fits)
         opt.zero_grad(set_to_none=True)
-        sums: Dict[str, float] = {}
-        for part in split_parts(fits, t.max_cells_per_batch):
-            chosen = [fits[i] for i in part]
+        # Each part's loss is weighted by its share of the global batch's cells; DDP averages
+        # the ranks' gradients (divides by the world size), hence the factor world.size.
+        parts = [[fits[i] for i in part] for part in split_parts(fits, t.max_cells_per_batch)]
+        if not parts:
+            parts = [[_placeholder(width)]]
+        sums = torch.zeros(len(LOSS_TERMS), dtype=torch.float64)
+        for p, chosen in enumerate(parts):
             x = make_batch(chosen, device)
-            weight = len(x.coords) / total_cells
-            with autocast(device):
-                dec, mean, logvar, structure = model(x, sample=True, teacher_forcing=t.teacher_forcing)
-                loss, part_terms = vae_loss(dec, logvar, mean, structure, x.feats, cfg.loss)
-            (loss * weight).backward()
-            for k, v in part_terms.items():
-                sums[k] = sums.get(k, 0.0) + v * weight
+            weight = len(x.coords) / total_cells if local_cells else 0.0
+            sync = p == len(parts) - 1 or not world.distributed
+            what = f"step {step + 1}, a batch part of {len(chosen)} item(s)"
+            with memory_guard(what, len(x.coords), t.max_cells_per_batch, device), \
+                    (contextlib.nullcontext() if sync else net.no_sync()):
+                with autocast(device):
+                    dec, mean, logvar, structure = net(x, sample=True, teacher_forcing=t.teacher_forcing,
+                                                      siblings=t.structure == "siblings")
+                    loss, part_terms = vae_loss(dec, logvar, mean, structure, x.feats, cfg.loss)
+                (loss * (weight * world.size)).backward()
+            sums += torch.tensor([part_terms[k] for k in LOSS_TERMS], dtype=torch.float64) * weight
         if t.grad_clip > 0:
             torch.nn.utils.clip_grad_norm_(model.parameters(), t.grad_clip)
         opt.step()
-        terms = sums
+        if ema is not None:
+            ema.update(step)
+        terms = dict(zip(LOSS_TERMS, distributed.all_sum(sums, world).tolist()))
+        cells_done += total_cells
         done = step + 1
-        if done % t.log_every == 0 or done == t.steps:
+        if world.main and (done % t.log_every == 0 or done == t.steps):
             row = {**{k: f"{v:.6g}" for k, v in terms.items()}, "step": done, "lr": f"{lr:.6g}",
                    "cells": total_cells, "seconds": f"{time.monotonic() - began:.2f}"}
             log.writerow(row)
@@ -245,8 +394,10 @@ def train(data: List[str], out: Path, config: Optional[Path], steps: Optional[in
             progress.update(done, terms)
         if done % t.checkpoint_every == 0 or done == t.steps:
             checkpoint(done)
-    progress.close()
-    log_file.close()
+    if progress is not None:
+        progress.close()
+    if log_file is not None:
+        log_file.close()
     if tb is not None:
         tb.close()
     if start >= t.steps and not ckpt_path.exists():
@@ -254,4 +405,6 @@ def train(data: List[str], out: Path, config: Optional[Path], steps: Optional[in
     seconds = time.monotonic() - began
     return {"steps": t.steps, "resumed_from": start, "terms": terms, "seconds": seconds,
             "steps_per_second": (t.steps - start) / seconds if seconds > 0 else 0.0,
-            "skipped": skipped, "items": len(samples)}
+            "skipped": skipped, "items": len(pool), "world_size": world.size,
+            "peak_gpu_bytes": torch.cuda.max_memory_allocated(device) if device.type == "cuda" else None,
+            "cells_per_second": cells_done / seconds if seconds > 0 else 0.0}

@@ -123,3 +123,63 @@ def test_batches_over_the_cell_limit_are_split_and_large_items_refused(job32, tm
     code, err = run_cli("encode", "--ckpt", tmp_path / "run", "--data", job32,
                         "--out", tmp_path / "lat", "--device", "cpu", capsys=capsys)
     assert code == 2 and big.id in err and "max_cells_per_batch" in err, err
+
+
+def test_gpu_out_of_memory_names_the_batch_and_the_budget_key(job32, tmp_path, capsys, monkeypatch):
+    """A CUDA out-of-memory error (raised here by a stand-in loss: no GPU is needed) ends
+    training with one line naming the step, the batch's cells and the key to lower."""
+    from sparc3d_vae import train
+    from sparc3d_vae.runtime import OutOfMemory
+
+    def oom(*args, **kwargs):
+        raise OutOfMemory("CUDA out of memory. Tried to allocate 2.00 GiB")
+
+    monkeypatch.setattr(train, "vae_loss", oom)
+    config = tmp_path / "c.toml"
+    config.write_text("[model]\nchannels = [8, 8, 16, 16]\nblocks = [0, 1, 1, 1]\n"
+                      "downsample = 8\nheads = 2\n[train]\nthreads = 1\nbatch_size = 2\n")
+    cells = sum(len(to_sample(it, False).cells) for it in reader.iter_items(job32))
+    code, err = run_cli("train", "--data", job32, "--out", tmp_path / "run", "--config", config,
+                        "--steps", 1, "--device", "cpu", capsys=capsys)
+    assert code == 2 and err.count("error:") == 1 and "Traceback" not in err, err
+    assert f"{cells} cells" in err and "step 1" in err and "lower train.max_cells_per_batch" in err
+
+
+def test_hold_out_leaves_out_the_items_evaluate_samples(job32, tmp_path, capsys):
+    from sparc3d_vae import train
+    from sparc3d_vae.infer import choose
+
+    ids = list(reader.SparseCubesDataset(job32).ids)
+    config = tmp_path / "c.toml"
+    config.write_text("[model]\nchannels = [8, 8, 16, 16]\nblocks = [0, 1, 1, 1]\n"
+                      "downsample = 8\nheads = 2\n[train]\nthreads = 1\nbatch_size = 1\n")
+    for seed in (0, 1):
+        held = choose(ids, 1, seed)
+        seen = []
+        real = train.make_batch
+
+        def spy(samples, device):
+            seen.extend(s.id for s in samples)
+            return real(samples, device)
+
+        train.make_batch = spy
+        try:
+            s = train.train([str(job32)], tmp_path / f"run{seed}", config, 4, "cpu", False,
+                            hold_out=1, hold_out_seed=seed)
+        finally:
+            train.make_batch = real
+        assert s["items"] == len(ids) - 1 and seen and held[0] not in seen
+    code, err = run_cli("train", "--data", job32, "--out", tmp_path / "none", "--config", config,
+                        "--hold-out", len(ids), "--steps", 1, "--device", "cpu", capsys=capsys)
+    assert code == 2 and "leaves none" in err and "train.hold_out" in err
+
+
+def test_per_resolution_configs_load_and_keep_a_latent_grid_of_at_least_8():
+    """vae/configs/<N>.toml: valid configs, and none leaves fewer than 8 latent voxels per axis
+    (a 4³ grid at 64³ doubled the unseen error, docs/VAE.md)."""
+    folder = pathlib.Path(__file__).resolve().parents[1] / "configs"
+    files = sorted(folder.glob("*.toml"))
+    assert files
+    for f in files:
+        cfg = load_config(f)
+        assert int(f.stem) // cfg.model.downsample >= 8, f

@@ -90,3 +90,58 @@ def test_evaluate_samples_the_items_sparc3d_eval_samples(job32):
         r = run("eval", job32, "--sample", 1, "--sample-seed", seed, "--samples", 1000, "--json")
         measured = [it["id"] for it in json.loads(r.stdout)["items"]]
         assert choose(ids, 1, seed) == measured
+
+
+def test_siblings_structure_holds_every_child_of_the_true_parents(samples):
+    """`train.structure = "siblings"`: the last level holds the 8 children of every true parent;
+    the loss reads φ at a decoded cell's corners wherever that vertex is a true cell's corner."""
+    from sparc3d_vae.loss import corner_targets
+
+    cfg, model = small_model()
+    x = make_batch(samples, torch.device("cpu"))
+    dec, mean, logvar, structure = model(x, siblings=True)
+    assert len(dec.cells.coords) == 8 * len(structure[1].coords)
+    true_keys = set(x.keys.tolist())
+    got = dec.cells.keys.tolist()
+    assert true_keys <= set(got) and len(got) > len(true_keys)
+    known, phi, _ = corner_targets(x, x.feats, dec.cells)
+    # At the true cells every corner is known and equals the input.
+    is_true = torch.tensor([k in true_keys for k in got])
+    assert bool(known[is_true].all())
+    order = {k: i for i, k in enumerate(x.keys.tolist())}
+    rows = torch.tensor([order[k] for k in np.array(got)[is_true.numpy()]])
+    assert torch.equal(phi[is_true], x.feats[rows, :8])
+    # A sibling that is not a true cell shares some corners with true cells (known, with that
+    # vertex's φ), and has some far corners (unknown).
+    assert bool(known[~is_true].any()) and not bool(known[~is_true].all())
+    dense = {}
+    for c, f in zip(x.coords.tolist(), x.feats[:, :8].tolist()):
+        for o in range(8):
+            dense[(c[0], c[1] + (o >> 2 & 1), c[2] + (o >> 1 & 1), c[3] + (o & 1))] = f[o]
+    for c, kn, ph in list(zip(dec.cells.coords.tolist(), known.tolist(), phi.tolist()))[:2000]:
+        for o in range(8):
+            v = (c[0], c[1] + (o >> 2 & 1), c[2] + (o >> 1 & 1), c[3] + (o & 1))
+            assert kn[o] == (v in dense)
+            if kn[o]:
+                assert ph[o] == dense[v]
+    loss, terms = vae_loss(dec, logvar, mean, structure, x.feats, cfg.loss)
+    loss.backward()
+    assert np.isfinite(terms["sign"]) and terms["sign"] > 0
+
+
+def test_finest_conv_starts_as_the_identity_and_learns(samples):
+    cfg, plain = small_model()
+    cfg.model.finest_conv = 4
+    torch.manual_seed(0)
+    fine = SparconvVAE(cfg.model)
+    assert fine.decoder.fine.conv.weight.shape == (27, 8, 4)  # 3×3×3 at full resolution
+    missing = fine.load_state_dict(plain.state_dict(), strict=False).missing_keys
+    assert missing and all(k.startswith("decoder.fine.") for k in missing)
+    x = make_batch(samples, torch.device("cpu"))
+    torch.manual_seed(1)
+    a = plain(x, sample=False)[0]
+    dec, mean, logvar, structure = fine(x, sample=False)
+    assert torch.equal(a.sign_logits, dec.sign_logits)  # the zero-initialised projection
+    loss, _ = vae_loss(dec, logvar, mean, structure, x.feats, cfg.loss)
+    loss.backward()
+    assert float(fine.decoder.fine.out.weight.grad.abs().sum()) > 0

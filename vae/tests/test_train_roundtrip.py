@@ -16,7 +16,7 @@ import trimesh
 
 import sparc3d_reader as reader
 from sparc3d_vae import infer, train
-from sparc3d_vae.runtime import load_checkpoint
+from sparc3d_vae.runtime import load_checkpoint, model_from_checkpoint
 
 #: A small network (so the test takes seconds on 2 cores) with the default loss and schedule.
 SMALL = """
@@ -85,9 +85,21 @@ def test_encode_decode_extract_gives_closed_manifold_meshes(trained, job32, tmp_
         assert (np.bincount(edges) == 2).all()
 
 
-def test_resumed_run_matches_an_uninterrupted_one(job32, tmp_path):
+#: The training options that add state or randomness: rotations, the EMA, sibling cells and
+#: the finest convolution.
+EXTRAS = """augment_rotations = true
+ema_decay = 0.9
+structure = "siblings"
+"""
+
+
+@pytest.mark.parametrize("extras", ["", EXTRAS], ids=["plain", "rotations-ema-siblings"])
+def test_resumed_run_matches_an_uninterrupted_one(job32, tmp_path, extras):
     config = tmp_path / "small.toml"
-    config.write_text(SMALL.replace("checkpoint_every = 40", "checkpoint_every = 3"))
+    text = SMALL.replace("checkpoint_every = 40", "checkpoint_every = 3") + extras
+    if extras:
+        text = text.replace("heads = 2", "heads = 2\nfinest_conv = 4")
+    config.write_text(text)
     train.train([str(job32)], tmp_path / "straight", config, 6, "cpu", resume=False)
     train.train([str(job32)], tmp_path / "stopped", config, 3, "cpu", resume=False)
     train.train([str(job32)], tmp_path / "stopped", config, 6, "cpu", resume=True)
@@ -96,6 +108,14 @@ def test_resumed_run_matches_an_uninterrupted_one(job32, tmp_path):
     assert a["step"] == b["step"] == 6
     for k, v in a["model"].items():
         assert torch.equal(v, b["model"][k]), k
+    if extras:
+        # The EMA is kept, resumed and is what inference loads.
+        for k, v in a["ema"].items():
+            assert torch.equal(v, b["ema"][k]), k
+        assert any(not torch.equal(a["ema"][k], v) for k, v in a["model"].items())
+        _, model = model_from_checkpoint(a, torch.device("cpu"), "a")
+        for k, v in model.state_dict().items():
+            assert torch.equal(v, a["ema"][k]), k
     assert json.loads((tmp_path / "stopped" / "config.json").read_text())["train"]["steps"] == 6
 
 
@@ -118,3 +138,31 @@ def test_deformation_is_read_and_predicted_when_the_job_stores_it(tmp_path, bina
     assert out["faces"] > 0  # (30 steps: not asked to be watertight yet)
     cubes = next(reader.iter_tensor_rows(tmp_path / "cubes.parquet", ["deformation"]))
     assert np.abs(cubes["deformation"]).max() > 0  # the decoded δ reaches the extractor
+
+
+def test_mesh_components_counts_pieces(tmp_path, trained, job32, binary):
+    """`infer.mesh_components` against trimesh's count: on two tetrahedra written in the PLY
+    layout `sparc3d extract` uses, and on the decoded meshes of the trained model."""
+    import struct
+
+    from sparc3d_vae.infer import mesh_components
+
+    # Two tetrahedra, far apart, in the layout sparc3d writes.
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], np.float32)
+    verts = np.concatenate([v, v + 5])
+    tet = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    faces = np.concatenate([tet, tet + 4])
+    head = ("ply\nformat binary_little_endian 1.0\nelement vertex 8\nproperty float x\n"
+            "property float y\nproperty float z\nelement face 8\n"
+            "property list uchar uint vertex_indices\nend_header\n").encode()
+    body = verts.tobytes() + b"".join(struct.pack("<B3I", 3, *f) for f in faces.tolist())
+    (tmp_path / "two.ply").write_bytes(head + body)
+    assert mesh_components(tmp_path / "two.ply") == 2
+    assert len(trimesh.load(tmp_path / "two.ply", process=False).split(only_watertight=False)) == 2
+    run, _, _ = trained
+    summary = infer.evaluate(run, [str(job32)], 2, 0, tmp_path / "eval", "cpu", binary)
+    for row in summary["items"]:
+        for key, name in (("components", "vae"), ("sparcubes_components", "sparcubes")):
+            mesh = tmp_path / "eval" / f"{infer.safe_name(row['id'])}.{name}.ply"
+            assert row[key] == len(trimesh.load(mesh, process=True).split(only_watertight=False))
+    assert "components_within_20pct" in summary["aggregate"]
