@@ -50,6 +50,8 @@ pub enum Outcome {
     Diverged,
     /// No camera compares any pixel of the output with the source: nothing was refined.
     NothingVisible,
+    /// Every active vertex is held (all of them in thin shells): nothing was rendered.
+    NothingFree,
 }
 
 /// What one refinement did.
@@ -115,6 +117,20 @@ pub fn refine(
     settings: &RefineParams,
     bound: f32,
 ) -> RefineStats {
+    let mut stats = RefineStats {
+        outcome: Outcome::NothingFree,
+        steps: 0,
+        loss_first: 0.0,
+        loss_best: 0.0,
+        best_step: 0,
+        compared_pixels: 0,
+        moved_vertices: 0,
+    };
+    if !free.iter().take(cubes.coords.len()).any(|&f| f) {
+        return stats;
+    }
+    stats.outcome = Outcome::Finished;
+    stats.loss_best = f64::INFINITY;
     let surface = Surface::new(cubes);
     let views = views::views(bounds(source), settings.views, settings.image);
     let targets: Vec<Targets> = {
@@ -130,15 +146,6 @@ pub fn refine(
     let start: Vec<[f64; 3]> = cubes.deformation.iter().map(|d| d.map(f64::from)).collect();
     let mut delta = start.clone();
     let mut adam = Adam::new(delta.len());
-    let mut stats = RefineStats {
-        outcome: Outcome::Finished,
-        steps: 0,
-        loss_first: 0.0,
-        loss_best: f64::INFINITY,
-        best_step: 0,
-        compared_pixels: 0,
-        moved_vertices: 0,
-    };
     let (mut best, mut previous, mut rising) = (start.clone(), f64::INFINITY, 0);
     for step in 0..=settings.steps {
         let (loss, compared, grad) = evaluate(&surface, cubes, &delta, &views, &targets);

@@ -245,6 +245,15 @@ fn an_output_no_camera_compares_is_refined_nowhere() {
     assert_eq!(stats.outcome, Outcome::NothingVisible);
     assert_eq!((stats.moved_vertices, stats.steps), (0, 0));
     assert_eq!(cubes.deformation, before);
+    // An output whose every vertex is held (an open sheet's shell) is not even rendered.
+    let held = vec![false; cubes.coords.len()];
+    let src = grid_mesh(&crate::shapes::sphere([8.0; 3], 5.3, 48));
+    let stats = refine(&mut cubes, &src, &held, &small(), 0.45);
+    assert_eq!(
+        (stats.outcome, stats.compared_pixels),
+        (Outcome::NothingFree, 0)
+    );
+    assert_eq!(cubes.deformation, before);
 }
 
 #[test]
