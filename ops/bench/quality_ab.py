@@ -13,6 +13,7 @@ evaluations. `--summarize OUT.jsonl` prints the changed meshes with their F1 @ 0
 
     python3 ops/bench/quality_ab.py CORPUS --a OLD_BIN --b NEW_BIN --resolution 256 --out ab256
     python3 ops/bench/quality_ab.py --summarize ab256.jsonl
+    python3 ops/bench/quality_ab.py CORPUS --a BIN --b BIN --b-flags=--refine --out refine256
 
 Only the standard library.
 """
@@ -35,6 +36,8 @@ def parse_args():
     p.add_argument("--a", help="binary A (before)")
     p.add_argument("--b", help="binary B (after)")
     p.add_argument("--resolution", type=int, default=256)
+    p.add_argument("--b-flags", default="",
+                   help="extra `convert` flags for B, space-separated (e.g. --refine, with --b the same binary as --a)")
     p.add_argument("--seeds", default=str(0x5BA3C3D0),
                    help="eval seeds for changed meshes, comma-separated (default: eval's own)")
     p.add_argument("--out", default="quality_ab", help="output prefix: PREFIX.jsonl")
@@ -80,6 +83,8 @@ def measure(args, mesh):
         for side, binary in (("a", args.a), ("b", args.b)):
             out = os.path.join(tmp, f"{side}.ply")
             cmd = [binary, "convert", mesh, "-o", out, "--resolution", str(args.resolution), "--json"]
+            if side == "b":
+                cmd += args.b_flags.split()
             summary, err = last_json(cmd, args.timeout)
             record[side] = {"error": err} if err else {"convert": summary}
             outs[side] = out if not err else None

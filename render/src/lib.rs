@@ -1,7 +1,8 @@
 //! Preview rendering: ray-cast shaded pictures of meshes, so a broken conversion is seen at a
 //! glance.
 //!
-//! A [`Scene`] is a BVH (obvhs) over one mesh's triangles. [`orbit_cameras`] places
+//! A [`Scene`] is a BVH over one mesh's triangles (`sparc3d-raycast`, which also casts the rays
+//! of the rendering-based refinement). [`orbit_cameras`] places
 //! orthographic cameras around a bounding box at a fixed elevation; [`render`] casts one ray per
 //! pixel and shades the nearest hit with a headlight (Lambert plus a little ambient). Front
 //! faces (counter-clockwise seen from the camera) are grey-blue, back faces red: back faces in
@@ -16,14 +17,10 @@
 pub mod label;
 
 use glam::Vec3A;
-use obvhs::bvh2::builder::build_bvh2_from_tris;
-use obvhs::bvh2::Bvh2;
-use obvhs::ray::{Ray, RayHit};
-use obvhs::triangle::Triangle;
-use obvhs::BvhBuildParams;
 use rayon::prelude::*;
+pub use sparc3d_raycast::{orbit_cameras, Camera};
+use sparc3d_raycast::{Ray, Scene as RayScene};
 use sparcubes::TriMesh;
-use std::time::Duration;
 
 /// Background colour (white).
 pub const BACKGROUND: [u8; 3] = [255, 255, 255];
@@ -108,90 +105,13 @@ impl Image {
     }
 }
 
-/// An orthographic camera: parallel rays along `forward`, through a square window of half
-/// side `half_extent` centred on `center`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Camera {
-    /// Centre of the view window (a point the camera looks at).
-    pub center: [f32; 3],
-    /// Unit viewing direction (from the camera into the scene).
-    pub forward: [f32; 3],
-    /// Unit vector pointing right in the picture, orthogonal to `forward`.
-    pub right: [f32; 3],
-    /// Unit vector pointing up in the picture, orthogonal to `forward` and `right`.
-    pub up: [f32; 3],
-    /// Half the side of the square window, in scene units (> 0).
-    pub half_extent: f32,
-    /// How far behind `center` rays start, in scene units: beyond the scene's bounds.
-    pub distance: f32,
-}
-
-impl Camera {
-    /// A camera looking at `center` from azimuth `azimuth_deg` (around +Y, 0 = from +Z) and
-    /// elevation `elevation_deg` (above the XZ plane), with a window of half side
-    /// `half_extent`. +Y is up in the picture.
-    pub fn orbit(center: [f32; 3], half_extent: f32, azimuth_deg: f32, elevation_deg: f32) -> Self {
-        let (az, el) = (azimuth_deg.to_radians(), elevation_deg.to_radians());
-        // Direction from the centre towards the camera.
-        let eye = Vec3A::new(el.cos() * az.sin(), el.sin(), el.cos() * az.cos());
-        let forward = -eye;
-        let world_up = Vec3A::Y;
-        let mut right = forward.cross(world_up);
-        if right.length_squared() < 1e-12 {
-            right = Vec3A::X;
-        }
-        let right = right.normalize();
-        let up = right.cross(forward).normalize();
-        Self {
-            center,
-            forward: forward.into(),
-            right: right.into(),
-            up: up.into(),
-            half_extent: half_extent.max(f32::MIN_POSITIVE),
-            distance: 4.0 * half_extent.max(1e-6),
-        }
-    }
-
-    /// The ray through the centre of pixel (`x`, `y`) of a `size × size` picture.
-    fn ray(&self, x: u32, y: u32, size: u32) -> Ray {
-        let s = size.max(1) as f32;
-        let u = ((x as f32 + 0.5) / s * 2.0 - 1.0) * self.half_extent;
-        let v = (1.0 - (y as f32 + 0.5) / s * 2.0) * self.half_extent;
-        let forward = Vec3A::from(self.forward);
-        let origin =
-            Vec3A::from(self.center) + Vec3A::from(self.right) * u + Vec3A::from(self.up) * v
-                - forward * self.distance;
-        Ray::new_inf(origin, forward)
-    }
-}
-
-/// `views` cameras evenly spaced in azimuth (the first at 30°) at `elevation_deg`, framing the
-/// box `bounds` (its bounding sphere fills the picture with a 5% margin).
-pub fn orbit_cameras(bounds: ([f64; 3], [f64; 3]), views: u32, elevation_deg: f32) -> Vec<Camera> {
-    let (lo, hi) = bounds;
-    let center = [
-        ((lo[0] + hi[0]) * 0.5) as f32,
-        ((lo[1] + hi[1]) * 0.5) as f32,
-        ((lo[2] + hi[2]) * 0.5) as f32,
-    ];
-    let radius =
-        ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2) + (hi[2] - lo[2]).powi(2)).sqrt() * 0.5;
-    let half_extent = (radius * 1.05).max(1e-6) as f32;
-    let n = views.max(1);
-    (0..n)
-        .map(|i| {
-            let azimuth = 30.0 + 360.0 * i as f32 / n as f32;
-            Camera::orbit(center, half_extent, azimuth, elevation_deg)
-        })
-        .collect()
-}
-
-/// A mesh ready for ray casting: its triangles and a BVH over them.
+/// A mesh ready for ray casting ([`sparc3d_raycast::Scene`]) with its corners for shading.
 pub struct Scene {
-    /// Triangles, indexed through `bvh.primitive_indices`.
-    triangles: Vec<Triangle>,
-    /// The BVH; `None` for a mesh without triangles.
-    bvh: Option<Bvh2>,
+    /// The BVH over the mesh's triangles.
+    scene: RayScene,
+    /// Corners of each triangle of the mesh (zeros for one with an index out of range,
+    /// which the BVH skips).
+    corners: Vec<[Vec3A; 3]>,
 }
 
 impl Scene {
@@ -199,74 +119,28 @@ impl Scene {
     /// an index out of range are skipped.
     pub fn new(mesh: &TriMesh) -> Self {
         let p = &mesh.positions;
-        let triangles: Vec<Triangle> = mesh
+        let corners = mesh
             .triangles
             .iter()
-            .filter(|t| t.iter().all(|&i| (i as usize) < p.len()))
-            .map(|t| Triangle {
-                v0: Vec3A::from(p[t[0] as usize]),
-                v1: Vec3A::from(p[t[1] as usize]),
-                v2: Vec3A::from(p[t[2] as usize]),
-            })
+            .map(|t| t.map(|i| p.get(i as usize).map_or(Vec3A::ZERO, |&c| Vec3A::from(c))))
             .collect();
-        let bvh = if triangles.is_empty() {
-            None
-        } else {
-            Some(build_bvh2_from_tris(
-                &triangles,
-                BvhBuildParams::medium_build(),
-                &mut Duration::default(),
-            ))
-        };
-        Self { triangles, bvh }
+        Self {
+            scene: RayScene::new(p, &mesh.triangles),
+            corners,
+        }
     }
 
     /// The colour seen along `ray`: background, or the shaded nearest triangle.
     fn shade(&self, ray: Ray) -> [u8; 3] {
-        let Some(bvh) = &self.bvh else {
+        let Some(hit) = self.scene.cast(ray) else {
             return BACKGROUND;
         };
-        let mut hit = RayHit::none();
-        let found = bvh.ray_traverse(ray, &mut hit, |ray, id| {
-            intersect(&self.triangles[bvh.primitive_indices[id] as usize], ray)
-        });
-        if !found {
-            return BACKGROUND;
-        }
-        let tri = &self.triangles[bvh.primitive_indices[hit.primitive_id as usize] as usize];
-        let normal = (tri.v1 - tri.v0).cross(tri.v2 - tri.v0).normalize_or_zero();
+        let [v0, v1, v2] = self.corners[hit.triangle as usize];
+        let normal = (v1 - v0).cross(v2 - v0).normalize_or_zero();
         let facing = normal.dot(ray.direction);
         let base = if facing <= 0.0 { FRONT } else { BACK };
         let light = AMBIENT + (1.0 - AMBIENT) * facing.abs().min(1.0);
         base.map(|c| (c as f32 * light).round().clamp(0.0, 255.0) as u8)
-    }
-}
-
-/// Distance along `ray` to `tri` (Möller–Trumbore), or infinity on a miss. Barycentric
-/// coordinates down to `-1e-6` count as inside, so a ray through an edge shared by two
-/// triangles hits one of them (no speckles along diagonals).
-fn intersect(tri: &Triangle, ray: &Ray) -> f32 {
-    const EPS: f32 = 1e-6;
-    let e1 = tri.v1 - tri.v0;
-    let e2 = tri.v2 - tri.v0;
-    let p = ray.direction.cross(e2);
-    let det = e1.dot(p);
-    if det.abs() < f32::MIN_POSITIVE {
-        return f32::INFINITY;
-    }
-    let inv = 1.0 / det;
-    let s = ray.origin - tri.v0;
-    let u = s.dot(p) * inv;
-    let q = s.cross(e1);
-    let v = ray.direction.dot(q) * inv;
-    if u < -EPS || v < -EPS || u + v > 1.0 + EPS {
-        return f32::INFINITY;
-    }
-    let t = e2.dot(q) * inv;
-    if t >= ray.tmin && t <= ray.tmax {
-        t
-    } else {
-        f32::INFINITY
     }
 }
 

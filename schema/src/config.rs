@@ -184,6 +184,9 @@ impl JobConfig {
             // `params.object_span` is left out while unset (`Params::object_span`); offer it.
             if let Some(Value::Object(params)) = m.get_mut("params") {
                 params.entry("object_span").or_insert(Value::Null);
+                // `params.refine` too, as its default table when the override writes one,
+                // so a misspelt setting is refused by its dotted name.
+                params.entry("refine").or_insert(refine_base(overrides)?);
             }
         }
         merge(&mut base, overrides, "")?;
@@ -266,6 +269,23 @@ impl JobConfig {
         out.sort();
         Ok(out)
     }
+}
+
+/// What `params.refine` is offered as before an override is merged: off (`null`), or the
+/// default settings when the override writes a table of settings.
+fn refine_base(overrides: &Value) -> Result<Value> {
+    if !overrides
+        .pointer("/params/refine")
+        .is_some_and(Value::is_object)
+    {
+        return Ok(Value::Null);
+    }
+    serde_json::to_value(sparcubes::refine::RefineParams::default()).map_err(|source| {
+        SchemaError::Json {
+            context: "serializing the refine settings".into(),
+            source,
+        }
+    })
 }
 
 fn merge(base: &mut Value, over: &Value, path: &str) -> Result<()> {
@@ -521,6 +541,52 @@ mod tests {
             matches!(e, Err(ref err) if err.to_string().contains("object_span")),
             "{e:?}"
         );
+        Ok(())
+    }
+
+    #[test]
+    fn the_refinement_is_stored_only_when_on_with_its_settings_and_checked_by_name() -> Result<()> {
+        // Off (every job stored before the key existed): no key, the pinned fingerprints hold.
+        let new = JobConfig::default();
+        assert!(!new.to_canonical_json()?.contains("refine"));
+        let off = JobConfig::from_overrides(&serde_json::json!({"params": {"refine": false}}))?;
+        assert_eq!(off.fingerprint()?, new.fingerprint()?);
+        // `refine = true`: the default settings, written whole.
+        let on = JobConfig::from_overrides(&serde_json::json!({"params": {"refine": true}}))?;
+        assert_eq!(
+            on.params.refine,
+            Some(sparcubes::refine::RefineParams::default())
+        );
+        assert!(on
+            .to_canonical_json()?
+            .contains("\"refine\":{\"image\":384,"));
+        assert_eq!(on.diff_keys(&new)?, vec!["params.refine"]);
+        // A table: its settings over the defaults; read back from the canonical JSON.
+        let table = JobConfig::from_overrides(
+            &serde_json::json!({"params": {"refine": {"views": 8, "steps": 5}}}),
+        )?;
+        let r = table.params.refine.map(|r| (r.views, r.steps, r.image));
+        assert_eq!(r, Some((8, 5, 384)));
+        let back: JobConfig =
+            serde_json::from_str(&table.to_canonical_json()?).map_err(|source| {
+                SchemaError::Json {
+                    context: "test".into(),
+                    source,
+                }
+            })?;
+        assert_eq!(back, table);
+        // Out of range or misspelt: refused by name.
+        for (bad, key) in [
+            (serde_json::json!({"views": 0}), "refine.views"),
+            (serde_json::json!({"image": 4096}), "refine.image"),
+            (serde_json::json!({"veiws": 8}), "params.refine.veiws"),
+        ] {
+            let e = JobConfig::from_overrides(&serde_json::json!({"params": {"refine": bad}}));
+            assert!(
+                matches!(&e, Err(err) if err.to_string().contains(key)),
+                "{key}: {e:?}"
+            );
+        }
         Ok(())
     }
 

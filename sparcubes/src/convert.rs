@@ -13,6 +13,7 @@ use crate::grid::{
 use crate::mesh::TriMesh;
 use crate::normalize::Normalization;
 use crate::params::Params;
+use crate::refine::{refine, RefineStats};
 use crate::regions::{classify_regions, decide_sealed, mark_air, Nesting, Regions};
 use crate::ring::ring_cells;
 use crate::seal::{seal_openings, Sealing};
@@ -68,6 +69,8 @@ pub struct ConvertStats {
     /// by less than the grid resolves, left outside so both keep their surfaces
     /// ([`crate::regions::OVERLAP_FROM`]).
     pub overlap_groups: u64,
+    /// What the rendering-based refinement did (`None`: it was off), [`crate::refine`].
+    pub refine: Option<RefineStats>,
 }
 
 /// A conversion's result.
@@ -435,11 +438,25 @@ pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
         field: &ring_field,
         thin: &ring_signs.thin,
     };
-    let (cubes, shell_vertices) = assemble(vertex_coords, &ids, kept, core, outer, norm, params);
+    let (mut cubes, shell_vertices) =
+        assemble(vertex_coords, &ids, kept, core, outer, norm, params);
     st.stats.shell_vertices = shell_vertices;
     st.stats.active_vertices = cubes.coords.len() as u64;
     st.stats.active_cells = cubes.cells.len() as u64;
     st.done("assemble");
+    if let Some(settings) = &params.refine {
+        // Thin-shell vertices stay: their surface is an offset of an open sheet by design.
+        let free: Vec<bool> = ids
+            .par_iter()
+            .map(|&i| match i & RING_TAG {
+                0 => !signs.thin[i as usize],
+                _ => !ring_signs.thin[(i & !RING_TAG) as usize],
+            })
+            .collect();
+        let stats = refine(&mut cubes, &grid, &free, settings, params.deform_max);
+        st.stats.refine = Some(stats);
+        st.done("refine");
+    }
     Ok(Conversion {
         cubes,
         stats: st.stats,

@@ -234,7 +234,7 @@ fn gallop(coords: &[[u16; 3]], from: usize, target: [u16; 3]) -> usize {
 /// Calls `f(corner indices, corner mask, face bits)` for every cell of `cells` whose eight
 /// corners are active vertices (below `n`, which fits a `u32` as the output's indices do) and
 /// have a sign change, in order.
-fn for_each_case(
+pub(crate) fn for_each_case(
     cubes: &SparseCubes,
     n: usize,
     cells: &[[u16; 3]],
@@ -329,7 +329,7 @@ pub fn cell_triangles(cubes: &SparseCubes, idx: &[usize; 8], out: &mut Vec<[[f64
 
 /// The centre vertices a case's triangles use, as a bit set over centre numbers.
 #[inline]
-fn centres_used(case: &Case) -> u32 {
+pub(crate) fn centres_used(case: &Case) -> u32 {
     let mut mask = 0u32;
     for tri in &case.triangles {
         for &v in tri.iter().filter(|&&v| v >= CENTRE) {

@@ -15,7 +15,8 @@
 //! 5. [`sign`] — inside/outside per vertex, thin-shell treatment of open parts,
 //! 6. [`deform`] — φ and the bounded displacement of each vertex towards the surface; [`ring`]
 //!    — the surface-free cells next to the walls a thin shell reaches, with their own band,
-//! 7. [`extract`] — marching cubes over the active cells → closed manifold mesh.
+//! 7. [`extract`] — marching cubes over the active cells → closed manifold mesh; [`refine`]
+//!    (optional, paper step 4) — the displacements refined against renderings of the source.
 //!
 //! The crate knows nothing of jobs or file formats beyond loading and saving meshes ([`io`]).
 //! Quality metrics and preview pictures are crates of their own (`sparc3d-metrics`,
@@ -45,6 +46,7 @@ pub mod mesh;
 pub mod morton;
 pub mod normalize;
 pub mod params;
+pub mod refine;
 pub mod regions;
 pub mod ring;
 pub mod samples;

@@ -1,6 +1,7 @@
 //! Conversion parameters, with the defaults used by the CLI and the pipeline.
 
 use crate::error::{Error, Result};
+use crate::refine::RefineParams;
 use serde::{Deserialize, Serialize};
 
 /// Largest supported resolution. The sparse grid keeps a dense 4-byte index per 8³ brick,
@@ -63,6 +64,20 @@ pub struct Params {
     /// existed keeps its normalization and its fingerprint.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub object_span: Option<f64>,
+    /// The rendering-based refinement of the displacements (paper step 4, docs/ALGORITHM.md
+    /// §7b, [`crate::refine`]) and its settings; `None`: off, the default (docs/QUALITY.md
+    /// says what it measured). A job file writes `refine = true` for the default settings or
+    /// a `[params.refine]` table.
+    ///
+    /// Serialized only when on (then with every setting, so a stored job keeps the settings
+    /// it was made with), and missing reads as off: every job stored before the key existed
+    /// keeps its output and its fingerprint.
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        deserialize_with = "crate::refine::settings::deserialize"
+    )]
+    pub refine: Option<RefineParams>,
 }
 
 /// Refuses an object span outside (0, 1) or one that leaves fewer than 3 free cells per side
@@ -99,6 +114,7 @@ impl Default for Params {
             inside_test: true,
             seal_openings: true,
             object_span: None,
+            refine: None,
         }
     }
 }
@@ -148,6 +164,9 @@ impl Params {
         }
         if let Some(span) = self.object_span {
             check_span(span, self.resolution)?;
+        }
+        if let Some(refine) = &self.refine {
+            refine.validate()?;
         }
         if !(self.shell_half_thickness > 0.0 && self.shell_half_thickness < 1.0) {
             return Err(Error::InvalidParams(format!(

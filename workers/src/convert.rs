@@ -398,6 +398,48 @@ mod tests {
     }
 
     #[test]
+    fn a_refined_row_gives_back_the_refined_mesh() -> Result<(), Box<dyn std::error::Error>> {
+        // The refinement runs inside the conversion, so the row stores its displacements and
+        // decoding the row extracts the mesh the conversion gave (what `show` relies on).
+        let params = Params {
+            refine: Some(sparcubes::refine::RefineParams {
+                views: 6,
+                image: 64,
+                steps: 5,
+                rate: 0.05,
+            }),
+            ..Params::with_resolution(32)
+        };
+        let steps = Steps {
+            params: &params,
+            input_components: false,
+            extract: true,
+            samples: None,
+            keep_mesh: true,
+            encode: Some(Encoding {
+                zstd_level: 3,
+                store_mesh: false,
+            }),
+        };
+        let done = convert_file(&example("cube.off"), steps).map_err(|f| f.error)?;
+        let stats = done
+            .conversion
+            .stats
+            .refine
+            .as_ref()
+            .ok_or("no refine stats")?;
+        assert!(stats.moved_vertices > 0, "{stats:?}");
+        let cubes = &done.conversion.cubes;
+        let decoded = done
+            .tensors
+            .ok_or("no tensors")?
+            .to_cubes(cubes.resolution, cubes.normalization)?;
+        assert_eq!(&decoded, cubes);
+        assert_eq!(Some(sparcubes::extract(&decoded)), done.mesh);
+        Ok(())
+    }
+
+    #[test]
     fn a_failure_names_its_stage_and_class() {
         let params = Params::with_resolution(32);
         let steps = Steps {

@@ -24,6 +24,8 @@ pub struct Args {
     pub deform: super::deform_args::DeformArgs,
     #[command(flatten)]
     pub inside_test: super::inside_test_args::InsideTestArgs,
+    #[command(flatten)]
+    pub refine: super::refine_args::RefineArgs,
     /// Write the output in grid coordinates (voxels) instead of the source frame.
     #[arg(long)]
     pub grid_frame: bool,
@@ -48,6 +50,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let mut params = sparcubes::Params::with_resolution(args.resolution.get());
     params.deform = args.deform.enabled();
     args.inside_test.apply_to(&mut params);
+    params.refine = args.refine.settings();
+    params
+        .validate()
+        .map_err(|e| anyhow::anyhow!("{e}"))
+        .context("checking the conversion parameters")?;
     let steps = Steps {
         params: &params,
         input_components: true,
@@ -103,6 +110,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         "thin_parts": s.thin_parts,
         "shelled_thin_parts": s.shelled_thin_parts,
         "overlap_groups": s.overlap_groups,
+        "refine": s.refine,
         "output_faces": mesh.triangles.len(),
         "output_vertices": mesh.positions.len(),
         "output_components": topo.components,
@@ -207,6 +215,16 @@ fn print_text(v: &Value, load: &LoadStats, stages: &[(String, f64)]) {
         println!(
             "  openings     {} nearly closed parts kept solid (small openings sealed)",
             v["sealed_pockets"]
+        );
+    }
+    let r = &v["refine"];
+    if !r.is_null() {
+        println!(
+            "  refine       {}: loss {:.4} → {:.4} (step {} of {}), {} vertices moved, {} pixels compared",
+            r["outcome"].as_str().unwrap_or_default(),
+            r["loss_first"].as_f64().unwrap_or_default(),
+            r["loss_best"].as_f64().unwrap_or_default(),
+            r["best_step"], r["steps"], r["moved_vertices"], r["compared_pixels"]
         );
     }
     println!(

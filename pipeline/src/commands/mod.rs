@@ -17,6 +17,7 @@ pub mod item_worker;
 pub mod ls;
 pub mod manifest;
 pub mod preview;
+pub mod refine_args;
 pub mod report;
 pub mod retry;
 pub mod run;
