@@ -82,9 +82,7 @@ pub(crate) fn near_and_volume_needs(p: &SampleParams) -> Vec<Need> {
 
 /// The item's `<stem>.npz`.
 pub fn files(item: &Item) -> Result<ItemExport> {
-    let Some(stored) = item.samples else {
-        return Err(Error::Missing("no sample columns".into()));
-    };
+    let stored = item.stored_samples()?;
     let (s, p) = (stored.samples, stored.params);
     require_sharp(s, p.sharp_angle_deg, FPS_ROWS, "Dora")?;
     let place = item.placement(HALF_EXTENT);

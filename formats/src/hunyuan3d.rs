@@ -23,7 +23,7 @@ use crate::arrays::{floats, placed, point_normal_rows, Width};
 use crate::select::{
     block_needs, block_rows, require_sharp, rows_in_cube, samples_off, unmet, Need,
 };
-use crate::{npz::Array, npz_file, Error, Item, ItemExport, Placement, Result};
+use crate::{npz::Array, npz_file, Item, ItemExport, Placement, Result};
 use sparcubes::samples::SampleParams;
 
 /// `--help` line.
@@ -74,9 +74,7 @@ pub fn missing(samples: Option<&SampleParams>) -> Vec<String> {
 
 /// The item's two files under `<stem>/geo_data/`.
 pub fn files(item: &Item) -> Result<ItemExport> {
-    let Some(stored) = item.samples else {
-        return Err(Error::Missing("no sample columns".into()));
-    };
+    let stored = item.stored_samples()?;
     let (s, p) = (stored.samples, stored.params);
     require_sharp(s, p.sharp_angle_deg, SURFACE_ROWS, "Hunyuan3D-2.1")?;
     let place = item.placement(HALF_EXTENT);

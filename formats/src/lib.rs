@@ -199,7 +199,7 @@ pub struct Item<'a> {
     pub frame: Frame,
 }
 
-impl Item<'_> {
+impl<'a> Item<'a> {
     /// The placement of points in this item's frame: the consumer's cube (its bounding box
     /// centred, its longest side on ±`half_extent`), the normalized frame or the source's.
     pub fn placement(&self, half_extent: f64) -> Placement {
@@ -208,6 +208,15 @@ impl Item<'_> {
             Frame::Normalized => Placement::IDENTITY,
             Frame::Source => Placement::to_source(&self.cubes.normalization),
         }
+    }
+
+    /// Its samples, or an error when the job stored none.
+    pub fn stored_samples(&self) -> Result<StoredSamples<'a>> {
+        self.samples.ok_or_else(|| {
+            Error::Missing(
+                "no sample columns (config key samples.enabled was off when it converted)".into(),
+            )
+        })
     }
 
     /// The placement into the consumer's cube, whatever the frame written: a consumer's rule

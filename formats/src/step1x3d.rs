@@ -11,7 +11,7 @@
 use crate::arrays::{floats, point_normal_rows, Width};
 use crate::dora::{self, near_and_volume, near_and_volume_needs, signed_rows};
 use crate::select::{require_sharp, samples_off, unmet, Need};
-use crate::{npz::Array, npz_file, Error, ExportFile, Item, ItemExport, Listed, Result};
+use crate::{npz::Array, npz_file, ExportFile, Item, ItemExport, Listed, Result};
 use sparcubes::samples::SampleParams;
 
 /// `--help` line.
@@ -36,9 +36,7 @@ pub fn missing(samples: Option<&SampleParams>) -> Vec<String> {
 
 /// The item's `surfaces/<stem>.npz`.
 pub fn files(item: &Item) -> Result<ItemExport> {
-    let Some(stored) = item.samples else {
-        return Err(Error::Missing("no sample columns".into()));
-    };
+    let stored = item.stored_samples()?;
     let (s, p) = (stored.samples, stored.params);
     require_sharp(s, p.sharp_angle_deg, SURFACE_ROWS, "Step1X-3D")?;
     let place = item.placement(dora::HALF_EXTENT);

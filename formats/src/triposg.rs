@@ -29,9 +29,7 @@ pub fn missing(samples: Option<&SampleParams>) -> Vec<String> {
 
 /// The item's `<stem>.npy`.
 pub fn files(item: &Item) -> Result<ItemExport> {
-    let Some(stored) = item.samples else {
-        return Err(Error::Missing("no sample columns".into()));
-    };
+    let stored = item.stored_samples()?;
     let s = stored.samples;
     if s.surface_points.len() < SURFACE_ROWS {
         return Err(Error::Missing(format!(

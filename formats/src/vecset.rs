@@ -5,7 +5,7 @@
 
 use crate::arrays::{floats, placed, Width};
 use crate::npz::Array;
-use crate::{identity_arrays, npz_file, Error, Frame, Item, ItemExport, Placement, Result};
+use crate::{identity_arrays, npz_file, Frame, Item, ItemExport, Placement, Result};
 use sparcubes::samples::{Precision, SampleParams};
 
 /// `--help` line.
@@ -22,11 +22,7 @@ pub fn missing(samples: Option<&SampleParams>) -> Vec<String> {
 
 /// One `<stem>.npz` with the item's samples in `item.frame`.
 pub fn files(item: &Item) -> Result<ItemExport> {
-    let Some(s) = item.samples else {
-        return Err(Error::Missing(
-            "no sample columns (config key samples.enabled was off when it converted)".into(),
-        ));
-    };
+    let s = item.stored_samples()?;
     let (place, width) = match item.frame {
         Frame::Source => (Placement::to_source(&item.cubes.normalization), Width::F32),
         _ => (Placement::IDENTITY, stored_width(s.params.dtype)),
