@@ -12,34 +12,10 @@ use sparcubes::samples::{sample, SampleParams};
 use sparcubes::sides::GridSides;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::time::Instant;
 
-/// CPU seconds of this process so far (every thread).
-fn cpu() -> f64 {
-    let mut t = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: `t` is a valid timespec for clock_gettime to fill.
-    unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut t) };
-    t.tv_sec as f64 + t.tv_nsec as f64 * 1e-9
-}
-
-/// Wall and CPU seconds since `(wall, cpu)`.
-struct Clock(Instant, f64);
-
-impl Clock {
-    fn start() -> Self {
-        Clock(Instant::now(), cpu())
-    }
-    fn secs(&self) -> String {
-        format!(
-            "{:.2} s ({:.2} s CPU)",
-            self.0.elapsed().as_secs_f64(),
-            cpu() - self.1
-        )
-    }
-}
+#[path = "common/clock.rs"]
+mod clock;
+use clock::Clock;
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -64,10 +40,10 @@ fn main() -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    let convert_s = t.secs();
+    let convert_s = t.secs(2);
     let t = Clock::start();
     let mesh = sparcubes::extract(&conversion.cubes);
-    let extract_s = t.secs();
+    let extract_s = t.secs(2);
     let n = resolution as f64;
     let count = 250_000u64;
     // Near: mesh vertices moved by N(0, σ) per axis, σ = 0.005 and 0.05 in normalized units;
@@ -88,18 +64,18 @@ fn main() -> ExitCode {
         .collect();
     let t = Clock::start();
     let index = TriangleIndex::new(&mesh);
-    let build_s = t.secs();
+    let build_s = t.secs(2);
     let t = Clock::start();
     let a = index.closest_batch(&near);
-    let near_s = t.secs();
+    let near_s = t.secs(2);
     let t = Clock::start();
     let b = index.closest_batch(&volume);
-    let volume_s = t.secs();
+    let volume_s = t.secs(2);
     let t = Clock::start();
     let sides = GridSides::new(&conversion.cubes);
     let (near_in, volume_in) = (sides.inside_batch(&near), sides.inside_batch(&volume));
     let inside = near_in.len() + volume_in.len();
-    let sides_s = t.secs();
+    let sides_s = t.secs(2);
     // How often the closest triangle's face gives the side, and whether it agrees.
     let face =
         |points: &[[f64; 3]], closest: &[sparcubes::closest::ClosestPoint], grid: &[bool]| {
@@ -133,7 +109,7 @@ fn main() -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    let sample_s = t.secs();
+    let sample_s = t.secs(2);
     // The Direct3D-S2 layout, unless `--no-layout` is given.
     let layout = if args.get(2).is_some_and(|a| a == "--no-layout") {
         String::new()
@@ -145,7 +121,7 @@ fn main() -> ExitCode {
         );
         format!(
             "; direct3d-s2 layout {} ({} points, checksum {:.3})",
-            t.secs(),
+            t.secs(2),
             sdf.sdf.len(),
             sdf.sdf.iter().map(|&v| v as f64).sum::<f64>(),
         )

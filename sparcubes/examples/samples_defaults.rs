@@ -10,29 +10,16 @@
 use sparcubes::samples::{farthest_points, sample, SampleParams};
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::time::Instant;
 
-/// CPU seconds of this process so far (every thread).
-fn cpu() -> f64 {
-    let mut t = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: `t` is a valid timespec for clock_gettime to fill.
-    unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut t) };
-    t.tv_sec as f64 + t.tv_nsec as f64 * 1e-9
-}
+#[path = "common/clock.rs"]
+mod clock;
+use clock::Clock;
 
 /// Runs `f`, returning its result and "W s (C s CPU)".
 fn timed<T>(f: impl FnOnce() -> T) -> (T, String) {
-    let (wall, c) = (Instant::now(), cpu());
+    let clock = Clock::start();
     let out = f();
-    let secs = format!(
-        "{:.3} s ({:.3} s CPU)",
-        wall.elapsed().as_secs_f64(),
-        cpu() - c
-    );
-    (out, secs)
+    (out, clock.secs(3))
 }
 
 /// The defaults before sharp-near samples existed.
