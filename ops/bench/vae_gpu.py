@@ -31,7 +31,7 @@ import time
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 
 #: GPU settings on top of --config: a bigger global batch, a cell budget sized for tens of GB
-#: (about 2 KB per cell in bf16, docs/VAE.md), torch's own thread count.
+#: (about 6 KB per cell measured on an H100, docs/VAE.md "GPU"), torch's own thread count.
 GPU_TRAIN = {"batch_size": 8, "max_cells_per_batch": 3_000_000, "threads": 0,
              "checkpoint_every": 500, "log_every": 10}
 
