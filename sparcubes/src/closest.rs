@@ -166,24 +166,31 @@ impl TriangleIndex {
     /// The closest point of the mesh to `q`, or `None` for an empty mesh.
     pub fn closest(&self, q: [f64; 3]) -> Option<ClosestPoint> {
         let mut stack = Vec::with_capacity(64);
-        self.closest_from(q, None, &mut stack)
+        self.closest_from(q, None, f64::INFINITY, &mut stack)
     }
 
     /// The closest points of the mesh to every query, in query order, computed in parallel
     /// (empty when the mesh has no triangle). The result does not depend on the thread count.
     pub fn closest_batch(&self, queries: &[[f64; 3]]) -> Vec<ClosestPoint> {
+        self.closest_batch_within(queries, f64::INFINITY)
+    }
+
+    /// As [`Self::closest_batch`], but only triangles nearer than `radius` are looked for: a
+    /// query with none gets `triangle == u32::MAX` and a NaN distance. Far queries end early
+    /// (their search prunes every box not nearer than `radius`), so a band of queries near
+    /// the surface costs what its near part costs.
+    pub fn closest_batch_within(&self, queries: &[[f64; 3]], radius: f64) -> Vec<ClosestPoint> {
         if self.is_empty() {
             return Vec::new();
         }
+        let bound = radius * radius;
+        let none = ClosestPoint {
+            point: [f64::NAN; 3],
+            distance: f64::NAN,
+            triangle: u32::MAX,
+        };
         let order = morton_order(queries);
-        let mut out = vec![
-            ClosestPoint {
-                point: [0.0; 3],
-                distance: 0.0,
-                triangle: 0,
-            };
-            queries.len()
-        ];
+        let mut out = vec![none; queries.len()];
         let results: Vec<Vec<ClosestPoint>> = order
             .par_chunks(CHUNK)
             .map(|chunk| {
@@ -193,13 +200,11 @@ impl TriangleIndex {
                     .iter()
                     .map(|&i| {
                         let c = self
-                            .closest_from(queries[i as usize], hint, &mut stack)
-                            .unwrap_or(ClosestPoint {
-                                point: [f64::NAN; 3],
-                                distance: f64::NAN,
-                                triangle: u32::MAX,
-                            });
-                        hint = Some(c.triangle);
+                            .closest_from(queries[i as usize], hint, bound, &mut stack)
+                            .unwrap_or(none);
+                        if c.triangle != u32::MAX {
+                            hint = Some(c.triangle);
+                        }
                         c
                     })
                     .collect()
@@ -213,21 +218,26 @@ impl TriangleIndex {
         out
     }
 
-    /// Nearest-first search from the root, with the triangle `hint` (original index) as the
-    /// first candidate when given.
+    /// Nearest-first search from the root among the triangles nearer than `bound` (squared;
+    /// infinite for all), with the triangle `hint` (original index) as the first candidate
+    /// when given. `None` for an empty index or when no triangle is nearer than `bound`.
     fn closest_from(
         &self,
         q: [f64; 3],
         hint: Option<u32>,
+        bound: f64,
         stack: &mut Vec<Entry>,
     ) -> Option<ClosestPoint> {
         if self.wides.is_empty() {
             return None;
         }
-        let mut best = (f64::INFINITY, u32::MAX, q);
+        let mut best = (bound, u32::MAX, q);
         if let Some(t) = hint.and_then(|t| self.slot_of(t)) {
             let p = closest_point_on_triangle(q, &self.corners[t]);
-            best = (dist2(q, p), self.order[t], p);
+            let d2 = dist2(q, p);
+            if d2 < best.0 {
+                best = (d2, self.order[t], p);
+            }
         }
         let query = WideQuery::new(q);
         stack.clear();
@@ -283,7 +293,7 @@ impl TriangleIndex {
                 });
             }
         }
-        Some(ClosestPoint {
+        (best.1 != u32::MAX).then(|| ClosestPoint {
             point: best.2,
             distance: best.0.sqrt(),
             triangle: best.1,
@@ -797,6 +807,29 @@ mod tests {
             assert!((dist2(*q, own).sqrt() - d).abs() <= 1e-9, "{q:?}");
             assert!((dist2(*q, c.point).sqrt() - c.distance).abs() < 1e-12);
         }
+    }
+
+    #[test]
+    fn a_bounded_batch_answers_the_near_queries_exactly_and_no_far_one() {
+        let mesh = test_mesh();
+        let index = TriangleIndex::new(&mesh);
+        let queries: Vec<[f64; 3]> = (0..3000)
+            .map(|i| uniforms(3, 5, i).map(|u| 3.0 * u - 1.5))
+            .collect();
+        let radius = 0.3;
+        let bounded = index.closest_batch_within(&queries, radius);
+        let (mut near, mut far) = (0, 0);
+        for (q, c) in queries.iter().zip(&bounded) {
+            let d = brute(&mesh, *q).sqrt();
+            if d < radius {
+                near += 1;
+                assert_eq!(c.distance, d, "{q:?}: {c:?}");
+            } else {
+                far += 1;
+                assert_eq!(c.triangle, u32::MAX, "{q:?} at {d}: {c:?}");
+            }
+        }
+        assert!(near > 100 && far > 100, "{near} near, {far} far");
     }
 
     #[test]

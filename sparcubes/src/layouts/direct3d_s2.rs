@@ -6,16 +6,15 @@
 //! marching cubes, and its authors state that the truncated SDF is normalised to [−1, 1] for
 //! input and supervision (issue #34 of that repository).
 //!
-//! The distances are exact distances from each grid point to the extracted mesh (the band
-//! scan of [`crate::band`] over the mesh's triangles), and the sign comes from the sparse grid
-//! ([`crate::sides`]).
+//! The distances are exact distances from each grid point to the extracted mesh (nearest-first
+//! queries of [`crate::closest`]'s tree, bounded by the truncation so that points beyond it
+//! end early), and the sign comes from the sparse grid ([`crate::sides`]).
 
-use crate::band::{compute_band, triangle_planes};
+use crate::closest::TriangleIndex;
 use crate::cubes::SparseCubes;
 use crate::extract::extract;
 use crate::grid::{dilate, pack, BrickIndex, BrickSet, Dilation};
 use crate::sides::GridSides;
-use crate::voxelize::GridMesh;
 use rayon::prelude::*;
 
 /// Direct3D-S2's truncation, in voxels.
@@ -34,21 +33,39 @@ pub struct SparseSdf {
 pub fn sparse_sdf(cubes: &SparseCubes, truncation: f64) -> SparseSdf {
     let n = cubes.resolution;
     let mesh = extract(cubes);
-    let grid = GridMesh {
-        verts: mesh.positions.iter().map(|p| p.map(f64::from)).collect(),
-        tris: (0..mesh.triangles.len())
-            .filter(|&t| {
-                let f = mesh.face_normal(t);
-                f != [0.0; 3]
-            })
-            .map(|t| mesh.triangles[t])
-            .collect(),
-    };
-    if grid.tris.is_empty() || truncation.is_nan() || truncation <= 0.0 {
+    if mesh.triangles.is_empty() || truncation.is_nan() || truncation <= 0.0 {
         return SparseSdf::default();
     }
-    // Grid points within `truncation` of the surface are corners of cells within
-    // ceil(truncation) + 1 cells of an active cell (deformation moves the surface < 1 voxel).
+    let coords = band_vertices(cubes, truncation).sorted_members();
+    let queries: Vec<[f64; 3]> = coords.par_iter().map(|c| c.map(f64::from)).collect();
+    let nearest = TriangleIndex::new(&mesh).closest_batch_within(&queries, truncation);
+    let sides = GridSides::new(cubes);
+    let kept: Vec<([u16; 3], f32)> = coords
+        .par_iter()
+        .zip(&nearest)
+        .map_init(Default::default, |scratch, (c, near)| {
+            let udf = near.distance;
+            if near.triangle == u32::MAX || udf >= truncation || c.iter().any(|&v| u32::from(v) > n)
+            {
+                return None;
+            }
+            let inside = sides.is_inside(c.map(f64::from), scratch);
+            let s = if inside { -udf } else { udf } / truncation;
+            Some((*c, s as f32))
+        })
+        .flatten()
+        .collect();
+    let (coords, sdf) = kept.into_iter().unzip();
+    SparseSdf { coords, sdf }
+}
+
+/// Every grid point that can lie within `truncation` voxels of the surface: the corners of
+/// the cells within `ceil(truncation)` cells of an active cell. A point within `t` of a
+/// surface point of cell `c` is within `t` of the cell's box on every axis; the surface lies
+/// in its active cells up to the deformation (under one voxel), so the point is a corner of
+/// a cell at most `ceil(t)` cells from `c` along each axis.
+pub fn band_vertices(cubes: &SparseCubes, truncation: f64) -> BrickSet {
+    let n = cubes.resolution;
     let index = BrickIndex::for_resolution(n);
     let mut keys: Vec<u64> = cubes
         .cells
@@ -57,33 +74,10 @@ pub fn sparse_sdf(cubes: &SparseCubes, truncation: f64) -> SparseSdf {
         .collect();
     keys.par_sort_unstable();
     let mut cells = BrickSet::from_sorted_packed(n, &keys);
-    for _ in 0..truncation.ceil() as u32 + 1 {
+    for _ in 0..truncation.ceil() as u32 {
         cells = dilate(&cells, n, Dilation::Box);
     }
-    let verts = dilate(&cells, n, Dilation::Corners);
-    let planes = triangle_planes(&grid);
-    let band = compute_band(&grid, &planes, verts, truncation);
-    let coords = band.verts.coords();
-    let sides = GridSides::new(cubes);
-    let kept: Vec<([u16; 3], f32)> = coords
-        .par_iter()
-        .zip(&band.nearest)
-        .map_init(Default::default, |scratch, (c, near)| {
-            let udf = near.udf as f64;
-            if udf.is_nan() || udf >= truncation || c.iter().any(|&v| v > n) {
-                return None;
-            }
-            let g = c.map(f64::from);
-            let inside = sides.is_inside(g, scratch);
-            let s = if inside { -udf } else { udf } / truncation;
-            Some((c.map(|v| v as u16), s as f32))
-        })
-        .flatten()
-        .collect();
-    let mut kept = kept;
-    kept.par_sort_unstable_by_key(|k| k.0);
-    let (coords, sdf) = kept.into_iter().unzip();
-    SparseSdf { coords, sdf }
+    dilate(&cells, n, Dilation::Corners)
 }
 
 #[cfg(test)]
