@@ -117,6 +117,15 @@ impl Consumer {
         }
     }
 
+    /// Whether this consumer's files are made from the stored samples (the grid layouts are
+    /// made from the sparse cubes alone, so their export need not decode the sample columns).
+    pub fn reads_samples(self) -> bool {
+        !matches!(
+            self,
+            Consumer::Direct3dS2 | Consumer::Trellis2 | Consumer::Cubvh
+        )
+    }
+
     /// The `[samples]` keys a job with `samples` (None: samples off) lacks for this consumer,
     /// each with what it needs (empty when nothing is missing).
     pub fn missing(self, samples: Option<&SampleParams>) -> Vec<String> {

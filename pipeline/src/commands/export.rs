@@ -156,6 +156,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
 }
 
 /// What the items' pass wrote.
+#[derive(Default)]
 struct Written {
     /// The items written, in manifest order.
     listed: Vec<Listed>,
@@ -163,8 +164,19 @@ struct Written {
     failed: Vec<(String, String)>,
 }
 
+/// One item's export, on its way to the writer.
+struct Exported {
+    id: String,
+    stem: String,
+    export: Result<sparc3d_formats::ItemExport>,
+}
+
 /// Writes every wanted ok item's files under `dir`; an item that fails is named on stderr and
 /// the rest go on. Errors only when a shard cannot be read or a file cannot be written.
+///
+/// Items are computed in parallel batches of twice the pool's threads (so a slow item does
+/// not leave the other threads idle for long) while one writer thread writes the previous
+/// batches' files in manifest order; at most two batches' files are in memory.
 fn write_items(
     job: &Job,
     consumer: Consumer,
@@ -172,6 +184,38 @@ fn write_items(
     wanted: &BTreeSet<&str>,
     dir: &Path,
 ) -> Result<Written> {
+    let at_once = 2 * rayon::current_num_threads().max(1);
+    let (send, receive) = std::sync::mpsc::sync_channel::<Exported>(at_once);
+    std::thread::scope(|scope| {
+        let writer = scope.spawn(move || -> Result<Written> {
+            let mut out = Written::default();
+            for item in receive {
+                record_item(dir, item, &mut out)?;
+            }
+            Ok(out)
+        });
+        let computed = compute_items(job, consumer, frame, wanted, at_once, &send);
+        drop(send);
+        let written = writer
+            .join()
+            .unwrap_or_else(|_| Err(anyhow::anyhow!("the export's writer thread panicked")));
+        // A writer error (a file that cannot be written) is the cause when both failed.
+        let written = written?;
+        computed?;
+        Ok(written)
+    })
+}
+
+/// Computes the wanted ok items' exports, shard by shard in batches of `at_once`, and sends
+/// them in manifest order; stops early when the writer has stopped.
+fn compute_items(
+    job: &Job,
+    consumer: Consumer,
+    frame: Frame,
+    wanted: &BTreeSet<&str>,
+    at_once: usize,
+    send: &std::sync::mpsc::SyncSender<Exported>,
+) -> Result<()> {
     let shards: BTreeSet<u64> = job
         .items
         .iter()
@@ -179,13 +223,6 @@ fn write_items(
         .map(|i| i.shard)
         .collect();
     let names = ExportNames::for_job(job.file.items);
-    let mut out = Written {
-        listed: Vec::new(),
-        failed: Vec::new(),
-    };
-    // Items are exported a few at a time in parallel (as many as the pool has threads, so at
-    // most that many items' files are in memory), then written in manifest order.
-    let at_once = rayon::current_num_threads().max(1);
     for shard in shards {
         let rows: Vec<ShardRow> = shard_rows(job, shard, Check::Full)?
             .into_iter()
@@ -193,45 +230,45 @@ fn write_items(
             .filter(|r| r.tensors.is_some())
             .collect();
         for batch in rows.chunks(at_once) {
-            let exports: Vec<(String, Result<sparc3d_formats::ItemExport>)> = batch
+            let exports: Vec<Exported> = batch
                 .par_iter()
                 .map(|row| {
                     let stem = names.stem(row.item_index, &row.id);
                     let export = export_row(job, row, consumer, frame, &stem);
-                    (stem, export)
+                    Exported {
+                        id: row.id.clone(),
+                        stem,
+                        export,
+                    }
                 })
                 .collect();
-            for (row, (stem, export)) in batch.iter().zip(exports) {
-                record_item(dir, row, stem, export, &mut out)?;
+            for item in exports {
+                if send.send(item).is_err() {
+                    return Ok(()); // the writer stopped: its error is reported
+                }
             }
         }
     }
-    Ok(out)
+    Ok(())
 }
 
 /// Writes one item's files and lists it, or names it as failed.
-fn record_item(
-    dir: &Path,
-    row: &ShardRow,
-    stem: String,
-    export: Result<sparc3d_formats::ItemExport>,
-    out: &mut Written,
-) -> Result<()> {
-    match export {
+fn record_item(dir: &Path, item: Exported, out: &mut Written) -> Result<()> {
+    match item.export {
         Ok(export) => {
             for f in &export.files {
                 write_file(dir, f)?;
             }
             out.listed.push(Listed {
-                id: row.id.clone(),
-                stem,
+                id: item.id,
+                stem: item.stem,
                 files: export.files.into_iter().map(|f| f.path).collect(),
                 columns: export.listing,
             });
         }
         Err(e) => {
-            eprintln!("error: item {:?}: {e:#}", row.id);
-            out.failed.push((row.id.clone(), format!("{e:#}")));
+            eprintln!("error: item {:?}: {e:#}", item.id);
+            out.failed.push((item.id, format!("{e:#}")));
         }
     }
     Ok(())
@@ -246,7 +283,8 @@ fn export_row(
     stem: &str,
 ) -> Result<sparc3d_formats::ItemExport> {
     let cubes = row.cubes()?;
-    let samples = match row.tensors.as_ref().and_then(|t| t.samples.as_ref()) {
+    let stored = row.tensors.as_ref().and_then(|t| t.samples.as_ref());
+    let samples = match stored.filter(|_| consumer.reads_samples()) {
         Some(t) => Some(t.to_samples()?),
         None => None,
     };
