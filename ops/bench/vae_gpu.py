@@ -14,7 +14,8 @@ The step count comes from the measured rate: a 30-step calibration run (which al
 CUDA), then minutes × 60 × the calibrated rate (the learning-rate schedule needs a step count).
 --procs N trains with `torchrun --nproc_per_node N` (one GPU each). Needs torch with CUDA,
 `sparc3d` (SPARC3D_BIN or PATH) and sparc3d-vae (installed, or the checkout on PYTHONPATH);
-nothing is downloaded. Writes WORK/report.json and prints it.
+nothing is downloaded. Writes WORK/report.json (first after training, again with the
+evaluation; `phases` holds the seconds of calibration and evaluation) and prints it.
 """
 
 import argparse
@@ -128,9 +129,12 @@ def main():
     common = ["--data", job, "--config", config, "--device", args.device,
               "--hold-out", args.unseen, "--hold-out-seed", 1]
 
+    phases = {}
     calib = args.work / "calibrate"
     shutil.rmtree(calib, ignore_errors=True)
+    t0 = time.monotonic()
     run(vae(args.procs, "train", *common, "--out", calib, "--steps", 30))
+    phases["calibrate_seconds"] = time.monotonic() - t0
     rate, _ = rate_from_log(calib)
     steps = max(30, int(args.minutes * 60 * rate))
 
@@ -141,14 +145,6 @@ def main():
     wall = time.monotonic() - t0
     steps_per_s, cells_per_step = rate_from_log(run_dir)
     peak = re.search(r"peak GPU memory ([0-9.]+) GiB", out)
-
-    evals = {}
-    for name, sample in (("unseen", args.unseen),):
-        ev = args.work / f"eval-{name}"
-        shutil.rmtree(ev, ignore_errors=True)
-        run(vae(1, "evaluate", "--ckpt", run_dir, "--data", job, "--sample", sample, "--seed", 1,
-                "--out", ev, "--device", args.device))
-        evals[name] = json.loads((ev / "summary.json").read_text())["aggregate"]
     gpu = torch.cuda.get_device_name(0) if args.device == "cuda" else None
     report = {"gpu": gpu, "processes": args.procs,
               "resolution": json.loads((job / "job.json").read_text())["config"]["params"]["resolution"],
@@ -156,9 +152,30 @@ def main():
               "steps_per_second": steps_per_s, "cells_per_step": cells_per_step,
               "cells_per_second": steps_per_s * cells_per_step,
               "peak_gpu_gib_rank0": float(peak.group(1)) if peak else None,
-              "train_stdout": out.strip().splitlines()[-2:], "eval": evals}
-    (args.work / "report.json").write_text(json.dumps(report, indent=2) + "\n")
+              "train_stdout": out.strip().splitlines()[-2:], "phases": phases, "eval": None}
+    # Written before the evaluation too, so that a run stopped during it (a lent machine's
+    # time running out) still leaves the training figures.
+    write_report(args.work, report)
+
+    evals = {}
+    t0 = time.monotonic()
+    for name, sample in (("unseen", args.unseen),):
+        ev = args.work / f"eval-{name}"
+        shutil.rmtree(ev, ignore_errors=True)
+        run(vae(1, "evaluate", "--ckpt", run_dir, "--data", job, "--sample", sample, "--seed", 1,
+                "--out", ev, "--device", args.device))
+        evals[name] = json.loads((ev / "summary.json").read_text())["aggregate"]
+    phases["evaluate_seconds"] = time.monotonic() - t0
+    report["eval"] = evals
+    write_report(args.work, report)
     print(json.dumps({k: v for k, v in report.items() if k != "config"}, indent=2))
+
+
+def write_report(work, report):
+    """WORK/report.json, replaced whole."""
+    tmp = work / "report.json.tmp"
+    tmp.write_text(json.dumps(report, indent=2) + "\n")
+    tmp.replace(work / "report.json")
 
 
 if __name__ == "__main__":
