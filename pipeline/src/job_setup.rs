@@ -3,9 +3,9 @@
 //! the job a read-only command opens ([`open_read_only`]).
 
 use crate::commands::init::{build_config, check_same_config, create, read_manifest, ConfigArgs};
-use crate::folder_scan::collect;
-use crate::manifest_io::RawRecord;
 use anyhow::{bail, Result};
+use sparc3d_manifests::folder_scan::collect;
+use sparc3d_manifests::RawRecord;
 use sparc3d_schema::JobLayout;
 use sparc3d_workers::Job;
 use std::path::{Path, PathBuf};

@@ -1,9 +1,9 @@
 //! `sparc3d failures JOB [--json]`: every failed item with its class and message, one line
-//! each: class, id, source and the whole message, separated by tabs and escaped (`tsv.rs`).
+//! each: class, id, source and the whole message, separated by tabs and escaped (`sparc3d_manifests::tsv`).
 
-use crate::tsv;
 use anyhow::Result;
 use serde::Serialize;
+use sparc3d_manifests::tsv;
 use sparc3d_schema::ItemStatus;
 use sparc3d_workers::store::read::shard_rows;
 use std::io::Write;

@@ -1,11 +1,11 @@
 //! `sparc3d init JOB --manifest M [--resolution N] [--shard-size S] [--config job.toml]
-//! [--path-column NAME]`: freezes the manifest into the job folder (`freeze.rs`), gives every
+//! [--path-column NAME]`: freezes the manifest into the job folder (`sparc3d_manifests::freeze`), gives every
 //! item its shard once, and writes the config with its fingerprint. Re-running with another
 //! config is refused, naming the keys; a job whose files were edited since is refused too.
 
-use crate::manifest_io;
 use crate::units::with_default;
 use anyhow::{bail, Context, Result};
+use sparc3d_manifests::table as manifest_io;
 use sparc3d_schema::{JobConfig, JobFile, JobLayout};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -164,7 +164,7 @@ pub fn check_same_config(existing: &sparc3d_workers::Job, config: &JobConfig) ->
 /// one with another config or manifest is refused.
 pub fn create(job: &Path, records: Vec<manifest_io::RawRecord>, config: JobConfig) -> Result<()> {
     let layout = JobLayout::new(job);
-    let items = crate::freeze::freeze(records, config.shard_size)?;
+    let items = sparc3d_manifests::freeze::freeze(records, config.shard_size)?;
     let mut text = String::new();
     for it in &items {
         text.push_str(&serde_json::to_string(it)?);

@@ -1,11 +1,12 @@
 //! `sparc3d ls JOB [--failed] [--json]`: every item of a job in manifest order with its id,
 //! status (`ok`, `failed:CLASS`, `skipped`, `pending`, or `damaged` when its finished shard no longer
 //! matches its record) and source file: where the ids that `show`/`preview --id` take come
-//! from. One line per item, fields separated by tabs and escaped (`tsv.rs`).
+//! from. One line per item, fields separated by tabs and escaped (`sparc3d_manifests::tsv`).
 
-use crate::{hints, tsv};
+use crate::hints;
 use anyhow::Result;
 use serde::Serialize;
+use sparc3d_manifests::tsv;
 use sparc3d_schema::ItemStatus;
 use sparc3d_workers::store::read::shard_rows;
 use sparc3d_workers::store::state::Check;

@@ -1,9 +1,9 @@
 //! `sparc3d manifest build DIR -o manifest.(parquet|jsonl|csv)`: scan a folder for supported
 //! meshes, hash them in parallel, and report identical duplicates (kept once).
 
-use crate::folder_scan::collect;
-use crate::manifest_io;
 use anyhow::Result;
+use sparc3d_manifests::folder_scan::collect;
+use sparc3d_manifests::table as manifest_io;
 use std::path::PathBuf;
 use std::process::ExitCode;
 

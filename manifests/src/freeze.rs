@@ -1,12 +1,12 @@
-//! A manifest's rows frozen into a job's items (`init`): every row's sha256 well formed, every
+//! A manifest's rows frozen into a job's items (`sparc3d init`): every row's sha256 well formed, every
 //! id known (a row with neither id nor sha256 is identified by its file's sha256, hashed here),
 //! ids unique, and each item's shard. Problems are named by row, the first few in full and the
 //! rest counted.
 
-use crate::manifest_io::RawRecord;
+use crate::record::{FrozenItem, ManifestRecord};
+use crate::table::RawRecord;
 use anyhow::{bail, Result};
 use rayon::prelude::*;
-use sparc3d_schema::{FrozenItem, ManifestRecord};
 use std::collections::HashMap;
 
 /// Rows listed in full when many have a problem; the rest are counted.
@@ -62,7 +62,7 @@ fn id_and_sha(r: &RawRecord) -> Result<(String, Option<String>)> {
         (Some(id), sha) => (id.clone(), sha.clone()),
         (None, Some(sha)) => (sha.clone(), Some(sha.clone())),
         (None, None) => {
-            let sha = sparc3d_workers::fsutil::file_sha256(std::path::Path::new(&r.uri))?;
+            let sha = crate::hash::file_sha256(std::path::Path::new(&r.uri))?;
             (sha.clone(), Some(sha))
         }
     })

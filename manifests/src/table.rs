@@ -1,14 +1,14 @@
 //! Reading and writing manifests: CSV, JSONL or Parquet, chosen by extension. Any table with
-//! a path column is a manifest (which column: `path_column.rs`, one rule for the whole
+//! a path column is a manifest (which column: [`crate::path_column`], one rule for the whole
 //! manifest); `id` (or `sha256`) is optional. Relative paths are resolved against the
 //! manifest's folder.
 
 use crate::path_column::PathColumn;
+use crate::record::ManifestRecord;
 use anyhow::{bail, Context, Result};
 use arrow_array::{Array, LargeStringArray, RecordBatch, StringArray, StringViewArray};
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use parquet::arrow::ArrowWriter;
-use sparc3d_schema::ManifestRecord;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -122,7 +122,7 @@ fn read_parquet_table(path: &Path) -> Result<Vec<BTreeMap<String, String>>> {
     Ok(rows)
 }
 
-/// Reads a manifest file; `path_column` is `--path-column` (otherwise `path_column.rs`'s rule
+/// Reads a manifest file; `path_column` is `--path-column` (otherwise [`crate::path_column`]'s rule
 /// picks the column).
 pub fn read(path: &Path, path_column: Option<&str>) -> Result<Manifest> {
     let base = path.parent().map(|p| p.to_path_buf()).unwrap_or_default();
