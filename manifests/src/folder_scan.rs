@@ -101,6 +101,7 @@ pub fn collect(dir: &Path) -> Result<Collected> {
             format: path
                 .extension()
                 .map(|e| e.to_string_lossy().to_ascii_lowercase()),
+            extra: Default::default(),
         });
     }
     Ok(Collected {

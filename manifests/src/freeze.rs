@@ -82,6 +82,7 @@ fn identify(records: Vec<RawRecord>) -> Result<Vec<ManifestRecord>> {
                 uri: r.uri,
                 sha256,
                 format: r.format,
+                extra: r.extra,
             })
         })
         .collect();

@@ -2,7 +2,9 @@
 //! a folder of meshes or a manifest when OUT is not a job yet, with `init`'s config flags; and
 //! the job a read-only command opens ([`open_read_only`]).
 
-use crate::commands::init::{build_config, check_same_config, create, read_manifest, ConfigArgs};
+use crate::commands::init::{
+    build_config, check_same_config, create, read_manifest, select, ConfigArgs, SourceArgs,
+};
 use anyhow::{bail, Result};
 use sparc3d_manifests::folder_scan::collect;
 use sparc3d_manifests::RawRecord;
@@ -23,7 +25,7 @@ pub fn job_for_run(
     input: &Path,
     out: Option<&Path>,
     flags: &ConfigArgs,
-    path_column: Option<&str>,
+    source: &SourceArgs,
 ) -> Result<PathBuf> {
     let Some(out) = out else {
         if !is_job(input) {
@@ -65,9 +67,10 @@ pub fn job_for_run(
             c.unreadable,
             c.skipped
         );
-        c.records.into_iter().map(RawRecord::from).collect()
+        let records = c.records.into_iter().map(RawRecord::from).collect();
+        select(records, source, input)?
     } else {
-        read_manifest(input, path_column)?.records
+        read_manifest(input, source)?
     };
     if records.is_empty() {
         bail!("{}: no meshes to convert", input.display());

@@ -97,3 +97,217 @@ fn a_job_without_extra_columns_converts_to_the_shards_of_before() {
         assert_eq!(column_names(f), before, "{}", f.display());
     }
 }
+
+/// A manifest over the examples (and one broken file) with provenance columns: a licence, a
+/// name (one with a comma, one empty), a uid and a source URL in a second path-like column.
+fn provenance_manifest(dir: &Path) -> PathBuf {
+    let meshes = examples(dir);
+    std::fs::write(meshes.join("broken.obj"), "not a mesh\n").unwrap_or_else(|e| panic!("{e}"));
+    let m = dir.join("m.csv");
+    let rows = [
+        "local_path,uri,License,name,uid",
+        "meshes/cube.off,https://h/cube.off,cc0,Cube,u1",
+        "meshes/sphere.obj,https://h/sphere.obj,cc-by,\"Sphere, round\",u2",
+        "meshes/wuson.stl,https://h/wuson.stl,by-nc,Wuson,u3",
+        "meshes/box_textured.glb,https://h/box.glb,cc-by,,u4",
+        "meshes/broken.obj,https://h/broken.obj,cc0,Broken,u5",
+    ];
+    std::fs::write(&m, rows.join("\n") + "\n").unwrap_or_else(|e| panic!("{e}"));
+    m
+}
+
+/// Every `manifest.*` column of a row with its value (None: null).
+type Provenance = Vec<(String, Option<String>)>;
+
+/// (id, provenance) of each row of a job, in shard order.
+fn provenance_of_rows(job: &Path) -> Vec<(String, Provenance)> {
+    use arrow_array::{Array, StringArray};
+    let mut out = Vec::new();
+    for file in shard_files(job) {
+        for b in batches(&file) {
+            let schema = b.schema();
+            let strings = |name: &str| -> StringArray {
+                b.column_by_name(name)
+                    .and_then(|c| c.as_any().downcast_ref::<StringArray>().cloned())
+                    .unwrap_or_else(|| panic!("{name} is not a string column"))
+            };
+            let ids = strings("id");
+            let names: Vec<String> = schema
+                .fields()
+                .iter()
+                .map(|f| f.name().clone())
+                .filter(|n| n.starts_with("manifest."))
+                .collect();
+            for i in 0..b.num_rows() {
+                let values = names
+                    .iter()
+                    .map(|n| {
+                        let c = strings(n);
+                        (n.clone(), c.is_valid(i).then(|| c.value(i).to_string()))
+                    })
+                    .collect();
+                out.push((ids.value(i).to_string(), values));
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn provenance_columns_come_through_to_shards_listings_and_exports() {
+    let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let m = provenance_manifest(tmp.path());
+    let job = tmp.path().join("job");
+    let out = sparc3d(&[
+        "run",
+        s(&m),
+        "--job",
+        s(&job),
+        "--where",
+        "license in (cc-by, cc0)",
+        "--resolution",
+        "32",
+        "--shard-size",
+        "2",
+        "--workers",
+        "2",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(err.contains("4 rows kept, 1 left out"), "{err}");
+    assert!(
+        err.contains("provenance columns kept with every item: license, name, uid, uri"),
+        "{err}"
+    );
+
+    // Shards: one nullable string column per manifest column, null where the row had none.
+    let rows = provenance_of_rows(&job);
+    assert_eq!(rows.len(), 4);
+    let col = |v: &[(String, Option<String>)], k: &str| -> Option<String> {
+        v.iter().find(|(n, _)| n == k).and_then(|(_, x)| x.clone())
+    };
+    let names: Vec<String> = rows[0].1.iter().map(|(n, _)| n.clone()).collect();
+    assert_eq!(
+        names,
+        [
+            "manifest.license",
+            "manifest.name",
+            "manifest.uid",
+            "manifest.uri"
+        ]
+    );
+    let licences: Vec<Option<String>> = rows
+        .iter()
+        .map(|(_, v)| col(v, "manifest.license"))
+        .collect();
+    assert_eq!(
+        licences,
+        [Some("cc0"), Some("cc-by"), Some("cc-by"), Some("cc0")].map(|s| s.map(String::from))
+    );
+    assert_eq!(
+        col(&rows[1].1, "manifest.name").as_deref(),
+        Some("Sphere, round")
+    );
+    assert_eq!(
+        col(&rows[2].1, "manifest.name"),
+        None,
+        "an empty value is null"
+    );
+    assert_eq!(
+        col(&rows[3].1, "manifest.uri").as_deref(),
+        Some("https://h/broken.obj")
+    );
+
+    // ls and failures: `name=value` fields after the fixed ones; --json: a `manifest` object.
+    let ls = ok(&["ls", s(&job)]);
+    let first = ls.lines().next().unwrap_or_default();
+    assert!(
+        first.ends_with("\tlicense=cc0\tname=Cube\tuid=u1\turi=https://h/cube.off"),
+        "{first}"
+    );
+    let json: serde_json::Value = serde_json::from_str(
+        ok(&["ls", s(&job), "--json"])
+            .lines()
+            .nth(1)
+            .unwrap_or_default(),
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(json["manifest"]["name"], "Sphere, round");
+    let failures = ok(&["failures", s(&job)]);
+    assert!(
+        failures.starts_with("parse_error\t")
+            && failures.contains("\tlicense=cc0\tname=Broken\tuid=u5\t"),
+        "{failures}"
+    );
+
+    // inspect counts rows per value; the report has a section per column.
+    let inspect = inspect(&job);
+    assert_eq!(inspect["provenance"]["license"]["cc-by"], 2);
+    assert_eq!(inspect["provenance"]["name"][""], 1);
+    let report = tmp.path().join("report.html");
+    ok(&["report", s(&job), "-o", s(&report), "--previews", "0"]);
+    let html = std::fs::read_to_string(&report).unwrap_or_else(|e| panic!("{e}"));
+    assert!(
+        html.contains("<h3>manifest.license</h3>") && html.contains("license=cc0; name=Broken"),
+        "report"
+    );
+
+    // Exports list them with each item.
+    let export = tmp.path().join("export");
+    ok(&["export", s(&job), "--format", "cubvh", "--out", s(&export)]);
+    let record = std::fs::read_to_string(export.join(".sparc3d-export.json"))
+        .unwrap_or_else(|e| panic!("{e}"));
+    let record: serde_json::Value = serde_json::from_str(&record).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(record["items"][0]["manifest"]["license"], "cc0");
+    assert_eq!(record["items"][1]["manifest"]["uid"], "u2");
+}
+
+#[test]
+fn provenance_jobs_are_deterministic_whatever_the_worker_count() {
+    let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let m = provenance_manifest(tmp.path());
+    let digests: Vec<String> = ["1", "3"]
+        .iter()
+        .map(|workers| {
+            let job = tmp.path().join(format!("job-{workers}"));
+            ok(&[
+                "run",
+                s(&m),
+                "--job",
+                s(&job),
+                "--resolution",
+                "32",
+                "--shard-size",
+                "2",
+                "--workers",
+                workers,
+            ]);
+            inspect(&job)["content_digest"]
+                .as_str()
+                .unwrap_or_default()
+                .to_string()
+        })
+        .collect();
+    assert_eq!(digests[0], digests[1]);
+    // The provenance is part of the content: the same meshes without it digest otherwise.
+    let plain = tmp.path().join("plain.csv");
+    let text = std::fs::read_to_string(&m).unwrap_or_else(|e| panic!("{e}"));
+    let paths: Vec<&str> = text
+        .lines()
+        .map(|l| l.split(',').next().unwrap_or_default())
+        .collect();
+    std::fs::write(&plain, paths.join("\n") + "\n").unwrap_or_else(|e| panic!("{e}"));
+    let job = tmp.path().join("job-plain");
+    ok(&[
+        "run",
+        s(&plain),
+        "--job",
+        s(&job),
+        "--resolution",
+        "32",
+        "--shard-size",
+        "2",
+        "--workers",
+        "2",
+    ]);
+    assert_ne!(inspect(&job)["content_digest"], digests[0].as_str());
+}

@@ -15,7 +15,7 @@ use sparc3d_schema::ShardRow;
 use sparc3d_workers::store::read::shard_rows;
 use sparc3d_workers::store::state::Check;
 use sparc3d_workers::Job;
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -202,7 +202,12 @@ fn write_items(
                 })
                 .collect();
             for (row, (stem, export)) in batch.iter().zip(exports) {
-                record_item(dir, row, stem, export, &mut out)?;
+                let provenance = job
+                    .items
+                    .get(row.item_index as usize)
+                    .map(|i| i.record.extra.clone())
+                    .unwrap_or_default();
+                record_item(dir, row, &provenance, stem, export, &mut out)?;
             }
         }
     }
@@ -213,6 +218,7 @@ fn write_items(
 fn record_item(
     dir: &Path,
     row: &ShardRow,
+    provenance: &BTreeMap<String, String>,
     stem: String,
     export: Result<sparc3d_formats::ItemExport>,
     out: &mut Written,
@@ -227,6 +233,7 @@ fn record_item(
                 stem,
                 files: export.files.into_iter().map(|f| f.path).collect(),
                 columns: export.listing,
+                provenance: provenance.clone(),
             });
         }
         Err(e) => {
@@ -291,11 +298,15 @@ fn write_record(
         .listed
         .iter()
         .map(|l| {
-            serde_json::json!({
+            let mut item = serde_json::json!({
                 "id": l.id,
                 "stem": l.stem,
                 "files": l.files.iter().map(|p| p.to_string_lossy()).collect::<Vec<_>>(),
-            })
+            });
+            if !l.provenance.is_empty() {
+                item["manifest"] = serde_json::json!(l.provenance);
+            }
+            item
         })
         .collect();
     let failed: Vec<serde_json::Value> = written

@@ -1,5 +1,6 @@
 //! `sparc3d inspect SHARD|JOB [--json]`: schema version, rows, bytes per column, percentiles
-//! of voxel counts, faces and timings, and the content digest (which excludes timings).
+//! of voxel counts, faces and timings, the values of the provenance columns (`manifest.*`)
+//! with their counts, and the content digest (which excludes timings).
 //!
 //! Every finished shard is hashed against its completion record first (a shard file given
 //! alone, when its record lies beside it): a damaged shard is named and the command fails
@@ -37,8 +38,14 @@ struct Report {
     column_bytes: BTreeMap<String, u64>,
     percentiles: BTreeMap<String, BTreeMap<String, f64>>,
     time_sums: BTreeMap<String, f64>,
+    /// Rows per value of each provenance column (`""` for none).
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    provenance: BTreeMap<String, BTreeMap<String, u64>>,
     content_digest: String,
 }
+
+/// Values of a provenance column printed in full; the rest are counted.
+const VALUES_SHOWN: usize = 5;
 
 const STATS: [&str; 6] = [
     "active_vertices",
@@ -163,6 +170,9 @@ fn add_shard(r: &mut Report, values: &mut BTreeMap<&str, Vec<f64>>, file: &Path)
     r.row_groups += meta.row_groups;
     r.file_bytes += meta.file_bytes;
     for (c, b) in meta.column_bytes {
+        if let Some(name) = c.strip_prefix(sparc3d_schema::columns::PROVENANCE_PREFIX) {
+            r.provenance.entry(name.to_string()).or_default();
+        }
         *r.column_bytes.entry(c).or_default() += b;
     }
     let mut push = |key: &str, x: f64| {
@@ -173,6 +183,10 @@ fn add_shard(r: &mut Report, values: &mut BTreeMap<&str, Vec<f64>>, file: &Path)
     let mut h = sha2::Sha256::default();
     for_each_row(file, |row| {
         digest::update_row(&mut h, &row);
+        for (name, values) in r.provenance.iter_mut() {
+            let value = row.provenance.get(name).cloned().unwrap_or_default();
+            *values.entry(value).or_default() += 1;
+        }
         match row.status {
             ItemStatus::Ok => r.ok += 1,
             _ => r.failed += 1,
@@ -203,6 +217,30 @@ fn add_shard(r: &mut Report, values: &mut BTreeMap<&str, Vec<f64>>, file: &Path)
     Ok(sparc3d_schema::config::hex(&h.finalize()))
 }
 
+/// Prints each provenance column with its most frequent values and their row counts.
+fn print_provenance(r: &Report) {
+    if r.provenance.is_empty() {
+        return;
+    }
+    println!("provenance columns (rows per value):");
+    for (name, values) in &r.provenance {
+        let mut v: Vec<(&String, &u64)> = values.iter().collect();
+        v.sort_by(|a, b| b.1.cmp(a.1).then(a.0.cmp(b.0)));
+        let shown: Vec<String> = v
+            .iter()
+            .take(VALUES_SHOWN)
+            .map(|(value, n)| format!("{} {n}", if value.is_empty() { "(none)" } else { value }))
+            .collect();
+        let more = v.len().saturating_sub(VALUES_SHOWN);
+        let more = if more > 0 {
+            format!(", {more} more values")
+        } else {
+            String::new()
+        };
+        println!("  manifest.{name}: {}{more}", shown.join(", "));
+    }
+}
+
 /// Prints the report as aligned text.
 fn print_text(r: &Report) {
     println!("shards:         {}", r.shards);
@@ -213,6 +251,7 @@ fn print_text(r: &Report) {
     );
     println!("bytes:          {}", r.file_bytes);
     println!("content digest: {}", r.content_digest);
+    print_provenance(r);
     println!("seconds summed over items:");
     for (k, v) in &r.time_sums {
         println!("  {v:>12.3}  {k}");
