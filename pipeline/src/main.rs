@@ -3,6 +3,7 @@
 mod cluster;
 mod commands;
 mod export_name;
+mod grow;
 mod hints;
 mod huge_pages;
 mod item_lookup;

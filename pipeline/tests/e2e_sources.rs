@@ -239,9 +239,14 @@ fn the_path_column_is_chosen_by_one_rule_that_init_states() {
     for line in frozen.lines() {
         let item: serde_json::Value = serde_json::from_str(line).unwrap_or_default();
         let source = item["uri"].as_str().unwrap_or_default();
-        assert!(!source.contains("://"), "a URL frozen as the source: {line}");
         assert!(
-            item["extra"]["uri"].as_str().is_some_and(|u| u.contains("://")),
+            !source.contains("://"),
+            "a URL frozen as the source: {line}"
+        );
+        assert!(
+            item["extra"]["uri"]
+                .as_str()
+                .is_some_and(|u| u.contains("://")),
             "{line}"
         );
     }
@@ -286,8 +291,12 @@ fn the_path_column_is_chosen_by_one_rule_that_init_states() {
     let frozen = std::fs::read_to_string(job3.join("manifest.jsonl")).unwrap_or_default();
     let item: serde_json::Value = serde_json::from_str(frozen.trim()).unwrap_or_default();
     assert!(
-        item["uri"].as_str().is_some_and(|u| u.ends_with("sphere.obj"))
-            && item["extra"]["path"].as_str().is_some_and(|p| p.ends_with("cube.off")),
+        item["uri"]
+            .as_str()
+            .is_some_and(|u| u.ends_with("sphere.obj"))
+            && item["extra"]["path"]
+                .as_str()
+                .is_some_and(|p| p.ends_with("cube.off")),
         "{frozen}"
     );
 }

@@ -10,6 +10,7 @@
 //! JOB/state/part-NNNNN.journal          a shard's single journal as earlier builds wrote it
 //!                                       (read when resuming, never written)
 //! JOB/state/part-NNNNN.lease            who works on a shard, with heartbeat and expiry
+//! JOB/state/job.lock                    flock: shared by run/work, exclusive while `add` grows the job
 //! JOB/quarantine/part-NNNNN-<time>/     a damaged shard and its record, moved aside
 //! ```
 
@@ -94,6 +95,11 @@ impl JobLayout {
     /// `quarantine/`: damaged shards moved aside (never deleted) to be converted again.
     pub fn quarantine_dir(&self) -> PathBuf {
         self.root.join("quarantine")
+    }
+
+    /// The job lock (`state/job.lock`): held shared by `run` and `work`, exclusive by `add`.
+    pub fn job_lock(&self) -> PathBuf {
+        self.state_dir().join("job.lock")
     }
 
     /// The lease of a shard.

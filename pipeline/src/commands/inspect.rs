@@ -1,6 +1,8 @@
 //! `sparc3d inspect SHARD|JOB [--json]`: schema version, rows, bytes per column, percentiles
 //! of voxel counts, faces and timings, the values of the provenance columns (`manifest.*`)
-//! with their counts, and the content digest (which excludes timings).
+//! with their counts, and the content digest (which excludes timings) with the items digest
+//! (the same rows hashed in item order, whatever the shards: docs/FORMAT.md, "Content
+//! digest").
 //!
 //! Every finished shard is hashed against its completion record first (a shard file given
 //! alone, when its record lies beside it): a damaged shard is named and the command fails
@@ -42,6 +44,9 @@ struct Report {
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     provenance: BTreeMap<String, BTreeMap<String, u64>>,
     content_digest: String,
+    /// The rows' content in item order, one hash over all shards: the same for a job grown by
+    /// `add` and one made with all its items at once.
+    items_digest: String,
 }
 
 /// Values of a provenance column printed in full; the rest are counted.
@@ -133,9 +138,14 @@ fn build_report(files: &[PathBuf], single_file: bool) -> Result<Report> {
     let mut r = Report::default();
     let mut values: BTreeMap<&str, Vec<f64>> = STATS.iter().map(|s| (*s, Vec::new())).collect();
     let mut digests = Vec::new();
+    let mut items = sha2::Sha256::default();
     for file in files {
-        digests.push(add_shard(&mut r, &mut values, file)?);
+        digests.push(add_shard(&mut r, &mut values, &mut items, file)?);
     }
+    r.items_digest = {
+        use sha2::Digest;
+        sparc3d_schema::config::hex(&items.finalize())
+    };
     r.content_digest = if digests.len() == 1 && single_file {
         digests[0].clone()
     } else {
@@ -155,7 +165,12 @@ fn build_report(files: &[PathBuf], single_file: bool) -> Result<Report> {
 
 /// Adds one shard file's metadata, counts and timings to the report and returns its content
 /// digest (hex).
-fn add_shard(r: &mut Report, values: &mut BTreeMap<&str, Vec<f64>>, file: &Path) -> Result<String> {
+fn add_shard(
+    r: &mut Report,
+    values: &mut BTreeMap<&str, Vec<f64>>,
+    items: &mut sha2::Sha256,
+    file: &Path,
+) -> Result<String> {
     let meta = read_meta(file)?;
     r.shards += 1;
     let v = meta
@@ -183,6 +198,7 @@ fn add_shard(r: &mut Report, values: &mut BTreeMap<&str, Vec<f64>>, file: &Path)
     let mut h = sha2::Sha256::default();
     for_each_row(file, |row| {
         digest::update_row(&mut h, &row);
+        digest::update_row(items, &row);
         for (name, values) in r.provenance.iter_mut() {
             let value = row.provenance.get(name).cloned().unwrap_or_default();
             *values.entry(value).or_default() += 1;
@@ -251,6 +267,7 @@ fn print_text(r: &Report) {
     );
     println!("bytes:          {}", r.file_bytes);
     println!("content digest: {}", r.content_digest);
+    println!("items digest:   {}", r.items_digest);
     print_provenance(r);
     println!("seconds summed over items:");
     for (k, v) in &r.time_sums {

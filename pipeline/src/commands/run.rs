@@ -63,6 +63,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         &args.config,
         &args.source,
     )?;
+    let _lock = crate::job_setup::hold_shared(&job_dir)?;
     let job = Job::open(&job_dir)?;
     let stop = install_signals()?;
     let cores = std::thread::available_parallelism()
