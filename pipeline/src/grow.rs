@@ -50,8 +50,10 @@ pub fn input_records(input: &Path, source: &SourceArgs) -> Result<Vec<RawRecord>
     select(records, source, input)
 }
 
-/// The job lock of `root` held exclusively, or an error saying who may hold it.
-pub fn lock_for_add(root: &Path) -> Result<JobLock> {
+/// The job lock of `root` held exclusively, or an error saying who may hold it. `None` when
+/// the file system refuses locks (some network file systems): said on stderr, and the add
+/// goes on unlocked, as the lock is advisory.
+pub fn lock_for_add(root: &Path) -> Result<Option<JobLock>> {
     let layout = JobLayout::new(root);
     if !layout.job_file().exists() {
         bail!(
@@ -61,9 +63,16 @@ pub fn lock_for_add(root: &Path) -> Result<JobLock> {
             root.display()
         );
     }
-    match JobLock::try_exclusive(&layout)? {
-        Some(lock) => Ok(lock),
-        None => bail!(
+    match JobLock::try_exclusive(&layout) {
+        Ok(Some(lock)) => Ok(Some(lock)),
+        Err(e) => {
+            eprintln!(
+                "warning: {e}: adding without the job lock; make sure no run or work is on \
+                 this job"
+            );
+            Ok(None)
+        }
+        Ok(None) => bail!(
             "{} is in use: a `run` or `work` on it, or another `add`, holds its lock \
              (state/job.lock); nothing was added: add when it has ended",
             root.display()
@@ -72,8 +81,8 @@ pub fn lock_for_add(root: &Path) -> Result<JobLock> {
 }
 
 /// Adds the rows of `records` the job at `root` does not have; the caller holds the job lock
-/// exclusively (`_lock`).
-pub fn add(root: &Path, records: Vec<RawRecord>, _lock: &JobLock) -> Result<Grown> {
+/// exclusively ([`lock_for_add`]).
+pub fn add(root: &Path, records: Vec<RawRecord>) -> Result<Grown> {
     finish_interrupted(root)?;
     let job = Job::open(root)?;
     let appended = append(&job.items, records, job.file.config.shard_size)?;

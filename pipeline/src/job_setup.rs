@@ -61,7 +61,7 @@ pub fn job_for_run(
 /// Adds what `input` has that the job `out` does not, saying what is new, before `out` is
 /// resumed; when another run holds the job, says that nothing is added now and resumes.
 fn grow_before_run(input: &Path, out: &Path, source: &SourceArgs) -> Result<()> {
-    let lock = match crate::grow::lock_for_add(out) {
+    let _lock = match crate::grow::lock_for_add(out) {
         Ok(lock) => lock,
         Err(e) => {
             eprintln!("note: {e:#}; resuming it as it is");
@@ -69,7 +69,7 @@ fn grow_before_run(input: &Path, out: &Path, source: &SourceArgs) -> Result<()> 
         }
     };
     let records = crate::grow::input_records(input, source)?;
-    let grown = crate::grow::add(out, records, &lock)?;
+    let grown = crate::grow::add(out, records)?;
     eprintln!("{}", crate::grow::describe(out, &grown));
     Ok(())
 }
@@ -84,17 +84,22 @@ fn check_flags(dir: &Path, flags: &ConfigArgs) -> Result<()> {
 
 /// The job lock of `root` held shared for a command that converts (`run`, `work`), so that no
 /// `add` changes the frozen manifest under it; waits, saying so, while an `add` holds it.
-/// `None` when `root` is not a job (opening it says so next).
+/// `None` when `root` is not a job (opening it says so next), or when the file system refuses
+/// locks (some network file systems; said on stderr: the lock is advisory, the command goes
+/// on).
 pub fn hold_shared(root: &Path) -> Result<Option<sparc3d_workers::job_lock::JobLock>> {
     if !is_job(root) {
         return Ok(None);
     }
     let layout = JobLayout::new(root);
-    sparc3d_workers::fsutil::create_dir(&layout.state_dir())?;
-    let lock = sparc3d_workers::job_lock::JobLock::shared(&layout, || {
-        eprintln!("{}: waiting for an `add` to finish", root.display())
-    })?;
-    Ok(Some(lock))
+    let waiting = || eprintln!("{}: waiting for an `add` to finish", root.display());
+    match sparc3d_workers::job_lock::JobLock::shared(&layout, waiting) {
+        Ok(lock) => Ok(Some(lock)),
+        Err(e) => {
+            eprintln!("warning: {e}: going on without the job lock (an `add` is not kept out)");
+            Ok(None)
+        }
+    }
 }
 
 /// Opens the job at `root` for a command that only reads it (`status`, `ls`, `failures`,

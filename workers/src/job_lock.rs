@@ -5,8 +5,10 @@
 //! saying why; a `run` or `work` that finds an `add` holding it waits the moment that takes.
 //!
 //! It is an advisory `flock(2)` on a file of its own, released by the kernel when the process
-//! ends however it ends: no stale lock is ever left behind. (On a network file system without
-//! `flock`, `add` is not safe against workers of another machine: stop them first.)
+//! ends however it ends: no stale lock is ever left behind. `flock` does not reach other
+//! machines on most network file systems, so `add` is not safe against workers elsewhere: stop
+//! them first; where a file system refuses `flock` altogether, the commands say so and go on
+//! without the lock.
 
 use crate::error::{Result, WorkerError};
 use sparc3d_schema::JobLayout;

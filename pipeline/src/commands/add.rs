@@ -23,9 +23,9 @@ pub struct Args {
 
 /// Runs `sparc3d add`.
 pub fn run(args: Args) -> Result<ExitCode> {
-    let lock = grow::lock_for_add(&args.job)?;
+    let _lock = grow::lock_for_add(&args.job)?;
     let records = grow::input_records(&args.input, &args.source)?;
-    let grown = grow::add(&args.job, records, &lock)?;
+    let grown = grow::add(&args.job, records)?;
     eprintln!("{}", grow::describe(&args.job, &grown));
     if grown.added > 0 {
         eprintln!("next: sparc3d run {}", args.job.display());
