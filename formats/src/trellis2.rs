@@ -450,4 +450,22 @@ mod tests {
         );
         assert!(listing(&[listed("a", "f00"), listed("b", "f00")], Path::new("/x")).is_err());
     }
+
+    #[test]
+    fn the_root_metadata_carries_the_provenance_columns() {
+        let mut a = listed("a", "f00");
+        a.provenance = BTreeMap::from([
+            ("license".to_string(), "cc0".to_string()),
+            ("name".to_string(), "x, y".to_string()),
+        ]);
+        let files = listing(&[a, listed("b", "ba5")], Path::new("/x")).unwrap_or_default();
+        let base = files
+            .first()
+            .map(|f| String::from_utf8_lossy(&f.bytes).into_owned())
+            .unwrap_or_default();
+        assert_eq!(
+            base,
+            "sha256,id,manifest.license,manifest.name\nf00,a,cc0,\"x, y\"\nba5,b,,\n"
+        );
+    }
 }
