@@ -74,7 +74,7 @@ pub fn lock_for_add(root: &Path) -> Result<Option<JobLock>> {
         }
         Ok(None) => bail!(
             "{} is in use: a `run` or `work` on it, or another `add`, holds its lock \
-             (state/job.lock); nothing was added: add when it has ended",
+             (job.lock); nothing was added: add when it has ended",
             root.display()
         ),
     }

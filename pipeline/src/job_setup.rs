@@ -70,7 +70,7 @@ fn grow_before_run(input: &Path, out: &Path, source: &SourceArgs) -> Result<()> 
     };
     let records = crate::grow::input_records(input, source)?;
     let grown = crate::grow::add(out, records)?;
-    eprintln!("{}", crate::grow::describe(out, &grown));
+    eprintln!("{}; resuming the job", crate::grow::describe(out, &grown));
     Ok(())
 }
 

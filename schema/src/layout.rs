@@ -3,6 +3,7 @@
 //! ```text
 //! JOB/job.json                          config, fingerprint, counts (written by init)
 //! JOB/manifest.jsonl                    frozen manifest, one FrozenItem per line
+//! JOB/job.lock                          flock: shared by run/work, exclusive while `add` grows it
 //! JOB/shards/part-NNNNN.parquet         a finished shard
 //! JOB/shards/part-NNNNN.complete.json   its completion record (written last)
 //! JOB/state/part-NNNNN.journals/H.journal  finished items of a shard in progress, one file
@@ -10,7 +11,6 @@
 //! JOB/state/part-NNNNN.journal          a shard's single journal as earlier builds wrote it
 //!                                       (read when resuming, never written)
 //! JOB/state/part-NNNNN.lease            who works on a shard, with heartbeat and expiry
-//! JOB/state/job.lock                    flock: shared by run/work, exclusive while `add` grows the job
 //! JOB/quarantine/part-NNNNN-<time>/     a damaged shard and its record, moved aside
 //! ```
 
@@ -97,9 +97,9 @@ impl JobLayout {
         self.root.join("quarantine")
     }
 
-    /// The job lock (`state/job.lock`): held shared by `run` and `work`, exclusive by `add`.
+    /// The job lock (`job.lock`): held shared by `run` and `work`, exclusive by `add`.
     pub fn job_lock(&self) -> PathBuf {
-        self.state_dir().join("job.lock")
+        self.root.join("job.lock")
     }
 
     /// The lease of a shard.

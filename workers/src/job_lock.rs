@@ -1,4 +1,4 @@
-//! The job lock (`JOB/state/job.lock`): what keeps a job's frozen manifest from changing under
+//! The job lock (`JOB/job.lock`): what keeps a job's frozen manifest from changing under
 //! a command that reads it. Commands that convert (`run`, `work`) hold it shared for as long as
 //! they run; `add` (and `run DIR --job JOB` while it adds) holds it exclusive for the moment it
 //! rewrites `manifest.jsonl` and `job.json`. An `add` that finds it held is refused at once,
