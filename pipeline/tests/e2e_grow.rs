@@ -118,6 +118,23 @@ fn adding_twice_gives_the_job_made_at_once() {
             .is_some_and(|l| l.ends_with("license=cc-by")),
         "{ls}"
     );
+    // An export sees one job: every item, the added ones included.
+    let export = tmp.path().join("export");
+    ok(&[
+        "export",
+        s(&grown),
+        "--format",
+        "cubvh",
+        "--out",
+        s(&export),
+    ]);
+    let record = std::fs::read_to_string(export.join(".sparc3d-export.json")).unwrap_or_default();
+    let record: serde_json::Value = serde_json::from_str(&record).unwrap_or_default();
+    let ids: Vec<&str> = record["items"]
+        .as_array()
+        .map(|a| a.iter().filter_map(|i| i["id"].as_str()).collect())
+        .unwrap_or_default();
+    assert_eq!(ids, manifest_ids(&at_once));
 }
 
 /// When an earlier part does not fill its last shard, the new items start a shard of their
