@@ -228,6 +228,7 @@ mod tests {
                 stem: format!("s{i}"),
                 files: vec![PathBuf::from(format!("s{i}.npz"))],
                 columns: BTreeMap::new(),
+                provenance: BTreeMap::new(),
             })
             .collect();
         let files = split_lists(&items, |l| vec![l.stem.clone()]).unwrap_or_default();

@@ -283,6 +283,9 @@ pub struct Listed {
     pub files: Vec<PathBuf>,
     /// Its listing columns ([`ItemExport::listing`]).
     pub columns: BTreeMap<String, String>,
+    /// Its manifest's provenance columns (licence, source, ...; `""` for none): a listing
+    /// that is a table carries them as `manifest.<name>` columns.
+    pub provenance: BTreeMap<String, String>,
 }
 
 /// The entries every npz we write carries, so a file names its item: `id`, `item_index` and

@@ -273,9 +273,7 @@ pub fn listing(items: &[Listed], root: &Path) -> Result<Vec<ExportFile>> {
     let data_dir = serde_json::to_vec_pretty(&data_dir)
         .map_err(|e| Error::Invalid(format!("writing data_dir.json: {e}")))?;
     Ok(vec![
-        table(Path::new(""), "sha256,id", &|i| {
-            vec![col(i, "sha256"), i.id.clone()]
-        }),
+        provenance_table(items, &col),
         table(Path::new("mesh_dumps"), "sha256,mesh_dumped", &|i| {
             vec![col(i, "sha256"), "True".into()]
         }),
@@ -329,6 +327,30 @@ fn csv(header: &str, rows: impl Iterator<Item = Vec<String>>) -> String {
     out
 }
 
+/// The root `metadata.csv`: `sha256,id`, then the items' provenance columns as
+/// `manifest.<name>` (TRELLIS.2 reads the columns it knows by name; the others ride along).
+fn provenance_table(items: &[Listed], col: &dyn Fn(&Listed, &str) -> String) -> ExportFile {
+    let names: std::collections::BTreeSet<&String> =
+        items.iter().flat_map(|i| i.provenance.keys()).collect();
+    let mut header = "sha256,id".to_string();
+    for n in &names {
+        header.push_str(&format!(",{}", csv_field(&format!("manifest.{n}"))));
+    }
+    let row = |i: &Listed| {
+        let mut fields = vec![col(i, "sha256"), i.id.clone()];
+        fields.extend(
+            names
+                .iter()
+                .map(|n| i.provenance.get(*n).cloned().unwrap_or_default()),
+        );
+        fields
+    };
+    ExportFile {
+        path: PathBuf::from("metadata.csv"),
+        bytes: csv(&header, items.iter().map(row)).into_bytes(),
+    }
+}
+
 /// A field as CSV writes it: quoted, with quotes doubled, when it holds `,`, `"` or a line
 /// break.
 fn csv_field(f: &str) -> String {
@@ -352,6 +374,7 @@ mod tests {
                 ("sha256".to_string(), sha.to_string()),
                 ("dual_grid_size".to_string(), "7".to_string()),
             ]),
+            provenance: BTreeMap::new(),
         }
     }
 
@@ -426,5 +449,23 @@ mod tests {
             "sha256,dual_grid_converted,dual_grid_size\nf00,True,7\nba5,True,7\n"
         );
         assert!(listing(&[listed("a", "f00"), listed("b", "f00")], Path::new("/x")).is_err());
+    }
+
+    #[test]
+    fn the_root_metadata_carries_the_provenance_columns() {
+        let mut a = listed("a", "f00");
+        a.provenance = BTreeMap::from([
+            ("license".to_string(), "cc0".to_string()),
+            ("name".to_string(), "x, y".to_string()),
+        ]);
+        let files = listing(&[a, listed("b", "ba5")], Path::new("/x")).unwrap_or_default();
+        let base = files
+            .first()
+            .map(|f| String::from_utf8_lossy(&f.bytes).into_owned())
+            .unwrap_or_default();
+        assert_eq!(
+            base,
+            "sha256,id,manifest.license,manifest.name\nf00,a,cc0,\"x, y\"\nba5,b,,\n"
+        );
     }
 }

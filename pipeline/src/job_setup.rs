@@ -1,11 +1,11 @@
 //! The job folder `sparc3d run` works on: an existing job, or (with `--job OUT`) one made from
-//! a folder of meshes or a manifest when OUT is not a job yet, with `init`'s config flags; and
-//! the job a read-only command opens ([`open_read_only`]).
+//! a folder of meshes or a manifest when OUT is not a job yet, with `init`'s config flags, or
+//! grown with what the folder or manifest has that it does not (`grow.rs`) when it is; and the
+//! job a read-only command opens ([`open_read_only`]).
 
-use crate::commands::init::{build_config, check_same_config, create, read_manifest, ConfigArgs};
-use crate::folder_scan::collect;
-use crate::manifest_io::RawRecord;
+use crate::commands::init::{build_config, check_same_config, create, ConfigArgs, SourceArgs};
 use anyhow::{bail, Result};
+use sparc3d_manifests::RawRecord;
 use sparc3d_schema::JobLayout;
 use sparc3d_workers::Job;
 use std::path::{Path, PathBuf};
@@ -16,14 +16,14 @@ fn is_job(dir: &Path) -> bool {
 }
 
 /// The job to run: `input` itself when `out` is `None` (it must be a job), else `out`,
-/// resumed when it is a job already and otherwise created from `input` (a folder of meshes,
-/// scanned as `manifest build` does, or a manifest). Config flags given for an existing job
-/// must agree with its config.
+/// grown with the new items of `input` and resumed when it is a job already, and otherwise
+/// created from `input` (a folder of meshes, scanned as `manifest build` does, or a
+/// manifest). Config flags given for an existing job must agree with its config.
 pub fn job_for_run(
     input: &Path,
     out: Option<&Path>,
     flags: &ConfigArgs,
-    path_column: Option<&str>,
+    source: &SourceArgs,
 ) -> Result<PathBuf> {
     let Some(out) = out else {
         if !is_job(input) {
@@ -39,12 +39,7 @@ pub fn job_for_run(
     };
     if is_job(out) {
         check_flags(out, flags)?;
-        eprintln!(
-            "{}: resuming this job (its manifest was frozen when it was made; for files added to \
-             {} since, use a new --job)",
-            out.display(),
-            input.display()
-        );
+        grow_before_run(input, out, source)?;
         return Ok(out.to_path_buf());
     }
     if is_job(input) {
@@ -55,25 +50,28 @@ pub fn job_for_run(
         );
     }
     let config = build_config(flags)?;
-    let records: Vec<RawRecord> = if input.is_dir() {
-        let c = collect(input)?;
-        eprintln!(
-            "{}: {} meshes ({} identical duplicates left out, {} unreadable, {} skipped)",
-            input.display(),
-            c.records.len(),
-            c.duplicates,
-            c.unreadable,
-            c.skipped
-        );
-        c.records.into_iter().map(RawRecord::from).collect()
-    } else {
-        read_manifest(input, path_column)?.records
-    };
+    let records: Vec<RawRecord> = crate::grow::input_records(input, source)?;
     if records.is_empty() {
         bail!("{}: no meshes to convert", input.display());
     }
     create(out, records, config)?;
     Ok(out.to_path_buf())
+}
+
+/// Adds what `input` has that the job `out` does not, saying what is new, before `out` is
+/// resumed; when another run holds the job, says that nothing is added now and resumes.
+fn grow_before_run(input: &Path, out: &Path, source: &SourceArgs) -> Result<()> {
+    let _lock = match crate::grow::lock_for_add(out) {
+        Ok(lock) => lock,
+        Err(e) => {
+            eprintln!("note: {e:#}; resuming it as it is");
+            return Ok(());
+        }
+    };
+    let records = crate::grow::input_records(input, source)?;
+    let grown = crate::grow::add(out, records)?;
+    eprintln!("{}; resuming the job", crate::grow::describe(out, &grown));
+    Ok(())
 }
 
 /// Refuses config flags that disagree with the existing job at `dir`.
@@ -82,6 +80,26 @@ fn check_flags(dir: &Path, flags: &ConfigArgs) -> Result<()> {
         check_same_config(&Job::open(dir)?, &build_config(flags)?)?;
     }
     Ok(())
+}
+
+/// The job lock of `root` held shared for a command that converts (`run`, `work`), so that no
+/// `add` changes the frozen manifest under it; waits, saying so, while an `add` holds it.
+/// `None` when `root` is not a job (opening it says so next), or when the file system refuses
+/// locks (some network file systems; said on stderr: the lock is advisory, the command goes
+/// on).
+pub fn hold_shared(root: &Path) -> Result<Option<sparc3d_workers::job_lock::JobLock>> {
+    if !is_job(root) {
+        return Ok(None);
+    }
+    let layout = JobLayout::new(root);
+    let waiting = || eprintln!("{}: waiting for an `add` to finish", root.display());
+    match sparc3d_workers::job_lock::JobLock::shared(&layout, waiting) {
+        Ok(lock) => Ok(Some(lock)),
+        Err(e) => {
+            eprintln!("warning: {e}: going on without the job lock (an `add` is not kept out)");
+            Ok(None)
+        }
+    }
 }
 
 /// Opens the job at `root` for a command that only reads it (`status`, `ls`, `failures`,

@@ -3,16 +3,13 @@
 mod cluster;
 mod commands;
 mod export_name;
-mod folder_scan;
-mod freeze;
+mod grow;
 mod hints;
 mod huge_pages;
 mod item_lookup;
 mod job_setup;
 mod local_workers;
-mod manifest_io;
 mod memory;
-mod path_column;
 mod pictures;
 mod pool;
 mod progress;
@@ -22,7 +19,6 @@ mod signals;
 mod stats;
 mod stuck;
 mod summary;
-mod tsv;
 mod units;
 mod validation;
 

@@ -234,8 +234,22 @@ fn the_path_column_is_chosen_by_one_rule_that_init_states() {
         "{}",
         stderr(&out)
     );
+    // The local paths are the items' sources; the URLs are kept as provenance only.
     let frozen = std::fs::read_to_string(job.join("manifest.jsonl")).unwrap_or_default();
-    assert!(!frozen.contains("://"), "URLs frozen: {frozen}");
+    for line in frozen.lines() {
+        let item: serde_json::Value = serde_json::from_str(line).unwrap_or_default();
+        let source = item["uri"].as_str().unwrap_or_default();
+        assert!(
+            !source.contains("://"),
+            "a URL frozen as the source: {line}"
+        );
+        assert!(
+            item["extra"]["uri"]
+                .as_str()
+                .is_some_and(|u| u.contains("://")),
+            "{line}"
+        );
+    }
     ok(&["run", s(&job), "--workers", "1"]);
     assert_eq!(status(&job)["ok"], 2);
 
@@ -273,9 +287,16 @@ fn the_path_column_is_chosen_by_one_rule_that_init_states() {
     let job3 = tmp.path().join("job3");
     let out = init(&job3, &two, &["--path-column", "local_path"]);
     assert!(out.status.success(), "{}", stderr(&out));
+    // The chosen column is the source; the other is kept as a provenance column.
     let frozen = std::fs::read_to_string(job3.join("manifest.jsonl")).unwrap_or_default();
+    let item: serde_json::Value = serde_json::from_str(frozen.trim()).unwrap_or_default();
     assert!(
-        frozen.contains("sphere.obj") && !frozen.contains("cube.off"),
+        item["uri"]
+            .as_str()
+            .is_some_and(|u| u.ends_with("sphere.obj"))
+            && item["extra"]["path"]
+                .as_str()
+                .is_some_and(|p| p.ends_with("cube.off")),
         "{frozen}"
     );
 }

@@ -111,6 +111,10 @@ def _columns_of(tensors: Iterable[str]) -> List[str]:
 _SAMPLE_COLUMNS = _columns_of(t for t in SAMPLE_TENSORS if t not in OPTIONAL_SAMPLE_TENSORS)
 _OPTIONAL_SAMPLE_COLUMNS = _columns_of(OPTIONAL_SAMPLE_TENSORS)
 
+#: Prefix of the provenance columns: the manifest's own columns (licence, source, name, ...),
+#: strings, null where an item's row had no value (docs/FORMAT.md, "Provenance columns").
+PROVENANCE_PREFIX = "manifest."
+
 PathLike = Union[str, os.PathLike]
 
 
@@ -250,6 +254,10 @@ def row_to_item(row: Dict[str, Any]) -> Dict[str, Any]:
         if name in ("coords", "deformation", "cells"):
             t = t.reshape(-1, 3)
         item[name] = t.astype(dtype, copy=True)
+    provenance = {k[len(PROVENANCE_PREFIX):]: v for k, v in row.items()
+                  if k.startswith(PROVENANCE_PREFIX)}
+    if provenance:
+        item["manifest"] = provenance
     if row.get("surface_points") is not None:
         item["samples"] = {name: decode_tensor(row, name) for name in SAMPLE_TENSORS
                            if name not in OPTIONAL_SAMPLE_TENSORS or row.get(name) is not None}
@@ -338,9 +346,10 @@ def _item_columns(path: pathlib.Path, f: pq.ParquetFile, samples: bool) -> List[
     _check_version(path, f)
     names = f.schema_arrow.names
     jobs.require_columns(path, names, _READ_COLUMNS)
+    base = _READ_COLUMNS + [c for c in names if c.startswith(PROVENANCE_PREFIX)]
     if not (samples and all(c in names for c in _SAMPLE_COLUMNS)):
-        return _READ_COLUMNS
-    return _READ_COLUMNS + _SAMPLE_COLUMNS + [c for c in _OPTIONAL_SAMPLE_COLUMNS if c in names]
+        return base
+    return base + _SAMPLE_COLUMNS + [c for c in _OPTIONAL_SAMPLE_COLUMNS if c in names]
 
 
 def _rows(path: pathlib.Path, batch_size: int, samples: bool = True) -> Iterator[Dict[str, Any]]:

@@ -18,6 +18,7 @@ A shard that is not read for any of these reasons, and any other `.parquet` file
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
 import hashlib
 import json
@@ -69,6 +70,7 @@ class Job:
     shard_size: int
     resolution: Optional[int]
     _items: Optional[List[Tuple[str, str]]] = None
+    _shards: Optional[List[int]] = None
 
     def shard_file(self, shard: int) -> pathlib.Path:
         """`shards/part-NNNNN.parquet`."""
@@ -79,15 +81,24 @@ class Job:
         return self.root / "shards" / f"part-{shard:05d}.complete.json"
 
     def shard_items(self, shard: int) -> range:
-        """Manifest positions of the items of a shard."""
-        start = min(shard * self.shard_size, self.items)
-        return range(start, min(start + self.shard_size, self.items))
+        """Manifest positions of the items of a shard: those frozen with that shard
+        (`index // shard_size` for a job made at once; each `sparc3d add` starts new shards)."""
+        if self._shards is None:
+            self._read_manifest()
+        shards = self._shards or []
+        start = bisect.bisect_left(shards, shard)
+        return range(start, bisect.bisect_right(shards, shard))
 
     def manifest(self) -> List[Tuple[str, str]]:
         """(id, uri) of every item of the frozen manifest (`manifest.jsonl`), in order."""
         if self._items is None:
-            self._items = _manifest_items(self.root / "manifest.jsonl")
-        return self._items
+            self._read_manifest()
+        return self._items or []
+
+    def _read_manifest(self) -> None:
+        items = _manifest_items(self.root / "manifest.jsonl")
+        self._items = [(i, u) for i, u, _ in items]
+        self._shards = [s for _, _, s in items]
 
 
 def open_job(root: pathlib.Path) -> Job:
@@ -123,14 +134,14 @@ def job_of_file(path: pathlib.Path) -> Tuple[Optional[Job], Optional[int]]:
     return (job, shard) if shard < job.shards and path.name == job.shard_file(shard).name else (None, None)
 
 
-def _manifest_items(path: pathlib.Path) -> List[Tuple[str, str]]:
+def _manifest_items(path: pathlib.Path) -> List[Tuple[str, str, int]]:
     items = []
     try:
         with open(path, encoding="utf-8") as f:
             for line in f:
                 if line.strip():
                     record = json.loads(line)
-                    items.append((record["id"], record["uri"]))
+                    items.append((record["id"], record["uri"], int(record["shard"])))
     except (OSError, ValueError, KeyError, TypeError) as e:
         raise ValueError(f"{path}: the frozen manifest cannot be read ({type(e).__name__}: {e})") from None
     return items

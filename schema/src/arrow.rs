@@ -18,8 +18,15 @@ fn shape_type() -> DataType {
     DataType::List(Arc::new(Field::new("item", DataType::Int64, true)))
 }
 
-/// The Arrow schema of a shard (without key-value metadata).
+/// The Arrow schema of a shard without provenance columns (without key-value metadata).
 pub fn schema() -> SchemaRef {
+    schema_with(&[])
+}
+
+/// The Arrow schema of a shard whose items have the provenance columns `provenance` (manifest
+/// column names, in order): [`schema`]'s columns, then one nullable `utf8` column
+/// `manifest.<name>` each.
+pub fn schema_with(provenance: &[String]) -> SchemaRef {
     use DataType::*;
     let mut f = vec![
         Field::new(c::ITEM_INDEX, UInt64, false),
@@ -48,6 +55,9 @@ pub fn schema() -> SchemaRef {
         f.push(Field::new(t, Binary, true));
         f.push(Field::new(c::dtype_column(t), Utf8, true));
         f.push(Field::new(c::shape_column(t), shape_type(), true));
+    }
+    for name in provenance {
+        f.push(Field::new(c::provenance_column(name), Utf8, true));
     }
     Arc::new(Schema::new(f))
 }
@@ -105,6 +115,12 @@ fn tensor_of<'a>(row: &'a ShardRow, stem: &str) -> Option<&'a EncodedTensor> {
 
 /// Builds a record batch of rows (in the given order) with [`schema`].
 pub fn rows_to_batch(rows: &[ShardRow]) -> Result<RecordBatch> {
+    rows_to_batch_with(rows, &[])
+}
+
+/// Builds a record batch of rows (in the given order) with [`schema_with`]`(provenance)`: a
+/// row without a value for one of the columns holds null there.
+pub fn rows_to_batch_with(rows: &[ShardRow], provenance: &[String]) -> Result<RecordBatch> {
     let strs = |f: &dyn Fn(&ShardRow) -> Option<&str>| -> ArrayRef {
         Arc::new(StringArray::from(rows.iter().map(f).collect::<Vec<_>>()))
     };
@@ -171,7 +187,10 @@ pub fn rows_to_batch(rows: &[ShardRow]) -> Result<RecordBatch> {
                 .map(|t| t.map(|t| t.shape.iter().map(|&d| Some(d as i64)).collect::<Vec<_>>())),
         )));
     }
-    Ok(RecordBatch::try_new(schema(), cols)?)
+    for name in provenance {
+        cols.push(strs(&|r| r.provenance.get(name).map(String::as_str)));
+    }
+    Ok(RecordBatch::try_new(schema_with(provenance), cols)?)
 }
 
 fn col<'a, T: 'static>(batch: &'a RecordBatch, name: &str) -> Result<&'a T> {
@@ -245,6 +264,17 @@ fn parse_stages(s: &str) -> Vec<(String, f64)> {
             .collect(),
         _ => Vec::new(),
     }
+}
+
+/// The provenance columns of a batch: (manifest column name, its `manifest.<name>` array).
+fn provenance_columns(batch: &RecordBatch) -> Result<Vec<(String, &StringArray)>> {
+    let schema = batch.schema();
+    schema
+        .fields()
+        .iter()
+        .filter_map(|f| Some((f.name(), f.name().strip_prefix(c::PROVENANCE_PREFIX)?)))
+        .map(|(column, name)| Ok((name.to_string(), col::<StringArray>(batch, column)?)))
+        .collect()
 }
 
 /// The normalization of row `i` from the `center_x`, `center_y`, `center_z`, `scale` columns
@@ -341,6 +371,7 @@ pub fn batch_to_rows(batch: &RecordBatch) -> Result<Vec<ShardRow>> {
         .map(|n| col::<Float64Array>(batch, n))
         .collect::<Result<_>>()?;
     let stages = col::<StringArray>(batch, c::TIME_STAGES)?;
+    let provenance = provenance_columns(batch)?;
     let mut rows = Vec::with_capacity(batch.num_rows());
     for i in 0..batch.num_rows() {
         let normalization = normalization_at(&norm, i);
@@ -391,6 +422,10 @@ pub fn batch_to_rows(batch: &RecordBatch) -> Result<Vec<ShardRow>> {
                 stages: parse_stages(stages.value(i)),
             },
             tensors,
+            provenance: provenance
+                .iter()
+                .filter_map(|(name, a)| Some((name.clone(), opt_str(a, i)?)))
+                .collect(),
         });
     }
     Ok(rows)
@@ -447,6 +482,7 @@ pub(crate) mod tests {
                 stages: vec![("band".into(), 0.1)],
             },
             tensors: Some(tensors),
+            provenance: Default::default(),
         };
         let mut failed =
             ShardRow::failed(1, "b", "/x/b.obj", 64, ErrorClass::ParseError, "bad".into());
@@ -491,6 +527,28 @@ pub(crate) mod tests {
             t.samples = Some(SampleTensors::from_samples(&s, &params, 3)?);
         }
         Ok(rows)
+    }
+
+    #[test]
+    fn provenance_columns_follow_the_others_and_read_back() -> Result<()> {
+        let mut rows = sample_rows();
+        rows[0].provenance.insert("license".into(), "cc0".into());
+        let names = ["license".to_string(), "name".to_string()];
+        let batch = rows_to_batch_with(&rows, &names)?;
+        let schema = batch.schema();
+        let last: Vec<&str> = schema
+            .fields()
+            .iter()
+            .rev()
+            .take(2)
+            .map(|f| f.name().as_str())
+            .collect();
+        assert_eq!(last, ["manifest.name", "manifest.license"]);
+        assert_eq!(schema.fields().len(), super::schema().fields().len() + 2);
+        let back = batch_to_rows(&batch)?;
+        assert_eq!(back, rows, "a null is no value");
+        assert_eq!(rows_to_batch(&sample_rows())?.schema(), super::schema());
+        Ok(())
     }
 
     #[test]

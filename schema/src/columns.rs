@@ -57,6 +57,15 @@ pub const TIME_TOTAL: &str = "time_total_s";
 /// Seconds per conversion stage as a JSON object (`utf8`).
 pub const TIME_STAGES: &str = "time_stages";
 
+/// Prefix of the provenance columns: a manifest column `license` is stored as the nullable
+/// `utf8` column `manifest.license` (docs/FORMAT.md, "Provenance columns").
+pub const PROVENANCE_PREFIX: &str = "manifest.";
+
+/// The shard column of the manifest column `name`.
+pub fn provenance_column(name: &str) -> String {
+    format!("{PROVENANCE_PREFIX}{name}")
+}
+
 /// Prefix of every timing column.
 pub const TIMING_PREFIX: &str = "time_";
 

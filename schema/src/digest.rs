@@ -74,6 +74,15 @@ pub fn update_row(h: &mut Sha256, row: &ShardRow) {
         }
         None => h.update([0]),
     }
+    // Rows without provenance leave the digest as it was before provenance columns existed.
+    if !row.provenance.is_empty() {
+        field(h, crate::columns::PROVENANCE_PREFIX.as_bytes());
+        h.update((row.provenance.len() as u64).to_le_bytes());
+        for (name, value) in &row.provenance {
+            field(h, name.as_bytes());
+            field(h, value.as_bytes());
+        }
+    }
 }
 
 /// Hex content digest of rows in the given order.
@@ -109,5 +118,11 @@ mod tests {
         assert_eq!(rows_digest(&other), d);
         other[1].error_message = Some("different".into());
         assert_ne!(rows_digest(&other), d);
+        let mut with = rows.clone();
+        with[0].provenance.insert("license".into(), "cc0".into());
+        let with_digest = rows_digest(&with);
+        assert_ne!(with_digest, d);
+        with[0].provenance.insert("license".into(), "cc-by".into());
+        assert_ne!(rows_digest(&with), with_digest);
     }
 }

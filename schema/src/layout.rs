@@ -3,6 +3,7 @@
 //! ```text
 //! JOB/job.json                          config, fingerprint, counts (written by init)
 //! JOB/manifest.jsonl                    frozen manifest, one FrozenItem per line
+//! JOB/job.lock                          flock: shared by run/work, exclusive while `add` grows it
 //! JOB/shards/part-NNNNN.parquet         a finished shard
 //! JOB/shards/part-NNNNN.complete.json   its completion record (written last)
 //! JOB/state/part-NNNNN.journals/H.journal  finished items of a shard in progress, one file
@@ -94,6 +95,11 @@ impl JobLayout {
     /// `quarantine/`: damaged shards moved aside (never deleted) to be converted again.
     pub fn quarantine_dir(&self) -> PathBuf {
         self.root.join("quarantine")
+    }
+
+    /// The job lock (`job.lock`): held shared by `run` and `work`, exclusive by `add`.
+    pub fn job_lock(&self) -> PathBuf {
+        self.root.join("job.lock")
     }
 
     /// The lease of a shard.

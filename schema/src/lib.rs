@@ -1,4 +1,4 @@
-//! Contracts shared by every part of sparc3d: the manifest record, the job config and its
+//! Contracts shared by every part of sparc3d: the job config and its
 //! fingerprint, the layout of a job folder, the Arrow schema of a shard row and the tensor
 //! encodings (dtype, byte order, zstd), and the completion record that marks a shard done.
 //!
@@ -13,7 +13,6 @@ pub mod config;
 pub mod digest;
 pub mod error;
 pub mod layout;
-pub mod manifest;
 pub mod row;
 pub mod tensor;
 
@@ -22,8 +21,10 @@ pub use completion::{CompletionRecord, FileStamp};
 pub use config::{JobConfig, JobFile, Limits, SampleConfig};
 pub use error::{Result, SchemaError};
 pub use layout::JobLayout;
-pub use manifest::{FrozenItem, ManifestRecord};
 pub use row::{RowCounts, RowTensors, RowTimings, SampleTensors, ShardRow};
+/// The manifest's record types, owned by `sparc3d-manifests`: a shard row is built from a
+/// frozen item.
+pub use sparc3d_manifests::{FrozenItem, ManifestRecord};
 pub use tensor::{DType, EncodedTensor};
 
 /// Version of the shard format; bumped on any change to columns or encodings. Version 2 stores

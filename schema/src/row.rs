@@ -3,11 +3,12 @@
 use crate::class::{ErrorClass, ItemStatus};
 use crate::columns as c;
 use crate::error::{Result, SchemaError};
-use crate::manifest::FrozenItem;
 use crate::tensor::{DType, EncodedTensor};
 use serde::{Deserialize, Serialize};
+use sparc3d_manifests::FrozenItem;
 use sparcubes::samples::{Precision, SampleParams, Samples};
 use sparcubes::{Normalization, SparseCubes};
+use std::collections::BTreeMap;
 
 /// Counts of an ok item.
 #[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -386,6 +387,10 @@ pub struct ShardRow {
     pub timings: RowTimings,
     /// Encoded tensors, when converted.
     pub tensors: Option<RowTensors>,
+    /// The item's provenance columns with a value (name → text), from its frozen manifest
+    /// line: filled in when the shard is written, stored as `manifest.<name>` columns.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub provenance: BTreeMap<String, String>,
 }
 
 impl ShardRow {
@@ -413,6 +418,7 @@ impl ShardRow {
             counts: None,
             timings: RowTimings::default(),
             tensors: None,
+            provenance: BTreeMap::new(),
         }
     }
 

@@ -325,6 +325,7 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
         }),
         timings: done.seconds.timings,
         tensors: done.tensors,
+        provenance: Default::default(),
     }
 }
 

@@ -51,21 +51,16 @@ pub fn create_dir(path: &Path) -> Result<()> {
     std::fs::create_dir_all(path).map_err(|e| WorkerError::io("creating folder", path, e))
 }
 
-/// Hex sha256 of a regular file's bytes. A FIFO, device or socket (also behind a link) is
-/// refused at once ([`sparcubes::io::open_regular`]) instead of being read forever.
+/// Hex sha256 of a regular file's bytes ([`sparc3d_manifests::hash::file_sha256`]: a FIFO,
+/// device or socket is refused at once instead of being read forever).
 pub fn file_sha256(path: &Path) -> Result<String> {
-    use sha2::{Digest, Sha256};
-    let (mut f, _) =
-        sparcubes::io::open_regular(path).map_err(|e| WorkerError::io("opening", path, e))?;
-    let mut h = Sha256::new();
-    std::io::copy(&mut f, &mut h).map_err(|e| WorkerError::io("reading", path, e))?;
-    Ok(sparc3d_schema::config::hex(&h.finalize()))
+    sparc3d_manifests::hash::file_sha256(path)
+        .map_err(|e| WorkerError::io(e.stage, e.path, e.source))
 }
 
 /// Hex sha256 of bytes in memory (a source file as the worker read it).
 pub fn bytes_sha256(bytes: &[u8]) -> String {
-    use sha2::{Digest, Sha256};
-    sparc3d_schema::config::hex(&Sha256::digest(bytes))
+    sparc3d_manifests::hash::bytes_sha256(bytes)
 }
 
 /// The stamp of a file from its metadata: modification and change times and inode.

@@ -66,12 +66,12 @@ impl Job {
         Ok((job, problems))
     }
 
-    /// The items of one shard, in manifest order.
+    /// The items of one shard, in manifest order: those frozen with that shard (`index /
+    /// shard_size` for a job made at once; a grown job's later items start new shards).
     pub fn shard_items(&self, shard: u64) -> &[FrozenItem] {
-        let size = self.file.config.shard_size.max(1) as usize;
-        let start = (shard as usize).saturating_mul(size).min(self.items.len());
-        let end = start.saturating_add(size).min(self.items.len());
-        &self.items[start..end]
+        let start = self.items.partition_point(|i| i.shard < shard);
+        let end = self.items.partition_point(|i| i.shard <= shard);
+        &self.items[start..end.max(start)]
     }
 
     /// The job's fingerprint.

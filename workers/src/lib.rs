@@ -2,8 +2,8 @@
 //! checkpoint finished items, and write the Parquet shard atomically.
 //!
 //! Roles, one module each: [`job`] (read a job folder), [`job_files`] (are its files as `init`
-//! wrote them), [`lease`] (who works on a shard), [`journal`] (finished items, appended and
-//! fsynced), [`convert`] (the one function that touches geometry), [`child`] (the isolated
+//! wrote them), [`job_lock`] (no frozen manifest changes under a run), [`lease`] (who works on
+//! a shard), [`journal`] (finished items, appended and fsynced), [`convert`] (the one function that touches geometry), [`child`] (the isolated
 //! process that runs it), [`process`] (the one child-process supervisor: stderr tail,
 //! parent-death signal, time limit, resource use), [`supervisor`] (runs items in a child, with
 //! a watchdog, and classifies its deaths), [`shard`] (the loop over a shard's items), [`store`]
@@ -19,6 +19,7 @@ pub mod frame;
 pub mod fsutil;
 pub mod job;
 pub mod job_files;
+pub mod job_lock;
 pub mod journal;
 pub mod lease;
 pub mod parent;

@@ -29,6 +29,7 @@ fn job(root: &Path, items: u64) -> Result<Job, Box<dyn std::error::Error>> {
             index: i,
             shard: 0,
             record: ManifestRecord {
+                extra: Default::default(),
                 id: format!("item{i}"),
                 uri: root
                     .join(format!("m{i}.obj"))

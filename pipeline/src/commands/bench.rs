@@ -6,10 +6,10 @@
 //! vertex, and the throughput in meshes per hour per core.
 
 use super::bench_one::BenchRow;
-use crate::manifest_io;
 use crate::units::parse_duration;
 use anyhow::{bail, Context, Result};
 use serde::Serialize;
+use sparc3d_manifests::table as manifest_io;
 use sparc3d_workers::process::{Process, ProcessOptions};
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
@@ -134,7 +134,7 @@ struct Report<'a> {
 fn collect_inputs(input: &Path) -> Result<Vec<PathBuf>> {
     let mut files = Vec::new();
     if input.is_dir() {
-        crate::folder_scan::scan(input, &mut files)?;
+        sparc3d_manifests::folder_scan::scan(input, &mut files)?;
     } else if sparcubes::io::Format::from_extension(input).is_some() {
         files.push(input.to_path_buf());
     } else if input.is_file() {

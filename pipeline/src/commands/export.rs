@@ -15,7 +15,7 @@ use sparc3d_schema::ShardRow;
 use sparc3d_workers::store::read::shard_rows;
 use sparc3d_workers::store::state::Check;
 use sparc3d_workers::Job;
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -168,6 +168,8 @@ struct Written {
 struct Exported {
     id: String,
     stem: String,
+    /// Its manifest's provenance columns.
+    provenance: BTreeMap<String, String>,
     export: Result<sparc3d_formats::ItemExport>,
 }
 
@@ -235,9 +237,15 @@ fn compute_items(
                 .map(|row| {
                     let stem = names.stem(row.item_index, &row.id);
                     let export = export_row(job, row, consumer, frame, &stem);
+                    let provenance = job
+                        .items
+                        .get(row.item_index as usize)
+                        .map(|i| i.record.extra.clone())
+                        .unwrap_or_default();
                     Exported {
                         id: row.id.clone(),
                         stem,
+                        provenance,
                         export,
                     }
                 })
@@ -264,6 +272,7 @@ fn record_item(dir: &Path, item: Exported, out: &mut Written) -> Result<()> {
                 stem: item.stem,
                 files: export.files.into_iter().map(|f| f.path).collect(),
                 columns: export.listing,
+                provenance: item.provenance,
             });
         }
         Err(e) => {
@@ -329,11 +338,15 @@ fn write_record(
         .listed
         .iter()
         .map(|l| {
-            serde_json::json!({
+            let mut item = serde_json::json!({
                 "id": l.id,
                 "stem": l.stem,
                 "files": l.files.iter().map(|p| p.to_string_lossy()).collect::<Vec<_>>(),
-            })
+            });
+            if !l.provenance.is_empty() {
+                item["manifest"] = serde_json::json!(l.provenance);
+            }
+            item
         })
         .collect();
     let failed: Vec<serde_json::Value> = written

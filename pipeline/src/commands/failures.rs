@@ -1,11 +1,14 @@
 //! `sparc3d failures JOB [--json]`: every failed item with its class and message, one line
-//! each: class, id, source and the whole message, separated by tabs and escaped (`tsv.rs`).
+//! each: class, id, source and the whole message, separated by tabs and escaped
+//! (`sparc3d_manifests::tsv`), then the item's provenance columns as `name=value` fields
+//! (`--json`: a `manifest` object).
 
-use crate::tsv;
 use anyhow::Result;
 use serde::Serialize;
+use sparc3d_manifests::tsv;
 use sparc3d_schema::ItemStatus;
 use sparc3d_workers::store::read::shard_rows;
+use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -32,6 +35,8 @@ struct Failure {
     error_message: String,
     attempts: u32,
     stderr_tail: Option<String>,
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    manifest: BTreeMap<String, String>,
 }
 
 /// Runs `sparc3d failures`.
@@ -57,13 +62,19 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 error_message: row.error_message.unwrap_or_default(),
                 attempts: row.attempts,
                 stderr_tail: row.stderr_tail,
+                manifest: job
+                    .items
+                    .get(row.item_index as usize)
+                    .map(|item| item.record.extra.clone())
+                    .unwrap_or_default(),
             };
             let line = if args.json {
                 serde_json::to_string(&f)?
             } else {
                 let (id, uri) = (tsv::field(&f.id), tsv::field(&f.uri));
                 let msg = tsv::field(&f.error_message);
-                format!("{}\t{id}\t{uri}\t{msg}", f.error_class)
+                let provenance = tsv::provenance(&f.manifest);
+                format!("{}\t{id}\t{uri}\t{msg}{provenance}", f.error_class)
             };
             if writeln!(out, "{line}").is_err() {
                 return Ok(ExitCode::SUCCESS); // the reader went away (e.g. `| head`)

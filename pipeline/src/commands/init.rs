@@ -1,11 +1,13 @@
 //! `sparc3d init JOB --manifest M [--resolution N] [--shard-size S] [--config job.toml]
-//! [--path-column NAME]`: freezes the manifest into the job folder (`freeze.rs`), gives every
+//! [--path-column NAME] [--where FILTER]`: freezes the manifest into the job folder (`sparc3d_manifests::freeze`), gives every
 //! item its shard once, and writes the config with its fingerprint. Re-running with another
 //! config is refused, naming the keys; a job whose files were edited since is refused too.
 
-use crate::manifest_io;
 use crate::units::with_default;
 use anyhow::{bail, Context, Result};
+use sparc3d_manifests::filter::Filter;
+use sparc3d_manifests::table as manifest_io;
+use sparc3d_manifests::RawRecord;
 use sparc3d_schema::{JobConfig, JobFile, JobLayout};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -18,12 +20,24 @@ pub struct Args {
     /// Manifest (.csv, .jsonl or .parquet with a path column).
     #[arg(long)]
     pub manifest: PathBuf,
+    #[command(flatten)]
+    pub source: SourceArgs,
+    #[command(flatten)]
+    pub config: ConfigArgs,
+}
+
+/// How a manifest's rows are read (shared by `init`, `run --job` and `add`).
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct SourceArgs {
     /// The manifest's column of local paths, when it has several path-like columns that the
     /// rule cannot tell apart (docs/RELIABILITY.md, "Manifests").
     #[arg(long, value_name = "NAME")]
     pub path_column: Option<String>,
-    #[command(flatten)]
-    pub config: ConfigArgs,
+    /// Keep only the manifest rows that pass FILTER, e.g. `license in (cc-by, cc0)` or
+    /// `source = objaverse` (conditions joined by `and`; docs/FORMAT.md, "Provenance
+    /// columns"); says how many it left out.
+    #[arg(long = "where", value_name = "FILTER")]
+    pub filter: Option<String>,
 }
 
 /// The flags that make a job's config (shared by `init` and `run --job`).
@@ -100,15 +114,16 @@ fn frozen_copy_differs(layout: &JobLayout, text: &str, sha256: &str) -> Option<S
 /// Runs `sparc3d init`.
 pub fn run(args: Args) -> Result<ExitCode> {
     let config = build_config(&args.config)?;
-    let manifest = read_manifest(&args.manifest, args.path_column.as_deref())?;
-    create(&args.job, manifest.records, config)?;
+    let records = read_manifest(&args.manifest, &args.source)?;
+    create(&args.job, records, config)?;
     Ok(ExitCode::SUCCESS)
 }
 
-/// Reads a manifest for a new job, saying which column its paths came from; an empty one is
-/// refused.
-pub fn read_manifest(path: &Path, path_column: Option<&str>) -> Result<manifest_io::Manifest> {
-    let manifest = manifest_io::read(path, path_column)?;
+/// Reads a manifest's rows for a job, saying which column its paths came from, which
+/// provenance columns it keeps and how many rows `--where` left out; an empty manifest (or
+/// one that `--where` empties) is refused.
+pub fn read_manifest(path: &Path, source: &SourceArgs) -> Result<Vec<RawRecord>> {
+    let manifest = manifest_io::read(path, source.path_column.as_deref())?;
     if manifest.records.is_empty() {
         bail!("{}: the manifest is empty", path.display());
     }
@@ -119,7 +134,37 @@ pub fn read_manifest(path: &Path, path_column: Option<&str>) -> Result<manifest_
         manifest.path_column.name,
         manifest.path_column.why
     );
-    Ok(manifest)
+    if let Some(first) = manifest.records.first().filter(|r| !r.extra.is_empty()) {
+        let names: Vec<&str> = first.extra.keys().map(String::as_str).collect();
+        eprintln!(
+            "{}: provenance columns kept with every item: {}",
+            path.display(),
+            names.join(", ")
+        );
+    }
+    select(manifest.records, source, path)
+}
+
+/// The rows of `input` (a manifest or a folder) that pass `--where`, saying how many it left
+/// out; all of them without `--where`. Refused when none passes.
+pub fn select(
+    records: Vec<RawRecord>,
+    source: &SourceArgs,
+    input: &Path,
+) -> Result<Vec<RawRecord>> {
+    let Some(text) = &source.filter else {
+        return Ok(records);
+    };
+    let (kept, left_out) = Filter::parse(text)?.apply(records)?;
+    eprintln!(
+        "{}: --where {text}: {} rows kept, {left_out} left out",
+        input.display(),
+        kept.len()
+    );
+    if kept.is_empty() {
+        bail!("{}: no row passes --where {text}", input.display());
+    }
+    Ok(kept)
 }
 
 /// Refuses a config that differs from the one `existing` was created with, naming the keys.
@@ -162,9 +207,9 @@ pub fn check_same_config(existing: &sparc3d_workers::Job, config: &JobConfig) ->
 /// Creates the job folder `job` from manifest records and a config: frozen manifest, shard of
 /// every item, job file. An existing job with the same config and manifest is left as it is;
 /// one with another config or manifest is refused.
-pub fn create(job: &Path, records: Vec<manifest_io::RawRecord>, config: JobConfig) -> Result<()> {
+pub fn create(job: &Path, records: Vec<RawRecord>, config: JobConfig) -> Result<()> {
     let layout = JobLayout::new(job);
-    let items = crate::freeze::freeze(records, config.shard_size)?;
+    let items = sparc3d_manifests::freeze::freeze(records, config.shard_size)?;
     let mut text = String::new();
     for it in &items {
         text.push_str(&serde_json::to_string(it)?);

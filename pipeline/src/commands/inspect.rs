@@ -1,5 +1,8 @@
 //! `sparc3d inspect SHARD|JOB [--json]`: schema version, rows, bytes per column, percentiles
-//! of voxel counts, faces and timings, and the content digest (which excludes timings).
+//! of voxel counts, faces and timings, the values of the provenance columns (`manifest.*`)
+//! with their counts, and the content digest (which excludes timings) with the items digest
+//! (the same rows hashed in item order, whatever the shards: docs/FORMAT.md, "Content
+//! digest").
 //!
 //! Every finished shard is hashed against its completion record first (a shard file given
 //! alone, when its record lies beside it): a damaged shard is named and the command fails
@@ -37,8 +40,17 @@ struct Report {
     column_bytes: BTreeMap<String, u64>,
     percentiles: BTreeMap<String, BTreeMap<String, f64>>,
     time_sums: BTreeMap<String, f64>,
+    /// Rows per value of each provenance column (`""` for none).
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    provenance: BTreeMap<String, BTreeMap<String, u64>>,
     content_digest: String,
+    /// The rows' content in item order, one hash over all shards: the same for a job grown by
+    /// `add` and one made with all its items at once.
+    items_digest: String,
 }
+
+/// Values of a provenance column printed in full; the rest are counted.
+const VALUES_SHOWN: usize = 5;
 
 const STATS: [&str; 6] = [
     "active_vertices",
@@ -126,9 +138,14 @@ fn build_report(files: &[PathBuf], single_file: bool) -> Result<Report> {
     let mut r = Report::default();
     let mut values: BTreeMap<&str, Vec<f64>> = STATS.iter().map(|s| (*s, Vec::new())).collect();
     let mut digests = Vec::new();
+    let mut items = sha2::Sha256::default();
     for file in files {
-        digests.push(add_shard(&mut r, &mut values, file)?);
+        digests.push(add_shard(&mut r, &mut values, &mut items, file)?);
     }
+    r.items_digest = {
+        use sha2::Digest;
+        sparc3d_schema::config::hex(&items.finalize())
+    };
     r.content_digest = if digests.len() == 1 && single_file {
         digests[0].clone()
     } else {
@@ -148,7 +165,12 @@ fn build_report(files: &[PathBuf], single_file: bool) -> Result<Report> {
 
 /// Adds one shard file's metadata, counts and timings to the report and returns its content
 /// digest (hex).
-fn add_shard(r: &mut Report, values: &mut BTreeMap<&str, Vec<f64>>, file: &Path) -> Result<String> {
+fn add_shard(
+    r: &mut Report,
+    values: &mut BTreeMap<&str, Vec<f64>>,
+    items: &mut sha2::Sha256,
+    file: &Path,
+) -> Result<String> {
     let meta = read_meta(file)?;
     r.shards += 1;
     let v = meta
@@ -163,6 +185,9 @@ fn add_shard(r: &mut Report, values: &mut BTreeMap<&str, Vec<f64>>, file: &Path)
     r.row_groups += meta.row_groups;
     r.file_bytes += meta.file_bytes;
     for (c, b) in meta.column_bytes {
+        if let Some(name) = c.strip_prefix(sparc3d_schema::columns::PROVENANCE_PREFIX) {
+            r.provenance.entry(name.to_string()).or_default();
+        }
         *r.column_bytes.entry(c).or_default() += b;
     }
     let mut push = |key: &str, x: f64| {
@@ -173,6 +198,11 @@ fn add_shard(r: &mut Report, values: &mut BTreeMap<&str, Vec<f64>>, file: &Path)
     let mut h = sha2::Sha256::default();
     for_each_row(file, |row| {
         digest::update_row(&mut h, &row);
+        digest::update_row(items, &row);
+        for (name, values) in r.provenance.iter_mut() {
+            let value = row.provenance.get(name).cloned().unwrap_or_default();
+            *values.entry(value).or_default() += 1;
+        }
         match row.status {
             ItemStatus::Ok => r.ok += 1,
             _ => r.failed += 1,
@@ -203,6 +233,30 @@ fn add_shard(r: &mut Report, values: &mut BTreeMap<&str, Vec<f64>>, file: &Path)
     Ok(sparc3d_schema::config::hex(&h.finalize()))
 }
 
+/// Prints each provenance column with its most frequent values and their row counts.
+fn print_provenance(r: &Report) {
+    if r.provenance.is_empty() {
+        return;
+    }
+    println!("provenance columns (rows per value):");
+    for (name, values) in &r.provenance {
+        let mut v: Vec<(&String, &u64)> = values.iter().collect();
+        v.sort_by(|a, b| b.1.cmp(a.1).then(a.0.cmp(b.0)));
+        let shown: Vec<String> = v
+            .iter()
+            .take(VALUES_SHOWN)
+            .map(|(value, n)| format!("{} {n}", if value.is_empty() { "(none)" } else { value }))
+            .collect();
+        let more = v.len().saturating_sub(VALUES_SHOWN);
+        let more = if more > 0 {
+            format!(", {more} more values")
+        } else {
+            String::new()
+        };
+        println!("  manifest.{name}: {}{more}", shown.join(", "));
+    }
+}
+
 /// Prints the report as aligned text.
 fn print_text(r: &Report) {
     println!("shards:         {}", r.shards);
@@ -213,6 +267,8 @@ fn print_text(r: &Report) {
     );
     println!("bytes:          {}", r.file_bytes);
     println!("content digest: {}", r.content_digest);
+    println!("items digest:   {}", r.items_digest);
+    print_provenance(r);
     println!("seconds summed over items:");
     for (k, v) in &r.time_sums {
         println!("  {v:>12.3}  {k}");

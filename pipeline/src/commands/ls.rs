@@ -1,16 +1,18 @@
 //! `sparc3d ls JOB [--failed] [--json]`: every item of a job in manifest order with its id,
 //! status (`ok`, `failed:CLASS`, `skipped`, `pending`, or `damaged` when its finished shard no longer
 //! matches its record) and source file: where the ids that `show`/`preview --id` take come
-//! from. One line per item, fields separated by tabs and escaped (`tsv.rs`).
+//! from. One line per item, fields separated by tabs and escaped (`sparc3d_manifests::tsv`),
+//! then the item's provenance columns as `name=value` fields (`--json`: a `manifest` object).
 
-use crate::{hints, tsv};
+use crate::hints;
 use anyhow::Result;
 use serde::Serialize;
+use sparc3d_manifests::tsv;
 use sparc3d_schema::ItemStatus;
 use sparc3d_workers::store::read::shard_rows;
 use sparc3d_workers::store::state::Check;
 use sparc3d_workers::Job;
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -23,7 +25,8 @@ pub struct Args {
     /// Only the failed items.
     #[arg(long)]
     pub failed: bool,
-    /// Print JSON lines (index, shard, id, status, error_class, uri).
+    /// Print JSON lines (index, shard, id, status, error_class, uri, and `manifest`: the
+    /// provenance columns, when the manifest had any).
     #[arg(long)]
     pub json: bool,
 }
@@ -37,6 +40,8 @@ struct Listed<'a> {
     status: &'static str,
     error_class: Option<&'static str>,
     uri: &'a str,
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    manifest: &'a BTreeMap<String, String>,
 }
 
 /// Statuses (and error classes) of a shard's finished items by manifest position; `None`
@@ -90,6 +95,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
             status,
             error_class: class,
             uri: &item.record.uri,
+            manifest: &item.record.extra,
         };
         let line = if args.json {
             serde_json::to_string(&listed)?
@@ -99,7 +105,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 None => status.to_string(),
             };
             let (id, uri) = (tsv::field(listed.id), tsv::field(listed.uri));
-            format!("{id}\t{status}\t{uri}")
+            let provenance = tsv::provenance(listed.manifest);
+            format!("{id}\t{status}\t{uri}{provenance}")
         };
         if writeln!(out, "{line}").is_err() {
             return Ok(ExitCode::SUCCESS); // the reader went away (e.g. `| head`)

@@ -1,9 +1,8 @@
 //! `sparc3d manifest build DIR -o manifest.(parquet|jsonl|csv)`: scan a folder for supported
 //! meshes, hash them in parallel, and report identical duplicates (kept once).
 
-use crate::folder_scan::collect;
-use crate::manifest_io;
 use anyhow::Result;
+use sparc3d_manifests::folder_scan::collect;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -34,7 +33,7 @@ pub struct BuildArgs {
 pub fn run(args: Args) -> Result<ExitCode> {
     let Sub::Build(args) = args.command;
     let c = collect(&args.dir)?;
-    manifest_io::write(&c.records, &args.output)?;
+    sparc3d_manifests::write::write(&c.records, &args.output)?;
     eprintln!(
         "{} meshes written to {} ({} identical duplicates left out, {} unreadable, {} \
          skipped: not regular files or names that are not UTF-8)",

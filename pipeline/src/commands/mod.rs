@@ -1,6 +1,7 @@
 //! One module per subcommand; [`run`] dispatches. Each module has an `Args` struct (clap) and
 //! a `run(args) -> anyhow::Result<ExitCode>`.
 
+pub mod add;
 pub mod bench;
 pub mod bench_one;
 pub mod convert;
@@ -53,6 +54,8 @@ enum Command {
     Manifest(manifest::Args),
     /// Create a job folder: freeze the manifest, assign shards, fix the config.
     Init(init::Args),
+    /// Grow a job with the items of a folder or manifest it does not have yet (new shards).
+    Add(add::Args),
     /// Run a job locally with N worker processes, with progress; resumable. With --job OUT,
     /// make the job from a folder of meshes or a manifest first.
     Run(run::Args),
@@ -103,6 +106,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Eval(args) => eval::run(args),
         Command::Manifest(args) => manifest::run(args),
         Command::Init(args) => init::run(args),
+        Command::Add(args) => add::run(args),
         Command::Run(args) => run::run(args),
         Command::Work(args) => work::run(args),
         Command::Status(args) => status::run(args),

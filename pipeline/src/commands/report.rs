@@ -17,6 +17,7 @@ use sparc3d_render::CompareOptions;
 use sparc3d_schema::{ItemStatus, ShardRow};
 use sparc3d_workers::store::read::shard_rows;
 use sparc3d_workers::Job;
+use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -56,8 +57,11 @@ struct Columns {
     stored_bytes: Vec<f64>,
     /// Ids of `ok` items, in manifest order.
     ok_ids: Vec<String>,
-    /// Failed items: (id, uri, class, first line of the message).
-    failures: Vec<[String; 4]>,
+    /// Failed items: (id, uri, class, first line of the message, provenance as
+    /// `name=value; …`).
+    failures: Vec<[String; 5]>,
+    /// Finished items per value of each provenance column: (ok, failed).
+    provenance: BTreeMap<String, BTreeMap<String, (u64, u64)>>,
     /// Failed items not listed (beyond `max_failures`).
     failures_left_out: usize,
 }
@@ -97,13 +101,32 @@ fn read_columns(job: &Job, max_failures: usize) -> Result<Columns> {
         let mut rows = shard_rows(job, shard, sparc3d_workers::store::state::Check::Quick)?;
         rows.sort_by_key(|r| r.item_index);
         for row in rows {
-            add_row(&mut c, row, max_failures);
+            let extra = job
+                .items
+                .get(row.item_index as usize)
+                .map(|i| &i.record.extra);
+            let extra = extra.cloned().unwrap_or_default();
+            add_provenance(&mut c, &extra, row.status);
+            add_row(&mut c, row, &extra, max_failures);
         }
     }
     Ok(c)
 }
 
-fn add_row(c: &mut Columns, row: ShardRow, max_failures: usize) {
+/// Counts a finished item under each of its provenance values.
+fn add_provenance(c: &mut Columns, extra: &BTreeMap<String, String>, status: ItemStatus) {
+    for (name, value) in extra {
+        let counts = c.provenance.entry(name.clone()).or_default();
+        let (ok, failed) = counts.entry(value.clone()).or_default();
+        match status {
+            ItemStatus::Ok => *ok += 1,
+            ItemStatus::Failed => *failed += 1,
+            ItemStatus::Skipped => {}
+        }
+    }
+}
+
+fn add_row(c: &mut Columns, row: ShardRow, extra: &BTreeMap<String, String>, max_failures: usize) {
     if row.timings.total_s > 0.0 {
         c.total_seconds.push(row.timings.total_s);
     }
@@ -132,7 +155,14 @@ fn add_row(c: &mut Columns, row: ShardRow, max_failures: usize) {
         let class = row.error_class.map(|e| e.as_str()).unwrap_or("unknown");
         let message = row.error_message.unwrap_or_default();
         let first = message.lines().next().unwrap_or("").to_string();
-        c.failures.push([row.id, row.uri, class.to_string(), first]);
+        let provenance: Vec<String> = extra.iter().map(|(k, v)| format!("{k}={v}")).collect();
+        c.failures.push([
+            row.id,
+            row.uri,
+            class.to_string(),
+            first,
+            provenance.join("; "),
+        ]);
     }
 }
 
@@ -229,6 +259,7 @@ fn page(job: &Job, s: &JobSummary, c: &Columns, previews: &[Preview]) -> String 
     h.push_str("</div>\n");
     validation_section(&mut h, &job.layout.root);
     previews_section(&mut h, previews);
+    provenance_section(&mut h, c);
     failures_section(&mut h, c);
     h.push_str("</body></html>\n");
     h
@@ -344,6 +375,38 @@ fn previews_section(h: &mut String, previews: &[Preview]) {
     h.push_str("</div>\n");
 }
 
+/// Values of a provenance column listed in the report; the rest are counted.
+const PROVENANCE_VALUES: usize = 10;
+
+/// Each provenance column: its most frequent values with the ok and failed items of each.
+fn provenance_section(h: &mut String, c: &Columns) {
+    if c.provenance.is_empty() {
+        return;
+    }
+    h.push_str("<h2>Provenance</h2>\n");
+    for (name, values) in &c.provenance {
+        let mut v: Vec<(&String, &(u64, u64))> = values.iter().collect();
+        v.sort_by(|a, b| (b.1 .0 + b.1 .1).cmp(&(a.1 .0 + a.1 .1)).then(a.0.cmp(b.0)));
+        let _ = writeln!(
+            h,
+            "<h3>manifest.{}</h3>\n<table><tr><th>value</th><th>ok</th><th>failed</th></tr>",
+            esc(name)
+        );
+        for (value, (ok, failed)) in v.iter().take(PROVENANCE_VALUES) {
+            let shown = if value.is_empty() { "(none)" } else { value };
+            let _ = writeln!(
+                h,
+                "<tr><td>{}</td><td>{ok}</td><td>{failed}</td></tr>",
+                esc(shown)
+            );
+        }
+        h.push_str("</table>\n");
+        if v.len() > PROVENANCE_VALUES {
+            let _ = writeln!(h, "<p>{} more values.</p>", v.len() - PROVENANCE_VALUES);
+        }
+    }
+}
+
 fn failures_section(h: &mut String, c: &Columns) {
     let total = c.failures.len() + c.failures_left_out;
     let _ = writeln!(h, "<h2>Failures ({total})</h2>");
@@ -351,16 +414,26 @@ fn failures_section(h: &mut String, c: &Columns) {
         h.push_str("<p>No failed items.</p>\n");
         return;
     }
-    h.push_str("<table><tr><th>id</th><th>uri</th><th>class</th><th>message</th></tr>\n");
+    let with_provenance = !c.provenance.is_empty();
+    h.push_str("<table><tr><th>id</th><th>uri</th><th>class</th><th>message</th>");
+    h.push_str(if with_provenance {
+        "<th>manifest</th></tr>\n"
+    } else {
+        "</tr>\n"
+    });
     for f in &c.failures {
-        let _ = writeln!(
+        let _ = write!(
             h,
-            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td>",
             esc(&f[0]),
             esc(&f[1]),
             esc(&f[2]),
             esc(&f[3])
         );
+        if with_provenance {
+            let _ = write!(h, "<td>{}</td>", esc(&f[4]));
+        }
+        h.push_str("</tr>\n");
     }
     h.push_str("</table>\n");
     if c.failures_left_out > 0 {

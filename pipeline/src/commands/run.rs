@@ -38,9 +38,9 @@ pub struct Args {
     pub job: Option<PathBuf>,
     #[command(flatten)]
     pub config: super::init::ConfigArgs,
-    /// With --job and a manifest: its column of local paths, as `init --path-column`.
-    #[arg(long, value_name = "NAME")]
-    pub path_column: Option<String>,
+    /// With --job and a manifest: `--path-column` and `--where`, as for `init`.
+    #[command(flatten)]
+    pub source: super::init::SourceArgs,
     /// Worker processes (default: number of cores).
     #[arg(long)]
     pub workers: Option<usize>,
@@ -61,8 +61,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
         &args.input,
         args.job.as_deref(),
         &args.config,
-        args.path_column.as_deref(),
+        &args.source,
     )?;
+    let _lock = crate::job_setup::hold_shared(&job_dir)?;
     let job = Job::open(&job_dir)?;
     let stop = install_signals()?;
     let cores = std::thread::available_parallelism()

@@ -128,6 +128,7 @@ pub fn child_command(env: Vec<(String, String)>) -> Result<ChildCommand> {
 
 /// Runs `sparc3d work`.
 pub fn run(args: Args) -> Result<ExitCode> {
+    let _lock = crate::job_setup::hold_shared(&args.job)?;
     let job = Job::open(&args.job)?;
     let shards: Vec<u64> = match (args.shard_index, args.array) {
         (Some(i), _) => vec![i],

@@ -124,6 +124,30 @@ pub fn write_shard(
     )
 }
 
+/// The provenance columns of a shard: those of its items' manifest lines (every item of one
+/// manifest has the same), in name order; none for a manifest without any.
+fn provenance_names(job: &Job, shard: u64) -> Vec<String> {
+    let names: std::collections::BTreeSet<&String> = job
+        .shard_items(shard)
+        .iter()
+        .flat_map(|item| item.record.extra.keys())
+        .collect();
+    names.into_iter().cloned().collect()
+}
+
+/// The provenance values of item `index` that are not empty (an empty one is stored as null).
+fn item_provenance(job: &Job, index: u64) -> BTreeMap<String, String> {
+    let Some(item) = job.items.get(index as usize) else {
+        return BTreeMap::new();
+    };
+    item.record
+        .extra
+        .iter()
+        .filter(|(_, value)| !value.is_empty())
+        .map(|(name, value)| (name.clone(), value.clone()))
+        .collect()
+}
+
 /// The rows of the journals into Parquet at `tmp` (through `file`), fsynced; the file and the
 /// completion record that will describe it (its size and stamp are filled in once it is in
 /// place).
@@ -139,12 +163,13 @@ fn write_parquet(
         path: tmp.to_path_buf(),
         source,
     };
+    let provenance = provenance_names(job, shard);
     let mut writer = ArrowWriter::try_new(
         HashingFile {
             file,
             hash: Sha256::new(),
         },
-        sparc3d_schema::arrow::schema(),
+        sparc3d_schema::arrow::schema_with(&provenance),
         Some(writer_properties(job, shard)?),
     )
     .map_err(pq_err)?;
@@ -157,14 +182,15 @@ fn write_parquet(
         if rows.is_empty() {
             return Ok(());
         }
-        let batch = sparc3d_schema::arrow::rows_to_batch(rows)?;
+        let batch = sparc3d_schema::arrow::rows_to_batch_with(rows, &provenance)?;
         writer.write(&batch).map_err(pq_err)?;
         writer.flush().map_err(pq_err)?;
         rows.clear();
         Ok(())
     };
     for done in journal.state.done.values() {
-        let row = journal.read_row(done)?;
+        let mut row = journal.read_row(done)?;
+        row.provenance = item_provenance(job, row.item_index);
         sparc3d_schema::digest::update_row(&mut digest, &row);
         match row.status {
             ItemStatus::Ok => ok += 1,

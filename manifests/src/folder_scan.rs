@@ -2,9 +2,9 @@
 //! those files hashed with identical duplicates dropped ([`collect`], what `manifest build`
 //! and `run DIR --job OUT` freeze).
 
+use crate::record::ManifestRecord;
 use anyhow::{Context, Result};
 use rayon::prelude::*;
-use sparc3d_schema::ManifestRecord;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
@@ -68,7 +68,7 @@ pub fn collect(dir: &Path) -> Result<Collected> {
     let hashed: Vec<(PathBuf, Result<String>)> = files
         .into_par_iter()
         .map(|p| {
-            let h = sparc3d_workers::fsutil::file_sha256(&p).map_err(anyhow::Error::from);
+            let h = crate::hash::file_sha256(&p).map_err(anyhow::Error::from);
             (p, h)
         })
         .collect();
@@ -101,6 +101,7 @@ pub fn collect(dir: &Path) -> Result<Collected> {
             format: path
                 .extension()
                 .map(|e| e.to_string_lossy().to_ascii_lowercase()),
+            extra: Default::default(),
         });
     }
     Ok(Collected {

@@ -4,8 +4,12 @@
 //! whatever its id, path or message holds; undo it with the same rules to get the text back.
 //! These are the escapes of PostgreSQL's `COPY ... (FORMAT text)` (its documentation, "COPY",
 //! "Text Format"), which `psql`, pandas (`escapechar`) and most TSV tools follow.
+//!
+//! An item's provenance columns follow its fixed fields as `name=value` fields, in name order
+//! ([`provenance`]), so a line says which column each value is from without a header.
 
 use std::borrow::Cow;
+use std::collections::BTreeMap;
 
 /// `text` as one field: escaped as the module says, borrowed when nothing needs escaping.
 pub fn field(text: &str) -> Cow<'_, str> {
@@ -26,9 +30,28 @@ pub fn field(text: &str) -> Cow<'_, str> {
     Cow::Owned(out)
 }
 
+/// An item's provenance columns as trailing fields: `\tname=value` for each, in name order,
+/// escaped as [`field`] does; empty when it has none.
+pub fn provenance(extra: &BTreeMap<String, String>) -> String {
+    extra
+        .iter()
+        .map(|(name, value)| format!("\t{}={}", field(name), field(value)))
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn provenance_fields_name_their_column() {
+        let extra: BTreeMap<String, String> = [("name", "a\tb"), ("license", "cc0"), ("tags", "")]
+            .into_iter()
+            .map(|(k, v)| (k.to_string(), v.to_string()))
+            .collect();
+        assert_eq!(provenance(&extra), "\tlicense=cc0\tname=a\\tb\ttags=");
+        assert_eq!(provenance(&BTreeMap::new()), "");
+    }
 
     #[test]
     fn controls_and_backslashes_are_escaped_and_the_rest_kept() {

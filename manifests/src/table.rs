@@ -1,19 +1,19 @@
 //! Reading and writing manifests: CSV, JSONL or Parquet, chosen by extension. Any table with
-//! a path column is a manifest (which column: `path_column.rs`, one rule for the whole
+//! a path column is a manifest (which column: [`crate::path_column`], one rule for the whole
 //! manifest); `id` (or `sha256`) is optional. Relative paths are resolved against the
-//! manifest's folder.
+//! manifest's folder. Every other column is kept as provenance ([`RawRecord::extra`]).
+//! Column names are lower-cased.
 
 use crate::path_column::PathColumn;
+use crate::record::{ManifestRecord, KNOWN_COLUMNS, PATH_COLUMNS};
 use anyhow::{bail, Context, Result};
-use arrow_array::{Array, LargeStringArray, RecordBatch, StringArray, StringViewArray};
+use arrow_array::{Array, LargeStringArray, StringArray, StringViewArray};
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
-use parquet::arrow::ArrowWriter;
-use sparc3d_schema::ManifestRecord;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 
-/// A manifest row before its id is known: path, and optional id / sha256 / format.
+/// A manifest row before its id is known: path, optional id / sha256 / format, and the
+/// provenance columns.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct RawRecord {
     /// Optional id.
@@ -24,6 +24,23 @@ pub struct RawRecord {
     pub sha256: Option<String>,
     /// Optional format.
     pub format: Option<String>,
+    /// Every other column of the manifest by name, `""` where this row has no value
+    /// ([`ManifestRecord::extra`]).
+    pub extra: BTreeMap<String, String>,
+}
+
+impl RawRecord {
+    /// The value of column `name` in this row (a known column or a provenance one); `None`
+    /// when the manifest has no such column, `""` when this row has no value in it.
+    pub fn column(&self, name: &str) -> Option<&str> {
+        match name {
+            "id" => Some(self.id.as_deref().unwrap_or("")),
+            "uri" | "path" => Some(self.uri.as_str()),
+            "sha256" => Some(self.sha256.as_deref().unwrap_or("")),
+            "format" => Some(self.format.as_deref().unwrap_or("")),
+            other => self.extra.get(other).map(String::as_str),
+        }
+    }
 }
 
 impl From<ManifestRecord> for RawRecord {
@@ -33,11 +50,13 @@ impl From<ManifestRecord> for RawRecord {
             uri: r.uri,
             sha256: r.sha256,
             format: r.format,
+            extra: r.extra,
         }
     }
 }
 
-fn ext(path: &Path) -> String {
+/// The lower-case extension of `path`, which says a manifest's format.
+pub(crate) fn ext(path: &Path) -> String {
     path.extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default()
@@ -52,6 +71,20 @@ pub struct Manifest {
     pub path_column: PathColumn,
 }
 
+/// The provenance columns of `rows`: every column some row has a key for, except the path
+/// column and the known ones, in name order.
+fn provenance_names(rows: &[BTreeMap<String, String>], path_column: &str) -> Vec<String> {
+    let mut names: std::collections::BTreeSet<&String> = std::collections::BTreeSet::new();
+    for row in rows {
+        names.extend(row.keys());
+    }
+    names
+        .into_iter()
+        .filter(|n| n.as_str() != path_column && !KNOWN_COLUMNS.contains(&n.as_str()))
+        .cloned()
+        .collect()
+}
+
 fn from_table(
     rows: Vec<BTreeMap<String, String>>,
     base: &Path,
@@ -60,6 +93,7 @@ fn from_table(
 ) -> Result<Manifest> {
     let column = crate::path_column::choose(&rows, path_column, source)?;
     crate::path_column::check_rows(&rows, &column, source)?;
+    let extra_names = provenance_names(&rows, &column.name);
     let mut out = Vec::with_capacity(rows.len());
     for row in rows {
         let get = |k: &str| row.get(k).filter(|v| !v.is_empty()).cloned();
@@ -75,6 +109,10 @@ fn from_table(
             uri: abs,
             sha256: get("sha256"),
             format: get("format"),
+            extra: extra_names
+                .iter()
+                .map(|n| (n.clone(), row.get(n).cloned().unwrap_or_default()))
+                .collect(),
         });
     }
     Ok(Manifest {
@@ -99,6 +137,27 @@ fn string_at(col: &dyn Array, i: usize) -> Option<String> {
     None
 }
 
+/// A number or boolean cell of a Parquet manifest as text (for provenance columns such as a
+/// count or a score; the id, sha256, format and path columns are read as strings only);
+/// `None` for other types.
+fn number_at(col: &dyn Array, i: usize) -> Option<String> {
+    use arrow_array::cast::AsArray;
+    use arrow_array::types::{
+        Float32Type, Float64Type, Int32Type, Int64Type, UInt32Type, UInt64Type,
+    };
+    use arrow_schema::DataType as T;
+    Some(match col.data_type() {
+        T::Boolean => col.as_boolean().value(i).to_string(),
+        T::Int32 => col.as_primitive::<Int32Type>().value(i).to_string(),
+        T::Int64 => col.as_primitive::<Int64Type>().value(i).to_string(),
+        T::UInt32 => col.as_primitive::<UInt32Type>().value(i).to_string(),
+        T::UInt64 => col.as_primitive::<UInt64Type>().value(i).to_string(),
+        T::Float32 => col.as_primitive::<Float32Type>().value(i).to_string(),
+        T::Float64 => col.as_primitive::<Float64Type>().value(i).to_string(),
+        _ => return None,
+    })
+}
+
 fn read_parquet_table(path: &Path) -> Result<Vec<BTreeMap<String, String>>> {
     let f = std::fs::File::open(path).with_context(|| format!("opening {}", path.display()))?;
     let reader = ParquetRecordBatchReaderBuilder::try_new(f)
@@ -112,8 +171,15 @@ fn read_parquet_table(path: &Path) -> Result<Vec<BTreeMap<String, String>>> {
         for i in 0..batch.num_rows() {
             let mut m = BTreeMap::new();
             for (f, col) in schema.fields().iter().zip(batch.columns()) {
-                if let Some(v) = string_at(col.as_ref(), i) {
-                    m.insert(f.name().to_ascii_lowercase(), v);
+                let name = f.name().to_ascii_lowercase();
+                let known =
+                    KNOWN_COLUMNS.contains(&name.as_str()) || PATH_COLUMNS.contains(&name.as_str());
+                let value = match string_at(col.as_ref(), i) {
+                    None if !known => number_at(col.as_ref(), i),
+                    v => v,
+                };
+                if let Some(v) = value {
+                    m.insert(name, v);
                 }
             }
             rows.push(m);
@@ -122,7 +188,7 @@ fn read_parquet_table(path: &Path) -> Result<Vec<BTreeMap<String, String>>> {
     Ok(rows)
 }
 
-/// Reads a manifest file; `path_column` is `--path-column` (otherwise `path_column.rs`'s rule
+/// Reads a manifest file; `path_column` is `--path-column` (otherwise [`crate::path_column`]'s rule
 /// picks the column).
 pub fn read(path: &Path, path_column: Option<&str>) -> Result<Manifest> {
     let base = path.parent().map(|p| p.to_path_buf()).unwrap_or_default();
@@ -188,63 +254,66 @@ pub fn read(path: &Path, path_column: Option<&str>) -> Result<Manifest> {
     from_table(rows, &base, path, path_column)
 }
 
-/// Writes manifest records; the format follows the extension.
-pub fn write(records: &[ManifestRecord], path: &Path) -> Result<()> {
-    match ext(path).as_str() {
-        "csv" => {
-            let mut w = csv::Writer::from_path(path)
-                .with_context(|| format!("creating {}", path.display()))?;
-            w.write_record(["id", "uri", "sha256", "format"])?;
-            for r in records {
-                w.write_record([
-                    r.id.as_str(),
-                    r.uri.as_str(),
-                    r.sha256.as_deref().unwrap_or(""),
-                    r.format.as_deref().unwrap_or(""),
-                ])?;
-            }
-            w.flush()
-                .with_context(|| format!("writing {}", path.display()))?;
-        }
-        "jsonl" | "ndjson" => {
-            let mut text = String::new();
-            for r in records {
-                text.push_str(&serde_json::to_string(r)?);
-                text.push('\n');
-            }
-            std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))?;
-        }
-        "parquet" => {
-            use arrow_schema::{DataType, Field, Schema};
-            let schema = Arc::new(Schema::new(vec![
-                Field::new("id", DataType::Utf8, false),
-                Field::new("uri", DataType::Utf8, false),
-                Field::new("sha256", DataType::Utf8, true),
-                Field::new("format", DataType::Utf8, true),
-            ]));
-            let col = |f: &dyn Fn(&ManifestRecord) -> Option<&str>| -> Arc<dyn Array> {
-                Arc::new(StringArray::from(records.iter().map(f).collect::<Vec<_>>()))
-            };
-            let batch = RecordBatch::try_new(
-                schema.clone(),
-                vec![
-                    col(&|r| Some(r.id.as_str())),
-                    col(&|r| Some(r.uri.as_str())),
-                    col(&|r| r.sha256.as_deref()),
-                    col(&|r| r.format.as_deref()),
-                ],
-            )?;
-            let f = std::fs::File::create(path)
-                .with_context(|| format!("creating {}", path.display()))?;
-            let mut w = ArrowWriter::try_new(f, schema, None)?;
-            w.write(&batch)?;
-            w.close()
-                .with_context(|| format!("writing {}", path.display()))?;
-        }
-        other => bail!(
-            "{}: unknown manifest format {other:?} (expected .csv, .jsonl or .parquet)",
-            path.display()
-        ),
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn extra(r: &RawRecord) -> Vec<(&str, &str)> {
+        r.extra
+            .iter()
+            .map(|(k, v)| (k.as_str(), v.as_str()))
+            .collect()
     }
-    Ok(())
+
+    #[test]
+    fn every_other_column_is_kept_as_provenance() -> Result<()> {
+        let dir = tempfile::tempdir()?;
+        let csv = dir.path().join("m.csv");
+        std::fs::write(&csv, "Path,ID,License,name\na.obj,x,cc0,A\nb.obj,y,,B\n")?;
+        let m = read(&csv, None)?;
+        assert_eq!(m.records[0].id.as_deref(), Some("x"));
+        assert_eq!(extra(&m.records[0]), [("license", "cc0"), ("name", "A")]);
+        assert_eq!(extra(&m.records[1]), [("license", ""), ("name", "B")]);
+        // JSONL: every row gets every column; numbers are kept as their text.
+        let jsonl = dir.path().join("m.jsonl");
+        std::fs::write(
+            &jsonl,
+            "{\"uri\":\"a.obj\",\"likes\":3,\"sha256\":null}\n{\"uri\":\"b.obj\",\"tag\":\"t\"}\n",
+        )?;
+        let m = read(&jsonl, None)?;
+        assert_eq!(extra(&m.records[0]), [("likes", "3"), ("tag", "")]);
+        assert_eq!(extra(&m.records[1]), [("likes", ""), ("tag", "t")]);
+        assert_eq!(m.records[1].column("tag"), Some("t"));
+        assert_eq!(m.records[1].column("nope"), None);
+        Ok(())
+    }
+
+    #[test]
+    fn written_manifests_read_back_with_their_provenance() -> Result<()> {
+        let dir = tempfile::tempdir()?;
+        let record = |id: &str, licence: &str| ManifestRecord {
+            id: id.into(),
+            uri: dir
+                .path()
+                .join(format!("{id}.obj"))
+                .to_string_lossy()
+                .into_owned(),
+            sha256: None,
+            format: Some("obj".into()),
+            extra: [("license".to_string(), licence.to_string())].into(),
+        };
+        let records = [record("a", "cc0"), record("b", "a, \"b\"")];
+        for ext in ["csv", "jsonl", "parquet"] {
+            let path = dir.path().join(format!("m.{ext}"));
+            crate::write::write(&records, &path)?;
+            let back = read(&path, None)?;
+            let licences: Vec<&str> = back
+                .records
+                .iter()
+                .filter_map(|r| r.column("license"))
+                .collect();
+            assert_eq!(licences, ["cc0", "a, \"b\""], "{ext}");
+        }
+        Ok(())
+    }
 }

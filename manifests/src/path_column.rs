@@ -11,8 +11,8 @@
 //! Every row must then hold a local path in that column: a row with none there (empty, or a
 //! value only in another path-like column) or with a URL is refused, naming the row.
 
+use crate::record::PATH_COLUMNS;
 use anyhow::{bail, Result};
-use sparc3d_schema::manifest::PATH_COLUMNS;
 use std::collections::BTreeMap;
 use std::path::Path;
 

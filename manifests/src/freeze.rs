@@ -1,13 +1,14 @@
-//! A manifest's rows frozen into a job's items (`init`): every row's sha256 well formed, every
+//! A manifest's rows frozen into a job's items (`sparc3d init`): every row's sha256 well formed, every
 //! id known (a row with neither id nor sha256 is identified by its file's sha256, hashed here),
 //! ids unique, and each item's shard. Problems are named by row, the first few in full and the
-//! rest counted.
+//! rest counted. [`append`] freezes the rows a growing job does not have yet (`sparc3d add`)
+//! into new shards after its last one.
 
-use crate::manifest_io::RawRecord;
+use crate::record::{FrozenItem, ManifestRecord};
+use crate::table::RawRecord;
 use anyhow::{bail, Result};
 use rayon::prelude::*;
-use sparc3d_schema::{FrozenItem, ManifestRecord};
-use std::collections::HashMap;
+use std::collections::{BTreeSet, HashMap, HashSet};
 
 /// Rows listed in full when many have a problem; the rest are counted.
 const LISTED: usize = 10;
@@ -16,7 +17,58 @@ const LISTED: usize = 10;
 /// many items have no sha256 to check their file against before it is converted.
 pub fn freeze(records: Vec<RawRecord>, shard_size: u32) -> Result<Vec<FrozenItem>> {
     check_sha256s(&records)?;
-    let items = assign(identify(records)?, shard_size)?;
+    let items = assign(identify(records)?, shard_size, (0, 0))?;
+    note_unchecked(&items);
+    Ok(items)
+}
+
+/// The rows of a growing job's new manifest (or folder) that it does not have yet.
+#[derive(Debug)]
+pub struct Appended {
+    /// The new items, indexed after the job's last item, in new shards after its last shard.
+    pub items: Vec<FrozenItem>,
+    /// Rows whose id the job has already (left out).
+    pub already: usize,
+}
+
+/// Freezes the rows whose id is not among `existing` (a job's items, in order) as items after
+/// them: indices from `existing.len()`, shards from the one after the last existing item's, so
+/// the job's finished shards are never touched. Every new item gets the job's provenance
+/// columns too (`""` where its row has none), so the new shards have at least the columns of
+/// the earlier ones.
+pub fn append(
+    existing: &[FrozenItem],
+    records: Vec<RawRecord>,
+    shard_size: u32,
+) -> Result<Appended> {
+    check_sha256s(&records)?;
+    let known: HashSet<&str> = existing.iter().map(|i| i.record.id.as_str()).collect();
+    let columns: BTreeSet<&String> = existing
+        .iter()
+        .flat_map(|i| i.record.extra.keys())
+        .collect();
+    let total = records.len();
+    let mut fresh: Vec<ManifestRecord> = identify(records)?
+        .into_iter()
+        .filter(|r| !known.contains(r.id.as_str()))
+        .collect();
+    for r in &mut fresh {
+        for name in &columns {
+            r.extra.entry((*name).clone()).or_default();
+        }
+    }
+    let already = total - fresh.len();
+    let start = (
+        existing.len() as u64,
+        existing.last().map_or(0, |i| i.shard + 1),
+    );
+    let items = assign(fresh, shard_size, start)?;
+    note_unchecked(&items);
+    Ok(Appended { items, already })
+}
+
+/// Says how many items have no sha256 to check their file against before it is converted.
+fn note_unchecked(items: &[FrozenItem]) {
     let unchecked = items.iter().filter(|i| i.record.sha256.is_none()).count();
     if unchecked > 0 {
         eprintln!(
@@ -26,7 +78,6 @@ pub fn freeze(records: Vec<RawRecord>, shard_size: u32) -> Result<Vec<FrozenItem
              before it is converted)"
         );
     }
-    Ok(items)
 }
 
 /// Whether `sha` is a sha256 as hex (64 digits, either case).
@@ -62,7 +113,7 @@ fn id_and_sha(r: &RawRecord) -> Result<(String, Option<String>)> {
         (Some(id), sha) => (id.clone(), sha.clone()),
         (None, Some(sha)) => (sha.clone(), Some(sha.clone())),
         (None, None) => {
-            let sha = sparc3d_workers::fsutil::file_sha256(std::path::Path::new(&r.uri))?;
+            let sha = crate::hash::file_sha256(std::path::Path::new(&r.uri))?;
             (sha.clone(), Some(sha))
         }
     })
@@ -82,6 +133,7 @@ fn identify(records: Vec<RawRecord>) -> Result<Vec<ManifestRecord>> {
                 uri: r.uri,
                 sha256,
                 format: r.format,
+                extra: r.extra,
             })
         })
         .collect();
@@ -97,8 +149,14 @@ fn identify(records: Vec<RawRecord>) -> Result<Vec<ManifestRecord>> {
     Ok(results.into_iter().flatten().collect())
 }
 
-/// The records as items with their index and shard; duplicate ids are refused.
-fn assign(records: Vec<ManifestRecord>, shard_size: u32) -> Result<Vec<FrozenItem>> {
+/// The records as items with their index and shard, numbered from `start` (first index, first
+/// shard): the k-th item gets index `start.0 + k` and shard `start.1 + k / shard_size`.
+/// Duplicate ids are refused.
+fn assign(
+    records: Vec<ManifestRecord>,
+    shard_size: u32,
+    start: (u64, u64),
+) -> Result<Vec<FrozenItem>> {
     let mut seen: HashMap<String, usize> = HashMap::new();
     let mut items = Vec::with_capacity(records.len());
     let mut dups = Vec::new();
@@ -108,10 +166,10 @@ fn assign(records: Vec<ManifestRecord>, shard_size: u32) -> Result<Vec<FrozenIte
             continue;
         }
         seen.insert(rec.id.clone(), i);
-        let index = items.len() as u64;
+        let k = items.len() as u64;
         items.push(FrozenItem {
-            index,
-            shard: index / shard_size.max(1) as u64,
+            index: start.0 + k,
+            shard: start.1 + k / u64::from(shard_size.max(1)),
             record: rec,
         });
     }
@@ -137,4 +195,56 @@ fn listing(bad: &[String]) -> String {
         text.push_str(&format!("; and {} more", bad.len() - LISTED));
     }
     text
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(id: &str, licence: Option<&str>) -> RawRecord {
+        RawRecord {
+            id: Some(id.into()),
+            uri: format!("/d/{id}.obj"),
+            sha256: None,
+            format: None,
+            extra: licence
+                .map(|l| [("license".to_string(), l.to_string())].into())
+                .unwrap_or_default(),
+        }
+    }
+
+    #[test]
+    fn appended_items_follow_in_new_shards_and_skip_known_ids() -> Result<()> {
+        let first = freeze(
+            vec![row("a", Some("cc0")), row("b", None), row("c", None)],
+            2,
+        )?;
+        let shards: Vec<u64> = first.iter().map(|i| i.shard).collect();
+        assert_eq!(shards, [0, 0, 1]);
+        let more = vec![
+            row("b", None),
+            row("d", None),
+            row("e", None),
+            row("f", None),
+        ];
+        let added = append(&first, more, 2)?;
+        assert_eq!(added.already, 1);
+        let placed: Vec<(u64, u64)> = added.items.iter().map(|i| (i.index, i.shard)).collect();
+        assert_eq!(
+            placed,
+            [(3, 2), (4, 2), (5, 3)],
+            "after shard 1, never into it"
+        );
+        assert_eq!(
+            added.items[0]
+                .record
+                .extra
+                .get("license")
+                .map(String::as_str),
+            Some("")
+        );
+        assert!(append(&first, vec![row("x", None), row("x", None)], 2).is_err());
+        assert!(append(&first, vec![row("a", None)], 2)?.items.is_empty());
+        Ok(())
+    }
 }

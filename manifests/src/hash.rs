@@ -1,0 +1,73 @@
+//! The sha256 that identifies a mesh file: a manifest row without id or sha256 is identified by
+//! it, and `manifest build` writes it for every file it finds.
+
+use sha2::{Digest, Sha256};
+use std::path::{Path, PathBuf};
+
+/// Lower-case hex of `bytes`.
+pub fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// A file that could not be hashed: what was being done, the file, and the I/O error.
+#[derive(Debug)]
+pub struct HashError {
+    /// `opening` or `reading`.
+    pub stage: &'static str,
+    /// The file.
+    pub path: PathBuf,
+    /// The underlying error.
+    pub source: std::io::Error,
+}
+
+impl std::fmt::Display for HashError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} {}: {}", self.stage, self.path.display(), self.source)
+    }
+}
+
+impl std::error::Error for HashError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        Some(&self.source)
+    }
+}
+
+/// Hex sha256 of a regular file's bytes. A FIFO, device or socket (also behind a link) is
+/// refused at once ([`sparcubes::io::open_regular`]) instead of being read forever.
+pub fn file_sha256(path: &Path) -> Result<String, HashError> {
+    let fail = |stage, source| HashError {
+        stage,
+        path: path.to_path_buf(),
+        source,
+    };
+    let (mut f, _) = sparcubes::io::open_regular(path).map_err(|e| fail("opening", e))?;
+    let mut h = Sha256::new();
+    std::io::copy(&mut f, &mut h).map_err(|e| fail("reading", e))?;
+    Ok(hex(&h.finalize()))
+}
+
+/// Hex sha256 of bytes in memory.
+pub fn bytes_sha256(bytes: &[u8]) -> String {
+    hex(&Sha256::digest(bytes))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_file_hashes_to_the_sha256_of_its_bytes() -> Result<(), Box<dyn std::error::Error>> {
+        let dir = tempfile::tempdir()?;
+        let path = dir.path().join("a.obj");
+        std::fs::write(&path, b"abc")?;
+        let abc = "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad";
+        assert_eq!(file_sha256(&path)?, abc);
+        assert_eq!(bytes_sha256(b"abc"), abc);
+        let missing = file_sha256(&dir.path().join("missing.obj"))
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(missing.starts_with("opening "), "{missing}");
+        Ok(())
+    }
+}

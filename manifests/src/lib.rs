@@ -1,0 +1,24 @@
+//! What a manifest is: the table of meshes a job converts, read from CSV, JSONL or Parquet
+//! ([`table`], its path column chosen by one rule: [`path_column`]) and written by `manifest
+//! build` ([`mod@write`]), or made by scanning a folder ([`folder_scan`]); files identified by
+//! their sha256 ([`hash`]); every other column kept as provenance; rows chosen by `--where`
+//! ([`filter`]); and the rows frozen into a job's items, each with its index and shard, or
+//! appended to a growing job ([`freeze`], [`record`]).
+//!
+//! It knows nothing of shards' contents, workers or the command line: `sparc3d-schema` builds
+//! shard rows from the frozen items, and the `sparc3d` binary's commands (`manifest build`,
+//! `init`, `run --job`, `add`) call this crate.
+#![deny(missing_docs)]
+
+pub mod filter;
+pub mod folder_scan;
+pub mod freeze;
+pub mod hash;
+pub mod path_column;
+pub mod record;
+pub mod table;
+pub mod tsv;
+pub mod write;
+
+pub use record::{FrozenItem, ManifestRecord};
+pub use table::{Manifest, RawRecord};

@@ -1,0 +1,313 @@
+//! Manifests end to end: what a job keeps of its manifest, and that a job without anything new
+//! in its manifest converts to the same shards as before the `manifests` crate existed.
+
+mod common;
+use common::*;
+use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
+use sparc3d_schema::digest;
+use std::path::{Path, PathBuf};
+
+/// The bundled example meshes copied into `dir/meshes`.
+fn examples(dir: &Path) -> PathBuf {
+    let root = dir.join("meshes");
+    std::fs::create_dir_all(&root).unwrap_or_else(|e| panic!("{e}"));
+    let examples = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples");
+    for name in [
+        "box_textured.glb",
+        "cube.off",
+        "cube_binary.ply",
+        "sphere.obj",
+        "wuson.stl",
+    ] {
+        std::fs::copy(examples.join(name), root.join(name))
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+    }
+    root
+}
+
+/// The shard files of a job in shard order.
+fn shard_files(job: &Path) -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(job.join("shards"))
+        .map(|d| d.flatten().map(|e| e.path()).collect())
+        .unwrap_or_default();
+    files.retain(|p| p.extension().is_some_and(|e| e == "parquet"));
+    files.sort();
+    files
+}
+
+/// The Arrow batches of one shard file.
+fn batches(path: &Path) -> Vec<arrow_array::RecordBatch> {
+    let f = std::fs::File::open(path).unwrap_or_else(|e| panic!("{e}"));
+    ParquetRecordBatchReaderBuilder::try_new(f)
+        .and_then(|b| b.build())
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .map(|b| b.unwrap_or_else(|e| panic!("{e}")))
+        .collect()
+}
+
+/// A job's content digest (as `inspect` computes it: shard digests combined) with every row's
+/// `uri` cut to its file name, so that it does not depend on where the test runs.
+fn path_free_digest(job: &Path) -> String {
+    let digests: Vec<String> = shard_files(job)
+        .iter()
+        .map(|p| {
+            let mut rows = Vec::new();
+            for b in batches(p) {
+                rows.extend(
+                    sparc3d_schema::arrow::batch_to_rows(&b).unwrap_or_else(|e| panic!("{e}")),
+                );
+            }
+            for r in &mut rows {
+                r.uri = r.uri.rsplit('/').next().unwrap_or_default().to_string();
+            }
+            digest::rows_digest(&rows)
+        })
+        .collect();
+    digest::combine(&digests)
+}
+
+/// The column names of a shard file.
+fn column_names(path: &Path) -> Vec<String> {
+    let f = std::fs::File::open(path).unwrap_or_else(|e| panic!("{e}"));
+    let b = ParquetRecordBatchReaderBuilder::try_new(f).unwrap_or_else(|e| panic!("{e}"));
+    b.schema()
+        .fields()
+        .iter()
+        .map(|f| f.name().clone())
+        .collect()
+}
+
+/// The content digest (uris cut to file names) of the five examples at 32³ in shards of two,
+/// as sparc3d wrote them before the `manifests` crate and provenance columns existed.
+const EXAMPLES_AT_32: &str = "2572a5ebd79276001379dd848109cb08499fdbf01a69b33f15f158c80a7d8741";
+
+#[test]
+fn a_job_without_extra_columns_converts_to_the_shards_of_before() {
+    let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let meshes = examples(tmp.path());
+    let job = tmp.path().join("job");
+    let args = ["--resolution", "32", "--shard-size", "2", "--workers", "2"];
+    ok(&[&["run", s(&meshes), "--job", s(&job)][..], &args].concat());
+    assert_eq!(path_free_digest(&job), EXAMPLES_AT_32);
+    let files = shard_files(&job);
+    assert_eq!(files.len(), 3);
+    let schema = sparc3d_schema::arrow::schema();
+    let before: Vec<String> = schema.fields().iter().map(|f| f.name().clone()).collect();
+    for f in &files {
+        assert_eq!(column_names(f), before, "{}", f.display());
+    }
+}
+
+/// A manifest over the examples (and one broken file) with provenance columns: a licence, a
+/// name (one with a comma, one empty), a uid and a source URL in a second path-like column.
+fn provenance_manifest(dir: &Path) -> PathBuf {
+    let meshes = examples(dir);
+    std::fs::write(meshes.join("broken.obj"), "not a mesh\n").unwrap_or_else(|e| panic!("{e}"));
+    let m = dir.join("m.csv");
+    let rows = [
+        "local_path,uri,License,name,uid",
+        "meshes/cube.off,https://h/cube.off,cc0,Cube,u1",
+        "meshes/sphere.obj,https://h/sphere.obj,cc-by,\"Sphere, round\",u2",
+        "meshes/wuson.stl,https://h/wuson.stl,by-nc,Wuson,u3",
+        "meshes/box_textured.glb,https://h/box.glb,cc-by,,u4",
+        "meshes/broken.obj,https://h/broken.obj,cc0,Broken,u5",
+    ];
+    std::fs::write(&m, rows.join("\n") + "\n").unwrap_or_else(|e| panic!("{e}"));
+    m
+}
+
+/// Every `manifest.*` column of a row with its value (None: null).
+type Provenance = Vec<(String, Option<String>)>;
+
+/// (id, provenance) of each row of a job, in shard order.
+fn provenance_of_rows(job: &Path) -> Vec<(String, Provenance)> {
+    use arrow_array::{Array, StringArray};
+    let mut out = Vec::new();
+    for file in shard_files(job) {
+        for b in batches(&file) {
+            let schema = b.schema();
+            let strings = |name: &str| -> StringArray {
+                b.column_by_name(name)
+                    .and_then(|c| c.as_any().downcast_ref::<StringArray>().cloned())
+                    .unwrap_or_else(|| panic!("{name} is not a string column"))
+            };
+            let ids = strings("id");
+            let names: Vec<String> = schema
+                .fields()
+                .iter()
+                .map(|f| f.name().clone())
+                .filter(|n| n.starts_with("manifest."))
+                .collect();
+            for i in 0..b.num_rows() {
+                let values = names
+                    .iter()
+                    .map(|n| {
+                        let c = strings(n);
+                        (n.clone(), c.is_valid(i).then(|| c.value(i).to_string()))
+                    })
+                    .collect();
+                out.push((ids.value(i).to_string(), values));
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn provenance_columns_come_through_to_shards_listings_and_exports() {
+    let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let m = provenance_manifest(tmp.path());
+    let job = tmp.path().join("job");
+    let out = sparc3d(&[
+        "run",
+        s(&m),
+        "--job",
+        s(&job),
+        "--where",
+        "license in (cc-by, cc0)",
+        "--resolution",
+        "32",
+        "--shard-size",
+        "2",
+        "--workers",
+        "2",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(err.contains("4 rows kept, 1 left out"), "{err}");
+    assert!(
+        err.contains("provenance columns kept with every item: license, name, uid, uri"),
+        "{err}"
+    );
+
+    // Shards: one nullable string column per manifest column, null where the row had none.
+    let rows = provenance_of_rows(&job);
+    assert_eq!(rows.len(), 4);
+    let col = |v: &[(String, Option<String>)], k: &str| -> Option<String> {
+        v.iter().find(|(n, _)| n == k).and_then(|(_, x)| x.clone())
+    };
+    let names: Vec<String> = rows[0].1.iter().map(|(n, _)| n.clone()).collect();
+    assert_eq!(
+        names,
+        [
+            "manifest.license",
+            "manifest.name",
+            "manifest.uid",
+            "manifest.uri"
+        ]
+    );
+    let licences: Vec<Option<String>> = rows
+        .iter()
+        .map(|(_, v)| col(v, "manifest.license"))
+        .collect();
+    assert_eq!(
+        licences,
+        [Some("cc0"), Some("cc-by"), Some("cc-by"), Some("cc0")].map(|s| s.map(String::from))
+    );
+    assert_eq!(
+        col(&rows[1].1, "manifest.name").as_deref(),
+        Some("Sphere, round")
+    );
+    assert_eq!(
+        col(&rows[2].1, "manifest.name"),
+        None,
+        "an empty value is null"
+    );
+    assert_eq!(
+        col(&rows[3].1, "manifest.uri").as_deref(),
+        Some("https://h/broken.obj")
+    );
+
+    // ls and failures: `name=value` fields after the fixed ones; --json: a `manifest` object.
+    let ls = ok(&["ls", s(&job)]);
+    let first = ls.lines().next().unwrap_or_default();
+    assert!(
+        first.ends_with("\tlicense=cc0\tname=Cube\tuid=u1\turi=https://h/cube.off"),
+        "{first}"
+    );
+    let json: serde_json::Value = serde_json::from_str(
+        ok(&["ls", s(&job), "--json"])
+            .lines()
+            .nth(1)
+            .unwrap_or_default(),
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(json["manifest"]["name"], "Sphere, round");
+    let failures = ok(&["failures", s(&job)]);
+    assert!(
+        failures.starts_with("parse_error\t")
+            && failures.contains("\tlicense=cc0\tname=Broken\tuid=u5\t"),
+        "{failures}"
+    );
+
+    // inspect counts rows per value; the report has a section per column.
+    let inspect = inspect(&job);
+    assert_eq!(inspect["provenance"]["license"]["cc-by"], 2);
+    assert_eq!(inspect["provenance"]["name"][""], 1);
+    let report = tmp.path().join("report.html");
+    ok(&["report", s(&job), "-o", s(&report), "--previews", "0"]);
+    let html = std::fs::read_to_string(&report).unwrap_or_else(|e| panic!("{e}"));
+    assert!(
+        html.contains("<h3>manifest.license</h3>") && html.contains("license=cc0; name=Broken"),
+        "report"
+    );
+
+    // Exports list them with each item.
+    let export = tmp.path().join("export");
+    ok(&["export", s(&job), "--format", "cubvh", "--out", s(&export)]);
+    let record = std::fs::read_to_string(export.join(".sparc3d-export.json"))
+        .unwrap_or_else(|e| panic!("{e}"));
+    let record: serde_json::Value = serde_json::from_str(&record).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(record["items"][0]["manifest"]["license"], "cc0");
+    assert_eq!(record["items"][1]["manifest"]["uid"], "u2");
+}
+
+#[test]
+fn provenance_jobs_are_deterministic_whatever_the_worker_count() {
+    let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let m = provenance_manifest(tmp.path());
+    let digests: Vec<String> = ["1", "3"]
+        .iter()
+        .map(|workers| {
+            let job = tmp.path().join(format!("job-{workers}"));
+            ok(&[
+                "run",
+                s(&m),
+                "--job",
+                s(&job),
+                "--resolution",
+                "32",
+                "--shard-size",
+                "2",
+                "--workers",
+                workers,
+            ]);
+            inspect(&job)["content_digest"]
+                .as_str()
+                .unwrap_or_default()
+                .to_string()
+        })
+        .collect();
+    assert_eq!(digests[0], digests[1]);
+    // The provenance is part of the content: the same meshes without it digest otherwise.
+    let plain = tmp.path().join("plain.csv");
+    let text = std::fs::read_to_string(&m).unwrap_or_else(|e| panic!("{e}"));
+    let paths: Vec<&str> = text
+        .lines()
+        .map(|l| l.split(',').next().unwrap_or_default())
+        .collect();
+    std::fs::write(&plain, paths.join("\n") + "\n").unwrap_or_else(|e| panic!("{e}"));
+    let job = tmp.path().join("job-plain");
+    ok(&[
+        "run",
+        s(&plain),
+        "--job",
+        s(&job),
+        "--resolution",
+        "32",
+        "--shard-size",
+        "2",
+        "--workers",
+        "2",
+    ]);
+    assert_ne!(inspect(&job)["content_digest"], digests[0].as_str());
+}
