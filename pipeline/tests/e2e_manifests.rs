@@ -1,5 +1,5 @@
-//! Manifests end to end: what a job keeps of its manifest, and that a job without anything new
-//! in its manifest converts to the same shards as before the `manifests` crate existed.
+//! Manifests end to end: what a job keeps of its manifest, and that extra manifest columns add
+//! their own shard columns and change nothing else.
 
 mod common;
 use common::*;
@@ -46,8 +46,9 @@ fn batches(path: &Path) -> Vec<arrow_array::RecordBatch> {
 }
 
 /// A job's content digest (as `inspect` computes it: shard digests combined) with every row's
-/// `uri` cut to its file name, so that it does not depend on where the test runs.
-fn path_free_digest(job: &Path) -> String {
+/// `uri` cut to its file name, so that it does not depend on where the test runs, and its
+/// provenance kept or dropped.
+fn path_free_digest(job: &Path, provenance: bool) -> String {
     let digests: Vec<String> = shard_files(job)
         .iter()
         .map(|p| {
@@ -59,6 +60,9 @@ fn path_free_digest(job: &Path) -> String {
             }
             for r in &mut rows {
                 r.uri = r.uri.rsplit('/').next().unwrap_or_default().to_string();
+                if !provenance {
+                    r.provenance.clear();
+                }
             }
             digest::rows_digest(&rows)
         })
@@ -77,24 +81,54 @@ fn column_names(path: &Path) -> Vec<String> {
         .collect()
 }
 
-/// The content digest (uris cut to file names) of the five examples at 32³ in shards of two,
-/// as sparc3d wrote them before the `manifests` crate and provenance columns existed.
-const EXAMPLES_AT_32: &str = "2572a5ebd79276001379dd848109cb08499fdbf01a69b33f15f158c80a7d8741";
-
 #[test]
-fn a_job_without_extra_columns_converts_to_the_shards_of_before() {
+fn extra_columns_add_their_own_columns_and_change_nothing_else() {
     let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
     let meshes = examples(tmp.path());
-    let job = tmp.path().join("job");
     let args = ["--resolution", "32", "--shard-size", "2", "--workers", "2"];
-    ok(&[&["run", s(&meshes), "--job", s(&job)][..], &args].concat());
-    assert_eq!(path_free_digest(&job), EXAMPLES_AT_32);
-    let files = shard_files(&job);
-    assert_eq!(files.len(), 3);
-    let schema = sparc3d_schema::arrow::schema();
-    let before: Vec<String> = schema.fields().iter().map(|f| f.name().clone()).collect();
-    for f in &files {
-        assert_eq!(column_names(f), before, "{}", f.display());
+    let plain = tmp.path().join("plain");
+    ok(&[&["run", s(&meshes), "--job", s(&plain)][..], &args].concat());
+    // The same items in the same order, through a manifest with a licence column.
+    let frozen =
+        std::fs::read_to_string(plain.join("manifest.jsonl")).unwrap_or_else(|e| panic!("{e}"));
+    let mut csv = String::from("path,License\n");
+    for line in frozen.lines() {
+        let v: serde_json::Value = serde_json::from_str(line).unwrap_or_else(|e| panic!("{e}"));
+        let uri = v["uri"]
+            .as_str()
+            .unwrap_or_else(|| panic!("no uri in {line}"));
+        csv.push_str(&format!("{uri},cc0\n"));
+    }
+    let manifest = tmp.path().join("m.csv");
+    std::fs::write(&manifest, csv).unwrap_or_else(|e| panic!("{e}"));
+    let licensed = tmp.path().join("licensed");
+    ok(&[&["run", s(&manifest), "--job", s(&licensed)][..], &args].concat());
+
+    // Without provenance the rows hash the same: conversion and storage are untouched.
+    assert_eq!(
+        path_free_digest(&plain, false),
+        path_free_digest(&licensed, false)
+    );
+    assert_ne!(
+        path_free_digest(&plain, true),
+        path_free_digest(&licensed, true)
+    );
+    let before: Vec<String> = sparc3d_schema::arrow::schema()
+        .fields()
+        .iter()
+        .map(|f| f.name().clone())
+        .collect();
+    let with_licence: Vec<String> = before
+        .iter()
+        .cloned()
+        .chain(["manifest.license".to_string()]) // names are lower-cased (FORMAT.md)
+        .collect();
+    for (job, want) in [(&plain, &before), (&licensed, &with_licence)] {
+        let files = shard_files(job);
+        assert_eq!(files.len(), 3);
+        for f in &files {
+            assert_eq!(&column_names(f), want, "{}", f.display());
+        }
     }
 }
 
