@@ -58,23 +58,25 @@ fn add(job: &Path, input: &Path) -> String {
     err
 }
 
+/// Makes `job` from manifest `m` (or grows it, when it exists) with two workers and
+/// [`CONFIG`].
+fn run_job(m: &Path, job: &Path) -> String {
+    ok(&[
+        &["run", s(m), "--job", s(job), "--workers", "2"][..],
+        &CONFIG,
+    ]
+    .concat())
+}
+
 #[test]
 fn adding_twice_gives_the_job_made_at_once() {
     let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
     let m = manifests(tmp.path(), &[2, 4, 5]);
     let at_once = tmp.path().join("at-once");
-    ok(&[
-        &["run", s(&m[2]), "--job", s(&at_once), "--workers", "2"][..],
-        &CONFIG,
-    ]
-    .concat());
+    run_job(&m[2], &at_once);
 
     let grown = tmp.path().join("grown");
-    ok(&[
-        &["run", s(&m[0]), "--job", s(&grown), "--workers", "2"][..],
-        &CONFIG,
-    ]
-    .concat());
+    run_job(&m[0], &grown);
     let job_json = std::fs::read_to_string(grown.join("job.json")).unwrap_or_default();
     let first = std::fs::read(grown.join("shards/part-00000.parquet")).unwrap_or_default();
     let err = add(&grown, &m[1]);
@@ -145,17 +147,9 @@ fn a_partial_last_shard_is_never_refilled_and_the_items_digest_still_agrees() {
     let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
     let m = manifests(tmp.path(), &[3, 5]);
     let at_once = tmp.path().join("at-once");
-    ok(&[
-        &["run", s(&m[1]), "--job", s(&at_once), "--workers", "2"][..],
-        &CONFIG,
-    ]
-    .concat());
+    run_job(&m[1], &at_once);
     let grown = tmp.path().join("grown");
-    ok(&[
-        &["run", s(&m[0]), "--job", s(&grown), "--workers", "2"][..],
-        &CONFIG,
-    ]
-    .concat());
+    run_job(&m[0], &grown);
     let partial = std::fs::read(grown.join("shards/part-00001.parquet")).unwrap_or_default();
     // `run MANIFEST --job JOB` on the job says what is new and adds it.
     let out = sparc3d(

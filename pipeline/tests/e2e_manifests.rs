@@ -81,13 +81,35 @@ fn column_names(path: &Path) -> Vec<String> {
         .collect()
 }
 
+/// `sparc3d run INPUT --job JOB` at 32³ in shards of two with `workers` workers, then
+/// `extra` flags; returns its output (whether or not it succeeded).
+fn run_at_32(input: &Path, job: &Path, workers: &str, extra: &[&str]) -> std::process::Output {
+    let base = [
+        "run",
+        s(input),
+        "--job",
+        s(job),
+        "--resolution",
+        "32",
+        "--shard-size",
+        "2",
+    ];
+    sparc3d(&[&base[..], &["--workers", workers], extra].concat())
+}
+
+/// [`run_at_32`] that must succeed (its stderr shown when it does not).
+fn ok_at_32(input: &Path, job: &Path, workers: &str) {
+    let out = run_at_32(input, job, workers, &[]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "run {}: {err}", input.display());
+}
+
 #[test]
 fn extra_columns_add_their_own_columns_and_change_nothing_else() {
     let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
     let meshes = examples(tmp.path());
-    let args = ["--resolution", "32", "--shard-size", "2", "--workers", "2"];
     let plain = tmp.path().join("plain");
-    ok(&[&["run", s(&meshes), "--job", s(&plain)][..], &args].concat());
+    ok_at_32(&meshes, &plain, "2");
     // The same items in the same order, through a manifest with a licence column.
     let frozen =
         std::fs::read_to_string(plain.join("manifest.jsonl")).unwrap_or_else(|e| panic!("{e}"));
@@ -102,7 +124,7 @@ fn extra_columns_add_their_own_columns_and_change_nothing_else() {
     let manifest = tmp.path().join("m.csv");
     std::fs::write(&manifest, csv).unwrap_or_else(|e| panic!("{e}"));
     let licensed = tmp.path().join("licensed");
-    ok(&[&["run", s(&manifest), "--job", s(&licensed)][..], &args].concat());
+    ok_at_32(&manifest, &licensed, "2");
 
     // Without provenance the rows hash the same: conversion and storage are untouched.
     assert_eq!(
@@ -192,20 +214,7 @@ fn provenance_columns_come_through_to_shards_listings_and_exports() {
     let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
     let m = provenance_manifest(tmp.path());
     let job = tmp.path().join("job");
-    let out = sparc3d(&[
-        "run",
-        s(&m),
-        "--job",
-        s(&job),
-        "--where",
-        "license in (cc-by, cc0)",
-        "--resolution",
-        "32",
-        "--shard-size",
-        "2",
-        "--workers",
-        "2",
-    ]);
+    let out = run_at_32(&m, &job, "2", &["--where", "license in (cc-by, cc0)"]);
     let err = String::from_utf8_lossy(&out.stderr).into_owned();
     assert!(err.contains("4 rows kept, 1 left out"), "{err}");
     assert!(
@@ -303,18 +312,7 @@ fn provenance_jobs_are_deterministic_whatever_the_worker_count() {
         .iter()
         .map(|workers| {
             let job = tmp.path().join(format!("job-{workers}"));
-            ok(&[
-                "run",
-                s(&m),
-                "--job",
-                s(&job),
-                "--resolution",
-                "32",
-                "--shard-size",
-                "2",
-                "--workers",
-                workers,
-            ]);
+            ok_at_32(&m, &job, workers);
             inspect(&job)["content_digest"]
                 .as_str()
                 .unwrap_or_default()
@@ -331,17 +329,6 @@ fn provenance_jobs_are_deterministic_whatever_the_worker_count() {
         .collect();
     std::fs::write(&plain, paths.join("\n") + "\n").unwrap_or_else(|e| panic!("{e}"));
     let job = tmp.path().join("job-plain");
-    ok(&[
-        "run",
-        s(&plain),
-        "--job",
-        s(&job),
-        "--resolution",
-        "32",
-        "--shard-size",
-        "2",
-        "--workers",
-        "2",
-    ]);
+    ok_at_32(&plain, &job, "2");
     assert_ne!(inspect(&job)["content_digest"], digests[0].as_str());
 }
