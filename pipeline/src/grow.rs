@@ -14,7 +14,7 @@ use sparc3d_manifests::freeze::append;
 use sparc3d_manifests::RawRecord;
 use sparc3d_schema::{JobFile, JobLayout};
 use sparc3d_workers::fsutil::{bytes_sha256, read_json, write_atomic};
-use sparc3d_workers::job::read_frozen_manifest;
+use sparc3d_workers::job::{read_frozen_manifest, write_job_file};
 use sparc3d_workers::job_lock::JobLock;
 use sparc3d_workers::Job;
 use std::ops::Range;
@@ -54,8 +54,7 @@ pub fn input_records(input: &Path, source: &SourceArgs) -> Result<Vec<RawRecord>
 /// the file system refuses locks (some network file systems): said on stderr, and the add
 /// goes on unlocked, as the lock is advisory.
 pub fn lock_for_add(root: &Path) -> Result<Option<JobLock>> {
-    let layout = JobLayout::new(root);
-    if !layout.job_file().exists() {
+    if !crate::job_setup::is_job(root) {
         bail!(
             "{} is not a job folder (it has no job.json); make one with `sparc3d init` or \
              `sparc3d run DIR --job {}`",
@@ -63,7 +62,7 @@ pub fn lock_for_add(root: &Path) -> Result<Option<JobLock>> {
             root.display()
         );
     }
-    match JobLock::try_exclusive(&layout) {
+    match JobLock::try_exclusive(&JobLayout::new(root)) {
         Ok(Some(lock)) => Ok(Some(lock)),
         Err(e) => {
             eprintln!(
@@ -110,11 +109,7 @@ pub fn add(root: &Path, records: Vec<RawRecord>) -> Result<Grown> {
         manifest_sha256: bytes_sha256(&text),
         ..job.file
     };
-    write_atomic(
-        &layout.job_file(),
-        &serde_json::to_vec_pretty(&file)?,
-        "writing job file",
-    )?;
+    write_job_file(layout, &file)?;
     Ok(grown)
 }
 
@@ -146,11 +141,7 @@ fn finish_interrupted(root: &Path) -> Result<()> {
         manifest_sha256: whole,
         ..file
     };
-    write_atomic(
-        &layout.job_file(),
-        &serde_json::to_vec_pretty(&file)?,
-        "writing job file",
-    )?;
+    write_job_file(&layout, &file)?;
     Ok(())
 }
 

@@ -11,7 +11,7 @@ use sparc3d_workers::Job;
 use std::path::{Path, PathBuf};
 
 /// Whether `dir` is a job folder (it has its job file).
-fn is_job(dir: &Path) -> bool {
+pub(crate) fn is_job(dir: &Path) -> bool {
     JobLayout::new(dir).job_file().exists()
 }
 

@@ -1,9 +1,19 @@
 //! A job folder read into memory: its job file and frozen manifest.
 
 use crate::error::{Result, WorkerError};
-use crate::fsutil::read_json;
+use crate::fsutil::{read_json, write_atomic};
 use sparc3d_schema::{FrozenItem, JobFile, JobLayout};
 use std::path::Path;
+
+/// Writes `file` as the job file of `layout` (atomically: a reader sees the old file or the
+/// new one), as `init` makes it and `add` rewrites it.
+pub fn write_job_file(layout: &JobLayout, file: &JobFile) -> Result<()> {
+    let bytes = serde_json::to_vec_pretty(file).map_err(|e| WorkerError::BadFile {
+        path: layout.job_file(),
+        reason: e.to_string(),
+    })?;
+    write_atomic(&layout.job_file(), &bytes, "writing job file")
+}
 
 /// An initialised job.
 #[derive(Debug, Clone)]

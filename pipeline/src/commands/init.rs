@@ -260,11 +260,7 @@ pub fn create(job: &Path, records: Vec<RawRecord>, config: JobConfig) -> Result<
         manifest_sha256,
     };
     // job.json last: its presence is what makes the folder a job.
-    sparc3d_workers::fsutil::write_atomic(
-        &layout.job_file(),
-        &serde_json::to_vec_pretty(&file)?,
-        "writing job file",
-    )?;
+    sparc3d_workers::job::write_job_file(&layout, &file)?;
     eprintln!(
         "initialised {}: {} items in {} shards, fingerprint {}",
         layout.root.display(),
