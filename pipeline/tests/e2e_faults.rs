@@ -449,3 +449,44 @@ fn too_small_item_memory_names_the_limit() {
     }
     assert!(n > 0, "no item hit the limit: {text}");
 }
+
+/// A finished shard whose bytes no longer hash to its record's sha256 while its size and
+/// stamp still match (bit rot under an unchanged stamp; made here by changing the recorded
+/// sha256): `export` hashes every shard it reads, on a thread beside the read, so it fails
+/// naming the shard and writes nothing; the items of sound shards still export.
+#[test]
+fn export_hashes_each_shard_it_reads_even_under_an_unchanged_stamp() {
+    let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let job = finished_job(tmp.path());
+    let j = s(&job);
+    let record = job.join("shards/part-00001.complete.json");
+    let text = std::fs::read_to_string(&record).unwrap_or_else(|e| panic!("{e}"));
+    let mut value: serde_json::Value =
+        serde_json::from_str(&text).unwrap_or_else(|e| panic!("{e}"));
+    value["sha256"] = serde_json::Value::String("0".repeat(64));
+    std::fs::write(&record, value.to_string()).unwrap_or_else(|e| panic!("{e}"));
+    // The quick check (size and stamp) of `status` still trusts it.
+    assert_eq!(status(&job)["shards_damaged"], 0);
+
+    for format in ["trellis2", "cubvh"] {
+        let out_dir = tmp.path().join(format!("export-{format}"));
+        let out = sparc3d(&["export", j, "--format", format, "--out", s(&out_dir)]);
+        let err = stderr(&out);
+        assert!(!out.status.success(), "{format}: exported a damaged shard");
+        assert!(err.contains("shard 1") && err.contains("sha256"), "{err}");
+        assert!(!out_dir.exists(), "{format}: wrote {}", out_dir.display());
+    }
+    let sound = item_of_shard(&job, 0);
+    let out_dir = tmp.path().join("export-sound");
+    ok(&[
+        "export",
+        j,
+        "--format",
+        "trellis2",
+        "--ids",
+        &sound,
+        "--out",
+        s(&out_dir),
+    ]);
+    assert!(out_dir.join("mesh_dumps").is_dir());
+}

@@ -221,10 +221,10 @@ fn opt_f64(a: &Float64Array, i: usize) -> Option<f64> {
 }
 
 /// The tensor `stem` of row `i`; `None` when its blob is null, or when the batch has no such
-/// column and the tensor is one of [`c::OPTIONAL_SAMPLE_TENSORS`] (a shard written before
-/// that kind existed).
+/// column and the tensor is one of [`c::SAMPLE_TENSORS`] (a read that left the samples out,
+/// or a shard written before that kind existed).
 fn read_tensor(batch: &RecordBatch, stem: &str, i: usize) -> Result<Option<EncodedTensor>> {
-    if batch.column_by_name(stem).is_none() && c::OPTIONAL_SAMPLE_TENSORS.contains(&stem) {
+    if batch.column_by_name(stem).is_none() && c::SAMPLE_TENSORS.contains(&stem) {
         return Ok(None);
     }
     let blob = col::<BinaryArray>(batch, stem)?;

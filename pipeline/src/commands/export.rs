@@ -12,7 +12,7 @@ use clap::builder::TypedValueParser;
 use rayon::prelude::*;
 use sparc3d_formats::{Consumer, ExportFile, Frame, Item, Listed, StoredSamples};
 use sparc3d_schema::ShardRow;
-use sparc3d_workers::store::read::shard_rows;
+use sparc3d_workers::store::read::{for_each_shard_row, Columns};
 use sparc3d_workers::store::state::Check;
 use sparc3d_workers::Job;
 use std::collections::{BTreeMap, BTreeSet};
@@ -208,8 +208,10 @@ fn write_items(
     })
 }
 
-/// Computes the wanted ok items' exports, shard by shard in batches of `at_once`, and sends
-/// them in manifest order; stops early when the writer has stopped.
+/// Computes the wanted ok items' exports in batches of `at_once` and sends them in manifest
+/// order while a reader thread streams the next rows from the shards (only the columns the
+/// consumer reads; each finished shard's file hashed against its record as it is read);
+/// stops early when the writer has stopped.
 fn compute_items(
     job: &Job,
     consumer: Consumer,
@@ -218,46 +220,90 @@ fn compute_items(
     at_once: usize,
     send: &std::sync::mpsc::SyncSender<Exported>,
 ) -> Result<()> {
+    let (rows_in, rows_out) = std::sync::mpsc::sync_channel::<ShardRow>(at_once);
+    std::thread::scope(|scope| {
+        let reader = scope.spawn(move || read_wanted_rows(job, consumer, wanted, &rows_in));
+        let names = ExportNames::for_job(job.file.items);
+        let mut rows = rows_out.iter().peekable();
+        'batches: while rows.peek().is_some() {
+            let batch: Vec<ShardRow> = rows.by_ref().take(at_once).collect();
+            let exports: Vec<Exported> = batch
+                .par_iter()
+                .map(|row| export_item(job, row, consumer, frame, &names))
+                .collect();
+            for item in exports {
+                if send.send(item).is_err() {
+                    break 'batches; // the writer stopped: its error is reported
+                }
+            }
+        }
+        // The reader stops at its next row once nobody receives them.
+        drop(rows);
+        drop(rows_out);
+        reader
+            .join()
+            .unwrap_or_else(|_| Err(anyhow::anyhow!("the export's shard reader panicked")))
+    })
+}
+
+/// Sends the wanted ok rows of the job's shards, in manifest order, until the receiver is
+/// gone; a shard that cannot be read, or whose file does not match its record, is an error.
+fn read_wanted_rows(
+    job: &Job,
+    consumer: Consumer,
+    wanted: &BTreeSet<&str>,
+    send: &std::sync::mpsc::SyncSender<ShardRow>,
+) -> Result<()> {
     let shards: BTreeSet<u64> = job
         .items
         .iter()
         .filter(|i| wanted.is_empty() || wanted.contains(i.record.id.as_str()))
         .map(|i| i.shard)
         .collect();
-    let names = ExportNames::for_job(job.file.items);
+    let columns = if consumer.reads_samples() {
+        Columns::All
+    } else {
+        Columns::WithoutSamples
+    };
+    let mut receiver_gone = false;
     for shard in shards {
-        let rows: Vec<ShardRow> = shard_rows(job, shard, Check::Full)?
-            .into_iter()
-            .filter(|r| wanted.is_empty() || wanted.contains(r.id.as_str()))
-            .filter(|r| r.tensors.is_some())
-            .collect();
-        for batch in rows.chunks(at_once) {
-            let exports: Vec<Exported> = batch
-                .par_iter()
-                .map(|row| {
-                    let stem = names.stem(row.item_index, &row.id);
-                    let export = export_row(job, row, consumer, frame, &stem);
-                    let provenance = job
-                        .items
-                        .get(row.item_index as usize)
-                        .map(|i| i.record.extra.clone())
-                        .unwrap_or_default();
-                    Exported {
-                        id: row.id.clone(),
-                        stem,
-                        provenance,
-                        export,
-                    }
-                })
-                .collect();
-            for item in exports {
-                if send.send(item).is_err() {
-                    return Ok(()); // the writer stopped: its error is reported
-                }
+        for_each_shard_row(job, shard, Check::Full, columns, |row| {
+            let keep =
+                (wanted.is_empty() || wanted.contains(row.id.as_str())) && row.tensors.is_some();
+            if keep && !receiver_gone {
+                receiver_gone = send.send(row).is_err();
             }
+            Ok(())
+        })
+        .with_context(|| format!("reading shard {shard}"))?;
+        if receiver_gone {
+            break;
         }
     }
     Ok(())
+}
+
+/// One row's export, named and with its provenance.
+fn export_item(
+    job: &Job,
+    row: &ShardRow,
+    consumer: Consumer,
+    frame: Frame,
+    names: &ExportNames,
+) -> Exported {
+    let stem = names.stem(row.item_index, &row.id);
+    let export = export_row(job, row, consumer, frame, &stem);
+    let provenance = job
+        .items
+        .get(row.item_index as usize)
+        .map(|i| i.record.extra.clone())
+        .unwrap_or_default();
+    Exported {
+        id: row.id.clone(),
+        stem,
+        provenance,
+        export,
+    }
 }
 
 /// Writes one item's files and lists it, or names it as failed.

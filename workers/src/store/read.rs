@@ -7,6 +7,7 @@ use crate::error::{Result, WorkerError};
 use crate::job::Job;
 use arrow_array::RecordBatch;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
+use parquet::arrow::ProjectionMask;
 use parquet::file::reader::{FileReader, SerializedFileReader};
 use sparc3d_schema::ShardRow;
 use std::collections::BTreeMap;
@@ -25,6 +26,39 @@ fn unreadable(stage: &'static str, path: &Path, e: impl std::fmt::Display) -> Wo
 /// checking its schema version: a file of another version is an error that says so.
 pub fn for_each_batch<E: From<WorkerError>>(
     path: &Path,
+    f: impl FnMut(RecordBatch) -> std::result::Result<(), E>,
+) -> std::result::Result<(), E> {
+    for_each_batch_of(path, Columns::All, f)
+}
+
+/// The columns a read of a shard decodes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Columns {
+    /// Every column.
+    All,
+    /// Every column but the sample tensors (their blobs, dtypes and shapes), which are most
+    /// of a shard with samples: their rows read as having no samples.
+    WithoutSamples,
+}
+
+impl Columns {
+    /// Whether a read of these columns keeps the column `name`.
+    fn keeps(self, name: &str) -> bool {
+        match self {
+            Columns::All => true,
+            Columns::WithoutSamples => !sparc3d_schema::columns::SAMPLE_TENSORS.iter().any(|t| {
+                name == *t
+                    || name == sparc3d_schema::columns::dtype_column(t)
+                    || name == sparc3d_schema::columns::shape_column(t)
+            }),
+        }
+    }
+}
+
+/// [`for_each_batch`] reading only `columns`.
+pub fn for_each_batch_of<E: From<WorkerError>>(
+    path: &Path,
+    columns: Columns,
     mut f: impl FnMut(RecordBatch) -> std::result::Result<(), E>,
 ) -> std::result::Result<(), E> {
     let file = std::fs::File::open(path).map_err(|e| unreadable("opening", path, e))?;
@@ -51,7 +85,17 @@ pub fn for_each_batch<E: From<WorkerError>>(
         }
         .into());
     }
+    let kept: Vec<usize> = builder
+        .schema()
+        .fields()
+        .iter()
+        .enumerate()
+        .filter(|(_, field)| columns.keeps(field.name()))
+        .map(|(i, _)| i)
+        .collect();
+    let projection = ProjectionMask::roots(builder.parquet_schema(), kept);
     let reader = builder
+        .with_projection(projection)
         .with_batch_size(64)
         .build()
         .map_err(|e| unreadable("reading", path, e))?;
@@ -64,9 +108,18 @@ pub fn for_each_batch<E: From<WorkerError>>(
 /// Calls `f` on every row of a shard file, batch by batch.
 pub fn for_each_row<E: From<WorkerError>>(
     path: &Path,
+    f: impl FnMut(ShardRow) -> std::result::Result<(), E>,
+) -> std::result::Result<(), E> {
+    for_each_row_of(path, Columns::All, f)
+}
+
+/// [`for_each_row`] reading only `columns`.
+pub fn for_each_row_of<E: From<WorkerError>>(
+    path: &Path,
+    columns: Columns,
     mut f: impl FnMut(ShardRow) -> std::result::Result<(), E>,
 ) -> std::result::Result<(), E> {
-    for_each_batch(path, |batch| {
+    for_each_batch_of(path, columns, |batch| {
         let rows = sparc3d_schema::arrow::batch_to_rows(&batch)
             .map_err(|e| unreadable("decoding", path, e))?;
         for row in rows {
@@ -161,4 +214,50 @@ pub fn shard_rows(job: &Job, shard: u64, check: Check) -> Result<Vec<ShardRow>> 
         .values()
         .map(|d| crate::journal::read_row_at(&d.journal, d.offset))
         .collect()
+}
+
+/// Calls `f` on each row of a shard, finished or in progress, in item order, reading only
+/// `columns`: what [`shard_rows`] returns, without holding the whole shard in memory. With
+/// [`Check::Full`] a finished shard's file is hashed on a second thread while its rows are
+/// read; a mismatch is an error after the last row, so whatever `f` made of the rows must be
+/// discarded when this fails.
+pub fn for_each_shard_row(
+    job: &Job,
+    shard: u64,
+    check: Check,
+    columns: Columns,
+    mut f: impl FnMut(ShardRow) -> Result<()>,
+) -> Result<()> {
+    let layout = &job.layout;
+    let record = match completion(layout, shard, job.fingerprint(), Check::Quick)? {
+        Completion::Done(record) => record,
+        Completion::Damaged(why) => return Err(damaged(job, shard, &why)),
+        Completion::Absent => {
+            let state = crate::journal::set::read(layout, shard, None)?;
+            for d in state.done.values() {
+                f(crate::journal::read_row_at(&d.journal, d.offset)?)?;
+            }
+            return Ok(());
+        }
+    };
+    let path = layout.shard_file(shard);
+    std::thread::scope(|scope| {
+        let hashed =
+            (check == Check::Full).then(|| scope.spawn(|| crate::fsutil::file_sha256(&path)));
+        let read = for_each_row_of(&path, columns, &mut f);
+        let Some(hashed) = hashed else {
+            return read;
+        };
+        let sha = hashed.join().unwrap_or_else(|_| {
+            Err(WorkerError::io(
+                "hashing",
+                &path,
+                std::io::Error::other("the hashing thread panicked"),
+            ))
+        })?;
+        match super::state::hash_mismatch(&path, &sha, &record) {
+            Some(why) => Err(damaged(job, shard, &why)),
+            None => read,
+        }
+    })
 }

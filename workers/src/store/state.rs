@@ -115,14 +115,19 @@ pub fn check_file(file: &Path, record: &CompletionRecord, check: Check) -> Resul
         return Ok(None);
     }
     let sha = file_sha256(file)?;
-    Ok((sha != record.sha256).then(|| {
+    Ok(hash_mismatch(file, &sha, record))
+}
+
+/// Why the shard file `file` whose sha256 is `sha` does not match `record`, or `None`.
+pub fn hash_mismatch(file: &Path, sha: &str, record: &CompletionRecord) -> Option<String> {
+    (sha != record.sha256).then(|| {
         format!(
             "{} has sha256 {sha}, its completion record says {} (the file changed after it \
              was written)",
             file.display(),
             record.sha256
         )
-    }))
+    })
 }
 
 /// The state of a shard, its record checked with `check`.
