@@ -311,19 +311,53 @@ fn case_of<'t>(sdf: &[f32], table: &'t Table, idx: &[usize; 8]) -> Option<&'t Ca
 /// the same positions (grid coordinates, deformation applied, rounded to `f32` as in the
 /// extracted mesh) and orientation. A cell without a sign change adds nothing.
 pub fn cell_triangles(cubes: &SparseCubes, idx: &[usize; 8], out: &mut Vec<[[f64; 3]; 3]>) {
-    let Some(case) = case_of(&cubes.sdf, mc_table::table(), idx) else {
+    cell_triangles_at(&mut CellEdgePoints::new(cubes, idx), out);
+}
+
+/// [`cell_triangles`] of the cell whose crossing points `edges` holds.
+pub(crate) fn cell_triangles_at(edges: &mut CellEdgePoints, out: &mut Vec<[[f64; 3]; 3]>) {
+    let Some(case) = case_of(&edges.cubes.sdf, mc_table::table(), edges.idx) else {
         return;
     };
-    let point = |v: u8| {
+    let mut point = |v: u8| {
         let p = if v < CENTRE {
-            edge_point(cubes, idx, v)
+            edges.get(v)
         } else {
-            centre_point(cubes, idx, &case.centres[(v - CENTRE) as usize])
+            edges.centre(&case.centres[(v - CENTRE) as usize])
         };
         to_f32(p).map(f64::from)
     };
     for tri in &case.triangles {
-        out.push(tri.map(point));
+        out.push([point(tri[0]), point(tri[1]), point(tri[2])]);
+    }
+}
+
+/// The crossing points ([`edge_point`]) of one cell's edges, each computed at most once.
+pub(crate) struct CellEdgePoints<'c> {
+    cubes: &'c SparseCubes,
+    idx: &'c [usize; 8],
+    points: [Option<[f64; 3]>; 12],
+}
+
+impl<'c> CellEdgePoints<'c> {
+    /// None computed yet, for the cell with corners `idx`.
+    pub(crate) fn new(cubes: &'c SparseCubes, idx: &'c [usize; 8]) -> Self {
+        Self {
+            cubes,
+            idx,
+            points: [None; 12],
+        }
+    }
+
+    /// The crossing point on edge `e`.
+    #[inline]
+    pub(crate) fn get(&mut self, e: u8) -> [f64; 3] {
+        *self.points[e as usize].get_or_insert_with(|| edge_point(self.cubes, self.idx, e))
+    }
+
+    /// A centre vertex: the mean of the crossing points of `edges` ([`centre_point`]).
+    fn centre(&mut self, edges: &[u8]) -> [f64; 3] {
+        mean(edges.iter().map(|&e| self.get(e)), edges.len())
     }
 }
 
@@ -380,12 +414,20 @@ pub(crate) fn edge_point(cubes: &SparseCubes, idx: &[usize; 8], e: u8) -> [f64; 
 
 /// A centre vertex: the mean of the crossing points of `edges`.
 fn centre_point(cubes: &SparseCubes, idx: &[usize; 8], edges: &[u8]) -> [f64; 3] {
+    mean(
+        edges.iter().map(|&e| edge_point(cubes, idx, e)),
+        edges.len(),
+    )
+}
+
+/// The mean of `count` points, summed in order.
+#[inline]
+fn mean(points: impl Iterator<Item = [f64; 3]>, count: usize) -> [f64; 3] {
     let mut s = [0.0; 3];
-    for &e in edges {
-        let p = edge_point(cubes, idx, e);
+    for p in points {
         s = [s[0] + p[0], s[1] + p[1], s[2] + p[2]];
     }
-    let m = edges.len() as f64;
+    let m = count as f64;
     [s[0] / m, s[1] / m, s[2] / m]
 }
 

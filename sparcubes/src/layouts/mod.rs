@@ -45,6 +45,17 @@ pub(crate) fn cells_with_corners(
     })
 }
 
+/// [`cells_with_corners`] a chunk at a time, in order: each run of cells with its corner
+/// table, for layouts that build their output per chunk and join the chunks at the end.
+pub(crate) fn chunks_with_corners(
+    cubes: &SparseCubes,
+) -> impl IndexedParallelIterator<Item = (&[[u16; 3]], Vec<Option<[usize; 8]>>)> + '_ {
+    cubes
+        .cells
+        .par_chunks(CHUNK)
+        .map(move |chunk| (chunk, chunk_corners(&cubes.coords, chunk)))
+}
+
 /// The corner indices of a sorted run of cells (see [`cells_with_corners`]).
 fn chunk_corners(coords: &[[u16; 3]], cells: &[[u16; 3]]) -> Vec<Option<[usize; 8]>> {
     let mut table = vec![Some([0usize; 8]); cells.len()];

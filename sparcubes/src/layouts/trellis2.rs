@@ -14,9 +14,9 @@
 //!   voxels TRELLIS.2 joins into a quad): for x the edge (0,1,1)–(1,1,1), for y (1,0,1)–(1,1,1),
 //!   for z (1,1,0)–(1,1,1), i.e. a sign change of φ between those corners.
 
-use super::cells_with_corners;
+use super::chunks_with_corners;
 use crate::cubes::SparseCubes;
-use crate::extract::{cell_triangles, edge_point};
+use crate::extract::{cell_triangles_at, CellEdgePoints};
 use crate::mc_table::EDGES;
 use crate::vec3::{cross, dot, norm, sub};
 use rayon::prelude::*;
@@ -39,68 +39,117 @@ pub struct DualGrid {
 }
 
 /// The flexible dual grid of `cubes` (cells whose corners are not all stored are skipped).
+/// Built a chunk of cells at a time, each chunk's rows into its own vectors of known size,
+/// joined in order at the end.
 pub fn dual_grid(cubes: &SparseCubes) -> DualGrid {
-    let rows: Vec<([u16; 3], [f32; 3], u8)> = cells_with_corners(cubes)
-        .map_init(Vec::new, |tris, (c, idx)| {
-            let idx = idx?;
-            let inside = idx.map(|i| cubes.sdf[i] < 0.0);
-            let flags = u8::from(inside[6] != inside[7])
-                | (u8::from(inside[5] != inside[7]) << 1)
-                | (u8::from(inside[3] != inside[7]) << 2);
-            let origin = c.map(f64::from);
-            let local = |p: [f64; 3]| sub(p, origin);
-            // Quadric f(x) = xᵀAx − 2bᵀx, in voxel-local coordinates.
-            let mut a = [[0.0f64; 3]; 3];
-            let mut b = [0.0f64; 3];
-            tris.clear();
-            cell_triangles(cubes, &idx, tris);
-            for t in tris.iter() {
-                let [p0, p1, p2] = t.map(local);
-                let n = cross(sub(p1, p0), sub(p2, p0));
-                let l = norm(n);
-                if !(l > 0.0 && l.is_finite()) {
-                    continue;
-                }
-                let n = n.map(|v| v / l);
-                let d = dot(n, p0);
-                for i in 0..3 {
-                    b[i] += d * n[i];
-                    for j in 0..3 {
-                        a[i][j] += n[i] * n[j];
-                    }
+    let parts: Vec<DualGrid> = chunks_with_corners(cubes)
+        .map_init(Vec::new, |tris, (cells, corners)| {
+            let mut part = DualGrid::with_capacity(cells.len());
+            for (&c, idx) in cells.iter().zip(corners) {
+                if let Some((v, flags)) = idx.and_then(|idx| dual_vertex(cubes, c, &idx, tris)) {
+                    part.push(c, v, flags);
                 }
             }
-            let mut mean = [0.0; 3];
-            let mut count = 0.0;
-            for (e, &(u, v, _)) in EDGES.iter().enumerate() {
-                if inside[u as usize] != inside[v as usize] {
-                    let p = local(edge_point(cubes, &idx, e as u8));
-                    mean = std::array::from_fn(|k| mean[k] + p[k]);
-                    count += 1.0;
-                }
-            }
-            if count == 0.0 {
-                return None;
-            }
-            let mean = mean.map(|m| m / count);
-            let w = REGULARIZATION * count;
-            for i in 0..3 {
-                a[i][i] += w;
-                b[i] += w * mean[i];
-            }
-            let v = minimize_in_unit_box(&a, &b);
-            Some((c, v.map(|x| x as f32), flags))
+            part
         })
-        .flatten()
         .collect();
-    let mut out = DualGrid::default();
-    for (c, v, f) in rows {
-        out.voxels.push(c);
-        out.quantized.push(v.map(quantize));
-        out.vertices.push(v);
-        out.intersected.push(f);
+    let mut out = DualGrid::with_capacity(parts.iter().map(|p| p.voxels.len()).sum());
+    for p in parts {
+        out.voxels.extend(p.voxels);
+        out.vertices.extend(p.vertices);
+        out.quantized.extend(p.quantized);
+        out.intersected.extend(p.intersected);
     }
     out
+}
+
+impl DualGrid {
+    /// An empty grid with room for `n` voxels.
+    fn with_capacity(n: usize) -> Self {
+        Self {
+            voxels: Vec::with_capacity(n),
+            vertices: Vec::with_capacity(n),
+            quantized: Vec::with_capacity(n),
+            intersected: Vec::with_capacity(n),
+        }
+    }
+
+    /// Appends voxel `c` with its dual vertex `v` (voxel-local) and intersected `flags`.
+    fn push(&mut self, c: [u16; 3], v: [f32; 3], flags: u8) {
+        self.voxels.push(c);
+        self.quantized.push(v.map(quantize));
+        self.vertices.push(v);
+        self.intersected.push(flags);
+    }
+}
+
+/// The dual vertex (voxel-local) and intersected flags of cell `c` with corners `idx`, or
+/// `None` when no edge of it is crossed; `tris` is scratch space for the cell's triangles.
+fn dual_vertex(
+    cubes: &SparseCubes,
+    c: [u16; 3],
+    idx: &[usize; 8],
+    tris: &mut Vec<[[f64; 3]; 3]>,
+) -> Option<([f32; 3], u8)> {
+    let inside = idx.map(|i| cubes.sdf[i] < 0.0);
+    let flags = u8::from(inside[6] != inside[7])
+        | (u8::from(inside[5] != inside[7]) << 1)
+        | (u8::from(inside[3] != inside[7]) << 2);
+    let origin = c.map(f64::from);
+    let local = |p: [f64; 3]| sub(p, origin);
+    let mut edges = CellEdgePoints::new(cubes, idx);
+    let (mut a, mut b) = plane_quadric(&mut edges, &local, tris);
+    let mut mean = [0.0; 3];
+    let mut count = 0.0;
+    for (e, &(u, v, _)) in EDGES.iter().enumerate() {
+        if inside[u as usize] != inside[v as usize] {
+            let p = local(edges.get(e as u8));
+            mean = std::array::from_fn(|k| mean[k] + p[k]);
+            count += 1.0;
+        }
+    }
+    if count == 0.0 {
+        return None;
+    }
+    let mean = mean.map(|m| m / count);
+    let w = REGULARIZATION * count;
+    for i in 0..3 {
+        a[i][i] += w;
+        b[i] += w * mean[i];
+    }
+    let v = minimize_in_unit_box(&a, &b);
+    Some((v.map(|x| x as f32), flags))
+}
+
+/// The quadric `xᵀAx − 2bᵀx` (as `(A, b)`, voxel-local through `local`) summing the squared
+/// distances to the planes of the triangles of the cell whose crossing points `edges` holds;
+/// degenerate triangles add nothing.
+fn plane_quadric(
+    edges: &mut CellEdgePoints,
+    local: &impl Fn([f64; 3]) -> [f64; 3],
+    tris: &mut Vec<[[f64; 3]; 3]>,
+) -> ([[f64; 3]; 3], [f64; 3]) {
+    let mut a = [[0.0f64; 3]; 3];
+    let mut b = [0.0f64; 3];
+    tris.clear();
+    cell_triangles_at(edges, tris);
+    for t in tris.iter() {
+        let [p0, p1, p2] = t.map(local);
+        let n = cross(sub(p1, p0), sub(p2, p0));
+        let l = norm(n);
+        if !(l > 0.0 && l.is_finite()) {
+            continue;
+        }
+        let n = n.map(|v| v / l);
+        let d = dot(n, p0);
+        for i in 0..3 {
+            b[i] += d * n[i];
+            for j in 0..3 {
+                a[i][j] += n[i] * n[j];
+            }
+        }
+    }
+    (a, b)
 }
 
 /// TRELLIS.2's quantisation of a local coordinate: clamp to [0, 1], scale by 255, truncate.
@@ -109,10 +158,64 @@ pub fn quantize(x: f32) -> u8 {
     (x.clamp(0.0, 1.0) * 255.0) as u8
 }
 
-/// The minimiser of `xᵀAx − 2bᵀx` (A symmetric positive definite) over `[0, 1]³`: the best
-/// feasible stationary point among the 27 faces of the box (each axis free, at 0 or at 1).
-/// For a convex quadric the minimum lies at the stationary point of one of them.
+/// The minimiser of `xᵀAx − 2bᵀx` (A symmetric positive definite) over `[0, 1]³`. A
+/// strictly convex quadric has one minimiser, the stationary point of one face of the box
+/// (each axis free, at 0 or at 1) where the gradient points out of the box on the fixed axes
+/// (the KKT conditions). Tried in turn: the whole quadric's stationary point when it lies
+/// inside; the face that clamping it points to, when the conditions hold there (most cells);
+/// else the best feasible stationary point among all 27 faces.
 fn minimize_in_unit_box(a: &[[f64; 3]; 3], b: &[f64; 3]) -> [f64; 3] {
+    if let Some(x) = face_stationary_point(a, b, [Face::Free; 3]) {
+        if x.iter().all(|v| *v > 0.0 && *v < 1.0) {
+            return x;
+        }
+        let guess = x.map(|v| match v {
+            v if v < 0.0 => Face::Zero,
+            v if v > 1.0 => Face::One,
+            _ => Face::Free,
+        });
+        if let Some(y) = face_stationary_point(a, b, guess) {
+            if feasible(&y) && points_out(a, b, &y, guess) {
+                return y.map(|v| v.clamp(0.0, 1.0));
+            }
+        }
+    }
+    best_face_point(a, b)
+}
+
+/// How a face of the unit box holds one axis.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Face {
+    /// Not held.
+    Free,
+    /// At 0.
+    Zero,
+    /// At 1.
+    One,
+}
+
+/// Whether `x` lies in the closed unit box (to rounding).
+fn feasible(x: &[f64; 3]) -> bool {
+    x.iter().all(|v| (-1e-12..=1.0 + 1e-12).contains(v))
+}
+
+/// Whether the gradient of the quadric at `x` points out of the box on every axis `how` holds
+/// (non-negative where held at 0, non-positive at 1): then `x` is the box's minimiser.
+fn points_out(a: &[[f64; 3]; 3], b: &[f64; 3], x: &[f64; 3], how: [Face; 3]) -> bool {
+    (0..3).all(|i| {
+        let g: f64 = (0..3).map(|j| a[i][j] * x[j]).sum::<f64>() - b[i];
+        match how[i] {
+            Face::Free => true,
+            Face::Zero => g >= -1e-12,
+            Face::One => g <= 1e-12,
+        }
+    })
+}
+
+/// The best feasible stationary point among the 27 faces of the box, by the quadric's value;
+/// the box's centre when none is feasible (A singular on every face, which a positive
+/// definite A never is).
+fn best_face_point(a: &[[f64; 3]; 3], b: &[f64; 3]) -> [f64; 3] {
     let value = |x: &[f64; 3]| -> f64 {
         let mut f = 0.0;
         for i in 0..3 {
@@ -123,79 +226,84 @@ fn minimize_in_unit_box(a: &[[f64; 3]; 3], b: &[f64; 3]) -> [f64; 3] {
         }
         f
     };
+    let faces = [Face::Free, Face::Zero, Face::One];
     let mut best: Option<(f64, [f64; 3])> = None;
-    for code in 0..27u32 {
-        // Per axis: 0 free, 1 fixed at 0, 2 fixed at 1.
-        let how = [code % 3, code / 3 % 3, code / 9];
-        let mut x = [0.0; 3];
-        let mut free_axes = [0usize; 3];
-        let mut k = 0;
-        for i in (0..3).filter(|&i| how[i] == 0) {
-            free_axes[k] = i;
-            k += 1;
-        }
-        let free = &free_axes[..k];
-        for i in 0..3 {
-            if how[i] == 2 {
-                x[i] = 1.0;
-            }
-        }
-        // Solve A_ff x_f = b_f − A_fc x_c for the free axes.
-        let mut m = [[0.0f64; 4]; 3];
-        for (r, &i) in free.iter().enumerate() {
-            for (s, &j) in free.iter().enumerate() {
-                m[r][s] = a[i][j];
-            }
-            m[r][k] = b[i]
-                - (0..3)
-                    .filter(|j| how[*j] != 0)
-                    .map(|j| a[i][j] * x[j])
-                    .sum::<f64>();
-        }
-        let Some(sol) = solve(&mut m, k) else {
+    for code in 0..27usize {
+        let how = [faces[code % 3], faces[code / 3 % 3], faces[code / 9]];
+        let Some(x) = face_stationary_point(a, b, how).filter(feasible) else {
             continue;
         };
-        for (r, &i) in free.iter().enumerate() {
-            x[i] = sol[r];
-        }
-        if x.iter().all(|v| (-1e-12..=1.0 + 1e-12).contains(v)) {
-            // A strictly interior stationary point of the whole quadric (code 0) is its
-            // minimum: no face can do better, so the other 26 are not tried.
-            if code == 0 && x.iter().all(|v| *v > 0.0 && *v < 1.0) {
-                return x;
-            }
-            let x = x.map(|v| v.clamp(0.0, 1.0));
-            let f = value(&x);
-            if best.is_none_or(|(bf, _)| f < bf) {
-                best = Some((f, x));
-            }
+        let x = x.map(|v| v.clamp(0.0, 1.0));
+        let f = value(&x);
+        if best.is_none_or(|(bf, _)| f < bf) {
+            best = Some((f, x));
         }
     }
     best.map_or([0.5; 3], |(_, x)| x)
 }
 
-/// Gaussian elimination with partial pivoting on the `k × (k + 1)` augmented matrix `m`.
-fn solve(m: &mut [[f64; 4]; 3], k: usize) -> Option<[f64; 3]> {
-    for col in 0..k {
-        let pivot = (col..k).max_by(|&i, &j| m[i][col].abs().total_cmp(&m[j][col].abs()))?;
-        if m[pivot][col].abs() < 1e-14 {
-            return None;
-        }
-        m.swap(col, pivot);
-        for row in 0..k {
-            if row != col {
-                let f = m[row][col] / m[col][col];
-                for c in col..=k {
-                    m[row][c] -= f * m[col][c];
-                }
-            }
-        }
+/// The stationary point of the quadric on the face `how` (the held axes at their values, the
+/// free ones solving `A_ff x_f = b_f − A_fh x_h`), or `None` when that system is singular.
+fn face_stationary_point(a: &[[f64; 3]; 3], b: &[f64; 3], how: [Face; 3]) -> Option<[f64; 3]> {
+    let mut x = how.map(|h| if h == Face::One { 1.0 } else { 0.0 });
+    let mut free_axes = [0usize; 3];
+    let mut k = 0;
+    for i in (0..3).filter(|&i| how[i] == Face::Free) {
+        free_axes[k] = i;
+        k += 1;
     }
-    let mut x = [0.0; 3];
-    for i in 0..k {
-        x[i] = m[i][k] / m[i][i];
+    let free = &free_axes[..k];
+    let mut m = [[0.0f64; 4]; 3];
+    for (r, &i) in free.iter().enumerate() {
+        for (s, &j) in free.iter().enumerate() {
+            m[r][s] = a[i][j];
+        }
+        m[r][k] = b[i]
+            - (0..3)
+                .filter(|&j| how[j] != Face::Free)
+                .map(|j| a[i][j] * x[j])
+                .sum::<f64>();
+    }
+    let sol = solve(&m, k)?;
+    for (r, &i) in free.iter().enumerate() {
+        x[i] = sol[r];
     }
     Some(x)
+}
+
+/// The solution of the `k × k` system whose augmented matrix is `m` (`k ≤ 3`, the right-hand
+/// side in column `k`), by Cramer's rule; `None` when its determinant is (nearly) zero.
+fn solve(m: &[[f64; 4]; 3], k: usize) -> Option<[f64; 3]> {
+    let det2 = |a: f64, b: f64, c: f64, d: f64| a * d - b * c;
+    match k {
+        0 => Some([0.0; 3]),
+        1 => (m[0][0].abs() >= 1e-14).then(|| [m[0][1] / m[0][0], 0.0, 0.0]),
+        2 => {
+            let d = det2(m[0][0], m[0][1], m[1][0], m[1][1]);
+            (d.abs() >= 1e-14).then(|| {
+                [
+                    det2(m[0][2], m[0][1], m[1][2], m[1][1]) / d,
+                    det2(m[0][0], m[0][2], m[1][0], m[1][2]) / d,
+                    0.0,
+                ]
+            })
+        }
+        _ => {
+            let det3 = |c: [usize; 3]| {
+                m[0][c[0]] * det2(m[1][c[1]], m[1][c[2]], m[2][c[1]], m[2][c[2]])
+                    - m[0][c[1]] * det2(m[1][c[0]], m[1][c[2]], m[2][c[0]], m[2][c[2]])
+                    + m[0][c[2]] * det2(m[1][c[0]], m[1][c[1]], m[2][c[0]], m[2][c[1]])
+            };
+            let d = det3([0, 1, 2]);
+            (d.abs() >= 1e-14).then(|| {
+                [
+                    det3([3, 1, 2]) / d,
+                    det3([0, 3, 2]) / d,
+                    det3([0, 1, 3]) / d,
+                ]
+            })
+        }
+    }
 }
 
 #[cfg(test)]
@@ -242,6 +350,39 @@ mod tests {
             }
             assert!(f(x) <= grid_best + 1e-12, "{x:?}: {} > {grid_best}", f(x));
         }
+    }
+
+    #[test]
+    fn the_kkt_shortcut_finds_the_best_face_point() {
+        // Random positive definite quadrics whose minimum lies anywhere around the box: the
+        // shortcut must give what trying all 27 faces gives.
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut shortcuts = 0;
+        for _ in 0..20_000 {
+            let m: [[f64; 3]; 3] = std::array::from_fn(|_| std::array::from_fn(|_| next() - 0.5));
+            let mut a = [[0.0; 3]; 3];
+            for i in 0..3 {
+                for j in 0..3 {
+                    a[i][j] = (0..3).map(|k| m[k][i] * m[k][j]).sum::<f64>();
+                }
+                a[i][i] += 0.01;
+            }
+            let b: [f64; 3] = std::array::from_fn(|_| 4.0 * next() - 2.0);
+            let fast = minimize_in_unit_box(&a, &b);
+            let full = best_face_point(&a, &b);
+            let dist = (0..3)
+                .map(|i| (fast[i] - full[i]).abs())
+                .fold(0.0, f64::max);
+            assert!(dist < 1e-9, "{a:?} {b:?}: {fast:?} vs {full:?}");
+            shortcuts += usize::from(fast.iter().any(|v| *v == 0.0 || *v == 1.0));
+        }
+        assert!(shortcuts > 1000, "{shortcuts} minima on the box's faces");
     }
 
     #[test]
