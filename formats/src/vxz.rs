@@ -80,15 +80,24 @@ fn node(codes: &[u32], level: u32, depth: u32, out: &mut Vec<u8>) {
 pub fn vxz_bytes(coords: &[[u32; 3]], attrs: &[Attr], chunk_size: u32) -> Result<Vec<u8>> {
     check(coords, attrs, chunk_size)?;
     let depth = chunk_size.trailing_zeros();
-    // Voxels by chunk, then by local Morton code.
-    let key = |c: &[u32; 3]| {
-        let chunk = c.map(|v| v / chunk_size);
-        (chunk, morton(c.map(|v| v % chunk_size)))
+    // Voxels by chunk, then by local Morton code: one 48-bit key, the chunk's coordinates
+    // (16 − depth bits each) above the Morton code (3 × depth bits), computed once per voxel
+    // and sorted with its index beside it.
+    let side_bits = 16 - depth;
+    let key = |c: &[u32; 3]| -> u64 {
+        let chunk = c.map(|v| u64::from(v >> depth));
+        let chunk = chunk[0] << (2 * side_bits) | chunk[1] << side_bits | chunk[2];
+        chunk << (3 * depth) | u64::from(morton(c.map(|v| v % chunk_size)))
     };
-    // Each voxel's key once (a sort by a computed key would compute it on every comparison).
-    let keys: Vec<([u32; 3], u32)> = coords.iter().map(key).collect();
-    let mut order: Vec<usize> = (0..coords.len()).collect();
-    order.sort_unstable_by_key(|&i| keys[i]);
+    let mut keyed: Vec<(u64, usize)> = coords.iter().map(key).zip(0..coords.len()).collect();
+    keyed.sort_unstable();
+    let (keys, order): (Vec<u64>, Vec<usize>) = keyed.into_iter().unzip();
+    let chunk_of = |k: u64| -> [u64; 3] {
+        let c = k >> (3 * depth);
+        let mask = (1u64 << side_bits) - 1;
+        [c >> (2 * side_bits), c >> side_bits & mask, c & mask]
+    };
+    let code_of = |k: u64| (k & ((1u64 << (3 * depth)) - 1)) as u32;
     if order.windows(2).any(|w| coords[w[0]] == coords[w[1]]) {
         return Err(Error::Invalid("a voxel is listed twice".into()));
     }
@@ -96,12 +105,15 @@ pub fn vxz_bytes(coords: &[[u32; 3]], attrs: &[Attr], chunk_size: u32) -> Result
     let mut chunks = Vec::new();
     let mut start = 0;
     while start < order.len() {
-        let chunk = keys[order[start]].0;
-        let len = order[start..].partition_point(|&i| keys[i].0 == chunk);
+        let chunk = keys[start] >> (3 * depth);
+        let len = keys[start..].partition_point(|k| k >> (3 * depth) == chunk);
         let members = &order[start..start + len];
-        let codes: Vec<u32> = members.iter().map(|&i| keys[i].1).collect();
+        let codes: Vec<u32> = keys[start..start + len]
+            .iter()
+            .map(|&k| code_of(k))
+            .collect();
         let mut entry = serde_json::Map::new();
-        entry.insert("idx".into(), json!(chunk));
+        entry.insert("idx".into(), json!(chunk_of(keys[start])));
         let at = blob.len();
         push_stream(&mut blob, at, "svo", &svo_bytes(&codes, depth), &mut entry)?;
         for a in attrs {
@@ -141,6 +153,14 @@ fn check(coords: &[[u32; 3]], attrs: &[Attr], chunk_size: u32) -> Result<()> {
     if !chunk_size.is_power_of_two() || !(2..=1024).contains(&chunk_size) {
         return Err(Error::Invalid(format!(
             "chunk size {chunk_size} is not a power of two in 2..=1024"
+        )));
+    }
+    if let Some(c) = coords
+        .iter()
+        .find(|c| c.iter().any(|&v| v > u32::from(u16::MAX)))
+    {
+        return Err(Error::Invalid(format!(
+            "voxel {c:?} lies beyond the largest grid sparc3d writes (65536 per axis)"
         )));
     }
     for a in attrs {
