@@ -95,15 +95,25 @@ fn has_checksum(blob: &[u8]) -> bool {
     blob.len() > 4 && blob[..4] == ZSTD_MAGIC && blob[4] & 0x04 != 0
 }
 
+/// Elements per tile of the byte-plane shuffles: a tile's element bytes (at most 16 bytes an
+/// element) stay in the L1 cache while each plane's run of it is read or written, where a
+/// whole-tensor pass per plane went through the cache once for every byte of an element.
+const TILE: usize = 2048;
+
 /// Row-major little-endian element bytes (`cols` columns of `width`-byte scalars) regrouped
 /// into byte planes: byte `b` of element `(i, j)` goes to `(j·width + b)·n + i`.
 fn to_planes(bytes: &[u8], cols: usize, width: usize) -> Vec<u8> {
     let stride = cols * width;
     let n = bytes.len() / stride.max(1);
     let mut out = vec![0u8; n * stride];
-    for (p, plane) in out.chunks_exact_mut(n.max(1)).enumerate().take(stride) {
-        for (i, o) in plane.iter_mut().enumerate() {
-            *o = bytes[i * stride + p];
+    for start in (0..n).step_by(TILE) {
+        let end = (start + TILE).min(n);
+        let rows = &bytes[start * stride..end * stride];
+        for p in 0..stride {
+            let plane = &mut out[p * n + start..p * n + end];
+            for (o, row) in plane.iter_mut().zip(rows.chunks_exact(stride)) {
+                *o = row[p];
+            }
         }
     }
     out
@@ -114,9 +124,14 @@ fn from_planes(planes: &[u8], cols: usize, width: usize) -> Vec<u8> {
     let stride = cols * width;
     let n = planes.len() / stride.max(1);
     let mut out = vec![0u8; n * stride];
-    for (p, plane) in planes.chunks_exact(n.max(1)).enumerate().take(stride) {
-        for (i, &b) in plane.iter().enumerate() {
-            out[i * stride + p] = b;
+    for start in (0..n).step_by(TILE) {
+        let end = (start + TILE).min(n);
+        let rows = &mut out[start * stride..end * stride];
+        for p in 0..stride {
+            let plane = &planes[p * n + start..p * n + end];
+            for (row, &b) in rows.chunks_exact_mut(stride).zip(plane) {
+                row[p] = b;
+            }
         }
     }
     out
@@ -397,6 +412,22 @@ mod tests {
         // Sample tensors are framed like the others: with zstd's content checksum.
         assert!(has_checksum(&h.blob) && has_checksum(&o.blob));
         Ok(())
+    }
+
+    #[test]
+    fn plane_shuffles_match_their_definition_across_tiles() {
+        // Several tiles and a partial one, for every element stride the tensors use.
+        let n = 2 * TILE + 77;
+        for stride in [1, 2, 4, 6, 12] {
+            let bytes: Vec<u8> = (0..n * stride).map(|k| (k * 31 % 251) as u8).collect();
+            let planes = to_planes(&bytes, stride, 1);
+            for i in (0..n).step_by(97) {
+                for b in 0..stride {
+                    assert_eq!(planes[b * n + i], bytes[i * stride + b], "{stride} {i} {b}");
+                }
+            }
+            assert_eq!(from_planes(&planes, stride, 1), bytes, "stride {stride}");
+        }
     }
 
     #[test]
