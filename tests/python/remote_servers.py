@@ -54,6 +54,27 @@ class FaultyHandler(http.server.SimpleHTTPRequestHandler):
             self.send_header("Location", fault[1])
             self.send_header("Content-Length", "0")
             self.end_headers()
+        elif kind == "s3list":
+            if "continuation-token" in self.path:
+                self.send_response(500)
+                self.send_header("Content-Length", "0")
+                self.end_headers()
+                return
+            body = (
+                '<?xml version="1.0" encoding="UTF-8"?>'
+                '<ListBucketResult xmlns="http://s3.amazonaws.com/doc/2006-03-01/">'
+                "<Name>b</Name><Prefix>meshes/</Prefix><KeyCount>1</KeyCount>"
+                "<MaxKeys>1</MaxKeys><IsTruncated>true</IsTruncated>"
+                "<NextContinuationToken>page2</NextContinuationToken>"
+                "<Contents><Key>meshes/a.obj</Key>"
+                "<LastModified>2026-01-01T00:00:00.000Z</LastModified>"
+                '<ETag>"0123"</ETag><Size>10</Size><StorageClass>STANDARD</StorageClass>'
+                "</Contents></ListBucketResult>").encode()
+            self.send_response(200)
+            self.send_header("Content-Type", "application/xml")
+            self.send_header("Content-Length", str(len(body)))
+            self.end_headers()
+            self.wfile.write(body)
         elif kind in ("truncate", "body"):
             data = (pathlib.Path(self.server.root) / path.lstrip("/")).read_bytes()
             body = fault[1] if kind == "body" else data

@@ -250,3 +250,19 @@ def test_manifest_build_lists_a_bucket_prefix(tmp_path, s3):
     assert r.returncode != 0
     assert "listing s3://no-such-bucket/meshes/" in r.stderr, r.stderr
     assert out.read_text() == "kept\n"
+
+
+def test_a_listing_that_fails_halfway_is_named_and_writes_nothing(tmp_path, web):
+    # The HTTP server plays an S3 endpoint whose listing's second page always fails.
+    server, _ = web
+    server.faults["/halfway"] = ("s3list",)
+    env = clean_env({"AWS_ENDPOINT_URL": server.url, "AWS_ACCESS_KEY_ID": "k",
+                     "AWS_SECRET_ACCESS_KEY": "s", "AWS_REGION": "us-east-1", **FAST})
+    (tmp_path / "out").mkdir()
+    out = tmp_path / "out" / "m.csv"
+    r = run("manifest", "build", "s3://halfway/meshes/", "-o", out, env=env, check=False)
+    assert r.returncode != 0
+    assert "listing s3://halfway/meshes/; nothing was written" in r.stderr, r.stderr
+    assert "the listing failed after 1 objects" in r.stderr, r.stderr
+    assert not list((tmp_path / "out").iterdir())  # no manifest, no temporary file
+    assert server.hits["/halfway"] >= 2
