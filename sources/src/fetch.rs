@@ -1,8 +1,9 @@
 //! Fetching one remote object whole into memory: the byte cap checked against the object's
 //! size before the body is read and again as it streams, the body counted against that size
 //! (a short one is truncated), and its sha256 taken as it streams and checked when one is
-//! expected. The buffer is allocated once, at the announced size: the mesh readers need the
-//! whole file in memory anyway, so a temporary file would add a copy and no saving.
+//! expected. The buffer is allocated once, at the announced size (up to 256 MiB before any
+//! byte arrived): the mesh readers need the whole file in memory anyway, so a temporary file
+//! would add a copy and no saving.
 
 use crate::error::{FetchError, FetchErrorKind};
 use crate::limits::FetchLimits;
@@ -117,6 +118,9 @@ pub(crate) fn object_path(url: &RemoteUrl) -> ObjectPath {
     ObjectPath::from_iter(url.key().split('/').filter(|p| !p.is_empty()))
 }
 
+/// The most bytes reserved from an announced size before any arrived.
+const PREALLOCATE_AT_MOST: u64 = 256 << 20;
+
 fn too_large(url: &RemoteUrl, size: String, cap: u64) -> FetchError {
     FetchError::new(
         url.to_string(),
@@ -135,7 +139,9 @@ async fn get(store: &dyn ObjectStore, url: &RemoteUrl, cap: u64) -> Result<Fetch
     if size > cap {
         return Err(too_large(url, size.to_string(), cap));
     }
-    let mut bytes = Vec::with_capacity(size as usize);
+    // Allocated at the announced size, up to a bound: a server that announces gigabytes and
+    // sends little costs no more than what it sends.
+    let mut bytes = Vec::with_capacity(size.min(PREALLOCATE_AT_MOST) as usize);
     let mut hasher = Sha256::new();
     let mut body = result.into_stream();
     while let Some(chunk) = body.next().await {

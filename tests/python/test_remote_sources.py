@@ -266,3 +266,19 @@ def test_a_listing_that_fails_halfway_is_named_and_writes_nothing(tmp_path, web)
     assert "the listing failed after 1 objects" in r.stderr, r.stderr
     assert not list((tmp_path / "out").iterdir())  # no manifest, no temporary file
     assert server.hits["/halfway"] >= 2
+
+
+def test_an_object_over_the_byte_cap_is_too_large(tmp_path, web):
+    server, root = web
+    shutil.copy(EXAMPLES / "wuson.stl", root / "big.stl")
+    shutil.copy(EXAMPLES / "cube.off", root / "small.off")
+    size = (EXAMPLES / "wuson.stl").stat().st_size
+    m = write_manifest(tmp_path / "m.csv", [["big", server.url + "/big.stl"],
+                                            ["small", server.url + "/small.off"]], ("id", "uri"))
+    env = clean_env({**FAST, "SPARC3D_FETCH_MAX_BYTES": str(size - 1)})
+    job = tmp_path / "job"
+    run("init", job, "--manifest", m, "--resolution", 32, env=env)
+    run("run", job, env=env)
+    lines = [l for l in run("failures", job, env=env).stdout.splitlines() if l.strip()]
+    assert len(lines) == 1 and lines[0].startswith("too_large\tbig\t"), lines
+    assert "the object is %d bytes, over the cap of %d" % (size, size - 1) in lines[0], lines[0]
