@@ -113,7 +113,7 @@ fn id_and_sha(r: &RawRecord) -> Result<(String, Option<String>)> {
         (Some(id), sha) => (id.clone(), sha.clone()),
         (None, Some(sha)) => (sha.clone(), Some(sha.clone())),
         (None, None) => {
-            let sha = crate::hash::file_sha256(std::path::Path::new(&r.uri))?;
+            let sha = crate::hash::source_sha256(&r.uri)?;
             (sha.clone(), Some(sha))
         }
     })

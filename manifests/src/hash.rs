@@ -1,5 +1,6 @@
 //! The sha256 that identifies a mesh file: a manifest row without id or sha256 is identified by
-//! it, and `manifest build` writes it for every file it finds.
+//! it (a remote one is fetched to be hashed), and `manifest build` writes it for every file it
+//! finds.
 
 use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
@@ -44,6 +45,17 @@ pub fn file_sha256(path: &Path) -> Result<String, HashError> {
     let mut h = Sha256::new();
     std::io::copy(&mut f, &mut h).map_err(|e| fail("reading", e))?;
     Ok(hex(&h.finalize()))
+}
+
+/// Hex sha256 of a manifest row's source: a local file ([`file_sha256`]) or a remote object,
+/// fetched whole to be hashed ([`sparc3d_sources::shared`]'s limits and retries).
+pub fn source_sha256(uri: &str) -> anyhow::Result<String> {
+    match sparc3d_sources::Location::parse(uri)? {
+        sparc3d_sources::Location::Local(path) => Ok(file_sha256(&path)?),
+        sparc3d_sources::Location::Remote(url) => {
+            Ok(sparc3d_sources::shared()?.fetch(&url, None)?.sha256)
+        }
+    }
 }
 
 /// Hex sha256 of bytes in memory.

@@ -1,6 +1,7 @@
 //! What a manifest is: the table of meshes a job converts, read from CSV, JSONL or Parquet
 //! ([`table`], its path column chosen by one rule: [`path_column`]) and written by `manifest
-//! build` ([`mod@write`]), or made by scanning a folder ([`folder_scan`]); files identified by
+//! build` ([`mod@write`]), or made by scanning a folder ([`folder_scan`]) or listing a bucket
+//! prefix ([`bucket_scan`]); files identified by
 //! their sha256 ([`hash`]); every other column kept as provenance; rows chosen by `--where`
 //! ([`filter`]); and the rows frozen into a job's items, each with its index and shard, or
 //! appended to a growing job ([`freeze`], [`record`]).
@@ -10,6 +11,7 @@
 //! `init`, `run --job`, `add`) call this crate.
 #![deny(missing_docs)]
 
+pub mod bucket_scan;
 pub mod filter;
 pub mod folder_scan;
 pub mod freeze;

@@ -4,12 +4,15 @@
 //! 1. `--path-column NAME` names it (any column).
 //! 2. Otherwise the candidates are the path-like columns (`uri`, `path`, `local_path`, `file`)
 //!    that hold a value in some row. One candidate is the column.
-//! 3. With several, a column whose every value is a URL (`scheme://…`) is left out, since
-//!    sparc3d reads local files only; when one is left it is the column, otherwise the
-//!    manifest is refused, naming the candidates, until `--path-column` says which.
+//! 3. With several, a column whose every value is a URL (`scheme://…`) is left out: a
+//!    manifest with URLs and local copies converts the copies (`--path-column uri` fetches
+//!    the URLs instead). When one is left it is the column, otherwise the manifest is
+//!    refused, naming the candidates, until `--path-column` says which.
 //!
-//! Every row must then hold a local path in that column: a row with none there (empty, or a
-//! value only in another path-like column) or with a URL is refused, naming the row.
+//! Every row must then hold a source in that column: a local path or a URL of a scheme
+//! sparc3d fetches (`sparc3d_sources::location`). A row with none there (empty, or a value
+//! only in another path-like column) or with a URL no worker could read (an unknown scheme,
+//! credentials in it, ...) is refused, naming the row.
 
 use crate::record::PATH_COLUMNS;
 use anyhow::{bail, Result};
@@ -25,16 +28,7 @@ pub struct PathColumn {
     pub why: String,
 }
 
-/// Whether `value` is a URL (`scheme://…`, the scheme a letter then letters, digits, `+`, `-`
-/// or `.`, as RFC 3986 §3.1 spells it) rather than a local path.
-pub fn is_url(value: &str) -> bool {
-    let Some((scheme, _)) = value.split_once("://") else {
-        return false;
-    };
-    let mut chars = scheme.chars();
-    chars.next().is_some_and(|c| c.is_ascii_alphabetic())
-        && chars.all(|c| c.is_ascii_alphanumeric() || matches!(c, '+' | '-' | '.'))
-}
+pub use sparc3d_sources::location::is_url;
 
 /// The path column of `rows` (keys in lower case) by the module's rule; `given` is
 /// `--path-column`. `source` names the manifest in errors.
@@ -86,14 +80,15 @@ pub fn choose(
             Ok(PathColumn {
                 name: one.to_string(),
                 why: format!(
-                    "{} holds only URLs, and sparc3d reads local files",
-                    urls.join(" and ")
+                    "{} holds only URLs, so the local copies are read; --path-column {} \
+                     fetches the URLs instead",
+                    urls.join(" and "),
+                    urls.first().copied().unwrap_or("uri")
                 ),
             })
         }
         (_, []) => bail!(
-            "{}: the path columns {} hold only URLs; sparc3d reads local files: download the \
-             meshes and give their local paths",
+            "{}: several path columns hold URLs ({}); say which to fetch with --path-column NAME",
             source.display(),
             candidates.join(", ")
         ),
@@ -105,7 +100,8 @@ pub fn choose(
     }
 }
 
-/// Refuses rows without a local path in `column`, naming the first few and how many.
+/// Refuses rows without a source in `column` (a local path, or a URL a worker can fetch),
+/// naming the first few and how many.
 pub fn check_rows(
     rows: &[BTreeMap<String, String>],
     column: &PathColumn,
@@ -135,11 +131,8 @@ pub fn check_rows(
                     column.name
                 )
             }
-        } else if is_url(value) {
-            format!(
-                "{} is a URL ({value}); sparc3d reads local files: download first",
-                column.name
-            )
+        } else if let Err(e) = sparc3d_sources::Location::parse(value) {
+            format!("{}: {e}", column.name)
         } else {
             continue;
         };
@@ -147,7 +140,7 @@ pub fn check_rows(
     }
     if !bad.is_empty() {
         bail!(
-            "{}: {} of {} rows have no local path in column {} ({}): {}{}",
+            "{}: {} of {} rows have no readable source in column {} ({}): {}{}",
             source.display(),
             bad.len(),
             rows.len(),
@@ -227,7 +220,8 @@ mod tests {
         let r = rows(&[
             &[("uri", "s3://b/a.obj"), ("local_path", "/d/a.obj")],
             &[("uri", "s3://b/b.obj"), ("local_path", "")],
-            &[("uri", ""), ("local_path", "https://h/c.obj")],
+            &[("uri", ""), ("local_path", "ftp://h/c.obj")],
+            &[("uri", ""), ("local_path", "https://h/d.obj")],
         ]);
         let c = PathColumn {
             name: "local_path".into(),
@@ -237,9 +231,13 @@ mod tests {
             .err()
             .map(|e| e.to_string())
             .unwrap_or_default();
-        assert!(e.contains("2 of 3 rows"), "{e}");
+        assert!(e.contains("2 of 4 rows"), "{e}");
         assert!(e.contains("row 2: no local_path, only a URL in uri"), "{e}");
-        assert!(e.contains("row 3: local_path is a URL"), "{e}");
+        assert!(
+            e.contains("row 3: local_path: ftp://h/c.obj: unknown scheme"),
+            "{e}"
+        );
+        assert!(!e.contains("row 4"), "a fetchable URL is a source: {e}");
         let r = rows(&[&[("path", "/d/a.obj"), ("local_path", "")]]);
         let e = check_rows(&r, &c, m)
             .err()

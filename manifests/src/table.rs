@@ -1,7 +1,7 @@
 //! Reading and writing manifests: CSV, JSONL or Parquet, chosen by extension. Any table with
 //! a path column is a manifest (which column: [`crate::path_column`], one rule for the whole
 //! manifest); `id` (or `sha256`) is optional. Relative paths are resolved against the
-//! manifest's folder. Every other column is kept as provenance ([`RawRecord::extra`]).
+//! manifest's folder; URLs are kept as they are. Every other column is kept as provenance ([`RawRecord::extra`]).
 //! Column names are lower-cased.
 
 use crate::path_column::PathColumn;
@@ -99,7 +99,7 @@ fn from_table(
         let get = |k: &str| row.get(k).filter(|v| !v.is_empty()).cloned();
         let uri = get(&column.name).unwrap_or_default();
         let p = PathBuf::from(&uri);
-        let abs = if p.is_absolute() {
+        let abs = if p.is_absolute() || crate::path_column::is_url(&uri) {
             uri
         } else {
             base.join(p).to_string_lossy().into_owned()

@@ -34,8 +34,29 @@ fn cells<'a>(r: &'a ManifestRecord, extra: &[String]) -> Vec<Option<&'a str>> {
     out
 }
 
-/// Writes manifest records; the format follows the extension.
+/// Writes manifest records; the format follows the extension. The file is written under a
+/// temporary name beside `path` and renamed into place, so a failed write leaves no half
+/// manifest (and an earlier one stays as it was).
 pub fn write(records: &[ManifestRecord], path: &Path) -> Result<()> {
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
+    let tmp = path.with_file_name(format!(
+        ".{}.tmp-{}",
+        name.as_deref().unwrap_or("manifest"),
+        std::process::id()
+    ));
+    let written = write_to(records, path, &tmp);
+    if written.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+        return written;
+    }
+    std::fs::rename(&tmp, path).with_context(|| {
+        let _ = std::fs::remove_file(&tmp);
+        format!("moving {} into place", path.display())
+    })
+}
+
+/// Writes `records` into `tmp` in the format `path`'s extension names.
+fn write_to(records: &[ManifestRecord], path: &Path, tmp: &Path) -> Result<()> {
     let extra = extra_names(records);
     let mut header = vec![
         "id".to_string(),
@@ -45,9 +66,9 @@ pub fn write(records: &[ManifestRecord], path: &Path) -> Result<()> {
     ];
     header.extend(extra.iter().cloned());
     match ext(path).as_str() {
-        "csv" => write_csv(records, &header, &extra, path),
-        "jsonl" | "ndjson" => write_jsonl(records, &header, &extra, path),
-        "parquet" => write_parquet(records, &header, &extra, path),
+        "csv" => write_csv(records, &header, &extra, tmp),
+        "jsonl" | "ndjson" => write_jsonl(records, &header, &extra, tmp),
+        "parquet" => write_parquet(records, &header, &extra, tmp),
         other => bail!(
             "{}: unknown manifest format {other:?} (expected .csv, .jsonl or .parquet)",
             path.display()

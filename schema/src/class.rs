@@ -71,11 +71,15 @@ pub enum ErrorClass {
     /// The file's bytes are not the ones the manifest froze (their sha256 differs): it
     /// changed after `init`, so it was not converted under the item's id.
     SourceChanged,
+    /// A remote source could not be fetched: gone (404), timed out, truncated, failing its
+    /// sha256, refused for its credentials, or its uri names no readable scheme. Retried by
+    /// `sparc3d retry JOB --class fetch` once the cause is cleared.
+    Fetch,
 }
 
 impl ErrorClass {
     /// Every class, in a stable order.
-    pub const ALL: [ErrorClass; 13] = [
+    pub const ALL: [ErrorClass; 14] = [
         ErrorClass::ParseError,
         ErrorClass::UnsupportedFormat,
         ErrorClass::EmptyMesh,
@@ -89,6 +93,7 @@ impl ErrorClass {
         ErrorClass::Crashed,
         ErrorClass::EncodeError,
         ErrorClass::SourceChanged,
+        ErrorClass::Fetch,
     ];
 
     /// The snake_case name stored in the `error_class` column.
@@ -107,6 +112,7 @@ impl ErrorClass {
             ErrorClass::Crashed => "crashed",
             ErrorClass::EncodeError => "encode_error",
             ErrorClass::SourceChanged => "source_changed",
+            ErrorClass::Fetch => "fetch",
         }
     }
 

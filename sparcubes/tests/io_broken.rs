@@ -608,3 +608,50 @@ fn an_stl_header_claiming_no_triangle_is_empty_without_reading_the_file() {
     let loaded = load(&example("wuson.stl")).expect("binary STL");
     assert!(loaded.mesh.face_count() > 0);
 }
+
+#[test]
+fn gltf_buffers_through_a_reader_get_only_checked_relative_paths() {
+    // A glTF fetched from a URL reads its buffers through a reader of paths relative to it:
+    // the reader sees the same paths a file on disk may read, and none of the refused ones.
+    let asked = std::cell::RefCell::new(Vec::new());
+    let reader = |rel: &str| -> Result<Vec<u8>, String> {
+        asked.borrow_mut().push(rel.to_string());
+        match rel {
+            "tri.bin" | "sub/tri 1.bin" => Ok(triangle_bytes()),
+            _ => Err("404 not found".into()),
+        }
+    };
+    let load = |uri: &str| {
+        let text = gltf_with_uri(uri);
+        let path = Path::new("https://host/models/scene.gltf");
+        sparcubes::io::load_read_with(
+            text.as_bytes(),
+            path,
+            sparcubes::io::Buffers::Relative(&reader),
+        )
+    };
+    for uri in ["tri.bin", "./tri.bin", "sub/tri%201.bin"] {
+        let loaded = load(uri).unwrap_or_else(|e| panic!("{uri}: {e}"));
+        assert_eq!(loaded.mesh.face_count(), 1, "{uri}");
+    }
+    assert_eq!(*asked.borrow(), ["tri.bin", "tri.bin", "sub/tri 1.bin"]);
+    asked.borrow_mut().clear();
+    for uri in [
+        "../secret.bin",
+        "%2E%2E/secret.bin",
+        "/etc/passwd",
+        "http://x/y.bin",
+    ] {
+        let e = load(uri).err().unwrap_or_else(|| panic!("{uri} loaded"));
+        assert!(e.to_string().contains("refusing buffer uri"), "{uri}: {e}");
+    }
+    assert!(asked.borrow().is_empty(), "{:?}", asked.borrow());
+    let e = load("gone.bin")
+        .err()
+        .unwrap_or_else(|| panic!("gone.bin loaded"));
+    assert!(
+        e.to_string()
+            .contains("cannot read buffer `gone.bin`: 404 not found"),
+        "{e}"
+    );
+}

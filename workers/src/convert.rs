@@ -7,7 +7,7 @@ use sparc3d_schema::{
     EncodedTensor, ErrorClass, FrozenItem, ItemStatus, JobConfig, RowCounts, RowTensors,
     RowTimings, SampleTensors, SchemaError, ShardRow,
 };
-use sparcubes::io::LoadStats;
+use sparcubes::io::{Buffers, LoadStats};
 use sparcubes::samples::{SampleParams, Samples};
 use sparcubes::{Conversion, Params, TriMesh};
 use std::path::Path;
@@ -121,7 +121,7 @@ pub struct Failed {
 pub fn convert_file(path: &Path, steps: Steps) -> Result<Converted, Box<Failed>> {
     let started = Instant::now();
     match sparcubes::io::read_source(path) {
-        Ok(bytes) => convert_bytes(bytes, path, steps, started),
+        Ok(bytes) => convert_bytes(bytes, path, Buffers::Folder, steps, started),
         Err(e) => Err(Box::new(Failed {
             error: StageError::Load(e),
             seconds: StageSeconds::default(),
@@ -129,18 +129,20 @@ pub fn convert_file(path: &Path, steps: Steps) -> Result<Converted, Box<Failed>>
     }
 }
 
-/// Takes the bytes read from `path` ([`sparcubes::io::read_source`], started at `started`,
-/// which the load stage's time counts from) through `steps`; they are dropped once parsed.
+/// Takes the bytes read from `path` ([`sparcubes::io::read_source`] or fetched, started at
+/// `started`, which the load stage's time counts from) through `steps`; they are dropped once
+/// parsed. A glTF file's external buffers come from `buffers`.
 pub fn convert_bytes(
     bytes: Vec<u8>,
     path: &Path,
+    buffers: Buffers,
     steps: Steps,
     started: Instant,
 ) -> Result<Converted, Box<Failed>> {
     let mut seconds = StageSeconds::default();
     let fail = |error, seconds| Box::new(Failed { error, seconds });
     let t = started;
-    let loaded = sparcubes::io::load_read(&bytes, path);
+    let loaded = sparcubes::io::load_read_with(&bytes, path, buffers);
     drop(bytes);
     let (source, load_stats) = match loaded {
         Ok(loaded) => (loaded.mesh, loaded.stats),
@@ -255,21 +257,24 @@ fn encode(
 /// the hash of the bytes it was converted from.
 pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
     let params = &config.params;
-    let path = Path::new(&item.record.uri);
     let started = Instant::now();
     let failed = |class, message: String, load_s: f64| {
         let mut row = ShardRow::failed_item(item, params.resolution, class, message);
         row.timings.load_s = load_s;
         row
     };
-    let bytes = match sparcubes::io::read_source(path) {
-        Ok(bytes) => bytes,
-        Err(e) => {
-            let error = StageError::Load(e);
-            return failed(error.class(), error.to_string(), 0.0);
-        }
+    let source = match crate::source::read(item) {
+        Ok(source) => source,
+        Err(e) => return failed(e.class, e.message, started.elapsed().as_secs_f64()),
     };
-    let sha = crate::fsutil::bytes_sha256(&bytes);
+    let crate::source::SourceBytes {
+        bytes,
+        sha256,
+        path,
+        remote,
+    } = source;
+    let path = path.as_path();
+    let sha = sha256.unwrap_or_else(|| crate::fsutil::bytes_sha256(&bytes));
     if let Err(message) = check_source(item, &sha) {
         let mut row = failed(
             ErrorClass::SourceChanged,
@@ -279,6 +284,15 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
         row.source_sha256 = Some(sha);
         return row;
     }
+    let remote_buffers = remote.map(crate::source::RemoteBuffers::new);
+    let read_remote = |rel: &str| match &remote_buffers {
+        Some(b) => b.read(rel),
+        None => Err("no remote source".to_string()),
+    };
+    let buffers = match remote_buffers {
+        Some(_) => Buffers::Relative(&read_remote),
+        None => Buffers::Folder,
+    };
     let steps = Steps {
         params,
         input_components: true,
@@ -290,11 +304,18 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
             store_mesh: config.store_mesh,
         }),
     };
-    let done = match convert_bytes(bytes, path, steps, started) {
+    let done = match convert_bytes(bytes, path, buffers, steps, started) {
         Ok(done) => done,
         Err(failure) => {
             let Failed { error, seconds } = *failure;
-            let mut row = failed(error.class(), error.to_string(), 0.0);
+            // A glTF buffer that could not be fetched fails the item as a fetch.
+            let fetch_failed = remote_buffers.as_ref().and_then(|b| b.failure()).is_some();
+            let class = if fetch_failed {
+                ErrorClass::Fetch
+            } else {
+                error.class()
+            };
+            let mut row = failed(class, error.to_string(), 0.0);
             row.timings = seconds.timings;
             return row;
         }

@@ -3,7 +3,8 @@
 //!
 //! Roles, one module each: [`job`] (read a job folder), [`job_files`] (are its files as `init`
 //! wrote them), [`job_lock`] (no frozen manifest changes under a run), [`lease`] (who works on
-//! a shard), [`journal`] (finished items, appended and fsynced), [`convert`] (the one function that touches geometry), [`child`] (the isolated
+//! a shard), [`journal`] (finished items, appended and fsynced), [`source`] (an item's bytes,
+//! from disk or fetched from a URL), [`convert`] (the one function that touches geometry), [`child`] (the isolated
 //! process that runs it), [`process`] (the one child-process supervisor: stderr tail,
 //! parent-death signal, time limit, resource use), [`supervisor`] (runs items in a child, with
 //! a watchdog, and classifies its deaths), [`shard`] (the loop over a shard's items), [`store`]
@@ -25,6 +26,7 @@ pub mod lease;
 pub mod parent;
 pub mod process;
 pub mod shard;
+pub mod source;
 pub mod store;
 pub mod supervisor;
 

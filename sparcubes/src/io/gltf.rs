@@ -13,9 +13,11 @@
 //! (base64) or a relative path inside the glTF file's own folder: absolute paths, `..`
 //! components and every other URI scheme are refused, and so is a path that resolves (through
 //! symbolic links) to a file outside that folder, so a file can never make us read elsewhere
-//! on disk or touch the network. Accessors are read by hand with checked bounds.
+//! on disk or touch the network. A file fetched from a URL hands in a reader for such checked
+//! relative paths ([`Buffers::Relative`]), which fetches them under the file's own prefix.
+//! Accessors are read by hand with checked bounds.
 
-use super::{bad_face, check_count, parse_err, too_large, LoadStats, MAX_ELEMENTS};
+use super::{bad_face, check_count, parse_err, too_large, Buffers, LoadStats, MAX_ELEMENTS};
 use crate::error::{Error, Result};
 use crate::mesh::TriMesh;
 use base64::Engine as _;
@@ -83,9 +85,14 @@ fn check_expansion(scene: &gltf::Scene, path: &Path) -> Result<()> {
     Ok(())
 }
 
-pub(crate) fn read(bytes: &[u8], path: &Path, stats: &mut LoadStats) -> Result<TriMesh> {
+pub(crate) fn read(
+    bytes: &[u8],
+    path: &Path,
+    external: Buffers,
+    stats: &mut LoadStats,
+) -> Result<TriMesh> {
     let gltf = open(bytes, path)?;
-    let buffers = load_buffers(&gltf, path)?;
+    let buffers = load_buffers(&gltf, path, external)?;
 
     let scene = gltf
         .default_scene()
@@ -167,7 +174,7 @@ fn open(bytes: &[u8], path: &Path) -> Result<gltf::Gltf> {
 }
 
 /// The data of every buffer, in order.
-fn load_buffers(gltf: &gltf::Gltf, path: &Path) -> Result<Vec<Vec<u8>>> {
+fn load_buffers(gltf: &gltf::Gltf, path: &Path, external: Buffers) -> Result<Vec<Vec<u8>>> {
     let mut out = Vec::new();
     for buffer in gltf.buffers() {
         let data = match buffer.source() {
@@ -175,7 +182,7 @@ fn load_buffers(gltf: &gltf::Gltf, path: &Path) -> Result<Vec<Vec<u8>>> {
                 .blob
                 .clone()
                 .ok_or_else(|| parse_err(path, "glTF: buffer refers to a missing GLB BIN chunk"))?,
-            gltf::buffer::Source::Uri(uri) => read_uri(uri, path)?,
+            gltf::buffer::Source::Uri(uri) => read_uri(uri, path, external)?,
         };
         if data.len() < buffer.length() {
             return Err(parse_err(
@@ -193,8 +200,9 @@ fn load_buffers(gltf: &gltf::Gltf, path: &Path) -> Result<Vec<Vec<u8>>> {
     Ok(out)
 }
 
-/// Reads a buffer URI: `data:` base64, or a relative path inside the file's folder.
-fn read_uri(uri: &str, path: &Path) -> Result<Vec<u8>> {
+/// Reads a buffer URI: `data:` base64, or a relative path inside the file's folder (on disk,
+/// or through `external`'s reader).
+fn read_uri(uri: &str, path: &Path, external: Buffers) -> Result<Vec<u8>> {
     let refuse = |why: &str| {
         parse_err(
             path,
@@ -229,6 +237,18 @@ fn read_uri(uri: &str, path: &Path) -> Result<Vec<u8>> {
         .any(|c| !matches!(c, Component::Normal(_) | Component::CurDir))
     {
         return Err(refuse("absolute paths and `..` components are not allowed"));
+    }
+    if let Buffers::Relative(reader) = external {
+        let plain: Vec<&str> = decoded
+            .split('/')
+            .filter(|p| !p.is_empty() && *p != ".")
+            .collect();
+        return reader(&plain.join("/")).map_err(|e| {
+            parse_err(
+                path,
+                format!("glTF: cannot read buffer `{}`: {e}", clip(uri)),
+            )
+        });
     }
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,

@@ -354,10 +354,36 @@ pub fn load(path: &Path) -> Result<LoadedMesh> {
     load_read(&read_source(path)?, path)
 }
 
+/// Where a glTF file's external buffers (`"uri": "scene.bin"`) are read from.
+#[derive(Clone, Copy)]
+pub enum Buffers<'a> {
+    /// From disk, inside the glTF file's own folder (links followed and checked).
+    Folder,
+    /// From a reader given the buffer's path relative to the glTF file, already checked
+    /// (plain components: no `..`, not absolute, no scheme): for a file fetched from a URL,
+    /// whose reader fetches the sibling object under the same prefix. Its error text is
+    /// kept in the parse error.
+    Relative(&'a dyn Fn(&str) -> std::result::Result<Vec<u8>, String>),
+}
+
+impl std::fmt::Debug for Buffers<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Buffers::Folder => "Buffers::Folder",
+            Buffers::Relative(_) => "Buffers::Relative",
+        })
+    }
+}
+
 /// Parses and sanitises the bytes [`read_source`] read from `path`, choosing the format by
 /// the extension of `path` (then by content); `path` names the file in errors and locates a
 /// glTF file's external buffers.
 pub fn load_read(bytes: &[u8], path: &Path) -> Result<LoadedMesh> {
+    load_read_with(bytes, path, Buffers::Folder)
+}
+
+/// [`load_read`] with a glTF file's external buffers read from `buffers`.
+pub fn load_read_with(bytes: &[u8], path: &Path, buffers: Buffers) -> Result<LoadedMesh> {
     let format = match Format::from_extension(path) {
         Some(f) => f,
         None => Format::sniff(bytes).ok_or_else(|| Error::UnsupportedFormat {
@@ -367,12 +393,22 @@ pub fn load_read(bytes: &[u8], path: &Path) -> Result<LoadedMesh> {
                 .to_string(),
         })?,
     };
-    load_bytes(bytes, format, path)
+    load_bytes_with(bytes, format, path, buffers)
 }
 
 /// Reads and sanitises a mesh of a known format from bytes; `path` names it in errors and
 /// locates a glTF file's external buffers.
 pub fn load_bytes(bytes: &[u8], format: Format, path: &Path) -> Result<LoadedMesh> {
+    load_bytes_with(bytes, format, path, Buffers::Folder)
+}
+
+/// [`load_bytes`] with a glTF file's external buffers read from `buffers`.
+pub fn load_bytes_with(
+    bytes: &[u8],
+    format: Format,
+    path: &Path,
+    buffers: Buffers,
+) -> Result<LoadedMesh> {
     let raw = catch_unwind(AssertUnwindSafe(|| {
         let mut stats = LoadStats::default();
         let mesh = match format {
@@ -380,7 +416,7 @@ pub fn load_bytes(bytes: &[u8], format: Format, path: &Path) -> Result<LoadedMes
             Format::Ply => ply::read(bytes, path, &mut stats),
             Format::Stl => stl::read(bytes, path, &mut stats),
             Format::Off => off::read(bytes, path, &mut stats),
-            Format::Gltf => gltf::read(bytes, path, &mut stats),
+            Format::Gltf => gltf::read(bytes, path, buffers, &mut stats),
         };
         mesh.map(|m| (m, stats))
     }))
