@@ -26,8 +26,10 @@ pub fn preview_mesh(
 pub fn preview_row(row: &ShardRow, options: &CompareOptions) -> Result<Image> {
     let cubes = item_lookup::cubes(row)?;
     let output = sparcubes::extract::extract_to_source(&cubes);
-    let source = load(Path::new(&row.uri))
-        .with_context(|| format!("loading the source of item {:?}", row.id))?;
+    let source = sparc3d_workers::source::load_mesh(&row.uri)
+        .map_err(anyhow::Error::msg)
+        .with_context(|| format!("loading the source of item {:?}", row.id))?
+        .mesh;
     Ok(source_above_output(&source, &output, options))
 }
 

@@ -176,10 +176,10 @@ fn prepare(row: &ShardRow, work: &Path) -> Prepared {
         p.files = fail("write output", format!("{}: {e}", out.display()));
         return p;
     }
-    let source = match sparcubes::io::load(Path::new(&row.uri)) {
+    let source = match sparc3d_workers::source::load_mesh(&row.uri) {
         Ok(s) => s.mesh,
         Err(e) => {
-            p.files = fail("load source", format!("{}: {e}", row.uri));
+            p.files = fail("load source", e);
             return p;
         }
     };

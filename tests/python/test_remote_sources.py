@@ -119,6 +119,17 @@ def test_a_job_over_http_s3_and_local_files_converts_as_its_local_copies(tmp_pat
     # The glTF buffers were fetched from beside their glTF files.
     assert server.hits.get("/m/Mesh_PrimitiveMode_04.bin", 0) >= 1
 
+    # `eval` reads each item's source again (as `validate` and the report's pictures do,
+    # through the same loader): a remote one is fetched, glTF buffers beside it, and measures
+    # as its local copy does.
+    def measured(job):
+        out = json.loads(run("eval", job, "--sample", len(names), "--json", env=env).stdout)
+        assert out["errors"] == 0, out
+        return {i["id"]: i["report"] for i in out["items"]}
+    hits = server.hits.get("/m/Mesh_PrimitiveMode_04.bin", 0)
+    assert measured(jobs["remote"]) == measured(jobs["local"])
+    assert server.hits.get("/m/Mesh_PrimitiveMode_04.bin", 0) > hits
+
 
 def test_faults_are_fetch_failures_of_their_items_and_retry_finishes(tmp_path, web, s3):
     server, root = web

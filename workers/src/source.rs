@@ -83,6 +83,31 @@ pub fn read(item: &FrozenItem) -> Result<SourceBytes, SourceError> {
     }
 }
 
+/// Loads the mesh that `uri` names again after its item was converted, for the commands that
+/// compare an item with its source (`validate`, `eval`, `report`'s pictures): a local file as
+/// [`sparcubes::io::load`] reads it, a remote one fetched (its frozen sha256 is not asked
+/// for: the stored row already records what was converted) with a glTF file's buffers from
+/// beside it. The error names the source.
+pub fn load_mesh(uri: &str) -> Result<sparcubes::io::LoadedMesh, String> {
+    match Location::parse(uri).map_err(|e| e.to_string())? {
+        Location::Local(path) => sparcubes::io::load(&path).map_err(|e| e.to_string()),
+        Location::Remote(url) => {
+            let fetched = fetcher()
+                .and_then(|f| f.fetch(&url, None))
+                .map_err(|e| e.to_string())?;
+            let buffers = RemoteBuffers::new(url.clone());
+            let read = |relative: &str| buffers.read(relative);
+            let path = PathBuf::from(url.to_string());
+            sparcubes::io::load_read_with(
+                &fetched.bytes,
+                &path,
+                sparcubes::io::Buffers::Relative(&read),
+            )
+            .map_err(|e| e.to_string())
+        }
+    }
+}
+
 /// Reads a remote glTF file's external buffers from its own prefix, keeping the first fetch
 /// error so that a load that failed for it is a `fetch` failure, not a parse error.
 #[derive(Debug)]

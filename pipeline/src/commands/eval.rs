@@ -100,7 +100,10 @@ fn eval_row(row: &ShardRow, args: &Args) -> anyhow::Result<QualityReport> {
         .cubes()
         .with_context(|| format!("item {:?}: decoding its row", row.id))?;
     let output = sparcubes::extract::extract_to_source(&cubes);
-    let source = load(Path::new(&row.uri)).with_context(|| format!("item {:?}", row.id))?;
+    let source = sparc3d_workers::source::load_mesh(&row.uri)
+        .map_err(anyhow::Error::msg)
+        .with_context(|| format!("item {:?}", row.id))?
+        .mesh;
     let options = EvalOptions {
         samples: args.samples,
         seed: args.seed,
