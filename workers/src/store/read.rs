@@ -202,18 +202,12 @@ pub fn damaged(job: &Job, shard: u64, why: &str) -> WorkerError {
 /// Rows of a shard whether finished (Parquet, its record checked with `check`) or in progress
 /// (its journals), in item order. A damaged shard is an error.
 pub fn shard_rows(job: &Job, shard: u64, check: Check) -> Result<Vec<ShardRow>> {
-    let layout = &job.layout;
-    match completion(layout, shard, job.fingerprint(), check)? {
-        Completion::Done(_) => return read_rows(&layout.shard_file(shard)),
-        Completion::Damaged(why) => return Err(damaged(job, shard, &why)),
-        Completion::Absent => {}
-    }
-    let state = crate::journal::set::read(layout, shard, None)?;
-    state
-        .done
-        .values()
-        .map(|d| crate::journal::read_row_at(&d.journal, d.offset))
-        .collect()
+    let mut rows = Vec::new();
+    for_each_shard_row(job, shard, check, Columns::All, |row| {
+        rows.push(row);
+        Ok(())
+    })?;
+    Ok(rows)
 }
 
 /// Calls `f` on each row of a shard, finished or in progress, in item order, reading only
