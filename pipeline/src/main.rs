@@ -1,5 +1,6 @@
 //! The `sparc3d` command line: parses arguments and hands each subcommand to `commands/`.
 
+mod bucket_home;
 mod cluster;
 mod commands;
 mod export_name;

@@ -487,6 +487,7 @@ mod tests {
             bytes: 0,
             sha256: String::new(),
             stamp: None,
+            object: None,
             content_digest: String::new(),
             item_seconds: 0.0,
             started_at: 0.0,

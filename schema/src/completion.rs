@@ -42,6 +42,12 @@ pub struct CompletionRecord {
     /// file without hashing it (absent in records of older versions).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stamp: Option<FileStamp>,
+    /// The name, in the shard's folder, of the object holding the shard's data when it is not
+    /// `part-NNNNN.parquet`: a job whose home is a bucket uploads each writer's shard under a
+    /// name of its own, and the record (created only where none is) names the one that won
+    /// (docs/RELIABILITY.md, "Jobs in a bucket"). Absent on disk.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub object: Option<String>,
     /// Hex content digest of the rows, excluding run-dependent columns.
     pub content_digest: String,
     /// Sum of the items' `time_total_s`.

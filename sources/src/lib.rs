@@ -18,6 +18,7 @@ pub mod fetch;
 pub mod limits;
 pub mod list;
 pub mod location;
+pub mod objects;
 pub mod store;
 mod tls;
 

@@ -66,6 +66,10 @@ pub enum WorkerError {
         /// What differs, one finding per file and fact.
         problems: Vec<String>,
     },
+    /// The bucket that is the job's home could not be read or written (a checkpoint, an
+    /// upload), after the store client's own retries.
+    #[error("{0}")]
+    Remote(String),
     /// The item worker process could not be started or talked to.
     #[error("item worker: {0}")]
     Child(String),

@@ -29,6 +29,10 @@ pub struct WorkOptions {
     pub stop: Arc<AtomicBool>,
     /// Receives progress events.
     pub events: Box<dyn FnMut(Event) + Send>,
+    /// Called after each item's final result is journalled (an item boundary: its journal
+    /// holds whole item histories), with this holder's journal; an error stops the shard.
+    /// A job whose home is a bucket uploads checkpoints here.
+    pub after_item: Option<Box<dyn FnMut(&Journal) -> Result<()> + Send>>,
 }
 
 /// What happened to a shard.
@@ -358,5 +362,8 @@ fn finish(
     };
     append(journal, held, shard, &done)?;
     (opts.events)(event);
+    if let Some(checkpoint) = opts.after_item.as_mut() {
+        checkpoint(journal)?;
+    }
     Ok(())
 }

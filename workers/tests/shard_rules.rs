@@ -73,6 +73,7 @@ fn options(script: &str, limits: Limits, stop: bool) -> WorkOptions {
         lease_ttl_s: 60.0,
         stop: Arc::new(AtomicBool::new(stop)),
         events: Box::new(|_| {}),
+        after_item: None,
     }
 }
 

@@ -27,7 +27,7 @@ pub const EXPORT_RECORD: &str = ".sparc3d-export.json";
 /// Arguments of `sparc3d export`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Job folder.
+    /// Job folder, or the bucket prefix that is the job's home (read through a local copy).
     pub job: PathBuf,
     /// The consumer whose layout to write (docs/FORMAT.md, "Exports", has the table).
     #[arg(long, value_parser = consumer_parser())]
@@ -65,7 +65,8 @@ fn frame_parser() -> impl clap::builder::TypedValueParser<Value = Frame> {
 }
 
 /// Runs `sparc3d export`.
-pub fn run(args: Args) -> Result<ExitCode> {
+pub fn run(mut args: Args) -> Result<ExitCode> {
+    args.job = crate::bucket_home::local_view(&args.job)?;
     let job = Job::open(&args.job)?;
     let consumer = args.format;
     let frame = args.frame.unwrap_or(consumer.frames()[0]);

@@ -16,7 +16,7 @@ use std::process::ExitCode;
 /// Arguments of `sparc3d failures`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Job folder.
+    /// Job folder, or the bucket prefix that is the job's home (read through a local copy).
     pub job: PathBuf,
     /// Only this error class.
     #[arg(long)]
@@ -40,7 +40,8 @@ struct Failure {
 }
 
 /// Runs `sparc3d failures`.
-pub fn run(args: Args) -> Result<ExitCode> {
+pub fn run(mut args: Args) -> Result<ExitCode> {
+    args.job = crate::bucket_home::local_view(&args.job)?;
     let job = crate::job_setup::open_read_only(&args.job)?;
     let mut n = 0;
     let mut out = std::io::stdout().lock();

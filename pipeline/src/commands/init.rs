@@ -15,7 +15,7 @@ use std::process::ExitCode;
 /// Arguments of `sparc3d init`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Job folder to create.
+    /// Job folder to create, or a bucket prefix (s3://, gs://, az://) to make the job's home.
     pub job: PathBuf,
     /// Manifest (.csv, .jsonl or .parquet with a path column).
     #[arg(long)]
@@ -115,7 +115,10 @@ fn frozen_copy_differs(layout: &JobLayout, text: &str, sha256: &str) -> Option<S
 pub fn run(args: Args) -> Result<ExitCode> {
     let config = build_config(&args.config)?;
     let records = read_manifest(&args.manifest, &args.source)?;
-    create(&args.job, records, config)?;
+    match sparc3d_bucket::JobHome::parse(&args.job)? {
+        sparc3d_bucket::JobHome::Folder(dir) => create(&dir, records, config)?,
+        sparc3d_bucket::JobHome::Bucket(url) => crate::bucket_home::init(&url, records, config)?,
+    }
     Ok(ExitCode::SUCCESS)
 }
 

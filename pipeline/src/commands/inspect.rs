@@ -121,7 +121,8 @@ fn shard_files(target: &Path) -> Result<Vec<PathBuf>> {
 }
 
 /// Runs `sparc3d inspect`.
-pub fn run(args: Args) -> Result<ExitCode> {
+pub fn run(mut args: Args) -> Result<ExitCode> {
+    args.target = crate::bucket_home::local_view(&args.target)?;
     let files = shard_files(&args.target)?;
     let report = build_report(&files, args.target.is_file())?;
     if args.json {

@@ -20,7 +20,7 @@ use std::process::ExitCode;
 /// Arguments of `sparc3d ls`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Job folder.
+    /// Job folder, or the bucket prefix that is the job's home (read through a local copy).
     pub job: PathBuf,
     /// Only the failed items.
     #[arg(long)]
@@ -64,7 +64,8 @@ fn shard_statuses(
 }
 
 /// Runs `sparc3d ls`.
-pub fn run(args: Args) -> Result<ExitCode> {
+pub fn run(mut args: Args) -> Result<ExitCode> {
+    args.job = crate::bucket_home::local_view(&args.job)?;
     let job = crate::job_setup::open_read_only(&args.job)?;
     let mut out = std::io::stdout().lock();
     let mut statuses = None;

@@ -25,7 +25,7 @@ use std::process::ExitCode;
 /// Arguments of `sparc3d report`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Job folder.
+    /// Job folder, or the bucket prefix that is the job's home (read through a local copy).
     pub job: PathBuf,
     /// Output page (HTML).
     #[arg(short, long)]
@@ -67,7 +67,8 @@ struct Columns {
 }
 
 /// Runs `sparc3d report`.
-pub fn run(args: Args) -> Result<ExitCode> {
+pub fn run(mut args: Args) -> Result<ExitCode> {
+    args.job = crate::bucket_home::local_view(&args.job)?;
     let job = crate::job_setup::open_read_only(&args.job)?;
     let summary = summarize(&job)?;
     let columns = read_columns(&job, args.max_failures)?;

@@ -57,6 +57,11 @@ pub struct Args {
 
 /// Runs `sparc3d run`.
 pub fn run(args: Args) -> Result<ExitCode> {
+    if let (sparc3d_bucket::JobHome::Bucket(url), None) =
+        (sparc3d_bucket::JobHome::parse(&args.input)?, &args.job)
+    {
+        return crate::bucket_home::run(&url, &args.input, args.workers, &args.limits.to_args());
+    }
     let job_dir = crate::job_setup::job_for_run(
         &args.input,
         args.job.as_deref(),

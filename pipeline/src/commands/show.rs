@@ -9,7 +9,7 @@ use std::process::ExitCode;
 /// Arguments of `sparc3d show`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Job folder.
+    /// Job folder, or the bucket prefix that is the job's home (read through a local copy).
     pub job: PathBuf,
     /// Item: its id, a unique prefix of it, or its source file's path or name (`sparc3d ls
     /// JOB` lists the items with their ids).
@@ -27,7 +27,8 @@ pub struct Args {
 }
 
 /// Runs `sparc3d show`.
-pub fn run(args: Args) -> Result<ExitCode> {
+pub fn run(mut args: Args) -> Result<ExitCode> {
+    args.job = crate::bucket_home::local_view(&args.job)?;
     let job = crate::job_setup::open_read_only(&args.job)?;
     let item = item_lookup::find(&job, &args.id)?;
     // The shard is hashed against its completion record before its row is trusted.

@@ -10,7 +10,7 @@ use std::process::ExitCode;
 /// Arguments of `sparc3d status`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Job folder.
+    /// Job folder, or the bucket prefix that is the job's home.
     pub job: PathBuf,
     /// Print JSON.
     #[arg(long)]
@@ -19,8 +19,10 @@ pub struct Args {
 
 /// Runs `sparc3d status`.
 pub fn run(args: Args) -> Result<ExitCode> {
-    let job = crate::job_setup::open_read_only(&args.job)?;
-    let s = summarize(&job)?;
+    let s = match sparc3d_bucket::JobHome::parse(&args.job)? {
+        sparc3d_bucket::JobHome::Folder(dir) => summarize(&crate::job_setup::open_read_only(&dir)?)?,
+        sparc3d_bucket::JobHome::Bucket(url) => crate::bucket_home::summarize(&url)?,
+    };
     if args.json {
         println!("{}", serde_json::to_string_pretty(&s)?);
         return Ok(ExitCode::SUCCESS);

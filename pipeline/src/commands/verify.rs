@@ -15,7 +15,7 @@ use std::time::Instant;
 /// Arguments of `sparc3d verify`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Job folder.
+    /// Job folder, or the bucket prefix that is the job's home (read through a local copy).
     pub job: PathBuf,
     /// Only report: leave damaged shards where they are.
     #[arg(long)]
@@ -65,9 +65,12 @@ struct Report {
 }
 
 /// Runs `sparc3d verify`.
-pub fn run(args: Args) -> Result<ExitCode> {
+pub fn run(mut args: Args) -> Result<ExitCode> {
+    // In a bucket, damaged shards are reported, never moved (the local view is a copy).
+    let in_bucket = crate::bucket_home::is_bucket(&args.job);
+    args.job = crate::bucket_home::local_view(&args.job)?;
     let job = Job::open(&args.job)?;
-    let report = verify_job(&job, !args.dry_run)?;
+    let report = verify_job(&job, !args.dry_run && !in_bucket)?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {

@@ -12,6 +12,7 @@ use sparc3d_workers::supervisor::ChildCommand;
 use sparc3d_workers::{process_shard, Job, ShardOutcome, WorkOptions};
 use std::io::Write;
 use std::path::PathBuf;
+
 use std::process::ExitCode;
 
 /// Per-item limits given on the command line (override the job's for this run).
@@ -79,14 +80,25 @@ impl LimitArgs {
 /// Arguments of `sparc3d work`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Job folder.
+    /// Job folder, or the bucket prefix that is the job's home (s3://, gs://, az://).
     pub job: PathBuf,
     /// Process this shard.
-    #[arg(long, conflicts_with = "array")]
+    #[arg(long, conflicts_with_all = ["array", "all"])]
     pub shard_index: Option<u64>,
     /// Take the task index from SLURM_ARRAY_TASK_ID or JOB_COMPLETION_INDEX.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "all")]
     pub array: bool,
+    /// Process every shard not done and not leased by a live worker, in order.
+    #[arg(long)]
+    pub all: bool,
+    /// For a job in a bucket: the local scratch folder (default: SPARC3D_SCRATCH, else the
+    /// system's temporary folder); it holds a copy of the job files and the shard in progress.
+    #[arg(long, value_name = "DIR")]
+    pub scratch: Option<PathBuf>,
+    /// For a job in a bucket: the most time between checkpoints of a shard in progress (what
+    /// a killed worker can lose, besides the item in flight).
+    #[arg(long, default_value = "30s", value_parser = parse_duration)]
+    pub checkpoint_every: f64,
     /// Shards per array task: task T processes shards O + T·K … O + T·K + K − 1.
     #[arg(long, default_value_t = 1)]
     pub shards_per_task: u64,
@@ -128,17 +140,47 @@ pub fn child_command(env: Vec<(String, String)>) -> Result<ChildCommand> {
 
 /// Runs `sparc3d work`.
 pub fn run(args: Args) -> Result<ExitCode> {
-    let _lock = crate::job_setup::hold_shared(&args.job)?;
-    let job = Job::open(&args.job)?;
-    let shards: Vec<u64> = match (args.shard_index, args.array) {
-        (Some(i), _) => vec![i],
-        (None, true) => {
+    match sparc3d_bucket::JobHome::parse(&args.job)? {
+        sparc3d_bucket::JobHome::Folder(dir) => {
+            let _lock = crate::job_setup::hold_shared(&dir)?;
+            let job = Job::open(&dir)?;
+            work_shards(&args, &job, &mut |job, shard, opts| {
+                process_shard(job, shard, opts)
+                    .with_context(|| format!("shard {shard} of {}", dir.display()))
+            })
+        }
+        sparc3d_bucket::JobHome::Bucket(url) => {
+            let job = crate::bucket_home::work_copy(&url, args.scratch.as_deref())?;
+            let prefix = crate::bucket_home::prefix(&url)?;
+            let every = std::time::Duration::from_secs_f64(args.checkpoint_every.max(0.0));
+            work_shards(&args, &job, &mut |job, shard, opts| {
+                sparc3d_bucket::work::work_shard(&prefix, job, shard, opts, every)
+                    .with_context(|| format!("shard {shard} of {url}"))
+            })
+        }
+    }
+}
+
+/// The shards `args` name: one, an array task's, or all of the job's.
+fn chosen_shards(args: &Args, job: &Job) -> Result<Vec<u64>> {
+    Ok(match (args.shard_index, args.array, args.all) {
+        (Some(i), _, _) => vec![i],
+        (None, true, _) => {
             let t = array_task_index()?;
             let k = args.shards_per_task.max(1);
             (args.offset + t * k..args.offset + t * k + k).collect()
         }
-        (None, false) => bail!("give --shard-index I or --array"),
-    };
+        (None, false, true) => (0..job.file.shards).collect(),
+        (None, false, false) => bail!("give --shard-index I, --array or --all"),
+    })
+}
+
+/// What processes one shard: on disk, or in a bucket.
+type ShardFn<'a> = dyn FnMut(&Job, u64, &mut WorkOptions) -> Result<ShardOutcome> + 'a;
+
+/// Processes the shards `args` name with `process`, saying what became of each.
+fn work_shards(args: &Args, job: &Job, process: &mut ShardFn<'_>) -> Result<ExitCode> {
+    let shards = chosen_shards(args, job)?;
     let stop = install_signals()?;
     if let Some(parent) = args.parent_pid {
         // SIGTERM, not SIGKILL: the worker stops like on Ctrl-C and releases its lease.
@@ -150,24 +192,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
         limits: args.limits.apply(job.file.config.limits),
         lease_ttl_s: args.limits.lease_ttl,
         stop: stop.flag.clone(),
-        events: Box::new(move |e: Event| {
-            if events {
-                if let Ok(line) = serde_json::to_string(&e) {
-                    let mut out = std::io::stdout().lock();
-                    let _ = writeln!(out, "{line}");
-                    let _ = out.flush();
-                }
-            } else if let Event::ShardDamaged {
-                shard,
-                reason,
-                moved_to,
-            } = &e
-            {
-                eprintln!("shard {shard}: damaged ({reason}); moved aside to {moved_to}, converting it again");
-            }
-        }),
+        events: Box::new(move |e: Event| report_event(events, &e)),
+        after_item: None,
     };
-    let mut stopped = false;
     for shard in shards {
         if shard >= job.file.shards {
             if !events {
@@ -178,34 +205,53 @@ pub fn run(args: Args) -> Result<ExitCode> {
             }
             continue;
         }
-        let outcome = process_shard(&job, shard, &mut opts)
-            .with_context(|| format!("shard {shard} of {}", args.job.display()))?;
+        let outcome = process(job, shard, &mut opts)?;
         if !events {
-            match &outcome {
-                ShardOutcome::Done(r) => eprintln!(
-                    "shard {shard}: written, {} rows ({} ok, {} failed)",
-                    r.rows, r.ok, r.failed
-                ),
-                ShardOutcome::AlreadyDone(r) => {
-                    eprintln!("shard {shard}: already done ({} rows)", r.rows)
-                }
-                ShardOutcome::Busy(owner) => eprintln!("shard {shard}: leased by {owner}, skipped"),
-                ShardOutcome::Stopped => eprintln!("shard {shard}: stopped; run again to resume"),
-                ShardOutcome::LeaseLost(_) => {}
-            }
+            say_outcome(shard, &outcome);
         }
         // Said also under `run`, whose events carry it too: a stale worker's log must tell.
         if let ShardOutcome::LeaseLost(message) = &outcome {
             eprintln!("{message}");
         }
         if outcome == ShardOutcome::Stopped {
-            stopped = true;
-            break;
+            return Ok(stop.exit_code());
         }
     }
-    Ok(if stopped {
-        stop.exit_code()
-    } else {
-        ExitCode::SUCCESS
-    })
+    Ok(ExitCode::SUCCESS)
+}
+
+/// An event as a JSON line on stdout (`--events`), or the damaged-shard note on stderr.
+fn report_event(events: bool, e: &Event) {
+    if events {
+        if let Ok(line) = serde_json::to_string(e) {
+            let mut out = std::io::stdout().lock();
+            let _ = writeln!(out, "{line}");
+            let _ = out.flush();
+        }
+    } else if let Event::ShardDamaged {
+        shard,
+        reason,
+        moved_to,
+    } = e
+    {
+        eprintln!(
+            "shard {shard}: damaged ({reason}); moved aside to {moved_to}, converting it again"
+        );
+    }
+}
+
+/// What became of a shard, on stderr.
+fn say_outcome(shard: u64, outcome: &ShardOutcome) {
+    match outcome {
+        ShardOutcome::Done(r) => eprintln!(
+            "shard {shard}: written, {} rows ({} ok, {} failed)",
+            r.rows, r.ok, r.failed
+        ),
+        ShardOutcome::AlreadyDone(r) => {
+            eprintln!("shard {shard}: already done ({} rows)", r.rows)
+        }
+        ShardOutcome::Busy(owner) => eprintln!("shard {shard}: leased by {owner}, skipped"),
+        ShardOutcome::Stopped => eprintln!("shard {shard}: stopped; run again to resume"),
+        ShardOutcome::LeaseLost(_) => {}
+    }
 }

@@ -143,6 +143,16 @@ impl Journal {
     pub fn path(&self) -> &Path {
         &self.path
     }
+
+    /// Bytes written to this journal's file (every frame whole).
+    pub fn len(&self) -> u64 {
+        self.len
+    }
+
+    /// Whether nothing was written to the file yet (never, once created: it has a header).
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
 }
 
 /// Reads the row in the `Done` frame at `offset` of a journal.

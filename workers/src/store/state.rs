@@ -325,6 +325,7 @@ mod tests {
             bytes: bytes.len() as u64,
             sha256: sparc3d_schema::config::hex(&Sha256::digest(bytes)),
             stamp: None,
+            object: None,
             content_digest: String::new(),
             item_seconds: 0.0,
             started_at: 0.0,

@@ -223,6 +223,7 @@ fn write_parquet(
         bytes: 0,
         sha256: file_sha256,
         stamp: None,
+        object: None,
         content_digest: sparc3d_schema::config::hex(&digest.finalize()),
         item_seconds,
         started_at,

@@ -1,0 +1,117 @@
+//! Committing a shard to the bucket. The shard was written and committed in the worker's
+//! scratch folder as on disk; then:
+//!
+//! 1. the lease is renewed (the fence), and the file is uploaded under a name of this
+//!    writer's own (`shards/part-NNNNN.<writer>.parquet`), so that no upload ever replaces
+//!    another's;
+//! 2. the lease is renewed again, and the completion record, naming that object in its
+//!    `object` field, is created only if no record is there: the first record wins, and a
+//!    reader never sees a half shard (it reads only what a record names, and a record is
+//!    written after its object's upload finished);
+//! 3. once this writer's record is in place, the shard's checkpoints and the other writers'
+//!    uploads (killed before their record, or losers of the race, which no record names and so
+//!    no reader reads) are deleted, then the lease.
+//!
+//! A writer whose record lost the race deletes its own upload and reports the shard finished
+//! elsewhere.
+
+use crate::keys;
+use crate::lease::BucketLease;
+use anyhow::{bail, Context, Result};
+use sparc3d_schema::{CompletionRecord, JobLayout};
+use sparc3d_sources::objects::{Prefix, WriteMode, Written};
+
+/// How a commit to the bucket ended.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Pushed {
+    /// This writer's shard is the one the record names.
+    Done(CompletionRecord),
+    /// Another writer's record was there first.
+    FinishedElsewhere(CompletionRecord),
+}
+
+/// Uploads shard `shard`, committed in the scratch job at `local` with `record`, and creates
+/// its record in the bucket.
+pub fn push(
+    prefix: &Prefix<'_>,
+    local: &JobLayout,
+    shard: u64,
+    record: &CompletionRecord,
+    writer: &str,
+    lease: &BucketLease,
+) -> Result<Pushed> {
+    let name = keys::data_name(shard, writer);
+    let fence = |step: &str| {
+        lease
+            .confirm()
+            .map_err(|why| anyhow::anyhow!("shard {shard}: not {step}: {why}"))
+    };
+    fence("uploaded")?;
+    let file = local.shard_file(shard);
+    prefix
+        .upload(&keys::data(&name), &file)
+        .with_context(|| format!("uploading shard {shard}"))?;
+    fence("committed")?;
+    let in_bucket = CompletionRecord {
+        stamp: None,
+        object: Some(name.clone()),
+        ..record.clone()
+    };
+    let bytes = serde_json::to_vec_pretty(&in_bucket)?;
+    let record_key = keys::record(shard);
+    match prefix
+        .put(&record_key, bytes, WriteMode::Create)
+        .with_context(|| format!("writing the completion record of shard {shard}"))?
+    {
+        Written::Done(_) => {
+            clean_up(prefix, shard, &name);
+            Ok(Pushed::Done(in_bucket))
+        }
+        Written::Refused => {
+            let _ = prefix.delete(&keys::data(&name));
+            match read_record(prefix, shard)? {
+                Some(theirs) => Ok(Pushed::FinishedElsewhere(theirs)),
+                None => bail!(
+                    "shard {shard}: its record was refused as existing, then could not be read"
+                ),
+            }
+        }
+    }
+}
+
+/// The completion record of `shard` in the bucket, if there is one; a record that does not
+/// parse is an error naming it.
+pub fn read_record(prefix: &Prefix<'_>, shard: u64) -> Result<Option<CompletionRecord>> {
+    let key = keys::record(shard);
+    let Some(found) = prefix
+        .get(&key)
+        .with_context(|| format!("reading {}", prefix.url(&key)))?
+    else {
+        return Ok(None);
+    };
+    let record = serde_json::from_slice(&found.bytes)
+        .with_context(|| format!("{}: not a completion record", prefix.url(&key)))?;
+    Ok(Some(record))
+}
+
+/// After this writer's record is in place: its checkpoints and every other upload of the
+/// shard go (best effort: a leftover is never read, and the next commit of a shard has
+/// nothing to do with it).
+fn clean_up(prefix: &Prefix<'_>, shard: u64, kept: &str) {
+    if let Ok(found) = prefix.list(&keys::journals(shard)) {
+        for l in found {
+            let _ = prefix.delete(&prefix.relative_key(&l));
+        }
+    }
+    let mine = JobLayout::shard_name(shard);
+    if let Ok(found) = prefix.list(keys::SHARDS) {
+        for l in found {
+            let key = prefix.relative_key(&l);
+            let name = key.trim_start_matches(keys::SHARDS);
+            let of_this_shard = name.starts_with(&format!("{mine}.")) && name.ends_with(".parquet");
+            if of_this_shard && name != kept {
+                let _ = prefix.delete(&key);
+            }
+        }
+    }
+}

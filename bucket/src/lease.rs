@@ -1,0 +1,294 @@
+//! A shard's lease in a bucket: an object (`state/part-NNNNN.lease`, the same JSON as a lease
+//! file) taken with a create-if-absent write and renewed with a replace-if-unchanged write on
+//! its ETag, the conditional writes S3, GCS and Azure each offer. Of two workers racing for a
+//! lease exactly one write succeeds; a stale lease (expired, or of a process of this host that
+//! is gone) is taken over by replacing exactly the version that was read, so two takers of one
+//! stale lease cannot both win.
+//!
+//! The holder renews it from a heartbeat thread every third of its time to live. A renewal
+//! that is refused means another worker took the lease over (it had expired): the holder has
+//! lost it, as it has when its expiry passes without a renewal (network cut, stopped
+//! process). [`BucketLease::confirm`] renews at once and is the fence before a checkpoint and
+//! before the shard's commit: what follows a confirmed renewal happens while the lease was
+//! held a moment before, and the commit itself is a create-if-absent write, so a holder that
+//! lost its lease in between cannot replace a shard another one finished.
+
+use crate::keys;
+use anyhow::{Context, Result};
+use sparc3d_sources::objects::{Prefix, WriteMode, Written};
+use sparc3d_workers::lease::{hostname, LeaseInfo};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+/// Takes over a stale lease at most this many times in one [`acquire`].
+const TAKEOVER_TRIES: usize = 8;
+
+/// The outcome of [`acquire`].
+#[derive(Debug)]
+pub enum Acquired {
+    /// The lease is ours; its heartbeat runs.
+    Held(BucketLease),
+    /// A live worker holds it.
+    Busy(LeaseInfo),
+    /// Other takers kept changing it while we tried.
+    Contended,
+}
+
+/// What the heartbeat and the holder share.
+#[derive(Debug)]
+struct Shared {
+    /// The ETag of the lease version this holder wrote last, and its expiry.
+    version: Mutex<(String, f64)>,
+    /// Why the lease is lost, once it is.
+    lost: Mutex<Option<String>>,
+    stop: AtomicBool,
+    /// Set when the lease is lost, to stop the shard's item loop.
+    on_loss: Arc<AtomicBool>,
+}
+
+/// A lease this worker holds in the bucket; its heartbeat runs until it is released.
+#[derive(Debug)]
+pub struct BucketLease {
+    prefix: Prefix<'static>,
+    shard: u64,
+    owner: String,
+    acquired_at: f64,
+    ttl: f64,
+    shared: Arc<Shared>,
+    heartbeat: Option<JoinHandle<()>>,
+}
+
+fn fresh(owner: &str, ttl: f64, acquired_at: f64) -> LeaseInfo {
+    let now = sparc3d_workers::now();
+    LeaseInfo {
+        owner: owner.to_string(),
+        host: hostname(),
+        pid: std::process::id(),
+        heartbeat_at: now,
+        expires_at: now + ttl,
+        acquired_at,
+    }
+}
+
+fn bytes(info: &LeaseInfo) -> Vec<u8> {
+    serde_json::to_vec(info).unwrap_or_default()
+}
+
+/// Tries to take the lease of `shard` for `owner` (`ttl` seconds without a renewal);
+/// `on_loss` is set if the lease is lost later. Fails only when the bucket cannot be read or
+/// written.
+pub fn acquire(
+    prefix: &Prefix<'static>,
+    shard: u64,
+    owner: &str,
+    ttl: f64,
+    on_loss: Arc<AtomicBool>,
+) -> Result<Acquired> {
+    let key = keys::lease(shard);
+    let now = sparc3d_workers::now();
+    for _ in 0..TAKEOVER_TRIES {
+        let mine = fresh(owner, ttl, now);
+        if let Written::Done(etag) = prefix.put(&key, bytes(&mine), WriteMode::Create)? {
+            return Ok(Acquired::Held(BucketLease::start(
+                prefix, shard, &mine, etag, ttl, on_loss,
+            )));
+        }
+        let Some(current) = prefix.get(&key)? else {
+            continue; // released meanwhile
+        };
+        let holder: Option<LeaseInfo> = serde_json::from_slice(&current.bytes).ok();
+        if let Some(h) = holder.filter(|h| !h.is_stale(sparc3d_workers::now())) {
+            return Ok(Acquired::Busy(h));
+        }
+        let Some(etag) = current.etag else {
+            anyhow::bail!(
+                "{}: the store gives no ETag, so a stale lease cannot be taken over safely",
+                prefix.url(&key)
+            );
+        };
+        if let Written::Done(etag) = prefix.put(&key, bytes(&mine), WriteMode::Replace(etag))? {
+            return Ok(Acquired::Held(BucketLease::start(
+                prefix, shard, &mine, etag, ttl, on_loss,
+            )));
+        }
+    }
+    Ok(Acquired::Contended)
+}
+
+impl BucketLease {
+    fn start(
+        prefix: &Prefix<'static>,
+        shard: u64,
+        info: &LeaseInfo,
+        etag: Option<String>,
+        ttl: f64,
+        on_loss: Arc<AtomicBool>,
+    ) -> Self {
+        let shared = Arc::new(Shared {
+            version: Mutex::new((etag.unwrap_or_default(), info.expires_at)),
+            lost: Mutex::new(None),
+            stop: AtomicBool::new(false),
+            on_loss,
+        });
+        let mut lease = Self {
+            prefix: prefix.clone(),
+            shard,
+            owner: info.owner.clone(),
+            acquired_at: info.acquired_at,
+            ttl,
+            shared,
+            heartbeat: None,
+        };
+        lease.heartbeat = Some(lease.spawn_heartbeat());
+        lease
+    }
+
+    fn spawn_heartbeat(&self) -> JoinHandle<()> {
+        let beat = self.beater();
+        let shared = Arc::clone(&self.shared);
+        let period = Duration::from_secs_f64((self.ttl / 3.0).max(0.05));
+        std::thread::spawn(move || {
+            let step = Duration::from_millis(50);
+            let mut waited = Duration::ZERO;
+            while !shared.stop.load(Ordering::SeqCst) {
+                std::thread::sleep(step);
+                waited += step;
+                if waited >= period {
+                    waited = Duration::ZERO;
+                    let _ = beat.renew();
+                }
+            }
+        })
+    }
+
+    fn beater(&self) -> Beater {
+        Beater {
+            prefix: self.prefix.clone(),
+            key: keys::lease(self.shard),
+            owner: self.owner.clone(),
+            acquired_at: self.acquired_at,
+            ttl: self.ttl,
+            shared: Arc::clone(&self.shared),
+        }
+    }
+
+    /// Renews the lease now: `Ok` while it is this worker's, else why it was lost.
+    pub fn confirm(&self) -> std::result::Result<(), String> {
+        self.beater().renew()
+    }
+
+    /// Why the lease is lost, if it is (no I/O: the expiry is checked against the clock).
+    pub fn lost(&self) -> Option<String> {
+        self.beater().check()
+    }
+
+    /// Stops the heartbeat and deletes the lease object unless another worker holds it now.
+    pub fn release(mut self) {
+        self.stop_heartbeat();
+        if self.lost().is_some() {
+            return;
+        }
+        let key = keys::lease(self.shard);
+        let ours = self.shared.version.lock().map(|v| v.0.clone()).ok();
+        if let Ok(Some(current)) = self.prefix.get(&key) {
+            if current.etag.is_some() && current.etag == ours {
+                let _ = self.prefix.delete(&key);
+            }
+        }
+    }
+
+    fn stop_heartbeat(&mut self) {
+        self.shared.stop.store(true, Ordering::SeqCst);
+        if let Some(h) = self.heartbeat.take() {
+            let _ = h.join();
+        }
+    }
+}
+
+impl Drop for BucketLease {
+    fn drop(&mut self) {
+        self.stop_heartbeat();
+    }
+}
+
+/// What renews a lease: shared by the heartbeat thread and [`BucketLease::confirm`].
+struct Beater {
+    prefix: Prefix<'static>,
+    key: String,
+    owner: String,
+    acquired_at: f64,
+    ttl: f64,
+    shared: Arc<Shared>,
+}
+
+impl Beater {
+    fn lose(&self, why: String) -> String {
+        if let Ok(mut lost) = self.shared.lost.lock() {
+            lost.get_or_insert(why.clone());
+        }
+        self.shared.on_loss.store(true, Ordering::SeqCst);
+        why
+    }
+
+    fn check(&self) -> Option<String> {
+        if let Some(why) = self.shared.lost.lock().ok().and_then(|l| l.clone()) {
+            return Some(why);
+        }
+        let expires_at = self.shared.version.lock().map(|v| v.1).unwrap_or(0.0);
+        let now = sparc3d_workers::now();
+        (now > expires_at).then(|| {
+            self.lose(format!(
+                "lease {} expired {:.1} s ago without a renewal (the bucket could not be \
+                 written, or this worker was stopped): another worker may hold the shard now",
+                self.prefix.url(&self.key),
+                now - expires_at
+            ))
+        })
+    }
+
+    /// One renewal: replaces exactly the version this holder wrote last.
+    fn renew(&self) -> std::result::Result<(), String> {
+        if let Some(why) = self.check() {
+            return Err(why);
+        }
+        let Ok(mut version) = self.shared.version.lock() else {
+            return Err("lease state poisoned".into());
+        };
+        let info = fresh(&self.owner, self.ttl, self.acquired_at);
+        let mode = WriteMode::Replace(version.0.clone());
+        match self.prefix.put(&self.key, bytes(&info), mode) {
+            Ok(Written::Done(etag)) => {
+                *version = (etag.unwrap_or_default(), info.expires_at);
+                Ok(())
+            }
+            Ok(Written::Refused) => {
+                drop(version);
+                let now_held_by = self
+                    .prefix
+                    .get(&self.key)
+                    .ok()
+                    .flatten()
+                    .and_then(|o| serde_json::from_slice::<LeaseInfo>(&o.bytes).ok())
+                    .map(|h| format!(", and {} holds it now", h.owner))
+                    .unwrap_or_default();
+                Err(self.lose(format!(
+                    "lease {} was taken over by another worker{now_held_by}",
+                    self.prefix.url(&self.key)
+                )))
+            }
+            // A failed write is retried at the next beat; the expiry decides when it is lost.
+            Err(e) => Err(format!("renewing lease: {e}")),
+        }
+    }
+}
+
+/// The lease of `shard` as the bucket holds it, if any and readable.
+pub fn read(prefix: &Prefix<'_>, shard: u64) -> Result<Option<LeaseInfo>> {
+    let key = keys::lease(shard);
+    let found = prefix
+        .get(&key)
+        .with_context(|| format!("reading {}", prefix.url(&key)))?;
+    Ok(found.and_then(|o| serde_json::from_slice(&o.bytes).ok()))
+}

@@ -1,0 +1,24 @@
+//! Jobs whose home is a bucket (`s3://`, `gs://`, `az://`): workers on machines that share
+//! nothing but the bucket. The job's files have the keys of a job folder ([`keys`]); a
+//! shard's lease is an object taken and renewed by conditional writes ([`lease`]); a worker
+//! processes a shard in a scratch copy of the job exactly as on disk ([`work`]), uploading its
+//! progress as checkpoint objects ([`checkpoint`]) and the finished shard under a name of its
+//! own, committed by creating the completion record that names it ([`commit`]). `init`
+//! uploads a job made locally ([`publish`]); the read-only commands read a local view
+//! ([`view`]) kept in a scratch folder per job URL ([`scratch`]).
+//!
+//! docs/RELIABILITY.md, "Jobs in a bucket", says what is guaranteed; docs/CLUSTER.md how to
+//! run one.
+#![deny(missing_docs)]
+
+pub mod checkpoint;
+pub mod commit;
+pub mod home;
+pub mod keys;
+pub mod lease;
+pub mod publish;
+pub mod scratch;
+pub mod view;
+pub mod work;
+
+pub use home::JobHome;

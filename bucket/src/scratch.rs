@@ -1,0 +1,64 @@
+//! The local copies a command makes of a job whose home is a bucket, under one scratch folder
+//! per job URL: `work/` (the job files, and the shards in progress of this worker) and `view/`
+//! (what the read-only commands read). The folder is `--scratch`, else `SPARC3D_SCRATCH`, else
+//! the system's temporary folder, each holding `sparc3d-<hash of the URL>/`.
+
+use crate::keys;
+use anyhow::{bail, Context, Result};
+use sha2::{Digest, Sha256};
+use sparc3d_sources::objects::Prefix;
+use sparc3d_sources::RemoteUrl;
+use sparc3d_workers::Job;
+use std::path::{Path, PathBuf};
+
+/// The scratch folder of the job at `url`: `base` (else `SPARC3D_SCRATCH`, else the temporary
+/// folder) / `sparc3d-<first 16 hex digits of the URL's sha256>`.
+pub fn folder(url: &RemoteUrl, base: Option<&Path>) -> PathBuf {
+    let base = base
+        .map(Path::to_path_buf)
+        .or_else(|| std::env::var_os("SPARC3D_SCRATCH").map(PathBuf::from))
+        .unwrap_or_else(std::env::temp_dir);
+    let name = url.to_string();
+    let digest = Sha256::digest(name.trim_end_matches('/').as_bytes());
+    let hex: String = digest.iter().take(8).map(|b| format!("{b:02x}")).collect();
+    base.join(format!("sparc3d-{hex}"))
+}
+
+/// Brings `job.json` and `manifest.jsonl` of the bucket job at `prefix` into `dir` (replacing
+/// older copies) and opens the job there. `read_only` opens it as the read-only commands do.
+pub fn pull_job(prefix: &Prefix<'_>, dir: &Path, read_only: bool) -> Result<(Job, Vec<String>)> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let Some(job_file) = prefix
+        .get(keys::JOB_FILE)
+        .with_context(|| format!("reading {}", prefix.url(keys::JOB_FILE)))?
+    else {
+        bail!(
+            "{}: no job there (no job.json; `sparc3d init {} --manifest ...` makes one)",
+            prefix.root(),
+            prefix.root()
+        );
+    };
+    let Some(manifest) = prefix
+        .get(keys::MANIFEST)
+        .with_context(|| format!("reading {}", prefix.url(keys::MANIFEST)))?
+    else {
+        bail!("{}: job.json without manifest.jsonl", prefix.root());
+    };
+    replace(&dir.join(keys::MANIFEST), &manifest.bytes)?;
+    replace(&dir.join(keys::JOB_FILE), &job_file.bytes)?;
+    if read_only {
+        Ok(Job::open_read_only(dir)?)
+    } else {
+        Ok((Job::open(dir)?, Vec::new()))
+    }
+}
+
+/// Writes `bytes` at `path` unless it holds them already (atomically: a temporary file, then
+/// a rename).
+pub fn replace(path: &Path, bytes: &[u8]) -> Result<()> {
+    if std::fs::read(path).is_ok_and(|b| b == bytes) {
+        return Ok(());
+    }
+    sparc3d_workers::fsutil::write_atomic(path, bytes, "writing a local copy")?;
+    Ok(())
+}

@@ -1,0 +1,195 @@
+//! One shard of a job whose home is a bucket, processed by a worker that shares nothing with
+//! the others but the bucket: take the shard's lease in the bucket, bring its checkpoints
+//! into the worker's scratch copy of the job, process it there exactly as on disk (items in
+//! the supervised item worker, each journalled locally) while checkpoints go up, then upload
+//! the shard and create its record ([`crate::commit`]).
+
+use crate::checkpoint::Checkpoints;
+use crate::commit::{push, read_record, Pushed};
+use crate::keys;
+use crate::lease::{acquire, Acquired, BucketLease};
+use anyhow::{Context, Result};
+use sparc3d_sources::objects::Prefix;
+use sparc3d_workers::events::Event;
+use sparc3d_workers::journal;
+use sparc3d_workers::lease::{file_token, owner_name};
+use sparc3d_workers::{process_shard, Job, ShardOutcome, WorkOptions};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+/// Processes shard `shard` of the bucket job at `prefix`, whose scratch copy is `job`;
+/// `every` is the time between checkpoints.
+pub fn work_shard(
+    prefix: &Prefix<'static>,
+    job: &Job,
+    shard: u64,
+    opts: &mut WorkOptions,
+    every: Duration,
+) -> Result<ShardOutcome> {
+    if let Some(r) = read_record(prefix, shard)? {
+        skipped(opts, shard, "already done");
+        return Ok(ShardOutcome::AlreadyDone(r));
+    }
+    let owner = owner_name();
+    let shard_stop = Arc::new(AtomicBool::new(false));
+    let held = match acquire(
+        prefix,
+        shard,
+        &owner,
+        opts.lease_ttl_s,
+        Arc::clone(&shard_stop),
+    )? {
+        Acquired::Held(l) => Arc::new(l),
+        Acquired::Busy(h) => {
+            skipped(opts, shard, &format!("leased by {}", h.owner));
+            return Ok(ShardOutcome::Busy(h.owner));
+        }
+        Acquired::Contended => {
+            let who = "several workers taking its lease at once".to_string();
+            skipped(opts, shard, &format!("leased by {who}"));
+            return Ok(ShardOutcome::Busy(who));
+        }
+    };
+    let result = work_leased(prefix, job, shard, opts, &held, &owner, shard_stop, every);
+    if let Ok(lease) = Arc::try_unwrap(held) {
+        lease.release();
+    }
+    result
+}
+
+fn skipped(opts: &mut WorkOptions, shard: u64, reason: &str) {
+    (opts.events)(Event::ShardSkipped {
+        shard,
+        reason: reason.into(),
+    });
+}
+
+#[allow(clippy::too_many_arguments)]
+fn work_leased(
+    prefix: &Prefix<'static>,
+    job: &Job,
+    shard: u64,
+    opts: &mut WorkOptions,
+    held: &Arc<BucketLease>,
+    owner: &str,
+    shard_stop: Arc<AtomicBool>,
+    every: Duration,
+) -> Result<ShardOutcome> {
+    // Finished between our look and our lease.
+    if let Some(r) = read_record(prefix, shard)? {
+        return Ok(ShardOutcome::AlreadyDone(r));
+    }
+    pull_checkpoints(prefix, job, shard)?;
+    let writer = file_token(owner);
+    let checkpoints = Arc::new(Mutex::new(Checkpoints::new(
+        prefix,
+        shard,
+        &writer,
+        Arc::clone(held),
+        every,
+    )));
+    let hook = Arc::clone(&checkpoints);
+    opts.after_item = Some(Box::new(move |j| match hook.lock() {
+        Ok(mut c) => c.after_item(j, false),
+        Err(_) => Ok(()),
+    }));
+    // The item loop stops on the user's stop or on the loss of the bucket lease.
+    let user_stop = std::mem::replace(&mut opts.stop, Arc::clone(&shard_stop));
+    let forward = forward_stop(Arc::clone(&user_stop), Arc::clone(&shard_stop));
+    let outcome = process_shard(job, shard, opts);
+    opts.stop = user_stop;
+    opts.after_item = None;
+    shard_stop.store(true, Ordering::SeqCst);
+    let _ = forward.join();
+    let lost = |held: &BucketLease| {
+        held.lost().map(|why| {
+            format!(
+                "shard {shard}: this worker lost its lease {}: {why}; it stops here and leaves \
+                 the shard to the new holder",
+                prefix.url(&keys::lease(shard))
+            )
+        })
+    };
+    let record = match outcome {
+        Ok(ShardOutcome::Done(r)) | Ok(ShardOutcome::AlreadyDone(r)) => r,
+        other => {
+            if let Some(message) = lost(held) {
+                (opts.events)(Event::LeaseLost {
+                    shard,
+                    message: message.clone(),
+                });
+                return Ok(ShardOutcome::LeaseLost(message));
+            }
+            // Keep what finished for the next holder, whatever stopped this one.
+            if let Ok(mut c) = checkpoints.lock() {
+                c.last()
+                    .with_context(|| format!("shard {shard}: the last checkpoint"))?;
+            }
+            return Ok(other?);
+        }
+    };
+    (opts.events)(Event::ShardWriting { shard });
+    let pushed = push(prefix, &job.layout, shard, &record, &writer, held)?;
+    // The bucket has it now: the scratch copy goes.
+    let _ = std::fs::remove_file(job.layout.shard_file(shard));
+    let _ = std::fs::remove_file(job.layout.completion(shard));
+    Ok(match pushed {
+        Pushed::Done(r) => {
+            (opts.events)(Event::ShardFinished {
+                shard,
+                rows: r.rows,
+                ok: r.ok,
+                failed: r.failed,
+            });
+            ShardOutcome::Done(r)
+        }
+        Pushed::FinishedElsewhere(r) => {
+            skipped(
+                opts,
+                shard,
+                "finished by another worker meanwhile; its shard is kept",
+            );
+            ShardOutcome::AlreadyDone(r)
+        }
+    })
+}
+
+/// Copies the user's stop into the shard's stop flag until the shard's is set.
+fn forward_stop(user: Arc<AtomicBool>, shard: Arc<AtomicBool>) -> std::thread::JoinHandle<()> {
+    std::thread::spawn(move || {
+        while !shard.load(Ordering::SeqCst) {
+            if user.load(Ordering::SeqCst) {
+                shard.store(true, Ordering::SeqCst);
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    })
+}
+
+/// Replaces the scratch copy's journals of `shard` by the shard's checkpoints in the bucket:
+/// what the earlier holders finished, as journals of earlier holders.
+pub(crate) fn pull_checkpoints(prefix: &Prefix<'_>, job: &Job, shard: u64) -> Result<()> {
+    let layout = &job.layout;
+    journal::set::remove_all(layout, shard)?;
+    let found = prefix
+        .list(&keys::journals(shard))
+        .with_context(|| format!("listing the checkpoints of shard {shard}"))?;
+    if found.is_empty() {
+        return Ok(());
+    }
+    let dir = layout.journals_dir(shard);
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    for l in found {
+        let key = prefix.relative_key(&l);
+        let name = key.rsplit('/').next().unwrap_or_default();
+        if !name.ends_with(".journal") {
+            continue;
+        }
+        prefix
+            .download(&key, &dir.join(name))
+            .with_context(|| format!("fetching checkpoint {key}"))?;
+    }
+    Ok(())
+}

@@ -1,0 +1,128 @@
+//! The commands' side of jobs whose home is a bucket (`sparc3d_bucket`): the JOB argument
+//! of a read-only command made a local view, `init` to a URL, and `run` on one.
+
+use anyhow::{Context, Result};
+use sparc3d_bucket::{scratch, view, JobHome};
+use sparc3d_sources::objects::Prefix;
+use sparc3d_sources::RemoteUrl;
+use std::path::{Path, PathBuf};
+
+/// The objects of the bucket job at `url`.
+pub fn prefix(url: &RemoteUrl) -> Result<Prefix<'static>> {
+    let fetcher = sparc3d_sources::shared().context("setting up the object store client")?;
+    Ok(fetcher.prefix(url)?)
+}
+
+/// Whether JOB names a bucket prefix.
+pub fn is_bucket(job: &Path) -> bool {
+    matches!(JobHome::parse(job), Ok(JobHome::Bucket(_)))
+}
+
+/// The folder a read-only command reads for JOB: JOB itself when it is a folder; for a bucket
+/// URL, a local view with every finished shard (downloaded once, kept while unchanged), said
+/// on stderr.
+pub fn local_view(job: &Path) -> Result<PathBuf> {
+    let url = match JobHome::parse(job)? {
+        JobHome::Folder(dir) => return Ok(dir),
+        JobHome::Bucket(url) => url,
+    };
+    let prefix = prefix(&url)?;
+    let dir = scratch::folder(&url, None).join("view");
+    let (local, _) = scratch::pull_job(&prefix, &dir, true)?;
+    let fetched = view::mirror(&prefix, &local)?;
+    eprintln!(
+        "{url}: read through a local copy in {} ({fetched} shards downloaded now)",
+        dir.display()
+    );
+    Ok(dir)
+}
+
+/// The local copy of the bucket job at `url` that a worker works in (`work/` of its scratch
+/// folder), opened as `run` and `work` open a job.
+pub fn work_copy(url: &RemoteUrl, scratch_base: Option<&Path>) -> Result<sparc3d_workers::Job> {
+    let prefix = prefix(url)?;
+    let dir = scratch::folder(url, scratch_base).join("work");
+    Ok(scratch::pull_job(&prefix, &dir, false)?.0)
+}
+
+/// `init URL`: the job is made in a fresh local folder as for any job, then published.
+pub fn init(
+    url: &RemoteUrl,
+    records: Vec<sparc3d_manifests::RawRecord>,
+    config: sparc3d_schema::JobConfig,
+) -> Result<()> {
+    let prefix = prefix(url)?;
+    let staging = scratch::folder(url, None).join("init");
+    let _ = std::fs::remove_dir_all(&staging);
+    if prefix.get(sparc3d_bucket::keys::JOB_FILE)?.is_some() {
+        scratch::pull_job(&prefix, &staging, true)?;
+    }
+    crate::commands::init::create(&staging, records, config)?;
+    sparc3d_bucket::publish::publish(&prefix, &staging)?;
+    eprintln!("{url}: job made (its home is the bucket)");
+    Ok(())
+}
+
+/// The progress of the bucket job at `url`, from its records, leases and checkpoints
+/// (nothing of a finished shard but its record is read).
+pub fn summarize(url: &RemoteUrl) -> Result<crate::summary::JobSummary> {
+    let prefix = prefix(url)?;
+    let dir = scratch::folder(url, None).join("status");
+    let (job, problems) = scratch::pull_job(&prefix, &dir, true)?;
+    for p in &problems {
+        eprintln!("warning: {url}: {p}");
+    }
+    let states = view::shard_states(&prefix, &job)?;
+    Ok(crate::summary::summarize_states(&job, &states))
+}
+
+/// `run URL`: `workers` processes of `sparc3d work URL --all` on this machine (each takes
+/// the shards no live worker holds), then the job's progress; exits 0 when every shard is
+/// done.
+pub fn run(
+    url: &RemoteUrl,
+    arg: &Path,
+    workers: Option<usize>,
+    limit_args: &[String],
+) -> Result<std::process::ExitCode> {
+    // The job files, read once here: a bad URL or missing job is said once, not per worker.
+    work_copy(url, None)?;
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let workers = workers.unwrap_or(cores).max(1);
+    let exe = std::env::current_exe().context("locating the sparc3d binary")?;
+    eprintln!("{url}: {workers} workers");
+    let mut children = Vec::new();
+    for _ in 0..workers {
+        let child = std::process::Command::new(&exe)
+            .arg("work")
+            .arg(arg)
+            .arg("--all")
+            .args(limit_args)
+            .arg("--parent-pid")
+            .arg(std::process::id().to_string())
+            .spawn()
+            .context("starting a worker")?;
+        children.push(child);
+    }
+    let mut failed = 0;
+    for mut child in children {
+        if !child.wait().is_ok_and(|s| s.success()) {
+            failed += 1;
+        }
+    }
+    let s = summarize(url)?;
+    eprintln!(
+        "{} of {} shards done: {} ok, {} failed, {} pending",
+        s.shards_done, s.shards, s.ok, s.failed, s.pending
+    );
+    if s.shards_done < s.shards || failed > 0 {
+        eprintln!(
+            "error: {} shards not done{}; `sparc3d run {url}` resumes (finished items are kept \
+             in the bucket)",
+            s.shards - s.shards_done,
+            if failed > 0 { format!(", {failed} workers failed (above)") } else { String::new() }
+        );
+        return Ok(std::process::ExitCode::FAILURE);
+    }
+    Ok(std::process::ExitCode::SUCCESS)
+}

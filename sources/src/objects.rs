@@ -1,0 +1,304 @@
+//! The objects under one bucket prefix, read and written as a job whose home is a bucket
+//! needs them: whole small objects with their ETags, conditional writes (create only if
+//! absent, replace only if unchanged: how S3, GCS and Azure each let two writers race for a
+//! name and exactly one win), files streamed up and down (multipart above
+//! [`SINGLE_PUT_MAX`]), listings and deletes. Every call blocks on the [`Fetcher`]'s runtime
+//! and has its clients' time-outs and retries (throttling and server errors are retried with
+//! backoff by the client).
+
+use crate::error::{FetchError, FetchErrorKind};
+use crate::fetch::Fetcher;
+use crate::list::Listed;
+use crate::location::RemoteUrl;
+use futures_util::StreamExt;
+use object_store::path::Path as ObjectPath;
+use object_store::{
+    ObjectStore, ObjectStoreExt, PutMode, PutOptions, PutPayload, UpdateVersion, WriteMultipart,
+};
+use sha2::{Digest, Sha256};
+use std::io::{Read, Write};
+use std::path::Path;
+use std::sync::Arc;
+
+/// Files up to this size are uploaded in one request; larger ones in parts of this size.
+pub const SINGLE_PUT_MAX: u64 = 32 << 20;
+
+/// Parts of a multipart upload in flight at once.
+const PARTS_IN_FLIGHT: usize = 4;
+
+/// How a [`Prefix::put`] may treat an object already at the key.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum WriteMode {
+    /// Replace whatever is there.
+    Overwrite,
+    /// Write only if no object is there.
+    Create,
+    /// Write only if the object there still has this ETag.
+    Replace(String),
+}
+
+/// How a conditional write ended.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Written {
+    /// Written; the new object's ETag when the store gives one.
+    Done(Option<String>),
+    /// Not written: an object was there ([`WriteMode::Create`]) or it had changed
+    /// ([`WriteMode::Replace`]).
+    Refused,
+}
+
+/// A small object read whole.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Object {
+    /// Its bytes.
+    pub bytes: Vec<u8>,
+    /// Its ETag (quotes kept, as the store gives it for conditional writes).
+    pub etag: Option<String>,
+}
+
+/// A file streamed down: its size and sha256.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Downloaded {
+    /// Bytes written to the file.
+    pub bytes: u64,
+    /// Their sha256 (lower-case hex).
+    pub sha256: String,
+}
+
+/// The objects under one prefix of a bucket (`s3://bucket/jobs/a` holds `jobs/a/...`); keys
+/// given to its methods are relative to it.
+#[derive(Debug, Clone)]
+pub struct Prefix<'f> {
+    fetcher: &'f Fetcher,
+    root: RemoteUrl,
+    store: Arc<dyn ObjectStore>,
+}
+
+impl Fetcher {
+    /// The objects under `root` (a bucket URL; its client is made now, so missing or
+    /// malformed settings are reported here).
+    pub fn prefix(&self, root: &RemoteUrl) -> Result<Prefix<'_>, FetchError> {
+        Ok(Prefix {
+            fetcher: self,
+            root: root.clone(),
+            store: self.store(root)?,
+        })
+    }
+}
+
+impl Prefix<'_> {
+    /// The prefix's own URL.
+    pub fn root(&self) -> &RemoteUrl {
+        &self.root
+    }
+
+    /// The URL of the object at `key`.
+    pub fn url(&self, key: &str) -> RemoteUrl {
+        let base = self.root.key();
+        let base = base.trim_end_matches('/');
+        if base.is_empty() {
+            self.root.with_key(key)
+        } else {
+            self.root.with_key(&format!("{base}/{key}"))
+        }
+    }
+
+    fn path(&self, key: &str) -> ObjectPath {
+        crate::fetch::object_path(&self.url(key))
+    }
+
+    fn error(&self, key: &str, e: &object_store::Error) -> FetchError {
+        FetchError::from_store(&self.url(key).to_string(), e)
+    }
+
+    /// The object at `key` read whole with its ETag; `None` when there is none.
+    pub fn get(&self, key: &str) -> Result<Option<Object>, FetchError> {
+        let path = self.path(key);
+        self.fetcher.block_on(async {
+            let result = match self.store.get(&path).await {
+                Ok(r) => r,
+                Err(object_store::Error::NotFound { .. }) => return Ok(None),
+                Err(e) => return Err(self.error(key, &e)),
+            };
+            let etag = result.meta.e_tag.clone();
+            let bytes = result.bytes().await.map_err(|e| self.error(key, &e))?;
+            Ok(Some(Object {
+                bytes: bytes.to_vec(),
+                etag,
+            }))
+        })
+    }
+
+    /// Whether an object is at `key`, with its size.
+    pub fn size(&self, key: &str) -> Result<Option<u64>, FetchError> {
+        let path = self.path(key);
+        self.fetcher
+            .block_on(async {
+                match self.store.head(&path).await {
+                    Ok(meta) => Ok(Some(meta.size)),
+                    Err(object_store::Error::NotFound { .. }) => Ok(None),
+                    Err(e) => Err(e),
+                }
+            })
+            .map_err(|e| self.error(key, &e))
+    }
+
+    /// Writes `bytes` at `key` as `mode` allows.
+    pub fn put(&self, key: &str, bytes: Vec<u8>, mode: WriteMode) -> Result<Written, FetchError> {
+        let path = self.path(key);
+        let mode = match mode {
+            WriteMode::Overwrite => PutMode::Overwrite,
+            WriteMode::Create => PutMode::Create,
+            WriteMode::Replace(etag) => PutMode::Update(UpdateVersion {
+                e_tag: Some(etag),
+                version: None,
+            }),
+        };
+        let options = PutOptions {
+            mode,
+            ..PutOptions::default()
+        };
+        let result = self.fetcher.block_on(self.store.put_opts(
+            &path,
+            PutPayload::from(bytes),
+            options,
+        ));
+        match result {
+            Ok(r) => Ok(Written::Done(r.e_tag)),
+            Err(object_store::Error::AlreadyExists { .. })
+            | Err(object_store::Error::Precondition { .. }) => Ok(Written::Refused),
+            Err(e) => Err(self.error(key, &e)),
+        }
+    }
+
+    /// Uploads the file at `file` to `key` (replacing what is there), streamed in parts when
+    /// it is larger than [`SINGLE_PUT_MAX`]; a failed upload leaves no object at `key`.
+    pub fn upload(&self, key: &str, file: &Path) -> Result<(), FetchError> {
+        let local = |e: std::io::Error| {
+            FetchError::new(
+                self.url(key).to_string(),
+                FetchErrorKind::Other,
+                format!("reading {} to upload it: {e}", file.display()),
+            )
+        };
+        let size = std::fs::metadata(file).map_err(local)?.len();
+        if size <= SINGLE_PUT_MAX {
+            let bytes = std::fs::read(file).map_err(local)?;
+            return self.put(key, bytes, WriteMode::Overwrite).map(|_| ());
+        }
+        let path = self.path(key);
+        let mut reader = std::fs::File::open(file).map_err(local)?;
+        self.fetcher.block_on(async {
+            let upload = self
+                .store
+                .put_multipart(&path)
+                .await
+                .map_err(|e| self.error(key, &e))?;
+            let mut parts = WriteMultipart::new_with_chunk_size(upload, SINGLE_PUT_MAX as usize);
+            let mut buf = vec![0u8; 1 << 20];
+            loop {
+                let n = match reader.read(&mut buf) {
+                    Ok(0) => break,
+                    Ok(n) => n,
+                    Err(e) => {
+                        let _ = parts.abort().await;
+                        return Err(local(e));
+                    }
+                };
+                if let Err(e) = parts.wait_for_capacity(PARTS_IN_FLIGHT).await {
+                    return Err(self.error(key, &e));
+                }
+                parts.write(&buf[..n]);
+            }
+            parts.finish().await.map_err(|e| self.error(key, &e))?;
+            Ok(())
+        })
+    }
+
+    /// Streams the object at `key` into a new file at `file`, hashing it on the way; a body
+    /// that breaks off is an error (the file is then removed).
+    pub fn download(&self, key: &str, file: &Path) -> Result<Downloaded, FetchError> {
+        let local = |e: std::io::Error| {
+            FetchError::new(
+                self.url(key).to_string(),
+                FetchErrorKind::Other,
+                format!("writing {}: {e}", file.display()),
+            )
+        };
+        let path = self.path(key);
+        let mut out = std::io::BufWriter::new(std::fs::File::create(file).map_err(local)?);
+        let result = self.fetcher.block_on(async {
+            let result = self
+                .store
+                .get(&path)
+                .await
+                .map_err(|e| self.error(key, &e))?;
+            let size = result.meta.size;
+            let mut hasher = Sha256::new();
+            let mut written = 0u64;
+            let mut body = result.into_stream();
+            while let Some(chunk) = body.next().await {
+                let chunk = chunk.map_err(|e| {
+                    let mut err = self.error(key, &e);
+                    err.kind = FetchErrorKind::Truncated;
+                    err.message = format!("the body broke off after {written} of {size} bytes");
+                    err
+                })?;
+                hasher.update(&chunk);
+                out.write_all(&chunk).map_err(local)?;
+                written += chunk.len() as u64;
+            }
+            out.flush().map_err(local)?;
+            if written != size {
+                return Err(FetchError::new(
+                    self.url(key).to_string(),
+                    FetchErrorKind::Truncated,
+                    format!("the body has {written} bytes, the store announced {size}"),
+                ));
+            }
+            let sha256 = hasher
+                .finalize()
+                .iter()
+                .map(|b| format!("{b:02x}"))
+                .collect();
+            Ok(Downloaded {
+                bytes: written,
+                sha256,
+            })
+        });
+        if result.is_err() {
+            let _ = std::fs::remove_file(file);
+        }
+        result
+    }
+
+    /// Every object whose key starts with `key_prefix` (relative to this prefix), sorted by
+    /// key; none is an empty list, not an error.
+    pub fn list(&self, key_prefix: &str) -> Result<Vec<Listed>, FetchError> {
+        match self.fetcher.list(&self.url(key_prefix)) {
+            Ok(found) => Ok(found),
+            Err(e) if e.kind == FetchErrorKind::NotFound => Ok(Vec::new()),
+            Err(e) => Err(e),
+        }
+    }
+
+    /// The key of `listed` relative to this prefix.
+    pub fn relative_key(&self, listed: &Listed) -> String {
+        let base = self.root.key();
+        let base = base.trim_end_matches('/');
+        let key = listed.url.key();
+        match key.strip_prefix(base) {
+            Some(rest) if !base.is_empty() => rest.trim_start_matches('/').to_string(),
+            _ => key,
+        }
+    }
+
+    /// Deletes the object at `key`; one that is not there is no error.
+    pub fn delete(&self, key: &str) -> Result<(), FetchError> {
+        let path = self.path(key);
+        match self.fetcher.block_on(self.store.delete(&path)) {
+            Ok(()) | Err(object_store::Error::NotFound { .. }) => Ok(()),
+            Err(e) => Err(self.error(key, &e)),
+        }
+    }
+}
