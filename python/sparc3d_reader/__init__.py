@@ -25,7 +25,9 @@ its own dataset folder, read by its `FlexiDualGridDataset`).
 
 A job folder is read as the CLI reads it (`jobs.py`): only its own shards, each checked against
 its completion record (`verify=True`: the sha256; "quick"; False) and its rows against the
-frozen manifest; every shard left out is named in a `ShardWarning`.
+frozen manifest; every shard left out is named in a `ShardWarning`. Wherever a job is taken, a
+job URL is too (`s3://bucket/prefix`, `gs://`, `az://`: a job whose home is a bucket, read
+through `pyarrow.fs` with the credentials and endpoint of the environment, `location.py`).
 
 Only numpy and pyarrow are needed; `SparseCubesDataset` is a `torch.utils.data.Dataset` when
 torch is installed (imported only when the class is first used) and a plain indexable class
@@ -45,8 +47,9 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from . import jobs
+from . import jobs, location
 from .jobs import ShardWarning, Verify
+from .location import ObjectPath
 
 __all__ = [
     "TENSORS",
@@ -75,6 +78,7 @@ __all__ = [
     "shard_config",
     "check_schema_version",
     "SparseCubesDataset",
+    "ObjectPath",
 ]
 
 __version__ = "0.1.0"
@@ -115,16 +119,18 @@ _OPTIONAL_SAMPLE_COLUMNS = _columns_of(OPTIONAL_SAMPLE_TENSORS)
 #: strings, null where an item's row had no value (docs/FORMAT.md, "Provenance columns").
 PROVENANCE_PREFIX = "manifest."
 
-PathLike = Union[str, os.PathLike]
+#: A local path, or a job URL (`s3://bucket/prefix`, `gs://…`, `az://…`) where a job is taken.
+PathLike = Union[str, os.PathLike, ObjectPath]
 
 
 def shard_paths(paths: Union[PathLike, Iterable[PathLike]], complete_only: bool = True,
-                verify: Verify = True) -> List[pathlib.Path]:
+                verify: Verify = True) -> List[Union[pathlib.Path, ObjectPath]]:
     """The shard files under `paths` that the reader reads, checked as `iter_items` checks them
     (docs/RELIABILITY.md, "The Python reader"). Each path is a job folder (its own shards with a
     completion record that the file matches, and every row its item; with `complete_only`
     false also shards without a record), a folder of shard files, or a file (read when it has
-    no completion record beside it). Shards left out are named in a `ShardWarning`.
+    no completion record beside it), or a job URL (its shards' objects, as `ObjectPath`s whose
+    `str` is their URL). Shards left out are named in a `ShardWarning`.
 
     `verify`: True hashes every shard against its record's sha256 (as `sparc3d inspect`), "quick"
     only those whose size or stamp changed since recorded (as `sparc3d status`), False checks
@@ -134,12 +140,14 @@ def shard_paths(paths: Union[PathLike, Iterable[PathLike]], complete_only: bool 
 
 def _shards(paths: Union[PathLike, Iterable[PathLike]], complete_only: bool) -> List[jobs.Shard]:
     """The shards under `paths`, not yet checked against their records."""
-    if isinstance(paths, (str, os.PathLike)):
+    if isinstance(paths, (str, os.PathLike, ObjectPath)):
         paths = [paths]
     out: List[jobs.Shard] = []
     for p in paths:
-        p = pathlib.Path(p)
-        if p.is_dir():
+        p = location.of(p)
+        if isinstance(p, ObjectPath):
+            out += jobs.job_shards(jobs.open_job(p), complete_only)
+        elif p.is_dir():
             job = jobs.job_of_folder(p)
             out += jobs.job_shards(job, complete_only) if job else _folder_shards(p, complete_only)
         elif p.is_file():
@@ -193,7 +201,7 @@ def _rows_not_the_shards(shard: jobs.Shard) -> Optional[str]:
     """Why a job shard's footer or rows are not its own (`jobs.check_rows`), if so; a file
     pyarrow cannot read is damaged too."""
     try:
-        f = pq.ParquetFile(shard.path)
+        f = location.parquet_file(shard.path)
         return jobs.check_footer(shard, f) or jobs.check_rows(shard, jobs.read_check_columns(shard.path, f))
     except (OSError, pa.ArrowException, UnicodeDecodeError, OverflowError) as e:
         return f"it cannot be read ({type(e).__name__}: {e})"
@@ -322,10 +330,11 @@ def collate_vecset(batch: Sequence[Dict[str, Any]], to_torch: bool = False) -> D
 def check_schema_version(path: PathLike) -> None:
     """Raises a ValueError naming the file when a shard (or tensor file) is of another schema
     version than this reader decodes."""
-    _check_version(pathlib.Path(path), pq.ParquetFile(path))
+    path = location.of(path)
+    _check_version(path, location.parquet_file(path))
 
 
-def _check_version(path: pathlib.Path, f: pq.ParquetFile) -> None:
+def _check_version(path: location.Location, f: pq.ParquetFile) -> None:
     meta = f.metadata.metadata or {}
     version = meta.get(b"sparc3d.schema_version", b"missing").decode()
     if version != str(SCHEMA_VERSION):
@@ -335,12 +344,12 @@ def _check_version(path: pathlib.Path, f: pq.ParquetFile) -> None:
 
 def shard_config(path: PathLike) -> Dict[str, Any]:
     """The job config a shard was written with (its `sparc3d.config` metadata); {} if absent."""
-    meta = pq.ParquetFile(path).metadata.metadata or {}
+    meta = location.parquet_file(location.of(path)).metadata.metadata or {}
     raw = meta.get(b"sparc3d.config")
     return json.loads(raw) if raw else {}
 
 
-def _item_columns(path: pathlib.Path, f: pq.ParquetFile, samples: bool) -> List[str]:
+def _item_columns(path: location.Location, f: pq.ParquetFile, samples: bool) -> List[str]:
     """The columns an item is read from; a ValueError names any the file lacks. The sample
     columns are read when asked for and present (jobs without `[samples]` hold them empty)."""
     _check_version(path, f)
@@ -352,8 +361,8 @@ def _item_columns(path: pathlib.Path, f: pq.ParquetFile, samples: bool) -> List[
     return base + _SAMPLE_COLUMNS + [c for c in _OPTIONAL_SAMPLE_COLUMNS if c in names]
 
 
-def _rows(path: pathlib.Path, batch_size: int, samples: bool = True) -> Iterator[Dict[str, Any]]:
-    f = pq.ParquetFile(path)
+def _rows(path: location.Location, batch_size: int, samples: bool = True) -> Iterator[Dict[str, Any]]:
+    f = location.parquet_file(path)
     columns = _item_columns(path, f, samples)
     n = 0
     for batch in f.iter_batches(batch_size=batch_size, columns=columns):
@@ -362,7 +371,7 @@ def _rows(path: pathlib.Path, batch_size: int, samples: bool = True) -> Iterator
     _check_row_count(path, n, f.metadata.num_rows)
 
 
-def _check_row_count(path: pathlib.Path, read: int, stored: int) -> None:
+def _check_row_count(path: location.Location, read: int, stored: int) -> None:
     # pyarrow reads a column chunk whose page header is damaged as no rows at all, silently.
     if read != stored:
         raise ValueError(f"{path}: {read} rows read, its footer says {stored}: the file is "
@@ -370,7 +379,7 @@ def _check_row_count(path: pathlib.Path, read: int, stored: int) -> None:
 
 
 @contextlib.contextmanager
-def _naming(path: pathlib.Path) -> Iterator[None]:
+def _naming(path: location.Location) -> Iterator[None]:
     """Errors of pyarrow or zstd reading a file (a damaged page, a blob failing zstd's checksum,
     text that is not UTF-8) as a ValueError naming the file."""
     try:
@@ -379,7 +388,7 @@ def _naming(path: pathlib.Path) -> Iterator[None]:
         raise ValueError(f"{path}: cannot be read ({type(e).__name__}: {e})") from e
 
 
-def _shard_item(path: pathlib.Path, row: Dict[str, Any]) -> Dict[str, Any]:
+def _shard_item(path: location.Location, row: Dict[str, Any]) -> Dict[str, Any]:
     """`row_to_item`, its errors naming the shard file."""
     try:
         return row_to_item(row)
@@ -507,7 +516,7 @@ def iter_tensor_rows(paths: Union[PathLike, Iterable[PathLike]], tensors: Sequen
     each name in `tensors` decoded (None when null; a ValueError names a tensor the file does
     not have). Folders are read like job folders (`shard_paths`, with `verify`)."""
     for path in shard_paths(paths, complete_only, verify):
-        f = pq.ParquetFile(path)
+        f = location.parquet_file(path)
         _check_version(path, f)
         jobs.require_columns(path, f.schema_arrow.names,
                              [f"{t}{s}" for t in tensors for s in ("", "_dtype", "_shape")])
@@ -600,9 +609,9 @@ class _SparseCubesDatasetBase:
                 self._index_shard(s, path)
         self._cache: Tuple[Optional[Tuple[int, int]], Optional[pa.Table]] = (None, None)
 
-    def _index_shard(self, s: int, path: pathlib.Path) -> None:
+    def _index_shard(self, s: int, path: location.Location) -> None:
         """Appends the ok rows of shard file `s` to the index."""
-        f = pq.ParquetFile(path)
+        f = location.parquet_file(path)
         jobs.require_columns(path, f.schema_arrow.names, ["id", "status"])
         for g in range(f.metadata.num_row_groups):
             t = f.read_row_group(g, columns=["id", "status"]).to_pydict()
@@ -618,7 +627,7 @@ class _SparseCubesDatasetBase:
         if key != (s, g) or table is None:
             path = self.paths[s]
             jobs.check_unchanged(self._shards[s])
-            f = pq.ParquetFile(path)
+            f = location.parquet_file(path)
             table = f.read_row_group(g, columns=_item_columns(path, f, samples=True))
             _check_row_count(path, table.num_rows, f.metadata.row_group(g).num_rows)
             self._cache = ((s, g), table)
@@ -643,7 +652,8 @@ class _SparseCubesDatasetBase:
             yield self[i]
 
     def __getstate__(self):
-        # Worker processes of a DataLoader get a copy without the cached row group.
+        # Worker processes of a DataLoader get a copy without the cached row group. Shards in a
+        # bucket are `ObjectPath`s (their URL only): a worker makes its filesystem again.
         state = self.__dict__.copy()
         state["_cache"] = (None, None)
         return state
@@ -676,8 +686,11 @@ def __getattr__(name: str):
 
 
 def read_job_config(job: PathLike) -> Dict[str, Any]:
-    """The config of a job folder (`job.json`'s `config`)."""
-    return json.loads((pathlib.Path(job) / "job.json").read_text())["config"]
+    """The config of a job folder or job URL (`job.json`'s `config`)."""
+    root = location.of(job)
+    if isinstance(root, ObjectPath):
+        location.require_job(root)
+    return json.loads(location.read_text(root / "job.json"))["config"]
 
 
 # --- Layouts of other codebases, written by `sparc3d export` -------------------------------

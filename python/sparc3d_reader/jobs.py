@@ -1,11 +1,14 @@
-"""Which shards of a job folder are read, checked the way the `sparc3d` CLI checks them
-(docs/RELIABILITY.md, "Finished shards" and "The Python reader").
+"""Which shards of a job are read, checked the way the `sparc3d` CLI checks them
+(docs/RELIABILITY.md, "Finished shards" and "The Python reader"). A job is a folder or a URL of
+a bucket prefix (`location.py`); both are read by the same code.
 
-A job's shards are `shards/part-NNNNN.parquet` for N below `job.json`'s `shards`. One is read
-only when its completion record `part-NNNNN.complete.json` parses, has the job's fingerprint
-(another is an error, as in the CLI: a mixed job), is this shard's, and the file matches it:
-its size and sha256 (`verify=True`, what `inspect`/`show` do), or its size and stamp with the
-sha256 only when the stamp changed (`verify="quick"`, what `run`/`status` do), or its size only
+A job's shards are `shards/part-NNNNN.parquet` for N below `job.json`'s `shards`, or the object
+`shards/<object>` that the record names (writers to a bucket upload under names of their own).
+One is read only when its completion record `part-NNNNN.complete.json` parses, has the job's
+fingerprint (another is an error, as in the CLI: a mixed job), is this shard's, and the file
+matches it: its size and sha256 (`verify=True`, what `inspect`/`show` do), or its size and stamp
+with the sha256 only when the stamp changed (`verify="quick"`, what `run`/`status` do; an object
+has no stamp: it is hashed only when modified after its record was created), or its size only
 (`verify=False`). Its footer must name the job's fingerprint, and its rows are checked against
 the frozen manifest before any is returned: one row per item of the shard, in order, with the
 manifest's id and uri, a known status, as many ok rows as the record counts, the job's
@@ -13,14 +16,14 @@ resolution and a normalization the converter can produce.
 
 A shard that is not read for any of these reasons, and any other `.parquet` file in `shards/`
 (a stray `part-00099`), is named in a `ShardWarning`, with its quarantine folder when `run` or
-`verify` moved it aside. `warnings.simplefilter("error", ShardWarning)` makes them errors.
+`verify` moved it aside. In a bucket, `part-NNNNN.<token>.parquet` objects that no record names
+are uploads of writers that lost a race or died before their record: not shards, not named. `warnings.simplefilter("error", ShardWarning)` makes them errors.
 """
 
 from __future__ import annotations
 
 import bisect
 import dataclasses
-import hashlib
 import json
 import math
 import os
@@ -31,6 +34,9 @@ import warnings
 from typing import Dict, List, Optional, Sequence, Tuple, Union
 
 import pyarrow.parquet as pq
+
+from . import location
+from .location import Location, ObjectPath
 
 Verify = Union[bool, str]
 
@@ -45,6 +51,10 @@ def check_verify_mode(verify: Verify) -> None:
         raise ValueError(f"verify={verify!r}: one of True, 'full', 'quick', False")
 
 _SHARD_NAME = re.compile(r"^part-(\d{5,})\.parquet$")
+#: A writer's upload of a shard's data to a bucket, `part-NNNNN.<token>.parquet`: the shard's
+#: data when its record names it (`object`), else a leftover of a writer that lost the race for
+#: the record or died before writing it.
+_UPLOAD_NAME = re.compile(r"^part-(\d{5,})\.[^/\\]+\.parquet$")
 
 # Normalizations the converter can produce (sparcubes/src/normalize.rs): the longest side of a
 # mesh lies in [1e-15, 1e15] and the grid uses at most all of the unit cube, so the scale is at
@@ -60,10 +70,10 @@ class ShardWarning(UserWarning):
 
 @dataclasses.dataclass
 class Job:
-    """What the checks need of a job folder: `job.json` and, on first use, the ids and uris
-    of its frozen manifest."""
+    """What the checks need of a job (a folder or a bucket prefix): `job.json` and, on first
+    use, the ids and uris of its frozen manifest."""
 
-    root: pathlib.Path
+    root: Location
     fingerprint: str
     items: int
     shards: int
@@ -72,13 +82,28 @@ class Job:
     _items: Optional[List[Tuple[str, str]]] = None
     _shards: Optional[List[int]] = None
 
-    def shard_file(self, shard: int) -> pathlib.Path:
+    def shard_file(self, shard: int) -> Location:
         """`shards/part-NNNNN.parquet`."""
         return self.root / "shards" / f"part-{shard:05d}.parquet"
 
-    def record_file(self, shard: int) -> pathlib.Path:
+    def record_file(self, shard: int) -> Location:
         """`shards/part-NNNNN.complete.json`, the completion record."""
         return self.root / "shards" / f"part-{shard:05d}.complete.json"
+
+    def data_file(self, shard: int, record: dict) -> Tuple[Location, Optional[str]]:
+        """The file holding a finished shard's rows: `shards/<object>` when its record names
+        one, else `shards/part-NNNNN.parquet`; and why the record's `object` cannot be this
+        shard's (None when it can): it must be `part-NNNNN.parquet` or
+        `part-NNNNN.<token>.parquet` of this shard, a name within `shards/`."""
+        name = record.get("object")
+        if name is None:
+            return self.shard_file(shard), None
+        own = re.compile(rf"part-{shard:05d}(\.[^/\\]+)?\.parquet")
+        if not isinstance(name, str) or not own.fullmatch(name):
+            return self.shard_file(shard), (
+                f"its completion record names object {name!r}, not one of shard {shard}'s "
+                f"(part-{shard:05d}.parquet or part-{shard:05d}.<token>.parquet)")
+        return self.root / "shards" / name, None
 
     def shard_items(self, shard: int) -> range:
         """Manifest positions of the items of a shard: those frozen with that shard
@@ -101,11 +126,17 @@ class Job:
         self._shards = [s for _, _, s in items]
 
 
-def open_job(root: pathlib.Path) -> Job:
-    """The job in folder `root`; a ValueError naming `job.json` when it is not one."""
+def open_job(root: Union[str, os.PathLike, ObjectPath]) -> Job:
+    """The job in folder `root`, or at a job URL (`s3://bucket/prefix`, `gs://`, `az://`); a
+    ValueError naming `job.json` when it is not one. For a URL, a FileNotFoundError or
+    ValueError names what is missing (the object, the bucket) or what to set (credentials,
+    endpoint) when job.json cannot be read (`location.require_job`)."""
+    root = location.of(root)
+    if isinstance(root, ObjectPath):
+        location.require_job(root)
     path = root / "job.json"
     try:
-        job = json.loads(path.read_text())
+        job = json.loads(location.read_text(path))
         config = job["config"]
         return Job(root=root, fingerprint=str(job["fingerprint"]), items=int(job["items"]),
                    shards=int(job["shards"]), shard_size=max(int(config["shard_size"]), 1),
@@ -134,10 +165,10 @@ def job_of_file(path: pathlib.Path) -> Tuple[Optional[Job], Optional[int]]:
     return (job, shard) if shard < job.shards and path.name == job.shard_file(shard).name else (None, None)
 
 
-def _manifest_items(path: pathlib.Path) -> List[Tuple[str, str, int]]:
+def _manifest_items(path: Location) -> List[Tuple[str, str, int]]:
     items = []
     try:
-        with open(path, encoding="utf-8") as f:
+        with location.open_text(path) as f:
             for line in f:
                 if line.strip():
                     record = json.loads(line)
@@ -155,7 +186,7 @@ class Shard:
     """A shard file to read: its job and index (None for a file outside a job), its completion
     record (None when it has none) and the file's stamp once checked, to notice a later change."""
 
-    path: pathlib.Path
+    path: Location
     job: Optional[Job] = None
     index: Optional[int] = None
     record: Optional[dict] = None
@@ -164,31 +195,26 @@ class Shard:
     torn: Optional[str] = None
 
 
-def _stamp(path: pathlib.Path) -> Tuple[int, int, int, int]:
-    st = os.stat(path)
-    return st.st_size, st.st_mtime_ns, st.st_ctime_ns, st.st_ino
+_stamp = location.stamp
 
 
-def file_sha256(path: pathlib.Path) -> str:
-    """Hex sha256 of a file's bytes, read in 4 MiB blocks."""
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        while block := f.read(4 << 20):
-            h.update(block)
-    return h.hexdigest()
+def file_sha256(path: Location) -> str:
+    """Hex sha256 of a file's (or an object's) bytes, read in 4 MiB blocks."""
+    return location.sha256(path)
 
 
 # Files that matched their record in this process, by path: (size, mtime, ctime, inode, sha256).
 # A file whose stamp is unchanged since has not been written (the ctime cannot be set back), so
-# opening the same job again, or its shard files one by one, hashes nothing twice.
+# opening the same job again, or its shard files one by one, hashes nothing twice. Objects are
+# not remembered: their stamp (size and a time to the second) does not show every rewrite.
 _verified: Dict[str, Tuple[int, int, int, int, str]] = {}
 
 
-def read_record(path: pathlib.Path) -> Tuple[Optional[dict], Optional[str]]:
+def read_record(path: Location) -> Tuple[Optional[dict], Optional[str]]:
     """The completion record at `path`: (None, None) when absent, (None, why) when it does
     not parse, else (record, None)."""
     try:
-        text = path.read_bytes()
+        text = location.read_bytes(path)
     except FileNotFoundError:
         return None, None
     try:
@@ -226,18 +252,36 @@ def check_against_record(shard: Shard, verify: Verify) -> Optional[str]:
 
 def _check_sha(shard: Shard, stamp: Tuple[int, int, int, int], verify: Verify) -> Optional[str]:
     record = shard.record or {}
-    if verify is False or _verified.get(str(shard.path)) == (*stamp, record.get("sha256")):
+    local = isinstance(shard.path, pathlib.Path)
+    if verify is False or (local and _verified.get(str(shard.path)) == (*stamp, record.get("sha256"))):
         return None
-    recorded = record.get("stamp") or {}
-    if verify == "quick" and (recorded.get("modified_ns"), recorded.get("changed_ns"),
-                              recorded.get("inode")) == stamp[1:]:
+    if verify == "quick" and _unchanged_since_record(shard, stamp):
         return None
     sha = file_sha256(shard.path)
     if sha != record.get("sha256"):
         return (f"{shard.path} has sha256 {sha}, its completion record says "
                 f"{record.get('sha256')} (the file changed after it was written)")
-    _verified[str(shard.path)] = (*stamp, sha)
+    if local:
+        _verified[str(shard.path)] = (*stamp, sha)
     return None
+
+
+def _unchanged_since_record(shard: Shard, stamp: Tuple[int, int, int, int]) -> bool:
+    """Whether the file is as its record found it, by what its store keeps: on disk the
+    record's `stamp` (a record without one: no); in a bucket, where records have no stamp, the
+    object not modified after its record was created, both times by the store's clock (a writer
+    uploads its object, then creates the record). An object rewritten within the second its
+    record was created passes; `verify=True` notices it."""
+    if isinstance(shard.path, ObjectPath):
+        if shard.job is None or shard.index is None:
+            return False
+        try:
+            created = location.stamp(shard.job.record_file(shard.index))[1]
+        except FileNotFoundError:
+            return False
+        return 0 < stamp[1] <= created
+    recorded = (shard.record or {}).get("stamp") or {}
+    return (recorded.get("modified_ns"), recorded.get("changed_ns"), recorded.get("inode")) == stamp[1:]
 
 
 def check_unchanged(shard: Shard) -> None:
@@ -271,27 +315,28 @@ def job_shards(job: Job, complete_only: bool) -> List[Shard]:
     for i in range(job.shards):
         record, torn = read_record(job.record_file(i))
         path = job.shard_file(i)
+        if record is not None:
+            data, torn = job.data_file(i, record)
         if torn is not None:
             notes.append(f"{path.name}: damaged, {torn}")
         elif record is not None:
-            out.append(Shard(path, job, i, record))
-        elif complete_only or not path.exists():
+            out.append(Shard(data, job, i, record))
+        elif complete_only or not location.exists(path):
             notes.append(f"{path.name}: not finished")
         else:
             out.append(Shard(path, job, i, None))
     _warn_not_read(job, notes, _quarantined(job))
-    _warn_strays(job)
+    _warn_strays(job, {s.path.name for s in out})
     return out
 
 
 def _quarantined(job: Job) -> Dict[str, List[str]]:
     """Shard name → its folders in `quarantine/` with the first line of their reason."""
     found: Dict[str, List[str]] = {}
-    folder = job.root / "quarantine"
-    for d in sorted(folder.iterdir()) if folder.is_dir() else []:
+    for d in location.entries(job.root / "quarantine"):
         name = d.name.rsplit("-", 1)[0]
         try:
-            reason = (d / "reason.txt").read_text(errors="replace").strip().splitlines()[0]
+            reason = location.read_text(d / "reason.txt", errors="replace").strip().splitlines()[0]
         except (OSError, IndexError):
             reason = "no reason.txt"
         found.setdefault(name, []).append(f"quarantine/{d.name} ({reason})")
@@ -311,10 +356,16 @@ def _warn_not_read(job: Job, notes: List[str], quarantined: Dict[str, List[str]]
                 f"`sparc3d run {job.root}` converts what is left")
 
 
-def _warn_strays(job: Job) -> None:
-    own = {job.shard_file(i).name for i in range(job.shards)}
-    strays = sorted(p.name for p in (job.root / "shards").glob("*.parquet")
-                    if not p.name.startswith(".") and p.name not in own)
+def _warn_strays(job: Job, read: set) -> None:
+    """Names every `.parquet` in `shards/` that is neither a shard's slot
+    (`part-NNNNN.parquet`) nor read (`read`: the objects records name). In a bucket, writers'
+    uploads that no record names (`part-NNNNN.<token>.parquet`) are left without a word: a
+    writer that lost the race for a record, or died before writing it, leaves one."""
+    own = {job.shard_file(i).name for i in range(job.shards)} | read
+    bucket = isinstance(job.root, ObjectPath)
+    strays = sorted(n for n in location.parquet_names(job.root / "shards")
+                    if not n.startswith(".") and n not in own
+                    and not (bucket and _UPLOAD_NAME.match(n)))
     if strays:
         last = job.shard_file(max(job.shards - 1, 0)).name
         warn_shards(f"{job.root}: ignored {', '.join(strays)} in shards/: not one of the "
@@ -405,13 +456,13 @@ def _span(indices: List[int]) -> str:
     return ", ".join(map(str, indices[:8])) + (" …" if len(indices) > 8 else "")
 
 
-def read_check_columns(path: pathlib.Path, f: pq.ParquetFile) -> Dict[str, list]:
+def read_check_columns(path: Location, f: pq.ParquetFile) -> Dict[str, list]:
     """CHECK_COLUMNS of every row of the shard file `f` (opened from `path`)."""
     require_columns(path, f.schema_arrow.names, CHECK_COLUMNS)
     return f.read(columns=CHECK_COLUMNS).to_pydict()
 
 
-def require_columns(path: pathlib.Path, present: Sequence[str], wanted: Sequence[str]) -> None:
+def require_columns(path: Location, present: Sequence[str], wanted: Sequence[str]) -> None:
     """A ValueError naming the file and every column of `wanted` it lacks."""
     missing = [c for c in wanted if c not in set(present)]
     if missing:
