@@ -89,13 +89,11 @@ impl Checkpoints {
         let bytes = self.segment(path, len)?;
         let key = keys::checkpoint(self.shard, &self.writer, self.seq);
         let url = self.prefix.url(&key).to_string();
-        self.lease
-            .confirm()
-            .map_err(|why| WorkerError::LeaseLost {
-                shard: self.shard,
-                lease: PathBuf::from(self.prefix.url(&keys::lease(self.shard)).to_string()),
-                why,
-            })?;
+        self.lease.confirm().map_err(|why| WorkerError::LeaseLost {
+            shard: self.shard,
+            lease: PathBuf::from(self.prefix.url(&keys::lease(self.shard)).to_string()),
+            why,
+        })?;
         match self.prefix.put(&key, bytes, WriteMode::Create) {
             Ok(Written::Done(_)) => {}
             Ok(Written::Refused) => {

@@ -69,11 +69,17 @@ mod tests {
     #[test]
     fn keys_follow_the_folder_layout_and_sort_by_sequence() {
         assert_eq!(record(3), "shards/part-00003.complete.json");
-        assert_eq!(data(&data_name(3, "h_1_ab")), "shards/part-00003.h_1_ab.parquet");
+        assert_eq!(
+            data(&data_name(3, "h_1_ab")),
+            "shards/part-00003.h_1_ab.parquet"
+        );
         assert_eq!(lease(12), "state/part-00012.lease");
         assert!(checkpoint(1, "w", 9) < checkpoint(1, "w", 10));
         assert_eq!(shard_of("shards/part-00042.x.parquet"), Some(42));
-        assert_eq!(shard_of("state/part-00007.journals/a.000001.journal"), Some(7));
+        assert_eq!(
+            shard_of("state/part-00007.journals/a.000001.journal"),
+            Some(7)
+        );
         assert_eq!(shard_of("shards/other.parquet"), None);
     }
 }

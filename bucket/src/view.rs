@@ -35,9 +35,10 @@ fn shard_objects(prefix: &Prefix<'_>) -> Result<BTreeMap<String, u64>> {
 
 /// The name of the object a record's shard is in.
 pub fn object_name(shard: u64, record: &CompletionRecord) -> String {
-    record.object.clone().unwrap_or_else(|| {
-        format!("{}.parquet", sparc3d_schema::JobLayout::shard_name(shard))
-    })
+    record
+        .object
+        .clone()
+        .unwrap_or_else(|| format!("{}.parquet", sparc3d_schema::JobLayout::shard_name(shard)))
 }
 
 /// Every shard's state, and the checkpoints of the unfinished ones brought into `job`'s

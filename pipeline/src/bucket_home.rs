@@ -120,7 +120,11 @@ pub fn run(
             "error: {} shards not done{}; `sparc3d run {url}` resumes (finished items are kept \
              in the bucket)",
             s.shards - s.shards_done,
-            if failed > 0 { format!(", {failed} workers failed (above)") } else { String::new() }
+            if failed > 0 {
+                format!(", {failed} workers failed (above)")
+            } else {
+                String::new()
+            }
         );
         return Ok(std::process::ExitCode::FAILURE);
     }

@@ -158,11 +158,9 @@ impl Prefix<'_> {
             mode,
             ..PutOptions::default()
         };
-        let result = self.fetcher.block_on(self.store.put_opts(
-            &path,
-            PutPayload::from(bytes),
-            options,
-        ));
+        let result =
+            self.fetcher
+                .block_on(self.store.put_opts(&path, PutPayload::from(bytes), options));
         match result {
             Ok(r) => Ok(Written::Done(r.e_tag)),
             Err(object_store::Error::AlreadyExists { .. })

@@ -17,6 +17,9 @@ use sparc3d_schema::{CompletionRecord, ErrorClass, FrozenItem, ItemStatus, Limit
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
+/// What [`WorkOptions::after_item`] calls after each item.
+pub type AfterItem = Box<dyn FnMut(&Journal) -> Result<()> + Send>;
+
 /// How to process shards.
 pub struct WorkOptions {
     /// How to start the item worker process.
@@ -32,7 +35,7 @@ pub struct WorkOptions {
     /// Called after each item's final result is journalled (an item boundary: its journal
     /// holds whole item histories), with this holder's journal; an error stops the shard.
     /// A job whose home is a bucket uploads checkpoints here.
-    pub after_item: Option<Box<dyn FnMut(&Journal) -> Result<()> + Send>>,
+    pub after_item: Option<AfterItem>,
 }
 
 /// What happened to a shard.

@@ -20,7 +20,9 @@ pub struct Args {
 /// Runs `sparc3d status`.
 pub fn run(args: Args) -> Result<ExitCode> {
     let s = match sparc3d_bucket::JobHome::parse(&args.job)? {
-        sparc3d_bucket::JobHome::Folder(dir) => summarize(&crate::job_setup::open_read_only(&dir)?)?,
+        sparc3d_bucket::JobHome::Folder(dir) => {
+            summarize(&crate::job_setup::open_read_only(&dir)?)?
+        }
         sparc3d_bucket::JobHome::Bucket(url) => crate::bucket_home::summarize(&url)?,
     };
     if args.json {

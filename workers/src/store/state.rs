@@ -202,7 +202,7 @@ pub enum Verified {
     /// changed (copied, `touch`ed) and its new stamp was recorded, so quick checks stay quick.
     Good {
         /// The record.
-        record: CompletionRecord,
+        record: Box<CompletionRecord>,
         /// Whether the stamp was re-recorded.
         restamped: bool,
     },
@@ -241,7 +241,7 @@ pub fn verify_shard(
                 .ok();
             if record.stamp == stamp || !repair {
                 return Ok(Verified::Good {
-                    record: *record,
+                    record,
                     restamped: false,
                 });
             }
@@ -299,7 +299,7 @@ pub fn verify_shard(
                 )?;
             }
             Ok(Verified::Good {
-                record: *record,
+                record,
                 restamped,
             })
         })(),

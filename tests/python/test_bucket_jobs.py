@@ -1,0 +1,148 @@
+"""Jobs whose home is a bucket (issue 31), against moto's S3 server on loopback: workers that
+share nothing but the bucket (each its own scratch folder) give the same content digest as the
+same job on disk, leave one upload per shard and no lease or checkpoint behind; a worker
+killed with kill -9 mid-shard loses no checkpointed item and every item ends in the shard
+exactly once; an upload left by a worker killed before its record is never read and is
+cleaned up; `verify` finds a shard altered in the bucket; a bucket without credentials or
+without the job is a clear error."""
+
+import json
+import os
+import signal
+import subprocess
+import time
+
+import pytest
+
+from remote_servers import MotoS3, clean_env
+from sparc3d_cli import ROOT, run, sparc3d_bin
+
+EXAMPLES = ROOT / "examples"
+BUCKET = "jobs-bkt"
+
+
+@pytest.fixture(scope="module")
+def s3():
+    server = MotoS3()
+    server.client.create_bucket(Bucket=BUCKET)
+    yield server
+    server.close()
+
+
+def env_for(s3, scratch):
+    return clean_env({**s3.env, "SPARC3D_SCRATCH": str(scratch)})
+
+
+def keys(s3, prefix):
+    out = s3.client.list_objects_v2(Bucket=BUCKET, Prefix=prefix + "/")
+    return sorted(o["Key"][len(prefix) + 1:] for o in out.get("Contents", []))
+
+
+def manifest(tmp_path):
+    path = tmp_path / "m.jsonl"
+    run("manifest", "build", EXAMPLES, "-o", path)
+    return path
+
+
+def make_jobs(tmp_path, s3, name, resolution, shard_size):
+    """The same job twice: in a folder, and at s3://BUCKET/NAME."""
+    m = manifest(tmp_path)
+    env = env_for(s3, tmp_path / "scratch-init")
+    flags = ["--manifest", m, "--resolution", resolution, "--shard-size", shard_size]
+    run("init", tmp_path / "local", *flags)
+    run("init", f"s3://{BUCKET}/{name}", *flags, env=env)
+    return tmp_path / "local", f"s3://{BUCKET}/{name}"
+
+
+def digest(job, env=None):
+    return json.loads(run("inspect", job, "--json", env=env).stdout)["content_digest"]
+
+
+def test_two_workers_sharing_only_the_bucket_give_the_jobs_digest_on_disk(tmp_path, s3):
+    local, url = make_jobs(tmp_path, s3, "two", 32, 2)
+    run("run", local, "--workers", "2")
+    workers = [subprocess.Popen([sparc3d_bin(), "work", url, "--all"],
+                                env=env_for(s3, tmp_path / f"scratch-{w}"),
+                                stderr=subprocess.PIPE, text=True) for w in range(2)]
+    logs = [w.communicate(timeout=300)[1] for w in workers]
+    assert all(w.returncode == 0 for w in workers), logs
+    written = sum(log.count(": written,") for log in logs)
+    assert written == 3, f"each of the 3 shards written once: {logs}"
+    env = env_for(s3, tmp_path / "scratch-read")
+    status = json.loads(run("status", url, "--json", env=env).stdout)
+    assert (status["shards_done"], status["ok"], status["pending"]) == (3, 5, 0)
+    assert digest(url, env) == digest(local)
+    left = keys(s3, "two")
+    assert not [k for k in left if k.startswith("state/")], f"leases or checkpoints left: {left}"
+    uploads = [k for k in left if k.endswith(".parquet")]
+    assert len(uploads) == 3, f"one upload per shard: {uploads}"
+    # The Python reader reads the bucket job as the folder.
+    import sparc3d_reader as reader
+    os.environ.update({k: v for k, v in s3.env.items()})
+    from_bucket = [(i["id"], i["coords"].tobytes()) for i in reader.iter_items(url)]
+    from_disk = [(i["id"], i["coords"].tobytes()) for i in reader.iter_items(local)]
+    assert from_bucket == from_disk
+
+
+def wait_for(predicate, seconds, what):
+    deadline = time.time() + seconds
+    while not predicate():
+        assert time.time() < deadline, f"timed out waiting for {what}"
+        time.sleep(0.05)
+
+
+def test_a_worker_killed_mid_shard_loses_no_checkpointed_item(tmp_path, s3):
+    local, url = make_jobs(tmp_path, s3, "kill", 256, 5)
+    run("run", local, "--workers", "1")
+    first = subprocess.Popen(
+        [sparc3d_bin(), "work", url, "--shard-index", "0", "--checkpoint-every", "0.001"],
+        env=env_for(s3, tmp_path / "scratch-a"), stderr=subprocess.DEVNULL)
+    checkpoints = lambda: [k for k in keys(s3, "kill") if k.endswith(".journal")]
+    wait_for(lambda: len(checkpoints()) >= 2 or first.poll() is not None, 120, "checkpoints")
+    assert first.poll() is None, "the worker finished before it could be killed"
+    first.send_signal(signal.SIGKILL)
+    first.wait()
+    assert not [k for k in keys(s3, "kill") if k.endswith(".complete.json")]
+    second = run("work", url, "--shard-index", "0", "--events",
+                 env=env_for(s3, tmp_path / "scratch-b"))
+    events = [json.loads(line) for line in second.stdout.splitlines() if line.strip()]
+    started = [e for e in events if e.get("event") == "item_started"]
+    assert 0 < len(started) <= 5 - 2, f"checkpointed items converted again: {len(started)}"
+    env = env_for(s3, tmp_path / "scratch-read")
+    rows = run("ls", url, env=env).stdout.splitlines()
+    ids = [line.split("\t")[0] for line in rows if line.count("\t") >= 2]
+    assert len(ids) == 5 and len(set(ids)) == 5, f"every item exactly once: {rows}"
+    assert digest(url, env) == digest(local)
+
+
+def test_a_leftover_upload_is_never_read_and_an_altered_shard_is_found(tmp_path, s3):
+    local, url = make_jobs(tmp_path, s3, "alter", 32, 5)
+    run("run", local, "--workers", "1")
+    # An upload of a worker killed between its upload and its record.
+    s3.client.put_object(Bucket=BUCKET, Key="alter/shards/part-00000.ghost.parquet",
+                         Body=b"not a shard")
+    env = env_for(s3, tmp_path / "scratch")
+    run("work", url, "--all", env=env)
+    assert digest(url, env) == digest(local)
+    uploads = [k for k in keys(s3, "alter") if k.endswith(".parquet")]
+    assert len(uploads) == 1 and "ghost" not in uploads[0], uploads
+    obj = s3.client.get_object(Bucket=BUCKET, Key="alter/" + uploads[0])["Body"].read()
+    flipped = obj[:100] + bytes([obj[100] ^ 0xFF]) + obj[101:]
+    s3.client.put_object(Bucket=BUCKET, Key="alter/" + uploads[0], Body=flipped)
+    r = run("verify", url, env=env_for(s3, tmp_path / "scratch-v"), check=False)
+    assert r.returncode == 1, r.stderr
+    assert "damaged" in (r.stdout + r.stderr) and "shard 0" in (r.stdout + r.stderr)
+
+
+def test_a_missing_job_or_missing_credentials_is_a_clear_error(tmp_path, s3):
+    r = run("status", f"s3://{BUCKET}/nothing-here", env=env_for(s3, tmp_path), check=False)
+    assert r.returncode != 0
+    assert "no job there" in r.stderr, r.stderr
+    no_keys = {k: v for k, v in s3.env.items() if not k.startswith("AWS_SECRET")}
+    no_keys.pop("AWS_ACCESS_KEY_ID")
+    env = clean_env({**no_keys, "SPARC3D_SCRATCH": str(tmp_path),
+                     "AWS_EC2_METADATA_DISABLED": "true",
+                     "AWS_METADATA_ENDPOINT": "http://127.0.0.1:9"})
+    r = run("status", f"s3://{BUCKET}/two", env=env, check=False)
+    assert r.returncode != 0
+    assert "credentials" in r.stderr.lower(), r.stderr
