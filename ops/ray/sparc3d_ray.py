@@ -5,7 +5,9 @@
     python3 ops/ray/sparc3d_ray.py /shared/jobs/objaverse --address 127.0.0.1:6379
     python3 ops/ray/sparc3d_ray.py JOB                   # no --address: a private local Ray
 
-The job folder and the sparc3d binary must be at the same path on every Ray node. Without
+The job folder and the sparc3d binary must be at the same path on every Ray node; or JOB is
+the bucket prefix that is the job's home (s3://, gs://, az://: docs/CLUSTER.md, "Jobs in a
+bucket"), and the nodes need only the binary and the bucket's credentials. Without
 --address, Ray starts inside this process on 127.0.0.1 only (RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=0
 makes Ray honour the loopback node address) and stops with it. `ray stop` kills every Ray
 process on the host: stop a head you started by its PID instead (see run-local.sh).
@@ -21,8 +23,20 @@ os.environ.setdefault("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
 os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
 
 
-def unfinished_shards(job):
-    """Shards without a completion record (`work` re-checks each one before skipping it)."""
+def is_url(job):
+    return "://" in job
+
+
+def unfinished_shards(job, sparc3d):
+    """Shards without a completion record (`work` re-checks each one before skipping it). For
+    a job in a bucket, every shard: `sparc3d status` gives the count, and a task whose shard is
+    done ends after one read of its record."""
+    if is_url(job):
+        r = subprocess.run([sparc3d, "status", job, "--json"], capture_output=True, text=True)
+        if r.returncode != 0:
+            sys.exit(f"{job}: {r.stderr.strip()}")
+        status = json.loads(r.stdout)
+        return list(range(int(status["shards"]))) if status["shards_done"] < status["shards"] else []
     with open(os.path.join(job, "job.json")) as f:
         shards = int(json.load(f)["shards"])
     done = os.path.join(job, "shards", "part-{:05d}.complete.json")
@@ -31,7 +45,8 @@ def unfinished_shards(job):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("job", help="job folder (sparc3d init), on storage every node mounts")
+    ap.add_argument("job", help="job folder (sparc3d init) on storage every node mounts, or the "
+                    "bucket prefix that is the job's home")
     ap.add_argument("--address", default=os.environ.get("RAY_ADDRESS"),
                     help="Ray cluster to join (default: a private local one on 127.0.0.1)")
     ap.add_argument("--sparc3d", default="sparc3d", help="the sparc3d binary on the nodes")
@@ -44,8 +59,8 @@ def main():
 
     import ray  # imported late so that --help works without Ray installed
 
-    job = os.path.abspath(a.job)
-    todo = unfinished_shards(job)
+    job = a.job if is_url(a.job) else os.path.abspath(a.job)
+    todo = unfinished_shards(job, a.sparc3d)
     print(f"{job}: {len(todo)} unfinished shards", file=sys.stderr)
     if not todo:
         return 0
