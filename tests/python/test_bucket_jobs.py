@@ -2,9 +2,10 @@
 share nothing but the bucket (each its own scratch folder) give the same content digest as the
 same job on disk, leave one upload per shard and no lease or checkpoint behind; a worker
 killed with kill -9 mid-shard loses no checkpointed item and every item ends in the shard
-exactly once; an upload left by a worker killed before its record is never read and is
-cleaned up; `verify` finds a shard altered in the bucket; a bucket without credentials or
-without the job is a clear error."""
+exactly once; two workers racing for one shard's lease: one converts it, once; a throttled
+bucket (503 SlowDown) and a network cut in the middle of an upload are retried; an upload left
+by a worker killed before its record is never read and is cleaned up; `verify` finds a shard
+altered in the bucket; a bucket without credentials or without the job is a clear error."""
 
 import json
 import os
@@ -15,6 +16,7 @@ import time
 import pytest
 
 from remote_servers import MotoS3, clean_env
+from s3_proxy import S3Proxy
 from sparc3d_cli import ROOT, run, sparc3d_bin
 
 EXAMPLES = ROOT / "examples"
@@ -113,6 +115,41 @@ def test_a_worker_killed_mid_shard_loses_no_checkpointed_item(tmp_path, s3):
     ids = [line.split("\t")[0] for line in rows if line.count("\t") >= 2]
     assert len(ids) == 5 and len(set(ids)) == 5, f"every item exactly once: {rows}"
     assert digest(url, env) == digest(local)
+
+
+def test_two_workers_racing_for_one_shard_convert_it_once(tmp_path, s3):
+    local, url = make_jobs(tmp_path, s3, "race", 64, 5)
+    run("run", local, "--workers", "1")
+    workers = [subprocess.Popen([sparc3d_bin(), "work", url, "--shard-index", "0"],
+                                env=env_for(s3, tmp_path / f"scratch-{w}"),
+                                stderr=subprocess.PIPE, text=True) for w in range(2)]
+    logs = [w.communicate(timeout=300)[1] for w in workers]
+    assert all(w.returncode == 0 for w in workers), logs
+    joined = "\n".join(logs)
+    assert joined.count(": written,") == 1, joined
+    assert "leased by" in joined or "already done" in joined, joined
+    uploads = [k for k in keys(s3, "race") if k.endswith(".parquet")]
+    assert len(uploads) == 1, uploads
+    assert digest(url, env_for(s3, tmp_path / "scratch-read")) == digest(local)
+
+
+def test_a_throttled_bucket_and_a_cut_upload_are_retried(tmp_path, s3):
+    local, url = make_jobs(tmp_path, s3, "faults", 32, 2)
+    run("run", local, "--workers", "1")
+    proxy = S3Proxy(s3.port)
+    try:
+        proxy.add_fault("PUT", ".parquet", ("status", 503), 3)
+        proxy.add_fault("PUT", ".complete.json", ("status", 503), 2)
+        proxy.add_fault("PUT", ".lease", ("status", 503), 2)
+        proxy.add_fault("PUT", ".parquet", ("cut",), 1)
+        env = clean_env({**s3.env, "AWS_ENDPOINT_URL": proxy.endpoint,
+                         "SPARC3D_SCRATCH": str(tmp_path / "scratch")})
+        r = run("work", url, "--all", env=env, check=False)
+        assert r.returncode == 0, r.stderr
+        assert not [f for f in proxy.faults if f[3] > 0], f"faults not met: {proxy.faults}"
+    finally:
+        proxy.close()
+    assert digest(url, env_for(s3, tmp_path / "scratch-read")) == digest(local)
 
 
 def test_a_leftover_upload_is_never_read_and_an_altered_shard_is_found(tmp_path, s3):
