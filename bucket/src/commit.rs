@@ -115,3 +115,87 @@ fn clean_up(prefix: &Prefix<'_>, shard: u64, kept: &str) {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::lease::tests::memory_prefix;
+    use crate::lease::{acquire, Acquired};
+    use std::sync::atomic::AtomicBool;
+    use std::sync::Arc;
+
+    fn record(bytes: &[u8]) -> CompletionRecord {
+        use sha2::{Digest, Sha256};
+        CompletionRecord {
+            shard: 0,
+            schema_version: sparc3d_schema::SCHEMA_VERSION,
+            fingerprint: "fp".into(),
+            rows: 1,
+            ok: 1,
+            failed: 0,
+            error_classes: Default::default(),
+            bytes: bytes.len() as u64,
+            sha256: sparc3d_schema::config::hex(&Sha256::digest(bytes)),
+            stamp: None,
+            object: None,
+            content_digest: String::new(),
+            item_seconds: 0.0,
+            started_at: 0.0,
+            finished_at: 0.0,
+        }
+    }
+
+    /// Two writers of one shard (the second one's lease taken after the first lost it): the
+    /// first record wins, the loser's upload is deleted, a leftover upload is cleaned up.
+    #[test]
+    fn the_first_record_wins_and_no_upload_is_left_but_its_own() -> Result<()> {
+        let prefix = memory_prefix();
+        let dir = tempfile::tempdir()?;
+        let local = JobLayout::new(dir.path());
+        std::fs::create_dir_all(local.shards_dir())?;
+        std::fs::write(local.shard_file(0), b"shard bytes of writer a")?;
+        prefix.put(
+            "shards/part-00000.ghost.parquet",
+            b"killed".to_vec(),
+            WriteMode::Overwrite,
+        )?;
+        let lease = |owner: &str| match acquire(
+            &prefix,
+            0,
+            owner,
+            60.0,
+            Arc::new(AtomicBool::new(false)),
+        ) {
+            Ok(Acquired::Held(l)) => l,
+            other => panic!("lease not taken: {other:?}"),
+        };
+        let a = lease("a");
+        let first = push(
+            &prefix,
+            &local,
+            0,
+            &record(b"shard bytes of writer a"),
+            "a",
+            &a,
+        )?;
+        a.release();
+        let Pushed::Done(done) = first else {
+            panic!("the first writer commits")
+        };
+        assert_eq!(done.object.as_deref(), Some("part-00000.a.parquet"));
+        std::fs::write(local.shard_file(0), b"writer b")?;
+        let b = lease("b");
+        let second = push(&prefix, &local, 0, &record(b"writer b"), "b", &b)?;
+        b.release();
+        assert!(matches!(second, Pushed::FinishedElsewhere(r) if r.object == done.object));
+        let uploads: Vec<String> = prefix
+            .list(keys::SHARDS)?
+            .iter()
+            .map(|l| prefix.relative_key(l))
+            .filter(|k| k.ends_with(".parquet"))
+            .collect();
+        assert_eq!(uploads, vec!["shards/part-00000.a.parquet".to_string()]);
+        assert_eq!(read_record(&prefix, 0)?, Some(done));
+        Ok(())
+    }
+}

@@ -292,3 +292,80 @@ pub fn read(prefix: &Prefix<'_>, shard: u64) -> Result<Option<LeaseInfo>> {
         .with_context(|| format!("reading {}", prefix.url(&key)))?;
     Ok(found.and_then(|o| serde_json::from_slice(&o.bytes).ok()))
 }
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use sparc3d_sources::location::Location;
+
+    /// A prefix of a fresh in-memory store (with conditional writes, like S3).
+    pub(crate) fn memory_prefix() -> Prefix<'static> {
+        let fetcher = sparc3d_sources::shared().unwrap_or_else(|e| panic!("{e}"));
+        let Ok(Location::Remote(root)) = Location::parse("s3://bkt/jobs/a/job.json") else {
+            panic!("a bucket URL")
+        };
+        let root = root.sibling(".");
+        let store = Arc::new(object_store::memory::InMemory::new());
+        Prefix::with_store(fetcher, &root, store)
+    }
+
+    fn flag() -> Arc<AtomicBool> {
+        Arc::new(AtomicBool::new(false))
+    }
+
+    #[test]
+    fn one_of_two_takers_holds_a_lease_and_a_stale_one_is_taken_over() -> Result<()> {
+        let prefix = memory_prefix();
+        let Acquired::Held(a) = acquire(&prefix, 0, "a", 60.0, flag())? else {
+            panic!("a free lease is taken")
+        };
+        assert!(
+            matches!(acquire(&prefix, 0, "b", 60.0, flag())?, Acquired::Busy(h) if h.owner == "a")
+        );
+        a.release();
+        assert!(read(&prefix, 0)?.is_none(), "a released lease is deleted");
+        // An expired lease of another host.
+        let old = LeaseInfo {
+            owner: "ghost".into(),
+            host: "elsewhere".into(),
+            pid: 1,
+            heartbeat_at: 0.0,
+            expires_at: 1.0,
+            acquired_at: 0.0,
+        };
+        prefix.put(&keys::lease(0), bytes(&old), WriteMode::Overwrite)?;
+        let Acquired::Held(c) = acquire(&prefix, 0, "c", 60.0, flag())? else {
+            panic!("an expired lease is taken over")
+        };
+        assert_eq!(read(&prefix, 0)?.map(|h| h.owner), Some("c".to_string()));
+        c.release();
+        Ok(())
+    }
+
+    #[test]
+    fn a_holder_whose_lease_was_taken_over_finds_it_lost_and_stops() -> Result<()> {
+        let prefix = memory_prefix();
+        let stop = flag();
+        let Acquired::Held(a) = acquire(&prefix, 3, "a", 60.0, Arc::clone(&stop))? else {
+            panic!("a free lease is taken")
+        };
+        assert_eq!(a.confirm(), Ok(()));
+        // Another worker replaces it (as a taker of an expired lease would).
+        let theirs = fresh("b", 60.0, sparc3d_workers::now());
+        prefix.put(&keys::lease(3), bytes(&theirs), WriteMode::Overwrite)?;
+        let why = a.confirm().expect_err("the renewal is refused");
+        assert!(
+            why.contains("taken over") && why.contains("b holds it"),
+            "{why}"
+        );
+        assert!(stop.load(Ordering::SeqCst), "the item loop is told to stop");
+        assert!(a.lost().is_some());
+        a.release();
+        assert_eq!(
+            read(&prefix, 3)?.map(|h| h.owner),
+            Some("b".to_string()),
+            "a lost lease is never deleted by its old holder"
+        );
+        Ok(())
+    }
+}

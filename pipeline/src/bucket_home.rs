@@ -18,6 +18,19 @@ pub fn is_bucket(job: &Path) -> bool {
     matches!(JobHome::parse(job), Ok(JobHome::Bucket(_)))
 }
 
+/// Refuses a command not yet available for a job whose home is a bucket (`what` says which),
+/// saying what to do instead.
+pub fn refuse(job: &Path, what: &str) -> Result<()> {
+    if is_bucket(job) {
+        anyhow::bail!(
+            "{}: {what} for a job whose home is a bucket yet (docs/CLUSTER.md, \"Jobs in a \
+             bucket\"); make a new job for new items, or run the job in a folder",
+            job.display()
+        );
+    }
+    Ok(())
+}
+
 /// The folder a read-only command reads for JOB: JOB itself when it is a folder; for a bucket
 /// URL, a local view with every finished shard (downloaded once, kept while unchanged), said
 /// on stderr.

@@ -24,6 +24,15 @@ impl Fetcher {
     /// how many objects had been listed, and nothing is returned.
     pub fn list(&self, prefix: &RemoteUrl) -> Result<Vec<Listed>, FetchError> {
         let store = self.store(prefix)?;
+        self.list_in(&*store, prefix)
+    }
+
+    /// [`Fetcher::list`] in `store`.
+    pub(crate) fn list_in(
+        &self,
+        store: &dyn object_store::ObjectStore,
+        prefix: &RemoteUrl,
+    ) -> Result<Vec<Listed>, FetchError> {
         let key = prefix.key();
         let path = ObjectPath::from_iter(key.split('/').filter(|p| !p.is_empty()));
         let name = prefix.to_string();

@@ -86,7 +86,17 @@ impl Fetcher {
     }
 }
 
-impl Prefix<'_> {
+impl<'f> Prefix<'f> {
+    /// The objects under `root` in `store` rather than in the client made for `root`'s
+    /// scheme (an in-memory store in tests, a store configured by the caller).
+    pub fn with_store(fetcher: &'f Fetcher, root: &RemoteUrl, store: Arc<dyn ObjectStore>) -> Self {
+        Self {
+            fetcher,
+            root: root.clone(),
+            store,
+        }
+    }
+
     /// The prefix's own URL.
     pub fn root(&self) -> &RemoteUrl {
         &self.root
@@ -273,7 +283,7 @@ impl Prefix<'_> {
     /// Every object whose key starts with `key_prefix` (relative to this prefix), sorted by
     /// key; none is an empty list, not an error.
     pub fn list(&self, key_prefix: &str) -> Result<Vec<Listed>, FetchError> {
-        match self.fetcher.list(&self.url(key_prefix)) {
+        match self.fetcher.list_in(&*self.store, &self.url(key_prefix)) {
             Ok(found) => Ok(found),
             Err(e) if e.kind == FetchErrorKind::NotFound => Ok(Vec::new()),
             Err(e) => Err(e),

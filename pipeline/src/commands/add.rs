@@ -23,6 +23,7 @@ pub struct Args {
 
 /// Runs `sparc3d add`.
 pub fn run(args: Args) -> Result<ExitCode> {
+    crate::bucket_home::refuse(&args.job, "`add` (growing a job) is not available")?;
     let _lock = grow::lock_for_add(&args.job)?;
     let records = grow::input_records(&args.input, &args.source)?;
     let grown = grow::add(&args.job, records)?;

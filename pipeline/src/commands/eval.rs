@@ -49,7 +49,8 @@ pub struct Args {
 }
 
 /// Runs `sparc3d eval`.
-pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
+    args.source = crate::bucket_home::local_view(&args.source)?;
     if args.source.join("job.json").is_file() {
         if let Some(out) = &args.output {
             bail!(

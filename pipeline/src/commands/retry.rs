@@ -23,6 +23,7 @@ pub struct Args {
 
 /// Runs `sparc3d retry`.
 pub fn run(args: Args) -> Result<ExitCode> {
+    crate::bucket_home::refuse(&args.job, "`retry` is not available")?;
     let job = Job::open(&args.job)?;
     let class = args.class.as_deref().map(ErrorClass::parse).transpose()?;
     let matches = |r: &ShardRow| {

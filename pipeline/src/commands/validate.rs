@@ -43,7 +43,8 @@ pub struct Args {
 }
 
 /// Runs `sparc3d validate`.
-pub fn run(args: Args) -> Result<ExitCode> {
+pub fn run(mut args: Args) -> Result<ExitCode> {
+    args.job = crate::bucket_home::local_view(&args.job)?;
     let options = Options {
         sample: args.sample,
         seed: args.seed,

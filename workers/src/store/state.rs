@@ -298,10 +298,7 @@ pub fn verify_shard(
                     "re-recording the shard's stamp",
                 )?;
             }
-            Ok(Verified::Good {
-                record,
-                restamped,
-            })
+            Ok(Verified::Good { record, restamped })
         })(),
     };
     held.release();
