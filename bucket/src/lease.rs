@@ -15,7 +15,7 @@
 
 use crate::keys;
 use anyhow::{Context, Result};
-use sparc3d_sources::objects::{Prefix, WriteMode, Written};
+use sparc3d_sources::objects::{Prefix, Version, WriteMode, Written};
 use sparc3d_workers::lease::{hostname, LeaseInfo};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -39,8 +39,8 @@ pub enum Acquired {
 /// What the heartbeat and the holder share.
 #[derive(Debug)]
 struct Shared {
-    /// The ETag of the lease version this holder wrote last, and its expiry.
-    version: Mutex<(String, f64)>,
+    /// The lease version this holder wrote last, and its expiry.
+    version: Mutex<(Version, f64)>,
     /// Why the lease is lost, once it is.
     lost: Mutex<Option<String>>,
     stop: AtomicBool,
@@ -90,9 +90,9 @@ pub fn acquire(
     let now = sparc3d_workers::now();
     for _ in 0..TAKEOVER_TRIES {
         let mine = fresh(owner, ttl, now);
-        if let Written::Done(etag) = prefix.put(&key, bytes(&mine), WriteMode::Create)? {
+        if let Written::Done(version) = prefix.put(&key, bytes(&mine), WriteMode::Create)? {
             return Ok(Acquired::Held(BucketLease::start(
-                prefix, shard, &mine, etag, ttl, on_loss,
+                prefix, shard, &mine, version, ttl, on_loss,
             )));
         }
         let Some(current) = prefix.get(&key)? else {
@@ -102,15 +102,17 @@ pub fn acquire(
         if let Some(h) = holder.filter(|h| !h.is_stale(sparc3d_workers::now())) {
             return Ok(Acquired::Busy(h));
         }
-        let Some(etag) = current.etag else {
+        if current.version.etag.is_none() && current.version.version.is_none() {
             anyhow::bail!(
-                "{}: the store gives no ETag, so a stale lease cannot be taken over safely",
+                "{}: the store gives no ETag or version, so a stale lease cannot be taken over \
+                 safely",
                 prefix.url(&key)
             );
-        };
-        if let Written::Done(etag) = prefix.put(&key, bytes(&mine), WriteMode::Replace(etag))? {
+        }
+        let replace = WriteMode::Replace(current.version);
+        if let Written::Done(version) = prefix.put(&key, bytes(&mine), replace)? {
             return Ok(Acquired::Held(BucketLease::start(
-                prefix, shard, &mine, etag, ttl, on_loss,
+                prefix, shard, &mine, version, ttl, on_loss,
             )));
         }
     }
@@ -122,12 +124,12 @@ impl BucketLease {
         prefix: &Prefix<'static>,
         shard: u64,
         info: &LeaseInfo,
-        etag: Option<String>,
+        version: Version,
         ttl: f64,
         on_loss: Arc<AtomicBool>,
     ) -> Self {
         let shared = Arc::new(Shared {
-            version: Mutex::new((etag.unwrap_or_default(), info.expires_at)),
+            version: Mutex::new((version, info.expires_at)),
             lost: Mutex::new(None),
             stop: AtomicBool::new(false),
             on_loss,
@@ -193,7 +195,7 @@ impl BucketLease {
         let key = keys::lease(self.shard);
         let ours = self.shared.version.lock().map(|v| v.0.clone()).ok();
         if let Ok(Some(current)) = self.prefix.get(&key) {
-            if current.etag.is_some() && current.etag == ours {
+            if Some(current.version) == ours {
                 let _ = self.prefix.delete(&key);
             }
         }
@@ -259,8 +261,8 @@ impl Beater {
         let info = fresh(&self.owner, self.ttl, self.acquired_at);
         let mode = WriteMode::Replace(version.0.clone());
         match self.prefix.put(&self.key, bytes(&info), mode) {
-            Ok(Written::Done(etag)) => {
-                *version = (etag.unwrap_or_default(), info.expires_at);
+            Ok(Written::Done(written)) => {
+                *version = (written, info.expires_at);
                 Ok(())
             }
             Ok(Written::Refused) => {

@@ -33,15 +33,25 @@ pub enum WriteMode {
     Overwrite,
     /// Write only if no object is there.
     Create,
-    /// Write only if the object there still has this ETag.
-    Replace(String),
+    /// Write only if the object there is still this version.
+    Replace(Version),
+}
+
+/// Which version of an object a conditional write replaces: its ETag (S3, Azure) and its
+/// version (a GCS generation), as the store gave them.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Version {
+    /// The ETag (quotes kept).
+    pub etag: Option<String>,
+    /// The store's version of the object, when it has one.
+    pub version: Option<String>,
 }
 
 /// How a conditional write ended.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Written {
-    /// Written; the new object's ETag when the store gives one.
-    Done(Option<String>),
+    /// Written; the new object's version.
+    Done(Version),
     /// Not written: an object was there ([`WriteMode::Create`]) or it had changed
     /// ([`WriteMode::Replace`]).
     Refused,
@@ -52,8 +62,8 @@ pub enum Written {
 pub struct Object {
     /// Its bytes.
     pub bytes: Vec<u8>,
-    /// Its ETag (quotes kept, as the store gives it for conditional writes).
-    pub etag: Option<String>,
+    /// Its version, for a conditional write that replaces it.
+    pub version: Version,
 }
 
 /// A file streamed down: its size and sha256.
@@ -130,11 +140,14 @@ impl<'f> Prefix<'f> {
                 Err(object_store::Error::NotFound { .. }) => return Ok(None),
                 Err(e) => return Err(self.error(key, &e)),
             };
-            let etag = result.meta.e_tag.clone();
+            let version = Version {
+                etag: result.meta.e_tag.clone(),
+                version: result.meta.version.clone(),
+            };
             let bytes = result.bytes().await.map_err(|e| self.error(key, &e))?;
             Ok(Some(Object {
                 bytes: bytes.to_vec(),
-                etag,
+                version,
             }))
         })
     }
@@ -159,9 +172,9 @@ impl<'f> Prefix<'f> {
         let mode = match mode {
             WriteMode::Overwrite => PutMode::Overwrite,
             WriteMode::Create => PutMode::Create,
-            WriteMode::Replace(etag) => PutMode::Update(UpdateVersion {
-                e_tag: Some(etag),
-                version: None,
+            WriteMode::Replace(v) => PutMode::Update(UpdateVersion {
+                e_tag: v.etag,
+                version: v.version,
             }),
         };
         let options = PutOptions {
@@ -172,7 +185,10 @@ impl<'f> Prefix<'f> {
             self.fetcher
                 .block_on(self.store.put_opts(&path, PutPayload::from(bytes), options));
         match result {
-            Ok(r) => Ok(Written::Done(r.e_tag)),
+            Ok(r) => Ok(Written::Done(Version {
+                etag: r.e_tag,
+                version: r.version,
+            })),
             Err(object_store::Error::AlreadyExists { .. })
             | Err(object_store::Error::Precondition { .. }) => Ok(Written::Refused),
             Err(e) => Err(self.error(key, &e)),

@@ -63,13 +63,14 @@ def digest(job, env=None):
 def test_two_workers_sharing_only_the_bucket_give_the_jobs_digest_on_disk(tmp_path, s3):
     local, url = make_jobs(tmp_path, s3, "two", 32, 2)
     run("run", local, "--workers", "2")
-    workers = [subprocess.Popen([sparc3d_bin(), "work", url, "--all"],
-                                env=env_for(s3, tmp_path / f"scratch-{w}"),
-                                stderr=subprocess.PIPE, text=True) for w in range(2)]
+    # Two array tasks (as a Kubernetes indexed Job runs them), each with its own scratch.
+    workers = [subprocess.Popen(
+        [sparc3d_bin(), "work", url, "--array", "--shards-per-task", "2"],
+        env={**env_for(s3, tmp_path / f"scratch-{w}"), "JOB_COMPLETION_INDEX": str(w)},
+        stderr=subprocess.PIPE, text=True) for w in range(2)]
     logs = [w.communicate(timeout=300)[1] for w in workers]
     assert all(w.returncode == 0 for w in workers), logs
-    written = sum(log.count(": written,") for log in logs)
-    assert written == 3, f"each of the 3 shards written once: {logs}"
+    assert [log.count(": written,") for log in logs] == [2, 1], logs
     env = env_for(s3, tmp_path / "scratch-read")
     status = json.loads(run("status", url, "--json", env=env).stdout)
     assert (status["shards_done"], status["ok"], status["pending"]) == (3, 5, 0)
@@ -159,7 +160,7 @@ def test_a_leftover_upload_is_never_read_and_an_altered_shard_is_found(tmp_path,
     s3.client.put_object(Bucket=BUCKET, Key="alter/shards/part-00000.ghost.parquet",
                          Body=b"not a shard")
     env = env_for(s3, tmp_path / "scratch")
-    run("work", url, "--all", env=env)
+    run("run", url, "--workers", "2", env=env)
     assert digest(url, env) == digest(local)
     uploads = [k for k in keys(s3, "alter") if k.endswith(".parquet")]
     assert len(uploads) == 1 and "ghost" not in uploads[0], uploads
