@@ -8,10 +8,12 @@
 #   2. the driver without --address (Ray inside the driver) picks up only the shard left over;
 #   3. on a finished job the driver has nothing to do and starts no Ray;
 #   4. every item is present exactly once, with per-shard and job content digests equal to a
-#      local `sparc3d run` of the same manifest.
+#      local `sparc3d run` of the same manifest;
+#   5. a job whose home is a bucket (moto's S3 server on loopback): the driver takes its URL,
+#      and the bucket job's content digest equals the local run's.
 # About a minute on 2 cores after the build (each Ray start takes 5-10 s).
 #
-# Needs `ray` and `python3` (with ray) on PATH: ./test.sh puts its virtual environment first.
+# Needs `ray`, `moto_server` and `python3` (with ray and boto3) on PATH: ./test.sh puts its virtual environment first.
 # Environment: SPARC3D_BIN (default: build with cargo), RAY_E2E_DIR (scratch folder, default a
 # fresh /tmp/sparc3d-ray-e2e.XXXX, removed on success), RAY_E2E_RESOLUTION (default 64).
 set -euo pipefail
@@ -38,6 +40,7 @@ cleanup() {
     log "failed (rc=$rc); driver logs follow"
     for f in "$WORK"/driver-*.log; do [[ -f $f ]] && { echo "--- $f (tail)"; tail -n 20 "$f"; }; done
   fi
+  [[ -n ${MOTO_PID:-} ]] && kill "$MOTO_PID" 2>/dev/null
   if [[ $rc -eq 0 && -z ${RAY_E2E_KEEP:-} ]]; then rm -rf "$WORK"; else log "kept $WORK"; fi
   exit $rc
 }
@@ -95,4 +98,33 @@ grep -q ": 0 unfinished shards" "$WORK/driver-3.log" || fail "a finished job sti
 
 # 4. every item once, same content as the local run
 same_as_reference ray-e2e
-log "OK: retried task, failed shard reported, resumed; $SHARDS shards equal to the local run"
+
+# 5. a job whose home is a bucket: the nodes share nothing but the bucket
+command -v moto_server >/dev/null || fail "no 'moto_server' on PATH (pip install 'moto[server]')"
+MOTO_PORT=$(free_port)
+moto_server -H 127.0.0.1 -p "$MOTO_PORT" >"$WORK/moto.log" 2>&1 &
+MOTO_PID=$!
+export AWS_ENDPOINT_URL=http://127.0.0.1:$MOTO_PORT AWS_ACCESS_KEY_ID=testing \
+  AWS_SECRET_ACCESS_KEY=testing AWS_REGION=us-east-1 SPARC3D_SCRATCH=$WORK/scratch
+python3 - <<'PY' || fail "moto's S3 server did not start"
+import os, time, boto3
+c = boto3.client("s3", endpoint_url=os.environ["AWS_ENDPOINT_URL"])
+for _ in range(300):
+    try:
+        c.create_bucket(Bucket="ray-e2e")
+        break
+    except Exception:
+        time.sleep(0.1)
+else:
+    raise SystemExit("no bucket")
+PY
+log "a job in a bucket through the driver"
+"$S" init s3://ray-e2e/job --manifest "$WORK/manifest.jsonl" --resolution "$RES" --shard-size 2 \
+  >/dev/null 2>&1 || fail "init s3://ray-e2e/job"
+python3 "$ROOT/ops/ray/sparc3d_ray.py" s3://ray-e2e/job --sparc3d "$S" --local-cpus 2 \
+  >"$WORK/driver-5.log" 2>&1 || fail "driver on the bucket job"
+grep -q "done: $SHARDS shards ok, 0 failed" "$WORK/driver-5.log" || fail "the bucket job's shards did not all finish"
+a=$("$S" inspect "$WORK/ref" --json | python3 -c 'import json,sys; print(json.load(sys.stdin)["content_digest"])')
+b=$("$S" inspect s3://ray-e2e/job --json 2>/dev/null | python3 -c 'import json,sys; print(json.load(sys.stdin)["content_digest"])')
+[[ -n $a && $a == "$b" ]] || fail "bucket job: content digest $b, local run $a"
+log "OK: retried task, failed shard reported, resumed; $SHARDS shards equal to the local run; the bucket job too"
