@@ -17,6 +17,7 @@ pub mod home;
 pub mod keys;
 pub mod lease;
 pub mod publish;
+pub mod quarantine;
 pub mod scratch;
 pub mod view;
 pub mod work;

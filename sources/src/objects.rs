@@ -317,6 +317,14 @@ impl<'f> Prefix<'f> {
         }
     }
 
+    /// Copies the object at `from` to `to` (replacing what is there), within the store.
+    pub fn copy(&self, from: &str, to: &str) -> Result<(), FetchError> {
+        let (a, b) = (self.path(from), self.path(to));
+        self.fetcher
+            .block_on(self.store.copy(&a, &b))
+            .map_err(|e| self.error(from, &e))
+    }
+
     /// Deletes the object at `key`; one that is not there is no error.
     pub fn delete(&self, key: &str) -> Result<(), FetchError> {
         let path = self.path(key);

@@ -153,7 +153,7 @@ def test_a_throttled_bucket_and_a_cut_upload_are_retried(tmp_path, s3):
     assert digest(url, env_for(s3, tmp_path / "scratch-read")) == digest(local)
 
 
-def test_a_leftover_upload_is_never_read_and_an_altered_shard_is_found(tmp_path, s3):
+def test_a_leftover_upload_is_never_read_and_an_altered_shard_is_moved_aside_and_redone(tmp_path, s3):
     local, url = make_jobs(tmp_path, s3, "alter", 32, 5)
     run("run", local, "--workers", "1")
     # An upload of a worker killed between its upload and its record.
@@ -169,7 +169,14 @@ def test_a_leftover_upload_is_never_read_and_an_altered_shard_is_found(tmp_path,
     s3.client.put_object(Bucket=BUCKET, Key="alter/" + uploads[0], Body=flipped)
     r = run("verify", url, env=env_for(s3, tmp_path / "scratch-v"), check=False)
     assert r.returncode == 1, r.stderr
-    assert "damaged" in (r.stdout + r.stderr) and "shard 0" in (r.stdout + r.stderr)
+    assert "shard 0: damaged" in r.stdout and f"sparc3d run {url}" in r.stdout, r.stdout
+    # Moved aside in the bucket (record, upload and reason kept), then converted again.
+    moved = [k for k in keys(s3, "alter") if k.startswith("quarantine/")]
+    assert len(moved) == 3 and any(k.endswith("reason.txt") for k in moved), moved
+    assert not [k for k in keys(s3, "alter") if k.startswith("shards/")]
+    run("run", url, "--workers", "1", env=env)
+    assert digest(url, env_for(s3, tmp_path / "scratch-after")) == digest(local)
+    assert run("verify", url, env=env_for(s3, tmp_path / "scratch-v2")).returncode == 0
 
 
 def test_a_missing_job_or_missing_credentials_is_a_clear_error(tmp_path, s3):

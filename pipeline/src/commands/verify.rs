@@ -1,7 +1,8 @@
 //! `sparc3d verify JOB [--dry-run] [--json]`: hashes every finished shard against its
 //! completion record, moves damaged shards aside (into `JOB/quarantine/`, nothing is deleted)
 //! so that the next `run` converts them again, and says which they are. Exits 1 when any
-//! shard was damaged.
+//! shard was damaged. A job in a bucket is hashed in its local view (downloaded), and its
+//! damaged shards are moved aside in the bucket (`sparc3d_bucket::quarantine`).
 
 use anyhow::Result;
 use rayon::prelude::*;
@@ -66,15 +67,25 @@ struct Report {
 
 /// Runs `sparc3d verify`.
 pub fn run(mut args: Args) -> Result<ExitCode> {
-    // In a bucket, damaged shards are reported, never moved (the local view is a copy).
-    let in_bucket = crate::bucket_home::is_bucket(&args.job);
+    // In a bucket, the local view is checked, and damaged shards are moved aside in the
+    // bucket itself.
+    let name = args.job.display().to_string();
+    let home = sparc3d_bucket::JobHome::parse(&args.job)?;
     args.job = crate::bucket_home::local_view(&args.job)?;
     let job = Job::open(&args.job)?;
-    let report = verify_job(&job, !args.dry_run && !in_bucket)?;
+    let in_bucket = matches!(home, sparc3d_bucket::JobHome::Bucket(_));
+    let mut report = verify_job(&job, !args.dry_run && !in_bucket)?;
+    if let (sparc3d_bucket::JobHome::Bucket(url), false) = (&home, args.dry_run) {
+        let prefix = crate::bucket_home::prefix(url)?;
+        for p in report.problems.iter_mut().filter(|p| p.state == "damaged") {
+            let reason = p.reason.clone().unwrap_or_default();
+            p.moved_to = sparc3d_bucket::quarantine::quarantine(&prefix, p.shard, &reason)?;
+        }
+    }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
-        print_text(&report, &args.job.display().to_string());
+        print_text(&report, &name);
     }
     Ok(if report.damaged > 0 {
         ExitCode::FAILURE
