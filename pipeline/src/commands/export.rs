@@ -66,6 +66,8 @@ fn frame_parser() -> impl clap::builder::TypedValueParser<Value = Frame> {
 
 /// Runs `sparc3d export`.
 pub fn run(mut args: Args) -> Result<ExitCode> {
+    // Messages name the job as given (a URL), not its local view.
+    let named = args.job.clone();
     args.job = crate::bucket_home::local_view(&args.job)?;
     let job = Job::open(&args.job)?;
     let consumer = args.format;
@@ -91,7 +93,7 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
         eprintln!(
             "error: {}: --format {} needs samples this job does not draw; initialise a job with \
              these [samples] keys (nothing was written):\n  {}",
-            args.job.display(),
+            named.display(),
             consumer.name(),
             missing.join("\n  ")
         );
@@ -102,7 +104,7 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
         eprintln!(
             "error: {}: --format {} --frame {} needs a job converted with these settings; \
              initialise one with them (nothing was written):\n  {}",
-            args.job.display(),
+            named.display(),
             consumer.name(),
             frame.name(),
             check.required.join("\n  ")

@@ -65,6 +65,8 @@ fn shard_statuses(
 
 /// Runs `sparc3d ls`.
 pub fn run(mut args: Args) -> Result<ExitCode> {
+    // Messages name the job as given (a URL), not its local view.
+    let named = args.job.clone();
     args.job = crate::bucket_home::local_view(&args.job)?;
     let job = crate::job_setup::open_read_only(&args.job)?;
     let mut out = std::io::stdout().lock();
@@ -126,7 +128,7 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
             String::new()
         }
     );
-    if let Some(hint) = hints::failures(&args.job, n("failed")) {
+    if let Some(hint) = hints::failures(&named, n("failed")) {
         eprintln!("{hint}");
     }
     Ok(ExitCode::SUCCESS)

@@ -68,6 +68,8 @@ struct Columns {
 
 /// Runs `sparc3d report`.
 pub fn run(mut args: Args) -> Result<ExitCode> {
+    // Messages name the job as given (a URL), not its local view.
+    let named = args.job.clone();
     args.job = crate::bucket_home::local_view(&args.job)?;
     let job = crate::job_setup::open_read_only(&args.job)?;
     let summary = summarize(&job)?;
@@ -86,7 +88,7 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
         .with_context(|| format!("writing {}", args.output.display()))?;
     eprintln!(
         "report of {} ({} ok, {} failed, {} previews) written to {}",
-        args.job.display(),
+        named.display(),
         summary.ok,
         summary.failed,
         previews.len(),
