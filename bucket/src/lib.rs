@@ -18,6 +18,7 @@ pub mod keys;
 pub mod lease;
 pub mod publish;
 pub mod quarantine;
+pub mod retry;
 pub mod scratch;
 pub mod view;
 pub mod work;

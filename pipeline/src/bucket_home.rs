@@ -143,3 +143,23 @@ pub fn run(
     }
     Ok(std::process::ExitCode::SUCCESS)
 }
+
+/// The local view `retry` reads for the bucket job at `url`: the finished shards (as for the
+/// read-only commands), the leases as lease files and the unfinished shards' checkpoints as
+/// journals, so that it sees each shard's state as on disk.
+pub fn retry_view(url: &RemoteUrl) -> Result<PathBuf> {
+    let prefix = prefix(url)?;
+    let dir = scratch::folder(url, None).join("view");
+    let (local, _) = scratch::pull_job(&prefix, &dir, false)?;
+    view::mirror(&prefix, &local)?;
+    let states = view::shard_states(&prefix, &local)?;
+    for (shard, state) in states.iter().enumerate() {
+        let lease = local.layout.lease(shard as u64);
+        let _ = std::fs::remove_file(&lease);
+        if let sparc3d_workers::store::state::ShardState::Running(info) = state {
+            std::fs::create_dir_all(local.layout.state_dir())?;
+            std::fs::write(&lease, serde_json::to_vec(info)?)?;
+        }
+    }
+    Ok(dir)
+}

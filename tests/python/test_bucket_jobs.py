@@ -8,6 +8,7 @@ by a worker killed before its record is never read and is cleaned up; `verify` f
 altered in the bucket; a bucket without credentials or without the job is a clear error."""
 
 import json
+import shutil
 import os
 import signal
 import subprocess
@@ -191,3 +192,33 @@ def test_a_missing_job_or_missing_credentials_is_a_clear_error(tmp_path, s3):
     r = run("status", f"s3://{BUCKET}/two", env=env, check=False)
     assert r.returncode != 0
     assert "credentials" in r.stderr.lower(), r.stderr
+
+
+def test_retry_requeues_failed_items_of_a_bucket_job(tmp_path, s3):
+    from remote_servers import FaultyServer
+    web = tmp_path / "web"
+    web.mkdir()
+    shutil.copy(EXAMPLES / "sphere.obj", web / "sphere.obj")
+    server = FaultyServer(web)
+    try:
+        m = tmp_path / "m.csv"
+        m.write_text("id,uri\ncube,%s\nsphere,%s/sphere.obj\n" % (EXAMPLES / "cube.off", server.url))
+        server.faults["/sphere.obj"] = ("status", 404, None)
+        url = f"s3://{BUCKET}/retry"
+        env = clean_env({**s3.env, "SPARC3D_SCRATCH": str(tmp_path / "scratch"),
+                         "SPARC3D_FETCH_RETRIES": "0"})
+        run("init", url, "--manifest", m, "--resolution", 32, "--shard-size", 2, env=env)
+        run("run", url, "--workers", "1", env=env)
+        before = json.loads(run("status", url, "--json", env=env).stdout)
+        assert (before["ok"], before["failed"], before["error_classes"]) == (1, 1, {"fetch": 1})
+        server.faults.clear()
+        r = run("retry", url, "--class", "fetch", env=env)
+        assert "1 failed items in 1 shards queued" in r.stderr, r.stderr
+        after_retry = json.loads(run("status", url, "--json", env=env).stdout)
+        assert (after_retry["shards_done"], after_retry["ok"]) == (0, 1), after_retry
+        run("run", url, "--workers", "1", env=env)
+        after = json.loads(run("status", url, "--json", env=env).stdout)
+        assert (after["ok"], after["failed"], after["shards_done"]) == (2, 0, 1), after
+        assert server.hits["/sphere.obj"] >= 2
+    finally:
+        server.close()

@@ -1,7 +1,8 @@
 //! `sparc3d retry JOB [--class C]`: queues failed items (of one class, or all) to be converted
 //! again. A finished shard keeps its other rows in a fresh journal and loses its completion
 //! record and file, so the next `run` or `work` converts only the retried items and writes it
-//! again.
+//! again. A job in a bucket is read in a local view (records, leases, checkpoints and the
+//! finished shards), and the change is made in the bucket (`sparc3d_bucket::retry`).
 
 use anyhow::{bail, Result};
 use sparc3d_schema::{ErrorClass, ItemStatus, ShardRow};
@@ -14,7 +15,7 @@ use std::process::ExitCode;
 /// Arguments of `sparc3d retry`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Job folder.
+    /// Job folder, or the bucket prefix that is the job's home.
     pub job: PathBuf,
     /// Only failures of this class (e.g. timeout, out_of_memory, crashed).
     #[arg(long)]
@@ -23,8 +24,16 @@ pub struct Args {
 
 /// Runs `sparc3d retry`.
 pub fn run(args: Args) -> Result<ExitCode> {
-    crate::bucket_home::refuse(&args.job, "`retry` is not available")?;
-    let job = Job::open(&args.job)?;
+    let home = sparc3d_bucket::JobHome::parse(&args.job)?;
+    let bucket = match &home {
+        sparc3d_bucket::JobHome::Bucket(url) => Some(crate::bucket_home::prefix(url)?),
+        sparc3d_bucket::JobHome::Folder(_) => None,
+    };
+    let dir = match &home {
+        sparc3d_bucket::JobHome::Bucket(url) => crate::bucket_home::retry_view(url)?,
+        sparc3d_bucket::JobHome::Folder(dir) => dir.clone(),
+    };
+    let job = Job::open(&dir)?;
     let class = args.class.as_deref().map(ErrorClass::parse).transpose()?;
     let matches = |r: &ShardRow| {
         r.status == ItemStatus::Failed && (class.is_none() || r.error_class == class)
@@ -57,6 +66,12 @@ pub fn run(args: Args) -> Result<ExitCode> {
             continue;
         }
         let kept: Vec<ShardRow> = rows.into_iter().filter(|r| !matches(r)).collect();
+        if let Some(prefix) = &bucket {
+            sparc3d_bucket::retry::requeue(prefix, shard, job.fingerprint(), &kept)?;
+            queued += n;
+            shards += 1;
+            continue;
+        }
         // The journal first, then the completion record goes, then the shard file (its rows
         // are in the journal): a crash in between leaves the shard done, or a file without
         // its record that the next writer replaces, and retry can simply run again.

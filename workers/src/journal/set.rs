@@ -140,8 +140,8 @@ pub fn replace_with_rows(
     crate::fsutil::sync_dir(&layout.state_dir())
 }
 
-/// The bytes of a journal holding `rows` as finished items.
-fn with_rows(path: &Path, shard: u64, fingerprint: &str, rows: &[ShardRow]) -> Result<Vec<u8>> {
+/// The bytes of a journal holding `rows` as finished items (`path` names it in errors).
+pub fn with_rows(path: &Path, shard: u64, fingerprint: &str, rows: &[ShardRow]) -> Result<Vec<u8>> {
     let enc = |r: &Record| {
         frame::encode(r).map_err(|e| WorkerError::BadFile {
             path: path.to_path_buf(),
