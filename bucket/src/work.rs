@@ -121,12 +121,16 @@ fn work_leased(
                 });
                 return Ok(ShardOutcome::LeaseLost(message));
             }
-            // Keep what finished for the next holder, whatever stopped this one.
-            if let Ok(mut c) = checkpoints.lock() {
-                c.last()
-                    .with_context(|| format!("shard {shard}: the last checkpoint"))?;
-            }
-            return Ok(other?);
+            // Keep what finished for the next holder, whatever stopped this one; an error of
+            // the shard itself is the one to report (the checkpoint may fail for the same
+            // cause).
+            let last = match checkpoints.lock() {
+                Ok(mut c) => c.last(),
+                Err(_) => Ok(()),
+            };
+            let outcome = other?;
+            last.with_context(|| format!("shard {shard}: the last checkpoint"))?;
+            return Ok(outcome);
         }
     };
     (opts.events)(Event::ShardWriting { shard });
