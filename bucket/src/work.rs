@@ -9,6 +9,7 @@ use crate::commit::{push, read_record, Pushed};
 use crate::keys;
 use crate::lease::{acquire, Acquired, BucketLease};
 use anyhow::{Context, Result};
+use sparc3d_schema::CompletionRecord;
 use sparc3d_sources::objects::Prefix;
 use sparc3d_workers::events::Event;
 use sparc3d_workers::journal;
@@ -51,7 +52,16 @@ pub fn work_shard(
             return Ok(ShardOutcome::Busy(who));
         }
     };
-    let result = work_leased(prefix, job, shard, opts, &held, &owner, shard_stop, every);
+    let leased = Leased {
+        prefix,
+        job,
+        shard,
+        writer: file_token(&owner),
+        held: Arc::clone(&held),
+        shard_stop,
+    };
+    let result = leased.work(opts, every);
+    drop(leased);
     if let Ok(lease) = Arc::try_unwrap(held) {
         lease.release();
     }
@@ -65,98 +75,120 @@ fn skipped(opts: &mut WorkOptions, shard: u64, reason: &str) {
     });
 }
 
-#[allow(clippy::too_many_arguments)]
-fn work_leased(
-    prefix: &Prefix<'static>,
-    job: &Job,
+/// A shard whose bucket lease this worker holds.
+struct Leased<'a> {
+    prefix: &'a Prefix<'static>,
+    job: &'a Job,
     shard: u64,
-    opts: &mut WorkOptions,
-    held: &Arc<BucketLease>,
-    owner: &str,
+    /// This holder's name in its uploads and checkpoints.
+    writer: String,
+    held: Arc<BucketLease>,
+    /// Stops the item loop: set on the loss of the lease, or copied from the user's stop.
     shard_stop: Arc<AtomicBool>,
-    every: Duration,
-) -> Result<ShardOutcome> {
-    // Finished between our look and our lease.
-    if let Some(r) = read_record(prefix, shard)? {
-        return Ok(ShardOutcome::AlreadyDone(r));
+}
+
+impl Leased<'_> {
+    /// Processes the shard in the scratch copy and pushes it to the bucket.
+    fn work(&self, opts: &mut WorkOptions, every: Duration) -> Result<ShardOutcome> {
+        // Finished between our look and our lease.
+        if let Some(r) = read_record(self.prefix, self.shard)? {
+            return Ok(ShardOutcome::AlreadyDone(r));
+        }
+        pull_checkpoints(self.prefix, self.job, self.shard)?;
+        let checkpoints = Arc::new(Mutex::new(Checkpoints::new(
+            self.prefix,
+            self.shard,
+            &self.writer,
+            Arc::clone(&self.held),
+            every,
+        )));
+        let outcome = self.run_items(opts, &checkpoints);
+        match outcome {
+            Ok(ShardOutcome::Done(r)) | Ok(ShardOutcome::AlreadyDone(r)) => self.push(opts, &r),
+            other => self.stopped(opts, other, &checkpoints),
+        }
     }
-    pull_checkpoints(prefix, job, shard)?;
-    let writer = file_token(owner);
-    let checkpoints = Arc::new(Mutex::new(Checkpoints::new(
-        prefix,
-        shard,
-        &writer,
-        Arc::clone(held),
-        every,
-    )));
-    let hook = Arc::clone(&checkpoints);
-    opts.after_item = Some(Box::new(move |j| match hook.lock() {
-        Ok(mut c) => c.after_item(j, false),
-        Err(_) => Ok(()),
-    }));
-    // The item loop stops on the user's stop or on the loss of the bucket lease.
-    let user_stop = std::mem::replace(&mut opts.stop, Arc::clone(&shard_stop));
-    let forward = forward_stop(Arc::clone(&user_stop), Arc::clone(&shard_stop));
-    let outcome = process_shard(job, shard, opts);
-    opts.stop = user_stop;
-    opts.after_item = None;
-    shard_stop.store(true, Ordering::SeqCst);
-    let _ = forward.join();
-    let lost = |held: &BucketLease| {
-        held.lost().map(|why| {
-            format!(
-                "shard {shard}: this worker lost its lease {}: {why}; it stops here and leaves \
-                 the shard to the new holder",
-                prefix.url(&keys::lease(shard))
-            )
-        })
-    };
-    let record = match outcome {
-        Ok(ShardOutcome::Done(r)) | Ok(ShardOutcome::AlreadyDone(r)) => r,
-        other => {
-            if let Some(message) = lost(held) {
-                (opts.events)(Event::LeaseLost {
-                    shard,
-                    message: message.clone(),
-                });
-                return Ok(ShardOutcome::LeaseLost(message));
-            }
-            // Keep what finished for the next holder, whatever stopped this one; an error of
-            // the shard itself is the one to report (the checkpoint may fail for the same
-            // cause).
-            let last = match checkpoints.lock() {
-                Ok(mut c) => c.last(),
-                Err(_) => Ok(()),
-            };
-            let outcome = other?;
-            last.with_context(|| format!("shard {shard}: the last checkpoint"))?;
-            return Ok(outcome);
-        }
-    };
-    (opts.events)(Event::ShardWriting { shard });
-    let pushed = push(prefix, &job.layout, shard, &record, &writer, held)?;
-    // The bucket has it now: the scratch copy goes.
-    let _ = std::fs::remove_file(job.layout.shard_file(shard));
-    let _ = std::fs::remove_file(job.layout.completion(shard));
-    Ok(match pushed {
-        Pushed::Done(r) => {
-            (opts.events)(Event::ShardFinished {
-                shard,
-                rows: r.rows,
-                ok: r.ok,
-                failed: r.failed,
-            });
-            ShardOutcome::Done(r)
-        }
-        Pushed::FinishedElsewhere(r) => {
-            skipped(
-                opts,
-                shard,
-                "finished by another worker meanwhile; its shard is kept",
+
+    /// The item loop of `sparc3d_workers` in the scratch copy, checkpointing after items and
+    /// stopping on the user's stop or the loss of the bucket lease.
+    fn run_items(
+        &self,
+        opts: &mut WorkOptions,
+        checkpoints: &Arc<Mutex<Checkpoints>>,
+    ) -> Result<ShardOutcome> {
+        let hook = Arc::clone(checkpoints);
+        opts.after_item = Some(Box::new(move |j| match hook.lock() {
+            Ok(mut c) => c.after_item(j, false),
+            Err(_) => Ok(()),
+        }));
+        let user_stop = std::mem::replace(&mut opts.stop, Arc::clone(&self.shard_stop));
+        let forward = forward_stop(Arc::clone(&user_stop), Arc::clone(&self.shard_stop));
+        let outcome = process_shard(self.job, self.shard, opts);
+        opts.stop = user_stop;
+        opts.after_item = None;
+        self.shard_stop.store(true, Ordering::SeqCst);
+        let _ = forward.join();
+        Ok(outcome?)
+    }
+
+    /// The loop ended before the shard was written: a lost lease is said; otherwise what
+    /// finished goes up as a last checkpoint for the next holder.
+    fn stopped(
+        &self,
+        opts: &mut WorkOptions,
+        outcome: Result<ShardOutcome>,
+        checkpoints: &Mutex<Checkpoints>,
+    ) -> Result<ShardOutcome> {
+        if let Some(why) = self.held.lost() {
+            let message = format!(
+                "shard {}: this worker lost its lease {}: {why}; it stops here and leaves the \
+                 shard to the new holder",
+                self.shard,
+                self.prefix.url(&keys::lease(self.shard))
             );
-            ShardOutcome::AlreadyDone(r)
+            (opts.events)(Event::LeaseLost {
+                shard: self.shard,
+                message: message.clone(),
+            });
+            return Ok(ShardOutcome::LeaseLost(message));
         }
-    })
+        // The shard's own error is the one to report (the checkpoint may fail for the same
+        // cause).
+        let last = match checkpoints.lock() {
+            Ok(mut c) => c.last(),
+            Err(_) => Ok(()),
+        };
+        let outcome = outcome?;
+        last.with_context(|| format!("shard {}: the last checkpoint", self.shard))?;
+        Ok(outcome)
+    }
+
+    /// Uploads the shard written in the scratch copy and creates its record.
+    fn push(&self, opts: &mut WorkOptions, record: &CompletionRecord) -> Result<ShardOutcome> {
+        let shard = self.shard;
+        (opts.events)(Event::ShardWriting { shard });
+        let layout = &self.job.layout;
+        let pushed = push(self.prefix, layout, shard, record, &self.writer, &self.held)?;
+        // The bucket has it now: the scratch copy goes.
+        let _ = std::fs::remove_file(layout.shard_file(shard));
+        let _ = std::fs::remove_file(layout.completion(shard));
+        Ok(match pushed {
+            Pushed::Done(r) => {
+                (opts.events)(Event::ShardFinished {
+                    shard,
+                    rows: r.rows,
+                    ok: r.ok,
+                    failed: r.failed,
+                });
+                ShardOutcome::Done(r)
+            }
+            Pushed::FinishedElsewhere(r) => {
+                let why = "finished by another worker meanwhile; its shard is kept";
+                skipped(opts, shard, why);
+                ShardOutcome::AlreadyDone(r)
+            }
+        })
+    }
 }
 
 /// Copies the user's stop into the shard's stop flag until the shard's is set.
