@@ -70,9 +70,9 @@ pub fn init(
     if prefix.get(sparc3d_bucket::keys::JOB_FILE)?.is_some() {
         scratch::pull_job(&prefix, &staging, true)?;
     }
-    crate::commands::init::create(&staging, records, config)?;
+    let shown = PathBuf::from(url.to_string());
+    crate::commands::init::create_named(&staging, &shown, records, config)?;
     sparc3d_bucket::publish::publish(&prefix, &staging)?;
-    eprintln!("{url}: job made (its home is the bucket)");
     Ok(())
 }
 

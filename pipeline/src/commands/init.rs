@@ -172,6 +172,16 @@ pub fn select(
 
 /// Refuses a config that differs from the one `existing` was created with, naming the keys.
 pub fn check_same_config(existing: &sparc3d_workers::Job, config: &JobConfig) -> Result<()> {
+    check_same_config_of(existing, config, &existing.layout.root)
+}
+
+/// [`check_same_config`], naming the job `shown` in messages (a job URL whose files are
+/// checked in a local copy).
+fn check_same_config_of(
+    existing: &sparc3d_workers::Job,
+    config: &JobConfig,
+    shown: &Path,
+) -> Result<()> {
     let keys = existing.file.config.diff_keys(config)?;
     if !keys.is_empty() {
         // Jobs made before a rule became the default stored no key for it and convert without
@@ -193,14 +203,14 @@ pub fn check_same_config(existing: &sparc3d_workers::Job, config: &JobConfig) ->
                     "; this job converts without {what} (the default before it was switched \
                      on): resume it with `sparc3d run {}` alone, or give the command a config \
                      with `{key} = false` under [params]",
-                    existing.layout.root.display()
+                    shown.display()
                 )
             })
             .unwrap_or_default();
         bail!(
             "{} is already initialised with a different config; differing keys: {} \
              (use a new job folder, or the same config){hint}",
-            existing.layout.root.display(),
+            shown.display(),
             keys.join(", ")
         );
     }
@@ -211,6 +221,17 @@ pub fn check_same_config(existing: &sparc3d_workers::Job, config: &JobConfig) ->
 /// every item, job file. An existing job with the same config and manifest is left as it is;
 /// one with another config or manifest is refused.
 pub fn create(job: &Path, records: Vec<RawRecord>, config: JobConfig) -> Result<()> {
+    create_named(job, job, records, config)
+}
+
+/// [`create`] in the folder `job`, naming the job `shown` in messages (`init` to a bucket
+/// makes the job in a local folder first).
+pub fn create_named(
+    job: &Path,
+    shown: &Path,
+    records: Vec<RawRecord>,
+    config: JobConfig,
+) -> Result<()> {
     let layout = JobLayout::new(job);
     let items = sparc3d_manifests::freeze::freeze(records, config.shard_size)?;
     let mut text = String::new();
@@ -229,19 +250,19 @@ pub fn create(job: &Path, records: Vec<RawRecord>, config: JobConfig) -> Result<
                 None => e.into(),
             }
         })?;
-        check_same_config(&existing, &config)?;
+        check_same_config_of(&existing, &config, shown)?;
         if existing.file.manifest_sha256 != manifest_sha256 {
             bail!(
                 "{} is already initialised with a different manifest ({} items, now {}); \
                  shard assignment never changes: use a new job folder",
-                layout.root.display(),
+                shown.display(),
                 existing.file.items,
                 items.len()
             );
         }
         eprintln!(
             "{} is already initialised with this config and manifest; nothing to do",
-            layout.root.display()
+            shown.display()
         );
         return Ok(());
     }
@@ -266,7 +287,7 @@ pub fn create(job: &Path, records: Vec<RawRecord>, config: JobConfig) -> Result<
     sparc3d_workers::job::write_job_file(&layout, &file)?;
     eprintln!(
         "initialised {}: {} items in {} shards, fingerprint {}",
-        layout.root.display(),
+        shown.display(),
         file.items,
         shards,
         &file.fingerprint[..12]
