@@ -76,6 +76,11 @@ def test_two_workers_sharing_only_the_bucket_give_the_jobs_digest_on_disk(tmp_pa
     status = json.loads(run("status", url, "--json", env=env).stdout)
     assert (status["shards_done"], status["ok"], status["pending"]) == (3, 5, 0)
     assert digest(url, env) == digest(local)
+    # A job never changes once made: init again with another config is refused, naming it.
+    again = run("init", url, "--manifest", manifest(tmp_path), "--resolution", 64, env=env,
+                check=False)
+    assert again.returncode != 0 and url in again.stderr, again.stderr
+    assert "params.resolution" in again.stderr, again.stderr
     left = keys(s3, "two")
     assert not [k for k in left if k.startswith("state/")], f"leases or checkpoints left: {left}"
     uploads = [k for k in left if k.endswith(".parquet")]
