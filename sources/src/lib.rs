@@ -4,7 +4,9 @@
 //! the Arrow project's `object_store` (one client for S3, GCS, Azure and HTTP) with connect and
 //! read time-outs, retries with backoff on throttling and server errors, a byte cap checked
 //! against the object's size before the body is read and again while it streams, and the
-//! sha256 taken while it streams ([`fetch`]); a bucket prefix can be listed ([`list`]).
+//! sha256 taken while it streams ([`fetch`]); a bucket prefix can be listed ([`list`]); the
+//! objects of a job whose home is a bucket are read and written, conditionally where two
+//! writers may race, through [`objects`].
 //! Credentials come from the environment (and the usual files and metadata services), never
 //! from a manifest, a job file or a URL ([`store`]).
 //!
