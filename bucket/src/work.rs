@@ -204,27 +204,46 @@ fn forward_stop(user: Arc<AtomicBool>, shard: Arc<AtomicBool>) -> std::thread::J
     })
 }
 
-/// Replaces the scratch copy's journals of `shard` by the shard's checkpoints in the bucket:
-/// what the earlier holders finished, as journals of earlier holders.
+/// Makes the scratch copy's journals of `shard` the shard's checkpoints in the bucket: what
+/// the earlier holders finished, as journals of earlier holders. A checkpoint is written once
+/// under a name of its own and never changed, so one already here with its size is kept
+/// (`status` fetches only the new ones); any other journal here goes.
 pub(crate) fn pull_checkpoints(prefix: &Prefix<'_>, job: &Job, shard: u64) -> Result<()> {
     let layout = &job.layout;
-    journal::set::remove_all(layout, shard)?;
     let found = prefix
         .list(&keys::journals(shard))
         .with_context(|| format!("listing the checkpoints of shard {shard}"))?;
-    if found.is_empty() {
+    let wanted: Vec<(String, String, u64)> = found
+        .iter()
+        .map(|l| {
+            let key = prefix.relative_key(l);
+            let name = key.rsplit('/').next().unwrap_or_default().to_string();
+            (key, name, l.size)
+        })
+        .filter(|(_, name, _)| name.ends_with(".journal"))
+        .collect();
+    let dir = layout.journals_dir(shard);
+    for path in journal::set::paths(layout, shard)? {
+        let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
+        let size = std::fs::metadata(&path).map(|m| m.len()).ok();
+        let keep = wanted
+            .iter()
+            .any(|(_, n, s)| Some(n) == name.as_ref() && Some(*s) == size);
+        if !keep {
+            std::fs::remove_file(&path).with_context(|| format!("removing {}", path.display()))?;
+        }
+    }
+    if wanted.is_empty() {
         return Ok(());
     }
-    let dir = layout.journals_dir(shard);
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-    for l in found {
-        let key = prefix.relative_key(&l);
-        let name = key.rsplit('/').next().unwrap_or_default();
-        if !name.ends_with(".journal") {
+    for (key, name, _) in wanted {
+        let local = dir.join(&name);
+        if local.exists() {
             continue;
         }
         prefix
-            .download(&key, &dir.join(name))
+            .download(&key, &local)
             .with_context(|| format!("fetching checkpoint {key}"))?;
     }
     Ok(())
