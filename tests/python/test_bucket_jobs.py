@@ -5,7 +5,9 @@ killed with kill -9 mid-shard loses no checkpointed item and every item ends in 
 exactly once; two workers racing for one shard's lease: one converts it, once; a throttled
 bucket (503 SlowDown) and a network cut in the middle of an upload are retried; an upload left
 by a worker killed before its record is never read and is cleaned up; `verify` finds a shard
-altered in the bucket; a bucket without credentials or without the job is a clear error."""
+altered in the bucket; a worker SIGSTOPped past its lease and continued after another took
+the shard over stops and writes nothing; a bucket without credentials or without the job is a
+clear error; `retry` requeues failed items."""
 
 import json
 import shutil
@@ -227,3 +229,28 @@ def test_retry_requeues_failed_items_of_a_bucket_job(tmp_path, s3):
         assert server.hits["/sphere.obj"] >= 2
     finally:
         server.close()
+
+
+def test_a_worker_stopped_past_its_lease_leaves_the_shard_to_the_new_holder(tmp_path, s3):
+    local, url = make_jobs(tmp_path, s3, "stopped", 256, 5)
+    run("run", local, "--workers", "1")
+    first = subprocess.Popen(
+        [sparc3d_bin(), "work", url, "--shard-index", "0", "--lease-ttl", "2",
+         "--checkpoint-every", "0.001"],
+        env=env_for(s3, tmp_path / "scratch-a"), stderr=subprocess.PIPE, text=True)
+    wait_for(lambda: any(k.endswith(".journal") for k in keys(s3, "stopped"))
+             or first.poll() is not None, 120, "a first checkpoint")
+    assert first.poll() is None, "the first worker finished before it could be stopped"
+    os.kill(first.pid, signal.SIGSTOP)
+    try:
+        time.sleep(3)  # past its lease: the next worker takes the shard over
+        run("work", url, "--shard-index", "0", "--lease-ttl", "2",
+            env=env_for(s3, tmp_path / "scratch-b"))
+    finally:
+        os.kill(first.pid, signal.SIGCONT)
+    err = first.communicate(timeout=120)[1]
+    # Continued, it finds its lease expired (or, stopped inside its commit, the record there).
+    assert "lost its lease" in err or "already done" in err, err
+    uploads = [k for k in keys(s3, "stopped") if k.endswith(".parquet")]
+    assert len(uploads) == 1, uploads
+    assert digest(url, env_for(s3, tmp_path / "scratch-read")) == digest(local)
