@@ -84,14 +84,20 @@ fn unfinished_state(prefix: &Prefix<'_>, job: &Job, shard: u64) -> Result<ShardS
     })
 }
 
+/// The most bytes [`mirror`] downloads in one call unless `SPARC3D_VIEW_MAX_BYTES` says
+/// otherwise: a read-only command on a large job would otherwise copy the whole dataset.
+pub const DEFAULT_MAX_BYTES: u64 = 20 << 30;
+
 /// Makes `job`'s folder (a local copy of the bucket job's files) hold every finished shard of
 /// the bucket as a job folder does: `shards/part-NNNNN.parquet` and its record. Shards already
-/// there under an unchanged record are kept. Returns how many were downloaded.
+/// there under an unchanged record are kept. Returns how many were downloaded. More than
+/// `SPARC3D_VIEW_MAX_BYTES` (default [`DEFAULT_MAX_BYTES`]) to download is refused before
+/// anything is, naming the size.
 pub fn mirror(prefix: &Prefix<'_>, job: &Job) -> Result<u64> {
     let layout = &job.layout;
     std::fs::create_dir_all(layout.shards_dir())
         .with_context(|| format!("creating {}", layout.shards_dir().display()))?;
-    let mut fetched = 0;
+    let mut todo = Vec::new();
     for shard in 0..job.file.shards {
         let Some(record) = read_record(prefix, shard)? else {
             let _ = std::fs::remove_file(layout.completion(shard));
@@ -102,9 +108,13 @@ pub fn mirror(prefix: &Prefix<'_>, job: &Job) -> Result<u64> {
             object: None,
             ..record.clone()
         };
-        if kept(job, shard, &local) {
-            continue;
+        if !kept(job, shard, &local) {
+            todo.push((shard, record, local));
         }
+    }
+    check_size(prefix, &todo)?;
+    let fetched = todo.len() as u64;
+    for (shard, record, local) in todo {
         let _ = std::fs::remove_file(layout.completion(shard));
         let name = object_name(shard, &record);
         let file = layout.shard_file(shard);
@@ -120,9 +130,35 @@ pub fn mirror(prefix: &Prefix<'_>, job: &Job) -> Result<u64> {
         let local = CompletionRecord { stamp, ..local };
         let bytes = serde_json::to_vec_pretty(&local)?;
         crate::scratch::replace(&layout.completion(shard), &bytes)?;
-        fetched += 1;
     }
     Ok(fetched)
+}
+
+/// Refuses a download of more than the view's byte budget.
+fn check_size(
+    prefix: &Prefix<'_>,
+    todo: &[(u64, CompletionRecord, CompletionRecord)],
+) -> Result<()> {
+    let bytes: u64 = todo.iter().map(|(_, r, _)| r.bytes).sum();
+    let max = match std::env::var("SPARC3D_VIEW_MAX_BYTES") {
+        Ok(v) => v
+            .trim()
+            .parse::<u64>()
+            .with_context(|| format!("SPARC3D_VIEW_MAX_BYTES={v:?} is not a byte count"))?,
+        Err(_) => DEFAULT_MAX_BYTES,
+    };
+    if bytes > max {
+        anyhow::bail!(
+            "{}: this command reads a local copy of the finished shards, and {} shards of {:.1} \
+             GB are not copied yet, over the {:.1} GB allowed (SPARC3D_VIEW_MAX_BYTES); `sparc3d \
+             status` reads only records, the Python reader reads the bucket itself",
+            prefix.root(),
+            todo.len(),
+            bytes as f64 / 1e9,
+            max as f64 / 1e9
+        );
+    }
+    Ok(())
 }
 
 /// Whether the local copy of `shard` is the bucket's: its record is `record` (but for the

@@ -78,6 +78,10 @@ def test_two_workers_sharing_only_the_bucket_give_the_jobs_digest_on_disk(tmp_pa
     status = json.loads(run("status", url, "--json", env=env).stdout)
     assert (status["shards_done"], status["ok"], status["pending"]) == (3, 5, 0)
     assert digest(url, env) == digest(local)
+    # A read-only command copies the finished shards, within a byte budget.
+    small = {**env_for(s3, tmp_path / "scratch-small"), "SPARC3D_VIEW_MAX_BYTES": "1000"}
+    refused = run("ls", url, env=small, check=False)
+    assert refused.returncode != 0 and "SPARC3D_VIEW_MAX_BYTES" in refused.stderr, refused.stderr
     # A job never changes once made: init again with another config is refused, naming it.
     again = run("init", url, "--manifest", manifest(tmp_path), "--resolution", 64, env=env,
                 check=False)
