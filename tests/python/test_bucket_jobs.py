@@ -63,7 +63,7 @@ def digest(job, env=None):
     return json.loads(run("inspect", job, "--json", env=env).stdout)["content_digest"]
 
 
-def test_two_workers_sharing_only_the_bucket_give_the_jobs_digest_on_disk(tmp_path, s3):
+def test_two_workers_sharing_only_the_bucket_give_the_jobs_digest_on_disk(tmp_path, s3, monkeypatch):
     local, url = make_jobs(tmp_path, s3, "two", 32, 2)
     run("run", local, "--workers", "2")
     # Two array tasks (as a Kubernetes indexed Job runs them), each with its own scratch.
@@ -93,7 +93,8 @@ def test_two_workers_sharing_only_the_bucket_give_the_jobs_digest_on_disk(tmp_pa
     assert len(uploads) == 3, f"one upload per shard: {uploads}"
     # The Python reader reads the bucket job as the folder.
     import sparc3d_reader as reader
-    os.environ.update({k: v for k, v in s3.env.items()})
+    for k, v in s3.env.items():
+        monkeypatch.setenv(k, v)
     from_bucket = [(i["id"], i["coords"].tobytes()) for i in reader.iter_items(url)]
     from_disk = [(i["id"], i["coords"].tobytes()) for i in reader.iter_items(local)]
     assert from_bucket == from_disk
