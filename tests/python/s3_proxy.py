@@ -11,8 +11,11 @@ from remote_servers import free_port
 
 
 def kind_of(path):
-    """What a request touches, from its key: lease, checkpoint, record, shard, job, other."""
-    key = path.split("?", 1)[0]
+    """What a request touches, from its key: lease, checkpoint, record, shard, job, a listing,
+    a (bulk) delete, other."""
+    key, _, query = path.partition("?")
+    if "delete" in query:
+        return "delete"
     if key.endswith(".lease"):
         return "lease"
     if key.endswith(".journal"):
