@@ -20,8 +20,10 @@ pub fn folder(url: &RemoteUrl, base: Option<&Path>) -> PathBuf {
         .unwrap_or_else(std::env::temp_dir);
     let name = url.to_string();
     let digest = Sha256::digest(name.trim_end_matches('/').as_bytes());
-    let hex: String = digest.iter().take(8).map(|b| format!("{b:02x}")).collect();
-    base.join(format!("sparc3d-{hex}"))
+    base.join(format!(
+        "sparc3d-{}",
+        sparc3d_schema::config::hex(&digest[..8])
+    ))
 }
 
 /// Brings `job.json` and `manifest.jsonl` of the bucket job at `prefix` into `dir` (replacing

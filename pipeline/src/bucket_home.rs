@@ -39,15 +39,24 @@ pub fn local_view(job: &Path) -> Result<PathBuf> {
         JobHome::Folder(dir) => return Ok(dir),
         JobHome::Bucket(url) => url,
     };
-    let prefix = prefix(&url)?;
-    let dir = scratch::folder(&url, None).join("view");
-    let (local, _) = scratch::pull_job(&prefix, &dir, true)?;
-    let fetched = view::mirror(&prefix, &local)?;
+    let (_, local, fetched) = mirrored(&url)?;
+    let dir = local.layout.root;
     eprintln!(
         "{url}: read through a local copy in {} ({fetched} shards downloaded now)",
         dir.display()
     );
     Ok(dir)
+}
+
+/// The view folder of the bucket job at `url` (`view/` of its scratch folder) with the job
+/// files and every finished shard copied; the job's objects, the copy opened as the read-only
+/// commands open a job, and how many shards were downloaded now.
+fn mirrored(url: &RemoteUrl) -> Result<(Prefix<'static>, sparc3d_workers::Job, u64)> {
+    let prefix = prefix(url)?;
+    let dir = scratch::folder(url, None).join("view");
+    let (local, _) = scratch::pull_job(&prefix, &dir, true)?;
+    let fetched = view::mirror(&prefix, &local)?;
+    Ok((prefix, local, fetched))
 }
 
 /// The local copy of the bucket job at `url` that a worker works in (`work/` of its scratch
@@ -148,10 +157,7 @@ pub fn run(
 /// read-only commands), the leases as lease files and the unfinished shards' checkpoints as
 /// journals, so that it sees each shard's state as on disk.
 pub fn retry_view(url: &RemoteUrl) -> Result<PathBuf> {
-    let prefix = prefix(url)?;
-    let dir = scratch::folder(url, None).join("view");
-    let (local, _) = scratch::pull_job(&prefix, &dir, false)?;
-    view::mirror(&prefix, &local)?;
+    let (prefix, local, _) = mirrored(url)?;
     let states = view::shard_states(&prefix, &local)?;
     for (shard, state) in states.iter().enumerate() {
         let lease = local.layout.lease(shard as u64);
@@ -161,5 +167,5 @@ pub fn retry_view(url: &RemoteUrl) -> Result<PathBuf> {
             std::fs::write(&lease, serde_json::to_vec(info)?)?;
         }
     }
-    Ok(dir)
+    Ok(local.layout.root)
 }

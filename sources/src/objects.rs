@@ -280,11 +280,7 @@ impl<'f> Prefix<'f> {
                     format!("the body has {written} bytes, the store announced {size}"),
                 ));
             }
-            let sha256 = hasher
-                .finalize()
-                .iter()
-                .map(|b| format!("{b:02x}"))
-                .collect();
+            let sha256 = crate::fetch::hex(&hasher.finalize());
             Ok(Downloaded {
                 bytes: written,
                 sha256,

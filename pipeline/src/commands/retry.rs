@@ -24,14 +24,12 @@ pub struct Args {
 
 /// Runs `sparc3d retry`.
 pub fn run(args: Args) -> Result<ExitCode> {
-    let home = sparc3d_bucket::JobHome::parse(&args.job)?;
-    let bucket = match &home {
-        sparc3d_bucket::JobHome::Bucket(url) => Some(crate::bucket_home::prefix(url)?),
-        sparc3d_bucket::JobHome::Folder(_) => None,
-    };
-    let dir = match &home {
-        sparc3d_bucket::JobHome::Bucket(url) => crate::bucket_home::retry_view(url)?,
-        sparc3d_bucket::JobHome::Folder(dir) => dir.clone(),
+    let (dir, bucket) = match sparc3d_bucket::JobHome::parse(&args.job)? {
+        sparc3d_bucket::JobHome::Folder(dir) => (dir, None),
+        sparc3d_bucket::JobHome::Bucket(url) => (
+            crate::bucket_home::retry_view(&url)?,
+            Some(crate::bucket_home::prefix(&url)?),
+        ),
     };
     let job = Job::open(&dir)?;
     let class = args.class.as_deref().map(ErrorClass::parse).transpose()?;

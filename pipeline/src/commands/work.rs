@@ -12,7 +12,6 @@ use sparc3d_workers::supervisor::ChildCommand;
 use sparc3d_workers::{process_shard, Job, ShardOutcome, WorkOptions};
 use std::io::Write;
 use std::path::PathBuf;
-
 use std::process::ExitCode;
 
 /// Per-item limits given on the command line (override the job's for this run).
