@@ -103,13 +103,12 @@ fn clean_up(prefix: &Prefix<'_>, shard: u64, kept: &str) {
             let _ = prefix.delete(&prefix.relative_key(&l));
         }
     }
-    let mine = JobLayout::shard_name(shard);
-    if let Ok(found) = prefix.list(keys::SHARDS) {
+    let mine = format!("{}{}.", keys::SHARDS, JobLayout::shard_name(shard));
+    if let Ok(found) = prefix.list_starting(&mine) {
         for l in found {
             let key = prefix.relative_key(&l);
             let name = key.trim_start_matches(keys::SHARDS);
-            let of_this_shard = name.starts_with(&format!("{mine}.")) && name.ends_with(".parquet");
-            if of_this_shard && name != kept {
+            if name.ends_with(".parquet") && name != kept {
                 let _ = prefix.delete(&key);
             }
         }

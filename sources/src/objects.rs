@@ -302,6 +302,33 @@ impl<'f> Prefix<'f> {
         }
     }
 
+    /// The objects whose key starts with `key_prefix` (relative to this prefix; a name prefix
+    /// such as `shards/part-00003.`, not only a folder), sorted by key. The store lists from
+    /// that name on (S3's start-after) and the listing stops at the first key past them, so
+    /// the cost follows what matches, not the size of the folder.
+    pub fn list_starting(&self, key_prefix: &str) -> Result<Vec<Listed>, FetchError> {
+        let full = self.url(key_prefix).key();
+        let dir = full.rsplit_once('/').map_or("", |(d, _)| d);
+        let folder = ObjectPath::from_iter(dir.split('/').filter(|p| !p.is_empty()));
+        let offset = ObjectPath::from_iter(full.split('/').filter(|p| !p.is_empty()));
+        self.fetcher.block_on(async {
+            let mut stream = self.store.list_with_offset(Some(&folder), &offset);
+            let mut out = Vec::new();
+            while let Some(meta) = stream.next().await {
+                let meta = meta.map_err(|e| self.error(key_prefix, &e))?;
+                if !meta.location.as_ref().starts_with(full.as_str()) {
+                    break;
+                }
+                out.push(Listed {
+                    url: self.root.with_key(meta.location.as_ref()),
+                    size: meta.size,
+                    etag: meta.e_tag.map(|t| t.trim_matches('"').to_string()),
+                });
+            }
+            Ok(out)
+        })
+    }
+
     /// The key of `listed` relative to this prefix.
     pub fn relative_key(&self, listed: &Listed) -> String {
         let base = self.root.key();
