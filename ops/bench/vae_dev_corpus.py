@@ -6,8 +6,8 @@ reconstructions of the unseen items and of as many training items against their 
 meshes and sources.
 
     ops/bench/vae_dev_corpus.py --job dev64 --work out/vae-dev --train 128 --unseen 16 \\
-        --minutes 30 --steps-per-second 0.75 [--config vae.toml] [--run NAME] [--steps S]
-        [--unseen-only]
+        --minutes 30 --steps-per-second 0.75 [--config vae.toml] [--run NAME] [--steps S] \\
+        [--init-from RUN] [--unseen-only]
 
 Several runs may share one WORK folder (`--run NAME`: WORK/NAME/ holds the run, its
 evaluations and its report; the split jobs are converted once). `--steps` fixes the step count
@@ -85,6 +85,8 @@ def main():
     ap.add_argument("--steps-per-second", type=float, default=0.5,
                     help="measured rate, to turn the budget into a step count")
     ap.add_argument("--config", type=pathlib.Path)
+    ap.add_argument("--init-from", type=pathlib.Path,
+                    help="start from another run's weights (e.g. a 64³ run for a 128³ one)")
     ap.add_argument("--run", default="run", help="name of the run folder under WORK")
     ap.add_argument("--steps", type=int, help="step count (instead of minutes × rate)")
     ap.add_argument("--unseen-only", action="store_true", help="evaluate the unseen items only")
@@ -105,13 +107,16 @@ def main():
     cmd = vae("train", "--data", train_job, "--out", run_dir, "--steps", steps, "--device", "cpu")
     if args.config:
         cmd += ["--config", args.config]
+    if args.init_from:
+        cmd += ["--init-from", args.init_from]
     began = time.monotonic()
     run(cmd)
     seconds = time.monotonic() - began
     peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * 1024
     report = {"split": {"train": len(training), "unseen": len(unseen), "seed": args.seed},
               "resolution": resolution, "steps": steps, "train_seconds": seconds,
-              "steps_per_second": steps / seconds, "train_peak_rss_bytes": peak}
+              "steps_per_second": steps / seconds, "train_peak_rss_bytes": peak,
+              "init_from": str(args.init_from) if args.init_from else None}
     evals = (("unseen", unseen_job, len(unseen)), ("train", train_job, len(unseen)))
     for name, job, n in evals[:1] if args.unseen_only else evals:
         out = home / f"eval-{name}"

@@ -59,6 +59,10 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, help="seed (default: train.seed)")
     p.add_argument("--resume", action="store_true",
                    help="continue the run in RUN from its last checkpoint")
+    p.add_argument("--init-from", type=Path, metavar="CKPT",
+                   help="start a new run from the weights (EMA when kept) of another run's "
+                   "checkpoint or run folder, trained at any resolution; its config unless "
+                   "--config is given, whose [model] must match")
     p.add_argument("--hold-out", type=int, metavar="N",
                    help="leave out the N items `evaluate --sample N --seed S` picks (train.hold_out)")
     p.add_argument("--hold-out-seed", type=int, metavar="S", help="their seed (train.hold_out_seed)")
@@ -142,7 +146,8 @@ def _run(args: argparse.Namespace) -> int:
 
     if args.command == "train":
         summary = train.train(args.data, args.out, args.config, args.steps, args.device,
-                              args.resume, args.seed, args.hold_out, args.hold_out_seed)
+                              args.resume, args.seed, args.hold_out, args.hold_out_seed,
+                              args.init_from)
         if os.environ.get("RANK", "0") not in ("", "0"):
             return 0
         t = summary["terms"]

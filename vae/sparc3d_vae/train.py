@@ -32,8 +32,8 @@ from .config import Config, load_config
 from .data import DataError, Sample, Samples, job_info, make_batch
 from .loss import vae_loss
 from .model import SparconvVAE
-from .runtime import (CHECKPOINT_NAME, UsageError, autocast, config_diff, digest_ids,
-                      load_checkpoint, memory_guard, pick_device, save_checkpoint,
+from .runtime import (CHECKPOINT_NAME, UsageError, autocast, checkpoint_path, config_diff,
+                      digest_ids, load_checkpoint, memory_guard, pick_device, save_checkpoint,
                       seed_everything)
 
 #: The loss terms `vae_loss` returns, in the log's order.
@@ -202,12 +202,49 @@ def _resume_config(state: Dict[str, Any], ckpt_path: Path, config: Optional[Path
     return cfg
 
 
+class InitWeights:
+    """The weights a new run starts from (`--init-from`): another run's EMA weights (its raw
+    weights when it kept no average), whatever resolution it was trained at: the sparse
+    convolutions' kernels do not depend on the grid's size, so a model trained at 64³ is a
+    starting point at 128³ (progressive training, as TRELLIS.2 and Direct3D-S2 train from low
+    to high resolution)."""
+
+    def __init__(self, path: Path, state: Dict[str, Any]):
+        self.path = path
+        self.weights = state.get("ema") or state["model"]
+        self.step = int(state.get("step", 0))
+        self.resolutions = state.get("data", {}).get("resolutions")
+
+    def record(self) -> Dict[str, Any]:
+        """What the new run's checkpoint says about where it started."""
+        return {"path": str(self.path), "step": self.step, "resolutions": self.resolutions,
+                "weights_digest": distributed.weights_digest(self.weights)}
+
+
+def _init_config(state: Dict[str, Any], ckpt_path: Path, config: Optional[Path]) -> Config:
+    """The config of a run started from another's weights: the checkpoint's whole config
+    without `config`; with it, `config`, whose [model] must be the checkpoint's (refused,
+    naming the keys)."""
+    cfg = Config.from_dict(state["config"], str(ckpt_path))
+    if config is None:
+        return cfg
+    asked = load_config(config)
+    asked.model.deformation = cfg.model.deformation
+    diff = config_diff(cfg.to_dict()["model"], asked.to_dict()["model"], "model.")
+    if diff:
+        raise UsageError(f"{config}: its [model] differs from the one of --init-from {ckpt_path} "
+                         f"in {'; '.join(diff)}: the weights would not fit")
+    return asked
+
+
 def train(data: List[str], out: Path, config: Optional[Path], steps: Optional[int],
           device_name: str, resume: bool, seed: Optional[int] = None,
-          hold_out: Optional[int] = None, hold_out_seed: Optional[int] = None) -> Dict[str, Any]:
+          hold_out: Optional[int] = None, hold_out_seed: Optional[int] = None,
+          init_from: Optional[Path] = None) -> Dict[str, Any]:
     """Trains (or resumes) a run; returns a summary (steps, final loss terms, seconds). Under
     torchrun every process calls it (see `distributed`); rank 0 writes the run folder.
-    `seed`, `hold_out`, `hold_out_seed` override the config's train keys of those names."""
+    `seed`, `hold_out`, `hold_out_seed` override the config's train keys of those names;
+    `init_from` (a checkpoint or run folder) gives a new run its starting weights."""
     out = Path(out)
     try:
         world = distributed.world_from_env()
@@ -215,6 +252,10 @@ def train(data: List[str], out: Path, config: Optional[Path], steps: Optional[in
         raise UsageError(str(e)) from None
     ckpt_path = out / CHECKPOINT_NAME
     state = None
+    init = None
+    if resume and init_from is not None:
+        raise UsageError("--init-from starts a new run from another's weights, --resume "
+                         "continues this one: pass one of them")
     if resume:
         state = load_checkpoint(ckpt_path)
         cfg = _resume_config(state, ckpt_path, config, world)
@@ -222,7 +263,13 @@ def train(data: List[str], out: Path, config: Optional[Path], steps: Optional[in
         if ckpt_path.exists():
             raise UsageError(f"{out} already holds a checkpoint: pass --resume to continue it, "
                              "or choose another --out")
-        cfg = load_config(config)
+        if init_from is not None:
+            init_path = checkpoint_path(init_from)
+            init_state = load_checkpoint(init_path)
+            cfg = _init_config(init_state, init_path, config)
+            init = InitWeights(init_path, init_state)
+        else:
+            cfg = load_config(config)
     if steps is not None:
         cfg.train.steps = steps
     for flag, key, value in (("--seed", "seed", seed), ("--hold-out", "hold_out", hold_out),
@@ -245,6 +292,10 @@ def train(data: List[str], out: Path, config: Optional[Path], steps: Optional[in
     if state is not None and cfg.model.deformation != info.deformation:
         raise UsageError(f"the checkpoint's model {'reads' if cfg.model.deformation else 'has no'} "
                          f"deformation, but the data {'has' if info.deformation else 'has none'}")
+    if init is not None and cfg.model.deformation != info.deformation:
+        raise UsageError(f"--init-from {init.path}: its model "
+                         f"{'reads' if cfg.model.deformation else 'has no'} deformation, but the "
+                         f"data {'has' if info.deformation else 'has none'}")
     cfg.model.deformation = info.deformation
     cfg.validate()
     samples = Samples(info, cache=cfg.train.cache_items)
@@ -266,21 +317,30 @@ def train(data: List[str], out: Path, config: Optional[Path], steps: Optional[in
 
     distributed.init(world, device)
     try:
-        return _loop(cfg, state, samples, pool, info, ids_digest, out, ckpt_path, device, world)
+        return _loop(cfg, state, init, samples, pool, info, ids_digest, out, ckpt_path, device,
+                     world)
     finally:
         distributed.shutdown(world)
 
 
-def _loop(cfg: Config, state: Optional[Dict[str, Any]], samples: Samples, pool: List[int],
-          info, ids_digest: str,
+def _loop(cfg: Config, state: Optional[Dict[str, Any]], init: Optional[InitWeights],
+          samples: Samples, pool: List[int], info, ids_digest: str,
           out: Path, ckpt_path: Path, device: torch.device,
           world: distributed.World) -> Dict[str, Any]:
     """The optimisation steps of `train` (in the process group when there is one)."""
     seed_everything(cfg.train.seed)
     model = SparconvVAE(cfg.model).to(device)
+    if init is not None:
+        try:
+            model.load_state_dict(init.weights)
+        except RuntimeError as e:
+            first = str(e).splitlines()[0] if str(e) else "mismatch"
+            raise UsageError(f"--init-from {init.path}: its weights do not fit its own config "
+                             f"({first}); written by another version of sparc3d-vae?") from None
     opt = torch.optim.AdamW(model.parameters(), lr=cfg.train.lr, weight_decay=cfg.train.weight_decay)
     ema = EMA(model, cfg.train.ema_decay) if cfg.train.ema_decay > 0 else None
     start = 0
+    init_record = init.record() if init is not None else (state or {}).get("init_from")
     if state is not None:
         model.load_state_dict(state["model"])
         opt.load_state_dict(state["optimizer"])
@@ -315,6 +375,7 @@ def _loop(cfg: Config, state: Optional[Dict[str, Any]], samples: Samples, pool: 
                 "optimizer": opt.state_dict(), "step": step, "world_size": world.size,
                 "rank_digests": digests,
                 **({"ema": ema.state_dict()} if ema is not None else {}),
+                **({"init_from": init_record} if init_record else {}),
                 "rng": {"torch": torch.get_rng_state(),
                         "cuda": torch.cuda.get_rng_state() if device.type == "cuda" else None},
                 "data": {"ids_digest": ids_digest, "items": len(samples),
@@ -322,6 +383,10 @@ def _loop(cfg: Config, state: Optional[Dict[str, Any]], samples: Samples, pool: 
         distributed.barrier(world)
 
     t = cfg.train
+    if world.main and init is not None and start == 0:
+        at = ", ".join(f"{r}³" for r in init.resolutions or []) or "an unrecorded resolution"
+        print(f"starting from the weights of {init.path} (step {init.step}, trained at {at})",
+              file=sys.stderr)
     progress = Progress(t.steps) if world.main else None
     skipped: Dict[str, int] = {}
     terms: Dict[str, float] = {}

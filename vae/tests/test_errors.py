@@ -183,3 +183,33 @@ def test_per_resolution_configs_load_and_keep_a_latent_grid_of_at_least_8():
     for f in files:
         cfg = load_config(f)
         assert int(f.stem) // cfg.model.downsample >= 8, f
+
+
+def test_init_from_refuses_resume_another_model_and_another_deformation(job32, tmp_path, capsys):
+    small = tmp_path / "a.toml"
+    small.write_text("[model]\nchannels = [8, 8, 16, 16]\nblocks = [0, 1, 1, 1]\ndownsample = 8\n"
+                     "heads = 2\n[train]\nthreads = 1\n")
+    assert run_cli("train", "--data", job32, "--out", tmp_path / "src", "--config", small,
+                   "--steps", 1, "--device", "cpu", capsys=capsys)[0] == 0
+    code, err = run_cli("train", "--data", job32, "--out", tmp_path / "src", "--resume",
+                        "--init-from", tmp_path / "src", "--device", "cpu", capsys=capsys)
+    assert code == 2 and "--init-from" in err and "--resume" in err, err
+    other = tmp_path / "b.toml"
+    other.write_text(small.read_text().replace("[8, 8, 16, 16]", "[8, 8, 16, 32]"))
+    code, err = run_cli("train", "--data", job32, "--out", tmp_path / "new", "--config", other,
+                        "--init-from", tmp_path / "src", "--steps", 1, "--device", "cpu",
+                        capsys=capsys)
+    assert code == 2 and "model.channels" in err and "src" in err, err
+    code, err = run_cli("train", "--data", job32, "--out", tmp_path / "new",
+                        "--init-from", tmp_path / "nothing", "--device", "cpu", capsys=capsys)
+    assert code == 2 and "nothing" in err and "no checkpoint" in err, err
+    # A model without δ cannot start a run on a job that stores it.
+    from conftest import make_job
+
+    (tmp_path / "d").mkdir()
+    deform = make_job(tmp_path / "d", 32, ["sphere.obj"], deform=True)
+    code, err = run_cli("train", "--data", deform, "--out", tmp_path / "new",
+                        "--init-from", tmp_path / "src", "--steps", 1, "--device", "cpu",
+                        capsys=capsys)
+    assert code == 2 and "deformation" in err and "--init-from" in err, err
+    assert not (tmp_path / "new").exists()
