@@ -38,6 +38,8 @@ def parse_args():
     p.add_argument("--resolution", type=int, default=256)
     p.add_argument("--b-flags", default="",
                    help="extra `convert` flags for B, space-separated (e.g. --refine, with --b the same binary as --a)")
+    p.add_argument("--samples", type=int, default=100_000,
+                   help="points `eval` samples on each mesh (more: less noise, slower)")
     p.add_argument("--seeds", default=str(0x5BA3C3D0),
                    help="eval seeds for changed meshes, comma-separated (default: eval's own)")
     p.add_argument("--out", default="quality_ab", help="output prefix: PREFIX.jsonl")
@@ -69,7 +71,7 @@ def evaluate(args, mesh, out):
     reports = []
     for seed in args.seeds.split(","):
         cmd = [args.b, "eval", mesh, out, "--resolution", str(args.resolution), "--json",
-               "--seed", seed.strip()]
+               "--seed", seed.strip(), "--samples", str(args.samples)]
         report, err = last_json(cmd, args.timeout)
         reports.append({"seed": int(seed), "error": err} if err else {"seed": int(seed), **report})
     return reports

@@ -2,16 +2,18 @@
 """The refinement's table (docs/QUALITY.md, "Refinement against renderings") from a
 `quality_ab.py --b-flags=--refine` run and a `cad_like.py` classification.
 
-    python3 ops/bench/refine_table.py ab256.jsonl cad.json
+    python3 ops/bench/refine_table.py ab256.jsonl cad.json [--samples 1000000]
 
 Prints, per group (CAD-like, the others), the median of each metric without and with the
-refinement (mean over the eval seeds), how many meshes moved beyond noise (`NOISE`, or the
-seeds' own spread when larger), and
-the conversion time per mesh on and off (same run). Only the standard library.
+refinement (mean over the eval seeds), how many meshes moved beyond noise (`NOISE`, scaled
+by √(100,000 / samples) when `eval` sampled more points (`quality_ab.py --samples`; sampling
+noise falls as one over the root of the sample count), or the seeds' own spread when
+larger), and the conversion time per mesh on and off (same run). Only the standard library.
 """
+import argparse
 import json
+import math
 import statistics
-import sys
 
 # The spread of `eval` over four seeds of one output (the largest over chassis_differential,
 # bad-stl-tardis and bunny00 at 256³, docs/QUALITY.md): a change smaller than this is noise.
@@ -31,8 +33,14 @@ def figures(reports):
 
 
 def main():
-    rows = [json.loads(line) for line in open(sys.argv[1]) if line.strip()]
-    cad = {k for k, v in json.load(open(sys.argv[2])).items()
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("results", help="quality_ab.py's OUT.jsonl")
+    ap.add_argument("cad", help="cad_like.py's classification (JSON)")
+    ap.add_argument("--samples", type=int, default=100_000, help="the run's `eval --samples`")
+    args = ap.parse_args()
+    floor = {k: v * math.sqrt(100_000 / args.samples) for k, v in NOISE.items()}
+    rows = [json.loads(line) for line in open(args.results) if line.strip()]
+    cad = {k for k, v in json.load(open(args.cad)).items()
            if v.get("curved_share", 9) < 0.1 and v.get("sharp_len_rel", 0) >= 1}
     groups = {"CAD-like": [], "other": []}
     for r in rows:
@@ -51,7 +59,7 @@ def main():
                 a, b = figures(r["a"]["eval"]), figures(r["b"]["eval"])
                 off.append(a[key][0])
                 on.append(b[key][0])
-                spread = max(a[key][1], b[key][1], NOISE[key])
+                spread = max(a[key][1], b[key][1], floor[key])
                 d = (b[key][0] - a[key][0]) * (1 if higher else -1)
                 better += d > spread
                 worse += -d > spread

@@ -568,3 +568,36 @@ fn preview_inside_test_converts_a_mesh_with_it() {
         );
     }
 }
+
+/// `preview --refine` draws the refined output (a before/after pair is two calls): the
+/// pictures of one mesh with and without it differ; out-of-range settings are refused naming
+/// the setting, and `--refine` is refused for a job's item, drawn as its job made it.
+#[test]
+fn preview_refine_draws_the_refined_output() {
+    let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let mesh = examples().join("wuson.stl");
+    let draw = |name: &str, extra: &[&str]| {
+        let png = tmp.path().join(name);
+        let mut a = vec!["preview", s(&mesh), "-o", s(&png), "--views", "1"];
+        a.extend(["--tile", "96", "--resolution", "32"]);
+        a.extend(extra);
+        let out = sparc3d(&a);
+        (out, png)
+    };
+    let (off, off_png) = draw("off.png", &[]);
+    assert!(off.status.success(), "{}", stderr(&off));
+    let (on, on_png) = draw("on.png", &["--refine"]);
+    assert!(on.status.success(), "{}", stderr(&on));
+    let read = |p: &std::path::Path| std::fs::read(p).unwrap_or_else(|e| panic!("{e}"));
+    assert_ne!(
+        read(&off_png),
+        read(&on_png),
+        "the refined output draws the same"
+    );
+    let (bad, _) = draw("bad.png", &["--refine", "--refine-views", "0"]);
+    assert!(!bad.status.success());
+    assert!(stderr(&bad).contains("views"), "{}", stderr(&bad));
+    let (item, _) = draw("item.png", &["--id", "x", "--refine"]);
+    assert!(!item.status.success());
+    assert!(stderr(&item).contains("--refine"), "{}", stderr(&item));
+}

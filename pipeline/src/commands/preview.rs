@@ -8,7 +8,7 @@
 
 use crate::item_lookup;
 use crate::pictures::{preview_mesh, preview_row, write_png};
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
 use sparc3d_render::CompareOptions;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -40,12 +40,18 @@ pub struct Args {
     /// docs/ALGORITHM.md §2b). Neither flag applies to a job's item, drawn as the job made it.
     #[command(flatten)]
     pub inside_test: super::inside_test_args::InsideTestArgs,
+    /// A mesh is refined against renderings of its source when `--refine` (as `convert`;
+    /// docs/ALGORITHM.md §7b), so a before/after pair is two calls. A job's item is drawn as
+    /// the job stored it (refined when its job refines).
+    #[command(flatten)]
+    pub refine: super::refine_args::RefineArgs,
 }
 
 /// The conversion parameters of a mesh drawn by `preview`: its resolution and rules.
 fn rules(args: &Args) -> sparcubes::Params {
     let mut params = sparcubes::Params::with_resolution(args.resolution.get());
     args.inside_test.apply_to(&mut params);
+    params.refine = args.refine.settings();
     params
 }
 
@@ -57,10 +63,10 @@ pub fn run(args: Args) -> Result<ExitCode> {
         elevation_deg: args.elevation,
     };
     let (image, what) = match &args.id {
-        Some(_) if args.inside_test.given() => {
+        Some(_) if args.inside_test.given() || args.refine.refine => {
             bail!(
-                "--inside-test, --no-inside-test and --no-seal-openings apply to a mesh; a job's \
-                 item is drawn as the job made it"
+                "--inside-test, --no-inside-test, --no-seal-openings and --refine apply to a \
+                 mesh; a job's item is drawn as the job made it"
             )
         }
         Some(id) => {
@@ -78,8 +84,13 @@ pub fn run(args: Args) -> Result<ExitCode> {
                     args.input.display()
                 );
             }
+            let params = rules(&args);
+            params
+                .validate()
+                .map_err(|e| anyhow::anyhow!("{e}"))
+                .context("checking the conversion parameters")?;
             (
-                preview_mesh(&args.input, &rules(&args), &options)?,
+                preview_mesh(&args.input, &params, &options)?,
                 args.input.display().to_string(),
             )
         }
