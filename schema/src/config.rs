@@ -551,22 +551,23 @@ mod tests {
         assert!(!new.to_canonical_json()?.contains("refine"));
         let off = JobConfig::from_overrides(&serde_json::json!({"params": {"refine": false}}))?;
         assert_eq!(off.fingerprint()?, new.fingerprint()?);
-        // `refine = true`: the default settings, written whole.
+        // `refine = true`: the default settings, written whole but for the picture size, which
+        // follows the resolution unless set (a job stored with `image` keeps it).
         let on = JobConfig::from_overrides(&serde_json::json!({"params": {"refine": true}}))?;
         assert_eq!(
             on.params.refine,
             Some(sparcubes::refine::RefineParams::default())
         );
-        assert!(on
-            .to_canonical_json()?
-            .contains("\"refine\":{\"image\":384,"));
+        let written = on.to_canonical_json()?;
+        assert!(written.contains("\"refine\":{\"rate\":"), "{written}");
+        assert!(!written.contains("image"), "{written}");
         assert_eq!(on.diff_keys(&new)?, vec!["params.refine"]);
         // A table: its settings over the defaults; read back from the canonical JSON.
         let table = JobConfig::from_overrides(
             &serde_json::json!({"params": {"refine": {"views": 8, "steps": 5}}}),
         )?;
         let r = table.params.refine.map(|r| (r.views, r.steps, r.image));
-        assert_eq!(r, Some((8, 5, 384)));
+        assert_eq!(r, Some((8, 5, None)));
         let back: JobConfig =
             serde_json::from_str(&table.to_canonical_json()?).map_err(|source| {
                 SchemaError::Json {

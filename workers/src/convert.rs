@@ -426,7 +426,7 @@ mod tests {
         let params = Params {
             refine: Some(sparcubes::refine::RefineParams {
                 views: 6,
-                image: 64,
+                image: Some(64),
                 steps: 5,
                 rate: 0.05,
             }),

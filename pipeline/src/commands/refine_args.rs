@@ -34,7 +34,7 @@ impl RefineArgs {
         let d = RefineParams::default();
         Some(RefineParams {
             views: self.refine_views.unwrap_or(d.views),
-            image: self.refine_image.unwrap_or(d.image),
+            image: self.refine_image.or(d.image),
             steps: self.refine_steps.unwrap_or(d.steps),
             rate: self.refine_rate.unwrap_or(d.rate),
         })

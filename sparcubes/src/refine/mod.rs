@@ -132,7 +132,8 @@ pub fn refine(
     stats.outcome = Outcome::Finished;
     stats.loss_best = f64::INFINITY;
     let surface = Surface::new(cubes);
-    let views = views::views(bounds(source), settings.views, settings.image);
+    let image = settings.image_for(cubes.resolution);
+    let views = views::views(bounds(source), settings.views, image);
     let targets: Vec<Targets> = {
         let traced = Traced::new(&source.verts, &source.tris);
         views.iter().map(|v| targets(&traced, v)).collect()

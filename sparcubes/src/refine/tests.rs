@@ -85,7 +85,7 @@ fn shapes() -> Vec<(&'static str, SparseCubes, GridMesh)> {
 fn small() -> RefineParams {
     RefineParams {
         views: 6,
-        image: 48,
+        image: Some(48),
         steps: 12,
         rate: 0.05,
     }
@@ -116,7 +116,7 @@ fn the_gradient_on_the_displacements_agrees_with_finite_differences() {
     for (name, cubes, source) in shapes() {
         let surface = Surface::new(&cubes);
         let s = small();
-        let views = views::views(bounds(&source), s.views, s.image);
+        let views = views::views(bounds(&source), s.views, s.image_for(cubes.resolution));
         let src = Traced::new(&source.verts, &source.tris);
         let targets: Vec<Targets> = views.iter().map(|v| targets(&src, v)).collect();
         let delta: Vec<[f64; 3]> = cubes.deformation.iter().map(|d| d.map(f64::from)).collect();
@@ -268,7 +268,7 @@ fn settings_out_of_range_are_refused_by_name() {
         ),
         (
             RefineParams {
-                image: settings::MAX_IMAGE + 1,
+                image: Some(settings::MAX_IMAGE + 1),
                 ..Default::default()
             },
             "refine.image",
@@ -293,4 +293,30 @@ fn settings_out_of_range_are_refused_by_name() {
         assert!(matches!(&e, Err(m) if m.contains(key)), "{key}: {e:?}");
     }
     assert!(RefineParams::default().validate().is_ok());
+}
+
+/// Without a picture size the refinement renders 3 pixels per cell across the grid, within
+/// [384, 2048]; a size that is set wins; a job file written before the automatic size (its
+/// `image` stored) reads back with it, and one without `image` stays automatic.
+#[test]
+fn the_picture_size_follows_the_resolution_unless_set() {
+    let auto = RefineParams::default();
+    assert_eq!(auto.image_for(64), 384);
+    assert_eq!(auto.image_for(128), 384);
+    assert_eq!(auto.image_for(256), 768);
+    assert_eq!(auto.image_for(512), 1536);
+    assert_eq!(auto.image_for(1024), settings::MAX_IMAGE);
+    let set = RefineParams {
+        image: Some(500),
+        ..Default::default()
+    };
+    assert_eq!(set.image_for(1024), 500);
+    let old: RefineParams =
+        serde_json::from_str(r#"{"views":12,"image":384,"steps":12,"rate":0.015}"#)
+            .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(old.image_for(512), 384);
+    let written = serde_json::to_string(&auto).unwrap_or_else(|e| panic!("{e}"));
+    assert!(!written.contains("image"), "{written}");
+    let back: RefineParams = serde_json::from_str(&written).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(back, auto);
 }
