@@ -130,14 +130,20 @@ def model_from_checkpoint(state: Dict[str, Any], device: torch.device, source: s
     except ConfigError as e:
         raise UsageError(str(e)) from None
     model = SparconvVAE(cfg.model)
+    # The moving average of the weights when the run kept one (train.ema_decay).
+    load_weights(model, state.get("ema") or state["model"], source)
+    return cfg, model.to(device).eval()
+
+
+def load_weights(model: torch.nn.Module, weights: Dict[str, Any], source: str) -> None:
+    """Loads a checkpoint's weights into a model built from the checkpoint's own config;
+    weights that do not fit are a clear error naming `source`, not a stack trace."""
     try:
-        # The moving average of the weights when the run kept one (train.ema_decay).
-        model.load_state_dict(state.get("ema") or state["model"])
+        model.load_state_dict(weights)
     except RuntimeError as e:
         first = str(e).splitlines()[0] if str(e) else "mismatch"
         raise UsageError(f"{source}: its weights do not fit its own config ({first}); written "
                          "by another version of sparc3d-vae?") from None
-    return cfg, model.to(device).eval()
 
 
 def config_diff(a: Dict[str, Any], b: Dict[str, Any], prefix: str = "") -> List[str]:

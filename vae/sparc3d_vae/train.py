@@ -33,8 +33,8 @@ from .data import DataError, Sample, Samples, job_info, make_batch
 from .loss import vae_loss
 from .model import SparconvVAE
 from .runtime import (CHECKPOINT_NAME, UsageError, autocast, checkpoint_path, config_diff,
-                      digest_ids, load_checkpoint, memory_guard, pick_device, save_checkpoint,
-                      seed_everything)
+                      digest_ids, load_checkpoint, load_weights, memory_guard, pick_device,
+                      save_checkpoint, seed_everything)
 
 #: The loss terms `vae_loss` returns, in the log's order.
 LOSS_TERMS = ["loss", "occ", "sign", "mag", "delta", "kl"]
@@ -289,13 +289,10 @@ def train(data: List[str], out: Path, config: Optional[Path], steps: Optional[in
         torch.set_num_threads(cfg.train.threads)
 
     info = job_info(data)
-    if state is not None and cfg.model.deformation != info.deformation:
-        raise UsageError(f"the checkpoint's model {'reads' if cfg.model.deformation else 'has no'} "
+    if (state is not None or init is not None) and cfg.model.deformation != info.deformation:
+        whose = "the checkpoint's" if init is None else f"--init-from {init.path}: its"
+        raise UsageError(f"{whose} model {'reads' if cfg.model.deformation else 'has no'} "
                          f"deformation, but the data {'has' if info.deformation else 'has none'}")
-    if init is not None and cfg.model.deformation != info.deformation:
-        raise UsageError(f"--init-from {init.path}: its model "
-                         f"{'reads' if cfg.model.deformation else 'has no'} deformation, but the "
-                         f"data {'has' if info.deformation else 'has none'}")
     cfg.model.deformation = info.deformation
     cfg.validate()
     samples = Samples(info, cache=cfg.train.cache_items)
@@ -331,12 +328,7 @@ def _loop(cfg: Config, state: Optional[Dict[str, Any]], init: Optional[InitWeigh
     seed_everything(cfg.train.seed)
     model = SparconvVAE(cfg.model).to(device)
     if init is not None:
-        try:
-            model.load_state_dict(init.weights)
-        except RuntimeError as e:
-            first = str(e).splitlines()[0] if str(e) else "mismatch"
-            raise UsageError(f"--init-from {init.path}: its weights do not fit its own config "
-                             f"({first}); written by another version of sparc3d-vae?") from None
+        load_weights(model, init.weights, f"--init-from {init.path}")
     opt = torch.optim.AdamW(model.parameters(), lr=cfg.train.lr, weight_decay=cfg.train.weight_decay)
     ema = EMA(model, cfg.train.ema_decay) if cfg.train.ema_decay > 0 else None
     start = 0
