@@ -175,6 +175,14 @@ def _placeholder(width: int) -> Sample:
     return Sample("", {}, np.zeros((1, 3), np.int32), np.zeros((1, width), np.float32))
 
 
+def _asked_config(cfg: Config, config: Path) -> Tuple[Config, List[str]]:
+    """`config` read, with the checkpoint config `cfg`'s deformation (which the data decides),
+    and the [model] keys in which it differs from `cfg` (dotted, with both values)."""
+    asked = load_config(config)
+    asked.model.deformation = cfg.model.deformation
+    return asked, config_diff(cfg.to_dict()["model"], asked.to_dict()["model"], "model.")
+
+
 def _resume_config(state: Dict[str, Any], ckpt_path: Path, config: Optional[Path],
                    world: distributed.World) -> Config:
     """The config of a resumed run: the checkpoint's, with [loss] and [train] from `config`
@@ -188,9 +196,7 @@ def _resume_config(state: Dict[str, Any], ckpt_path: Path, config: Optional[Path
                          "would differ; resume with the same number of processes")
     if config is None:
         return cfg
-    asked = load_config(config)
-    asked.model.deformation = cfg.model.deformation
-    diff = config_diff(cfg.to_dict()["model"], asked.to_dict()["model"], "model.")
+    asked, diff = _asked_config(cfg, config)
     old_t, new_t = cfg.to_dict()["train"], asked.to_dict()["train"]
     diff += config_diff({k: old_t[k] for k in TRAJECTORY_KEYS},
                         {k: new_t[k] for k in TRAJECTORY_KEYS}, "train.")
@@ -228,9 +234,7 @@ def _init_config(state: Dict[str, Any], ckpt_path: Path, config: Optional[Path])
     cfg = Config.from_dict(state["config"], str(ckpt_path))
     if config is None:
         return cfg
-    asked = load_config(config)
-    asked.model.deformation = cfg.model.deformation
-    diff = config_diff(cfg.to_dict()["model"], asked.to_dict()["model"], "model.")
+    asked, diff = _asked_config(cfg, config)
     if diff:
         raise UsageError(f"{config}: its [model] differs from the one of --init-from {ckpt_path} "
                          f"in {'; '.join(diff)}: the weights would not fit")

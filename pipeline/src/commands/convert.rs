@@ -51,10 +51,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     params.deform = args.deform.enabled();
     args.inside_test.apply_to(&mut params);
     params.refine = args.refine.settings();
-    params
-        .validate()
-        .map_err(|e| anyhow::anyhow!("{e}"))
-        .context("checking the conversion parameters")?;
+    super::check_params(&params)?;
     let steps = Steps {
         params: &params,
         input_components: true,

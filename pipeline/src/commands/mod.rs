@@ -29,8 +29,18 @@ pub mod validate;
 pub mod verify;
 pub mod work;
 
+use anyhow::Context;
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
+
+/// Checks the conversion parameters a command built from its flags (`convert`, `preview`);
+/// the error names the setting out of range.
+pub(crate) fn check_params(params: &sparcubes::Params) -> anyhow::Result<()> {
+    params
+        .validate()
+        .map_err(|e| anyhow::anyhow!("{e}"))
+        .context("checking the conversion parameters")
+}
 
 /// sparc3d: raw meshes → watertight sparse cube tensors (Sparcubes), sharded into Parquet.
 #[derive(Debug, Parser)]

@@ -8,7 +8,7 @@
 
 use crate::item_lookup;
 use crate::pictures::{preview_mesh, preview_row, write_png};
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use sparc3d_render::CompareOptions;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -85,10 +85,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 );
             }
             let params = rules(&args);
-            params
-                .validate()
-                .map_err(|e| anyhow::anyhow!("{e}"))
-                .context("checking the conversion parameters")?;
+            super::check_params(&params)?;
             (
                 preview_mesh(&args.input, &params, &options)?,
                 args.input.display().to_string(),
