@@ -212,8 +212,7 @@ class InitWeights:
     """The weights a new run starts from (`--init-from`): another run's EMA weights (its raw
     weights when it kept no average), whatever resolution it was trained at: the sparse
     convolutions' kernels do not depend on the grid's size, so a model trained at 64³ is a
-    starting point at 128³ (progressive training, as TRELLIS.2 and Direct3D-S2 train from low
-    to high resolution)."""
+    starting point at 128³ (docs/VAE.md, "128³ on CPU")."""
 
     def __init__(self, path: Path, state: Dict[str, Any]):
         self.path = path
