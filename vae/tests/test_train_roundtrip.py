@@ -166,6 +166,27 @@ def test_mesh_components_counts_pieces(tmp_path, trained, job32, binary):
             mesh = tmp_path / "eval" / f"{infer.safe_name(row['id'])}.{name}.ply"
             assert row[key] == len(trimesh.load(mesh, process=True).split(only_watertight=False))
     assert "components_within_20pct" in summary["aggregate"]
+    # The converter's own counts at N ± 1: the job was converted with the default settings, so
+    # its count at N is the stored mesh's, and the stability rule follows from the three.
+    for row in summary["items"]:
+        res, near = row["resolution"], row["sparcubes_components_nearby"]
+        assert sorted(near) == sorted(str(n) for n in (res - 1, res, res + 1))
+        assert near[str(res)] == row["sparcubes_components"]
+        stable = all(abs(near[str(n)] - near[str(res)]) <= 0.2 * near[str(res)] for n in (res - 1, res + 1))
+        assert row["pieces_stable"] is stable
+    stable = [r for r in summary["items"] if r["pieces_stable"]]
+    assert summary["aggregate"]["components_stable_items"] == len(stable)
+
+
+def test_pieces_stable_rule():
+    """The stability rule on counts like the dev corpus's (docs/VAE.md, "Pieces"): a count that
+    jumps at N ± 1 is not stable, one within ±20 % is; a stored count the default conversion
+    does not give is unknown."""
+    from sparc3d_vae.infer import pieces_stable
+
+    assert pieces_stable({63: 1, 64: 4, 65: 1}, 64, 4) is False  # window-01 at 64³
+    assert pieces_stable({63: 11, 64: 10, 65: 11}, 64, 10) is True  # face000 at 64³
+    assert pieces_stable({63: 1, 64: 1, 65: 1}, 64, 3) is None
 
 
 def test_a_run_started_from_trained_weights_at_another_resolution_starts_ahead(trained, tmp_path):

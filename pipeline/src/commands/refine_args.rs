@@ -14,7 +14,8 @@ pub struct RefineArgs {
     /// Views of the refinement, spread evenly over the sphere (default 12, at most 64).
     #[arg(long, requires = "refine", value_name = "N")]
     pub refine_views: Option<u32>,
-    /// Side of each view's picture in pixels (default 384, at most 2048).
+    /// Side of each view's picture in pixels (default 3 × the resolution within [384, 2048], at
+    /// most 2048).
     #[arg(long, requires = "refine", value_name = "PIXELS")]
     pub refine_image: Option<u32>,
     /// Optimiser (Adam) steps (default 12, at most 200).
