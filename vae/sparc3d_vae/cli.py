@@ -29,6 +29,14 @@ def _ckpt(p: argparse.ArgumentParser, data: bool = True) -> None:
                        help="job folders (or shard files)")
 
 
+def _budget(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--max-cells", type=int, metavar="N",
+                   help="cells per forward pass (default: the checkpoint's "
+                        "train.max_cells_per_batch); no gradients are kept here, so a larger "
+                        "budget than training's usually fits: raise it to run a model on a "
+                        "finer grid than it was trained on")
+
+
 def _sparc3d(p: argparse.ArgumentParser) -> None:
     p.add_argument("--sparc3d", metavar="PATH",
                    help="the sparc3d binary (default: $SPARC3D_BIN, else sparc3d on PATH)")
@@ -75,6 +83,7 @@ def parser() -> argparse.ArgumentParser:
     _ckpt(p)
     p.add_argument("--out", type=Path, required=True, metavar="LATENTS")
     _device(p)
+    _budget(p)
 
     p = sub.add_parser("decode", help="decode latents to meshes",
                        description="Decode latents (their mean) to pruned sparse cubes, extract "
@@ -88,6 +97,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, required=True, metavar="MESHES")
     p.add_argument("--no-fill-holes", action="store_true", help="keep the extracted mesh as is")
     _device(p)
+    _budget(p)
     _sparc3d(p)
 
     p = sub.add_parser("reconstruct", help="one item of a job through the VAE to a mesh",
@@ -100,6 +110,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--tensors", type=Path, metavar="cubes.parquet",
                    help="also keep the decoded sparse cubes as a tensor file")
     _device(p)
+    _budget(p)
     _sparc3d(p)
 
     p = sub.add_parser("evaluate", help="CD / ANC / F1 and watertightness of reconstructions",
@@ -113,6 +124,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, default=Path("vae-eval"), metavar="DIR",
                    help="where the summary and meshes go (./vae-eval)")
     _device(p)
+    _budget(p)
     _sparc3d(p)
     return ap
 
@@ -159,13 +171,13 @@ def _run(args: argparse.Namespace) -> int:
         print(f"{summary['cells_per_second']:.0f} cells/s on {summary['world_size']} process(es)"
               + (f"; peak GPU memory {peak / 2**30:.2f} GiB (rank 0)" if peak is not None else ""))
     elif args.command == "encode":
-        s = infer.encode(args.ckpt, args.data, args.out, args.device)
+        s = infer.encode(args.ckpt, args.data, args.out, args.device, args.max_cells)
         print(f"{s['items']} items encoded into {s['shards']} shard(s) in {args.out}; "
               f"{s['latent_voxels_mean']:.1f} latent voxels × {s['latent_channels']} channels "
               "per item on average")
     elif args.command == "decode":
         rows = infer.decode(args.ckpt, args.latents, None if args.all else args.id, args.out,
-                            args.device, not args.no_fill_holes, args.sparc3d)
+                            args.device, not args.no_fill_holes, args.sparc3d, args.max_cells)
         for r in rows:
             if "error" in r:
                 print(f"error: {r['error']}", file=sys.stderr)
@@ -175,11 +187,11 @@ def _run(args: argparse.Namespace) -> int:
             return 1
     elif args.command == "reconstruct":
         r = infer.reconstruct(args.ckpt, args.data, args.id, args.output, args.device,
-                              not args.no_fill_holes, args.sparc3d, args.tensors)
+                              not args.no_fill_holes, args.sparc3d, args.tensors, args.max_cells)
         print(json.dumps(r))
     elif args.command == "evaluate":
         infer.evaluate(args.ckpt, args.data, args.sample, args.seed, args.out, args.device,
-                       args.sparc3d)
+                       args.sparc3d, args.max_cells)
         print((args.out / "summary.md").read_text())
     return 0
 

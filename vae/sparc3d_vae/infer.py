@@ -42,11 +42,18 @@ LATENT_SHARD_SIZE = 256
 class Loaded:
     """A checkpoint ready to run: config, model, device, and its limits."""
 
-    def __init__(self, ckpt: Path, device_name: str):
+    def __init__(self, ckpt: Path, device_name: str, max_cells: Optional[int] = None):
         self.path = checkpoint_path(ckpt)
         state = load_checkpoint(self.path)
         self.device = pick_device(device_name)
         self.cfg, self.model = model_from_checkpoint(state, self.device, str(self.path))
+        if max_cells is not None and max_cells < 1:
+            raise UsageError(f"--max-cells {max_cells}: must be a positive number of cells")
+        # Cells per forward pass: the training budget unless asked (inference keeps no
+        # gradients, so a model runs on grids finer than it trained on with a larger one).
+        self.max_cells = max_cells or self.cfg.train.max_cells_per_batch
+        self.budget_note = ("--max-cells" if max_cells else
+                            f"train.max_cells_per_batch of {self.path}; raise it with --max-cells")
         self.digest = hashlib.sha256(self.path.read_bytes()).hexdigest()[:16]
         if self.cfg.train.threads > 0 and self.device.type == "cpu":
             torch.set_num_threads(self.cfg.train.threads)
@@ -61,13 +68,13 @@ class Loaded:
     def batches(self, samples: Sequence[Sample]) -> Iterator[List[Sample]]:
         """Samples grouped so that no group holds more than `max_cells_per_batch` cells; an
         item larger than that alone is refused, naming it."""
-        limit = self.cfg.train.max_cells_per_batch
+        limit = self.max_cells
         group: List[Sample] = []
         cells = 0
         for s in samples:
             if len(s.cells) > limit:
-                raise DataError(f"item {s.id!r}: {len(s.cells)} cells, more than "
-                                f"train.max_cells_per_batch = {limit} of {self.path}")
+                raise DataError(f"item {s.id!r}: {len(s.cells)} cells, more than the "
+                                f"{limit} cells per forward pass ({self.budget_note})")
             if group and (cells + len(s.cells) > limit or len(group) >= self.cfg.train.batch_size):
                 yield group
                 group, cells = [], 0
@@ -81,7 +88,7 @@ class Loaded:
         """Latent mean / logvar of each sample: coords int32 [n, 3], mean, logvar float32 [n, C]."""
         x = make_batch(samples, self.device)
         what = f"encoding {', '.join(repr(s.id) for s in samples)}"
-        with memory_guard(what, len(x.coords), self.cfg.train.max_cells_per_batch, self.device), \
+        with memory_guard(what, len(x.coords), self.max_cells, self.device, "--max-cells", ""), \
                 autocast(self.device):
             mean, logvar, _ = self.model.encode(x)
         out = []
@@ -102,9 +109,9 @@ class Loaded:
         z = SparseTensor.build(torch.from_numpy(coords).to(self.device),
                                torch.from_numpy(feats).to(self.device),
                                level=self.cfg.model.levels(), batch_size=len(latents))
-        limit = self.cfg.train.max_cells_per_batch
+        limit = self.max_cells
         what = f"decoding {len(latents)} latent(s), at most 8× the budget"
-        with memory_guard(what, 8 * limit, limit, self.device), autocast(self.device):
+        with memory_guard(what, 8 * limit, limit, self.device, "--max-cells", ""), autocast(self.device):
             dec = self.model.decoder(z, None, max_voxels=limit * 8)
         return corners_to_cubes(dec.cells, dec.sign_logits, dec.magnitude, dec.delta)
 
@@ -122,9 +129,10 @@ def _load_samples(data: Sequence[str], loaded: Loaded) -> Samples:
     return Samples(info, cache=False)
 
 
-def encode(ckpt: Path, data: Sequence[str], out: Path, device: str) -> Dict[str, Any]:
+def encode(ckpt: Path, data: Sequence[str], out: Path, device: str,
+           max_cells: Optional[int] = None) -> Dict[str, Any]:
     """Writes the latents of every ok item of the jobs to `out` as Parquet shards."""
-    loaded = Loaded(ckpt, device)
+    loaded = Loaded(ckpt, device, max_cells)
     samples = _load_samples(data, loaded)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -257,11 +265,11 @@ def _check_latents(rows: List[Dict[str, Any]], loaded: Loaded, source: str) -> N
 
 
 def decode(ckpt: Path, latents: Path, ids: Optional[List[str]], out: Path, device: str,
-           fill_holes: bool, sparc3d: Optional[str]) -> List[Dict[str, Any]]:
+           fill_holes: bool, sparc3d: Optional[str], max_cells: Optional[int] = None) -> List[Dict[str, Any]]:
     """Decodes latents (of `ids`, or all) to meshes `out/<id>.ply` through `sparc3d extract`;
     an item that fails gets an `error` in its summary and the others go on."""
     binary = find_sparc3d(sparc3d)
-    loaded = Loaded(ckpt, device)
+    loaded = Loaded(ckpt, device, max_cells)
     try:
         rows = list(reader.iter_tensor_rows(latents, LATENT_TENSORS))
     except (FileNotFoundError, ValueError) as e:
@@ -325,10 +333,11 @@ def reconstruct_items(loaded: Loaded, samples: Sequence[Sample], binary: str,
 
 
 def reconstruct(ckpt: Path, data: Sequence[str], item_id: str, out: Path, device: str,
-                fill_holes: bool, sparc3d: Optional[str], keep_tensors: Optional[Path]) -> Dict[str, Any]:
+                fill_holes: bool, sparc3d: Optional[str], keep_tensors: Optional[Path],
+                max_cells: Optional[int] = None) -> Dict[str, Any]:
     """One item of a job through the VAE and back to a mesh at `out`."""
     binary = find_sparc3d(sparc3d)
-    loaded = Loaded(ckpt, device)
+    loaded = Loaded(ckpt, device, max_cells)
     samples = _load_samples(data, loaded)
     s = samples[samples.index_of(item_id)]
     result = reconstruct_items(loaded, [s], binary, [Path(out)], fill_holes, keep_tensors)[0]
@@ -358,13 +367,13 @@ def _mean(xs: List[float]) -> Optional[float]:
 
 
 def evaluate(ckpt: Path, data: Sequence[str], sample: int, seed: int, out: Path, device: str,
-             sparc3d: Optional[str]) -> Dict[str, Any]:
+             sparc3d: Optional[str], max_cells: Optional[int] = None) -> Dict[str, Any]:
     """Paper Table 2's metrics (CD, ANC, F1 via `sparc3d eval`) of reconstructions of a seeded
     sample of items against each item's Sparcubes mesh (and its source file when readable),
     and the share of watertight outputs before and after hole filling. Writes
     `out/summary.json`, `out/summary.md` and the meshes."""
     binary = find_sparc3d(sparc3d)
-    loaded = Loaded(ckpt, device)
+    loaded = Loaded(ckpt, device, max_cells)
     samples = _load_samples(data, loaded)
     chosen = choose(samples.ids, sample, seed)
     out = Path(out)

@@ -57,17 +57,19 @@ OutOfMemory = getattr(torch, "OutOfMemoryError", None) or torch.cuda.OutOfMemory
 
 
 @contextlib.contextmanager
-def memory_guard(what: str, cells: int, limit: int, device: torch.device):
+def memory_guard(what: str, cells: int, limit: int, device: torch.device,
+                 setting: str = "train.max_cells_per_batch", where: str = " in --config"):
     """Turns a GPU out-of-memory error inside the block into a UsageError naming the batch
-    (`what`, its `cells`) and the budget key to lower, instead of a stack trace."""
+    (`what`, its `cells`) and the budget to lower (`setting`, set `where`), instead of a stack
+    trace."""
     try:
         yield
     except OutOfMemory:
         if device.type == "cuda":
             torch.cuda.empty_cache()
         raise UsageError(f"{device} ran out of memory on {what} ({cells} cells; "
-                         f"train.max_cells_per_batch = {limit}): lower train.max_cells_per_batch "
-                         f"(e.g. to {max(1, min(cells, limit) // 2)}) in --config") from None
+                         f"{setting} = {limit}): lower {setting} "
+                         f"(e.g. to {max(1, min(cells, limit) // 2)}){where}") from None
 
 
 def seed_everything(seed: int) -> None:

@@ -122,7 +122,15 @@ def test_batches_over_the_cell_limit_are_split_and_large_items_refused(job32, tm
     # Encoding cannot skip an item: it is refused, naming the item and the limit.
     code, err = run_cli("encode", "--ckpt", tmp_path / "run", "--data", job32,
                         "--out", tmp_path / "lat", "--device", "cpu", capsys=capsys)
-    assert code == 2 and big.id in err and "max_cells_per_batch" in err, err
+    assert code == 2 and big.id in err and "max_cells_per_batch" in err and "--max-cells" in err, err
+    # Inference keeps no gradients: `--max-cells` raises the budget and the same item encodes.
+    code, err = run_cli("encode", "--ckpt", tmp_path / "run", "--data", job32, "--out",
+                        tmp_path / "lat", "--device", "cpu", "--max-cells", len(big.cells), capsys=capsys)
+    assert code == 0, err
+    assert len(list(reader.iter_tensor_rows(tmp_path / "lat", ["mean"]))) == len(samples)
+    code, err = run_cli("encode", "--ckpt", tmp_path / "run", "--data", job32, "--out",
+                        tmp_path / "lat0", "--device", "cpu", "--max-cells", 0, capsys=capsys)
+    assert code == 2 and "--max-cells 0" in err, err
 
 
 def test_gpu_out_of_memory_names_the_batch_and_the_budget_key(job32, tmp_path, capsys, monkeypatch):
