@@ -123,6 +123,10 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="seed of the sample (0)")
     p.add_argument("--out", type=Path, default=Path("vae-eval"), metavar="DIR",
                    help="where the summary and meshes go (./vae-eval)")
+    p.add_argument("--eval-samples", type=int, metavar="N",
+                   help="points `sparc3d eval` samples per mesh (default: 100000 up to 128³, "
+                        "1000000 above, where fewer lie too far apart to measure a voxel's "
+                        "fraction)")
     _device(p)
     _budget(p)
     _sparc3d(p)
@@ -191,7 +195,7 @@ def _run(args: argparse.Namespace) -> int:
         print(json.dumps(r))
     elif args.command == "evaluate":
         infer.evaluate(args.ckpt, args.data, args.sample, args.seed, args.out, args.device,
-                       args.sparc3d, args.max_cells)
+                       args.sparc3d, args.max_cells, args.eval_samples)
         print((args.out / "summary.md").read_text())
     return 0
 

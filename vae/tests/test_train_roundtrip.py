@@ -176,6 +176,10 @@ def test_mesh_components_counts_pieces(tmp_path, trained, job32, binary):
         assert row["pieces_stable"] is stable
     stable = [r for r in summary["items"] if r["pieces_stable"]]
     assert summary["aggregate"]["components_stable_items"] == len(stable)
+    # The ruler: `sparc3d eval`'s default up to 128³, ten times more points from 256³.
+    assert all(r["eval_samples"] == infer.eval_samples(r["resolution"]) == 100_000
+               for r in summary["items"])
+    assert infer.eval_samples(256) == 1_000_000
 
 
 def test_pieces_stable_rule():
