@@ -406,23 +406,8 @@ def evaluate(ckpt: Path, data: Sequence[str], sample: int, seed: int, out: Path,
         shard = samples.ds.paths[samples.ds.index[i][0]]
         ref = out / f"{safe_name(s.id)}.sparcubes.ply"
         run_sparc3d(binary, "extract", shard, "--id", s.id, "-o", ref)
-        ruler = ("--resolution", res, "--samples", samples_per_mesh or eval_samples(res))
-        row["eval_samples"] = int(ruler[3])
-        row["vs_sparcubes"] = _metrics(run_sparc3d(binary, "eval", ref, mesh, *ruler))
-        row["components"] = mesh_components(mesh)
-        row["sparcubes_components"] = mesh_components(ref)
-        src = Path(s.meta["uri"])
-        if src.is_file():
-            # The VAE's output and, as the floor it cannot beat, the Sparcubes mesh itself.
-            try:
-                row["vs_source"] = _metrics(run_sparc3d(binary, "eval", src, mesh, *ruler))
-                row["sparcubes_vs_source"] = _metrics(
-                    run_sparc3d(binary, "eval", src, ref, *ruler))
-                nearby = nearby_pieces(binary, src, res)
-                row["sparcubes_components_nearby"] = {str(n): c for n, c in nearby.items()}
-                row["pieces_stable"] = pieces_stable(nearby, res, row["sparcubes_components"])
-            except UsageError as e:
-                row["vs_source_error"] = str(e)
+        row["eval_samples"] = samples_per_mesh or eval_samples(res)
+        row.update(_measure(binary, mesh, ref, Path(s.meta["uri"]), res, row["eval_samples"]))
         print(f"{s.id}: CD {row['vs_sparcubes']['cd_voxels']:.3f} vox vs Sparcubes, "
               f"watertight {row['watertight_before_fill']} → {row['watertight']}", file=sys.stderr)
     summary = {"checkpoint": str(loaded.path), "data": list(data), "sample": len(rows),
@@ -430,6 +415,30 @@ def evaluate(ckpt: Path, data: Sequence[str], sample: int, seed: int, out: Path,
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     (out / "summary.md").write_text(_markdown(summary))
     return summary
+
+
+def _measure(binary: str, mesh: Path, ref: Path, src: Path, res: int, points: int) -> Dict[str, Any]:
+    """One reconstruction against its Sparcubes mesh, and both against the source when it is
+    a readable file (the Sparcubes mesh is the floor the VAE cannot beat); the pieces of both
+    and the converter's own at N ± 1."""
+    ruler = ("--resolution", res, "--samples", points)
+    row: Dict[str, Any] = {"vs_sparcubes": _metrics(run_sparc3d(binary, "eval", ref, mesh, *ruler)),
+                           "components": mesh_components(mesh),
+                           "sparcubes_components": mesh_components(ref)}
+    if not src.is_file():
+        return row
+    try:
+        row["vs_source"] = _metrics(run_sparc3d(binary, "eval", src, mesh, *ruler))
+        row["sparcubes_vs_source"] = _metrics(run_sparc3d(binary, "eval", src, ref, *ruler))
+    except UsageError as e:
+        row["vs_source_error"] = str(e)
+    try:
+        nearby = nearby_pieces(binary, src, res)
+        row["sparcubes_components_nearby"] = {str(n): c for n, c in nearby.items()}
+        row["pieces_stable"] = pieces_stable(nearby, res, row["sparcubes_components"])
+    except UsageError as e:
+        row["nearby_error"] = str(e)
+    return row
 
 
 def _metrics(report: Dict[str, Any]) -> Dict[str, Any]:
