@@ -17,7 +17,7 @@ import struct
 import sys
 import tempfile
 from pathlib import Path
-from typing import Any, Dict, Iterable, Iterator, List, Optional, Sequence
+from typing import Any, Callable, Dict, Iterable, Iterator, List, Optional, Sequence
 
 import numpy as np
 import pyarrow as pa
@@ -66,8 +66,8 @@ class Loaded:
                 f"the checkpoint {self.path} was trained {'with' if self.cfg.model.deformation else 'without'} it")
 
     def batches(self, samples: Sequence[Sample]) -> Iterator[List[Sample]]:
-        """Samples grouped so that no group holds more than `max_cells_per_batch` cells; an
-        item larger than that alone is refused, naming it."""
+        """Samples grouped so that no group holds more than `max_cells` cells; an item larger
+        than that alone is refused, naming it."""
         limit = self.max_cells
         group: List[Sample] = []
         cells = 0
@@ -458,25 +458,7 @@ def _aggregate(rows: List[Dict[str, Any]]) -> Dict[str, Any]:
     agg["latent_floats_mean"] = _mean([r["latent_floats"] for r in rows])
     pieces = [r for r in rows if "components" in r]
     if pieces:
-        # The issue's bar: the output's pieces within ±20 % of the Sparcubes mesh's.
-        agg["components_median"] = _median([r["components"] for r in pieces])
-        agg["sparcubes_components_median"] = _median([r["sparcubes_components"] for r in pieces])
-        agg["components_within_20pct"] = sum(
-            within_20pct(r["components"], r["sparcubes_components"]) for r in pieces) / len(pieces)
-        # The same bar on the items whose count the converter itself keeps at N ± 1.
-        stable = [r for r in pieces if r.get("pieces_stable")]
-        agg["components_stable_items"] = len(stable)
-        # The bar applied to the converter against itself, one resolution step away: what the
-        # count is worth as a target (docs/VAE.md, "Pieces").
-        near = [r for r in pieces if r.get("pieces_stable") is not None]
-        if near:
-            agg["sparcubes_nearby_within_20pct"] = {
-                side: sum(within_20pct(r["sparcubes_components_nearby"][str(r["resolution"] + step)],
-                                       r["sparcubes_components"]) for r in near) / len(near)
-                for side, step in (("n_minus_1", -1), ("n_plus_1", 1))}
-        agg["components_within_20pct_stable"] = (sum(
-            within_20pct(r["components"], r["sparcubes_components"]) for r in stable) / len(stable)
-            if stable else None)
+        agg.update(_pieces_aggregate(pieces))
     for against in ("vs_sparcubes", "vs_source", "sparcubes_vs_source"):
         have = [r[against] for r in rows if against in r]
         if not have:
@@ -484,6 +466,31 @@ def _aggregate(rows: List[Dict[str, Any]]) -> Dict[str, Any]:
         agg[against] = {k: {"mean": _mean([h[k] for h in have]), "median": _median([h[k] for h in have])}
                         for k in have[0]}
         agg[against]["items"] = len(have)
+    return agg
+
+
+def _pieces_aggregate(pieces: List[Dict[str, Any]]) -> Dict[str, Any]:
+    """The issue's bar (the output's pieces within ±20 % of the Sparcubes mesh's) on every
+    item and on the items whose count the converter itself keeps at N ± 1, and the bar applied
+    to the converter against itself one resolution step away: what the count is worth as a
+    target (docs/VAE.md, "Pieces")."""
+    def share(items: List[Dict[str, Any]], key: Callable[[Dict[str, Any]], int]) -> Optional[float]:
+        hits = sum(within_20pct(key(r), r["sparcubes_components"]) for r in items)
+        return hits / len(items) if items else None
+
+    stable = [r for r in pieces if r.get("pieces_stable")]
+    agg: Dict[str, Any] = {
+        "components_median": _median([r["components"] for r in pieces]),
+        "sparcubes_components_median": _median([r["sparcubes_components"] for r in pieces]),
+        "components_within_20pct": share(pieces, lambda r: r["components"]),
+        "components_stable_items": len(stable),
+        "components_within_20pct_stable": share(stable, lambda r: r["components"]),
+    }
+    near = [r for r in pieces if r.get("pieces_stable") is not None]
+    if near:
+        agg["sparcubes_nearby_within_20pct"] = {
+            side: share(near, lambda r, step=step: r["sparcubes_components_nearby"][str(r["resolution"] + step)])
+            for side, step in (("n_minus_1", -1), ("n_plus_1", 1))}
     return agg
 
 
