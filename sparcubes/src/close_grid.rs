@@ -12,7 +12,7 @@
 //!
 //! Memory: one byte per grid vertex, `(N + 1)³` bytes (17 MB at 256³, 135 MB at 512³).
 
-use crate::cubes::SparseCubes;
+use crate::grid::cubes::SparseCubes;
 use std::collections::VecDeque;
 
 /// What [`close_grid`] changed.

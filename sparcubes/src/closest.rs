@@ -728,7 +728,7 @@ fn morton_keys(points: &[[f64; 3]]) -> Vec<(u64, u32)> {
             }
         }
     }
-    let cells = ((1u64 << crate::morton::BITS) - 1) as f64;
+    let cells = ((1u64 << crate::grid::morton::BITS) - 1) as f64;
     let scale: [f64; 3] = std::array::from_fn(|a| {
         let e = hi[a] - lo[a];
         if e > 0.0 && e.is_finite() {
@@ -749,7 +749,7 @@ fn morton_keys(points: &[[f64; 3]]) -> Vec<(u64, u32)> {
                     0
                 }
             });
-            (crate::morton::code(cell), i as u32)
+            (crate::grid::morton::code(cell), i as u32)
         })
         .collect();
     keyed.par_sort_unstable();

@@ -2,7 +2,7 @@
 //! function.
 
 use crate::band::{compute_band, triangle_planes, Band, CORE_REACH, REACH};
-use crate::cubes::SparseCubes;
+use crate::grid::cubes::SparseCubes;
 use crate::deform::{compute_field, Field};
 use crate::error::{Error, Result};
 use crate::flood::flood_outside;
@@ -11,7 +11,7 @@ use crate::grid::{
     NO_ID,
 };
 use crate::mesh::TriMesh;
-use crate::normalize::Normalization;
+use crate::grid::normalization::Normalization;
 use crate::params::Params;
 use crate::refine::{refine, RefineStats};
 use crate::regions::{classify_regions, decide_sealed, mark_air, Nesting, Regions};
@@ -220,7 +220,7 @@ fn checked_bounds(mesh: &TriMesh) -> Result<([f64; 3], [f64; 3])> {
         context: "convert".into(),
         reason: "no triangles".into(),
     })?;
-    crate::normalize::check_extent(bounds, "convert")?;
+    crate::grid::normalization::check_extent(bounds, "convert")?;
     Ok(bounds)
 }
 

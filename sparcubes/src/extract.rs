@@ -14,10 +14,10 @@
 //! cell order. No per-triangle key list is built or sorted, and the output is the same bytes
 //! whatever the thread count.
 
-use crate::cubes::SparseCubes;
+use crate::grid::cubes::SparseCubes;
 use crate::mc_table::{self, Case, Table, CENTRE, EDGES, FACE_CORNERS};
 use crate::mesh::TriMesh;
-use crate::normalize::Normalization;
+use crate::grid::normalization::Normalization;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 

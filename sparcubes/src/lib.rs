@@ -31,7 +31,6 @@ pub mod band;
 pub mod close_grid;
 pub mod closest;
 pub mod convert;
-pub mod cubes;
 pub mod deform;
 pub mod duplicate_faces;
 pub mod error;
@@ -43,8 +42,6 @@ pub mod io;
 pub mod layouts;
 pub mod mc_table;
 pub mod mesh;
-pub mod morton;
-pub mod normalize;
 pub mod params;
 pub mod refine;
 pub mod regions;
@@ -62,9 +59,12 @@ pub mod voxelize;
 pub mod winding;
 
 pub use convert::{convert, Conversion, ConvertStats};
-pub use cubes::SparseCubes;
+pub use grid::cubes::SparseCubes;
 pub use error::{Error, ErrorClass};
 pub use extract::extract;
 pub use mesh::TriMesh;
-pub use normalize::Normalization;
+pub use grid::normalization::Normalization;
 pub use params::Params;
+
+// The paths other crates use, kept from before the rooms.
+pub use grid::{cubes, normalization as normalize};

@@ -193,7 +193,7 @@ impl Params {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::normalize::Normalization;
+    use crate::grid::normalization::Normalization;
 
     #[test]
     fn an_object_span_sets_the_fit_and_must_leave_three_cells() {

@@ -29,7 +29,7 @@
 //! 1e-4 voxel. [`crate::samples`] takes most sides from the closest face first
 //! ([`crate::closest::TriangleIndex::face_side`]) and asks this module only for the rest.
 
-use crate::cubes::SparseCubes;
+use crate::grid::cubes::SparseCubes;
 use crate::extract::cell_triangles;
 use crate::grid::{pack, split, test, BrickIndex, BrickSet, Numbered, BRICK};
 use crate::vec3::{cross, dot, sub, Vec3};

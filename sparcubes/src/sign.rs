@@ -453,7 +453,7 @@ mod tests {
     use crate::band::{compute_band, triangle_planes, CORE_REACH};
     use crate::flood::{flood_outside, CellSide};
     use crate::grid::{dilate, Dilation, Numbered};
-    use crate::normalize::Normalization;
+    use crate::grid::normalization::Normalization;
     use crate::shapes::{cube_with_hole, merge, open_cylinder, sphere};
     use crate::voxelize::{voxelize, GridMesh};
 

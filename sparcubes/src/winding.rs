@@ -370,7 +370,7 @@ fn morton_order(pieces: Vec<[[f64; 3]; 3]>) -> (Vec<[[f64; 3]; 3]>, Vec<u64>) {
             },
         );
     let extent = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
-    let top = ((1u64 << crate::morton::BITS) - 1) as f64;
+    let top = ((1u64 << crate::grid::morton::BITS) - 1) as f64;
     let scale = if extent > 0.0 { top / extent } else { 0.0 };
     let mut keyed: Vec<(u64, u32)> = pieces
         .par_iter()
@@ -378,7 +378,7 @@ fn morton_order(pieces: Vec<[[f64; 3]; 3]>) -> (Vec<[[f64; 3]; 3]>, Vec<u64>) {
         .map(|(i, t)| {
             let c = centroid(t);
             let q = |a: usize| ((c[a] - lo[a]) * scale).clamp(0.0, top) as u64;
-            (crate::morton::code([q(0), q(1), q(2)]), i as u32)
+            (crate::grid::morton::code([q(0), q(1), q(2)]), i as u32)
         })
         .collect();
     keyed.par_sort_unstable();

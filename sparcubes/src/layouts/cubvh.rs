@@ -6,7 +6,7 @@
 //! little-endian `u64` (corner 0 in the low byte) and the cell as `x·N² + y·N + z`.
 
 use super::cells_with_corners;
-use crate::cubes::SparseCubes;
+use crate::grid::cubes::SparseCubes;
 use rayon::prelude::*;
 
 /// The corner order of cubvh, as (x, y, z) offsets.

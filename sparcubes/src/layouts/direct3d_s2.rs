@@ -11,7 +11,7 @@
 //! end early), and the sign comes from the sparse grid ([`crate::sides`]).
 
 use crate::closest::TriangleIndex;
-use crate::cubes::SparseCubes;
+use crate::grid::cubes::SparseCubes;
 use crate::extract::extract;
 use crate::grid::{dilate, pack, BrickIndex, BrickSet, Dilation};
 use crate::sides::GridSides;

@@ -15,7 +15,7 @@ pub mod cubvh;
 pub mod direct3d_s2;
 pub mod trellis2;
 
-use crate::cubes::SparseCubes;
+use crate::grid::cubes::SparseCubes;
 use rayon::prelude::*;
 
 /// Cells per chunk of [`cells_with_corners`]: big enough that the per-chunk binary searches

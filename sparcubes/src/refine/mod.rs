@@ -31,7 +31,7 @@ pub mod views;
 pub use settings::RefineParams;
 pub use surface::Surface;
 
-use crate::cubes::SparseCubes;
+use crate::grid::cubes::SparseCubes;
 use crate::voxelize::GridMesh;
 use adam::Adam;
 use serde::Serialize;

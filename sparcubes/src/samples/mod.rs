@@ -35,7 +35,7 @@ mod sharp;
 mod surface;
 
 use crate::closest::TriangleIndex;
-use crate::cubes::SparseCubes;
+use crate::grid::cubes::SparseCubes;
 use crate::error::{Error, Result};
 use crate::mesh::TriMesh;
 use crate::sides::GridSides;

@@ -1,7 +1,7 @@
 //! The output of a conversion: the sparse cube grid with SDF and deformation per active
 //! vertex. This is what shard rows store; [`crate::extract`] turns it into a mesh.
 
-use crate::normalize::Normalization;
+use crate::grid::normalization::Normalization;
 
 /// A sparse cube grid at resolution N (grid vertices `0..=N` per axis).
 ///
@@ -22,15 +22,6 @@ pub struct SparseCubes {
     pub deformation: Vec<[f32; 3]>,
     /// Active cells by their minimum corner, sorted.
     pub cells: Vec<[u16; 3]>,
-}
-
-impl Default for Normalization {
-    fn default() -> Self {
-        Self {
-            center: [0.0; 3],
-            scale: 1.0,
-        }
-    }
 }
 
 impl SparseCubes {

@@ -1,6 +1,8 @@
-//! Stage 1: fit the mesh into the grid. Grid coordinates are in voxels: the grid spans
-//! `[0, N]³`, the unit cube `[-0.5, 0.5]³` maps onto it, and the mesh's bounding box is
-//! centred with `margin_cells` free cells on each side of its longest extent.
+//! The map between the source frame and the grid (fitted by stage 1, `normalize`, and used
+//! by everyone who reads the output back in the source frame). Grid
+//! coordinates are in voxels: the grid spans `[0, N]³`, the unit cube `[-0.5, 0.5]³` maps onto
+//! it, and the mesh's bounding box is centred with `margin_cells` free cells on each side of
+//! its longest extent. Also the extents a mesh may have to be converted at all.
 
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
@@ -60,6 +62,16 @@ pub struct Normalization {
     pub center: [f64; 3],
     /// Factor from source units to unit-cube units.
     pub scale: f64,
+}
+
+/// The identity: no shift, scale 1.
+impl Default for Normalization {
+    fn default() -> Self {
+        Self {
+            center: [0.0; 3],
+            scale: 1.0,
+        }
+    }
 }
 
 impl Normalization {
