@@ -9,7 +9,7 @@
 use sparcubes::band::{compute_band, triangle_planes};
 use sparcubes::closest::TriangleIndex;
 use sparcubes::layouts::direct3d_s2::{band_vertices, TRUNCATION};
-use sparcubes::voxelize::GridMesh;
+use sparcubes::mesh::GridMesh;
 use std::path::PathBuf;
 use std::process::ExitCode;
 

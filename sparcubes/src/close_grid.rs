@@ -192,7 +192,7 @@ fn label_missing_regions(state: &mut [u8], m: usize) {
 mod tests {
     use super::*;
     use crate::shapes;
-    use crate::topology;
+    use crate::mesh::topology;
 
     fn sphere_cubes(n: u32) -> SparseCubes {
         let params = crate::Params {

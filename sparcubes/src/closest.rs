@@ -45,7 +45,7 @@
 //! Determinism: the tree is built single-threaded and the chunks (and so each query's starting
 //! triangle) are fixed, so results do not depend on the thread count.
 
-use crate::band::closest_point_on_triangle;
+use crate::mesh::triangle::closest_point_on_triangle;
 use crate::mesh::TriMesh;
 use crate::vec3::{add, cross, dist2, dot, scale, sub};
 use rayon::prelude::*;

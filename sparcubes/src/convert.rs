@@ -18,7 +18,8 @@ use crate::regions::{classify_regions, decide_sealed, mark_air, Nesting, Regions
 use crate::ring::ring_cells;
 use crate::seal::{seal_openings, Sealing};
 use crate::sign::{compute_signs, ring_signs, sealed_to_outside, vertex_sides};
-use crate::voxelize::{voxelize, GridMesh};
+use crate::mesh::GridMesh;
+use crate::voxelize::voxelize;
 use crate::winding::LazyWindingTree;
 use rayon::prelude::*;
 use std::time::Instant;

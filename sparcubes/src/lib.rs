@@ -32,28 +32,24 @@ pub mod close_grid;
 pub mod closest;
 pub mod convert;
 pub mod deform;
-pub mod duplicate_faces;
 pub mod error;
 pub mod extract;
 pub mod flood;
 pub mod grid;
-pub mod holes;
 pub mod io;
+pub mod mesh;
 pub mod layouts;
 pub mod mc_table;
-pub mod mesh;
 pub mod params;
 pub mod refine;
 pub mod regions;
 pub mod ring;
 pub mod samples;
-pub mod sanitize;
 pub mod seal;
 #[cfg(feature = "test-shapes")]
 pub mod shapes;
 pub mod sides;
 pub mod sign;
-pub mod topology;
 pub mod vec3;
 pub mod voxelize;
 pub mod winding;
@@ -68,3 +64,4 @@ pub use params::Params;
 
 // The paths other crates use, kept from before the rooms.
 pub use grid::{cubes, normalization as normalize};
+pub use mesh::{holes, topology};

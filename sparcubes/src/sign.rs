@@ -455,7 +455,8 @@ mod tests {
     use crate::grid::{dilate, Dilation, Numbered};
     use crate::grid::normalization::Normalization;
     use crate::shapes::{cube_with_hole, merge, open_cylinder, sphere};
-    use crate::voxelize::{voxelize, GridMesh};
+    use crate::mesh::GridMesh;
+    use crate::voxelize::voxelize;
 
     const N: u32 = 48;
 

@@ -8,30 +8,9 @@
 //!   touch wall cells, and which crossings separate inside from outside.
 
 use crate::grid::{split, BrickIndex, BrickMask, BrickSet, BRICK};
+use crate::mesh::GridMesh;
 use crate::vec3::{cross, dot, sub};
 use rayon::prelude::*;
-
-/// The input mesh in grid coordinates (voxels), double precision.
-#[derive(Debug, Clone, Default)]
-pub struct GridMesh {
-    /// Vertex positions in voxels.
-    pub verts: Vec<[f64; 3]>,
-    /// Triangles (indices into `verts`).
-    pub tris: Vec<[u32; 3]>,
-}
-
-impl GridMesh {
-    /// Corners of triangle `t`.
-    #[inline]
-    pub fn tri(&self, t: usize) -> [[f64; 3]; 3] {
-        let [a, b, c] = self.tris[t];
-        [
-            self.verts[a as usize],
-            self.verts[b as usize],
-            self.verts[c as usize],
-        ]
-    }
-}
 
 /// Wall cells and blocked edges of a mesh at resolution `n`.
 #[derive(Debug, Clone)]

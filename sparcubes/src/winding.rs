@@ -24,7 +24,7 @@
 //! not depend on the thread count.
 
 use crate::vec3::{cross, dot, sub};
-use crate::voxelize::GridMesh;
+use crate::mesh::GridMesh;
 use rayon::prelude::*;
 use std::f64::consts::PI;
 

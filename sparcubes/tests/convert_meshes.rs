@@ -2,7 +2,7 @@
 //! 2-manifold and outward oriented; closed shapes keep their surface; open ones become thin
 //! shells; no part is dropped.
 
-use sparcubes::band::closest_point_on_triangle;
+use sparcubes::mesh::triangle::closest_point_on_triangle;
 use sparcubes::{convert, extract, shapes, topology, Params, SparseCubes, TriMesh};
 
 fn convert_extract(mesh: &TriMesh, n: u32, deform: bool) -> (SparseCubes, TriMesh) {

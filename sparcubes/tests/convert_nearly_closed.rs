@@ -7,7 +7,7 @@
 //! (|w| ≥ ½) and the output's (a closed mesh) what the output encloses.
 
 use sparcubes::closest::TriangleIndex;
-use sparcubes::voxelize::GridMesh;
+use sparcubes::mesh::GridMesh;
 use sparcubes::winding::WindingTree;
 use sparcubes::{convert, extract, shapes, topology, ConvertStats, Params, SparseCubes, TriMesh};
 

@@ -32,7 +32,7 @@ pub use settings::RefineParams;
 pub use surface::Surface;
 
 use crate::grid::cubes::SparseCubes;
-use crate::voxelize::GridMesh;
+use crate::mesh::GridMesh;
 use adam::Adam;
 use serde::Serialize;
 use views::{hits, targets, view_loss, Targets, Traced, View};

@@ -175,7 +175,7 @@ fn a_refinement_lowers_the_loss_keeps_the_bounds_and_the_mesh_closed() {
         assert!(cubes.deformation.iter().flatten().all(|d| d.abs() <= 0.45));
         // φ and the cells are untouched: the same signs, so the same closed mesh.
         assert_eq!((&cubes.sdf, &cubes.cells), (&before.sdf, &before.cells));
-        let report = crate::topology::check(&extract(&cubes));
+        let report = crate::mesh::topology::check(&extract(&cubes));
         assert!(report.is_watertight() && report.is_manifold(), "{name}");
     }
 }

@@ -4,7 +4,7 @@
 //! points.
 
 use super::*;
-use crate::band::closest_point_on_triangle;
+use crate::mesh::triangle::closest_point_on_triangle;
 use crate::params::Params;
 use crate::shapes::{cube_with_hole, cuboid, merge, quad, sphere, torus};
 use crate::vec3::{cross, dist2, dot, norm, sub};

@@ -13,7 +13,7 @@
 //! (it would make a non-manifold edge); a hole left with only such ears stays partly open.
 //!
 //! Vertex indices are used as they are: weld an unindexed mesh first
-//! ([`crate::topology::weld`]).
+//! ([`crate::mesh::topology::weld`]).
 
 use crate::mesh::TriMesh;
 use crate::vec3::{cross, dot, sub};

@@ -1,6 +1,6 @@
 //! The triangle mesh every stage works on: a flat struct of arrays.
 
-/// An indexed triangle mesh. Invariants (after [`crate::sanitize`]): every index is
+/// An indexed triangle mesh. Invariants (after [`crate::mesh::sanitize`]): every index is
 /// `< positions.len()` and every coordinate is finite.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct TriMesh {
