@@ -6,10 +6,10 @@
 //!
 //!     cargo run --release -p sparcubes --example samples_bench -- MESH [RESOLUTION] [--no-layout]
 
-use sparcubes::closest::TriangleIndex;
+use sparcubes::queries::closest::TriangleIndex;
+use sparcubes::queries::sides::GridSides;
 use sparcubes::samples::rng::Draw;
 use sparcubes::samples::{sample, SampleParams};
-use sparcubes::sides::GridSides;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -77,18 +77,19 @@ fn main() -> ExitCode {
     let inside = near_in.len() + volume_in.len();
     let sides_s = t.secs(2);
     // How often the closest triangle's face gives the side, and whether it agrees.
-    let face =
-        |points: &[[f64; 3]], closest: &[sparcubes::closest::ClosestPoint], grid: &[bool]| {
-            let mut answered = 0;
-            let mut differ = 0;
-            for ((p, c), g) in points.iter().zip(closest).zip(grid) {
-                if let Some(f) = index.face_side(*p, c) {
-                    answered += 1;
-                    differ += usize::from(f != *g);
-                }
+    let face = |points: &[[f64; 3]],
+                closest: &[sparcubes::queries::closest::ClosestPoint],
+                grid: &[bool]| {
+        let mut answered = 0;
+        let mut differ = 0;
+        for ((p, c), g) in points.iter().zip(closest).zip(grid) {
+            if let Some(f) = index.face_side(*p, c) {
+                answered += 1;
+                differ += usize::from(f != *g);
             }
-            format!("{answered} by the face, {differ} differ")
-        };
+        }
+        format!("{answered} by the face, {differ} differ")
+    };
     let faces = format!(
         "near {}, volume {}",
         face(&near, &a, &near_in),

@@ -8,8 +8,8 @@
 
 use crate::grid::{for_each_bit, BrickMask, BrickSet, Numbered, BRICK};
 use crate::mesh::triangle::closest_point_on_triangle;
-use crate::vec3::{cross, dot, sub};
 use crate::mesh::GridMesh;
+use crate::vec3::{cross, dot, sub};
 use crate::voxelize::triangle_box_overlap;
 use rayon::prelude::*;
 

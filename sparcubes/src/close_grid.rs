@@ -191,8 +191,8 @@ fn label_missing_regions(state: &mut [u8], m: usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::shapes;
     use crate::mesh::topology;
+    use crate::shapes;
 
     fn sphere_cubes(n: u32) -> SparseCubes {
         let params = crate::Params {

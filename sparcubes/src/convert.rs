@@ -2,25 +2,25 @@
 //! function.
 
 use crate::band::{compute_band, triangle_planes, Band, CORE_REACH, REACH};
-use crate::grid::cubes::SparseCubes;
 use crate::deform::{compute_field, Field};
 use crate::error::{Error, Result};
 use crate::flood::flood_outside;
+use crate::grid::cubes::SparseCubes;
+use crate::grid::normalization::Normalization;
 use crate::grid::{
     difference, dilate, for_each_bit, merge_masks, window_index, BrickMask, BrickSet, Dilation,
     NO_ID,
 };
+use crate::mesh::GridMesh;
 use crate::mesh::TriMesh;
-use crate::grid::normalization::Normalization;
 use crate::params::Params;
+use crate::queries::winding::LazyWindingTree;
 use crate::refine::{refine, RefineStats};
 use crate::regions::{classify_regions, decide_sealed, mark_air, Nesting, Regions};
 use crate::ring::ring_cells;
 use crate::seal::{seal_openings, Sealing};
 use crate::sign::{compute_signs, ring_signs, sealed_to_outside, vertex_sides};
-use crate::mesh::GridMesh;
 use crate::voxelize::voxelize;
-use crate::winding::LazyWindingTree;
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -188,7 +188,7 @@ fn sign_changes(cells: &BrickSet, core: Values, ring: Option<Values>) -> Vec<(u3
         .collect()
 }
 
-/// Longest piece, in voxels, the winding tree cuts triangles into ([`crate::winding`]): 32
+/// Longest piece, in voxels, the winding tree cuts triangles into ([`crate::queries::winding`]): 32
 /// voxels, or 1/32 of the grid at resolutions above 1024, so the number of pieces does not
 /// grow with the resolution. 8 voxels gave the same outputs on the dev corpus at 256³ but
 /// up to 50 times as many pieces as triangles (large flat faces), and cutting, sorting and

@@ -15,9 +15,9 @@
 //! whatever the thread count.
 
 use crate::grid::cubes::SparseCubes;
+use crate::grid::normalization::Normalization;
 use crate::mc_table::{self, Case, Table, CENTRE, EDGES, FACE_CORNERS};
 use crate::mesh::TriMesh;
-use crate::grid::normalization::Normalization;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 

@@ -29,7 +29,6 @@
 
 pub mod band;
 pub mod close_grid;
-pub mod closest;
 pub mod convert;
 pub mod deform;
 pub mod error;
@@ -37,10 +36,11 @@ pub mod extract;
 pub mod flood;
 pub mod grid;
 pub mod io;
-pub mod mesh;
 pub mod layouts;
 pub mod mc_table;
+pub mod mesh;
 pub mod params;
+pub mod queries;
 pub mod refine;
 pub mod regions;
 pub mod ring;
@@ -48,18 +48,16 @@ pub mod samples;
 pub mod seal;
 #[cfg(feature = "test-shapes")]
 pub mod shapes;
-pub mod sides;
 pub mod sign;
 pub mod vec3;
 pub mod voxelize;
-pub mod winding;
 
 pub use convert::{convert, Conversion, ConvertStats};
-pub use grid::cubes::SparseCubes;
 pub use error::{Error, ErrorClass};
 pub use extract::extract;
-pub use mesh::TriMesh;
+pub use grid::cubes::SparseCubes;
 pub use grid::normalization::Normalization;
+pub use mesh::TriMesh;
 pub use params::Params;
 
 // The paths other crates use, kept from before the rooms.

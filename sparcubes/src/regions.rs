@@ -5,7 +5,7 @@
 //! the flood cannot reach. Reachability alone would call them all solid, but whether a region
 //! is material or air is a property of the source: the inside of a cube's cavity, or the space
 //! between a double-walled hull and the parts it holds, is enclosed and empty. So every region
-//! is decided by the generalised winding number |w| of the source ([`crate::winding`]), sampled
+//! is decided by the generalised winding number |w| of the source ([`crate::queries::winding`]), sampled
 //! at a few of its cells (the median of [`SAMPLES`]): solid for |w| ≥ [`SOLID_FROM`], air for
 //! |w| ≤ [`AIR_UP_TO`]. A region in between is *ambiguous* (an inconsistently oriented soup,
 //! overlapping open sheets) and keeps what reachability says: solid, the behaviour without the
@@ -27,9 +27,9 @@ use crate::grid::{
     count, cube_offsets, dilate, face_carry, for_each_bit, is_empty, nth_bit, BrickMask, BrickSet,
     Dilation, NO_BRICK,
 };
+use crate::queries::winding::{LazyWindingTree, WindingTree};
 use crate::sign::{open_neighbours, Side};
 use crate::voxelize::Voxelization;
-use crate::winding::{LazyWindingTree, WindingTree};
 use rayon::prelude::*;
 
 /// Winding numbers sampled per region (or per sealed group of vertices); the median decides.

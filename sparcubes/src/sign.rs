@@ -452,10 +452,10 @@ mod tests {
     use super::*;
     use crate::band::{compute_band, triangle_planes, CORE_REACH};
     use crate::flood::{flood_outside, CellSide};
-    use crate::grid::{dilate, Dilation, Numbered};
     use crate::grid::normalization::Normalization;
-    use crate::shapes::{cube_with_hole, merge, open_cylinder, sphere};
+    use crate::grid::{dilate, Dilation, Numbered};
     use crate::mesh::GridMesh;
+    use crate::shapes::{cube_with_hole, merge, open_cylinder, sphere};
     use crate::voxelize::voxelize;
 
     const N: u32 = 48;

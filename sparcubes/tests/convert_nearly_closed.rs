@@ -6,9 +6,9 @@
 //! 1.5 voxels from the source surface, the source's winding number says what is solid
 //! (|w| ≥ ½) and the output's (a closed mesh) what the output encloses.
 
-use sparcubes::closest::TriangleIndex;
 use sparcubes::mesh::GridMesh;
-use sparcubes::winding::WindingTree;
+use sparcubes::queries::closest::TriangleIndex;
+use sparcubes::queries::winding::WindingTree;
 use sparcubes::{convert, extract, shapes, topology, ConvertStats, Params, SparseCubes, TriMesh};
 
 /// What the output encloses against the source's solid, over the sample points.

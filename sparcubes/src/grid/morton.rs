@@ -1,6 +1,6 @@
 //! Morton (Z-order) codes of 3D cells: the bits of the three coordinates interleaved, so that
-//! sorting by code keeps nearby cells nearby. The closest-point tree ([`crate::closest`]) and
-//! the winding-number tree ([`crate::winding`]) sort their triangles by these codes.
+//! sorting by code keeps nearby cells nearby. The closest-point tree ([`crate::queries::closest`]) and
+//! the winding-number tree ([`crate::queries::winding`]) sort their triangles by these codes.
 
 /// Bits per coordinate of a code (three of them fill 63 bits of a `u64`).
 pub const BITS: u32 = 21;

@@ -23,10 +23,10 @@ mod write;
 
 pub use write::PendingSave;
 
-use crate::mesh::duplicate_faces::drop_duplicate_faces;
 use crate::error::{Error, Result};
-use crate::mesh::TriMesh;
+use crate::mesh::duplicate_faces::drop_duplicate_faces;
 use crate::mesh::sanitize::drop_invalid;
+use crate::mesh::TriMesh;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;
 

@@ -7,14 +7,14 @@
 //! input and supervision (issue #34 of that repository).
 //!
 //! The distances are exact distances from each grid point to the extracted mesh (nearest-first
-//! queries of [`crate::closest`]'s tree, bounded by the truncation so that points beyond it
-//! end early), and the sign comes from the sparse grid ([`crate::sides`]).
+//! queries of [`crate::queries::closest`]'s tree, bounded by the truncation so that points beyond it
+//! end early), and the sign comes from the sparse grid ([`crate::queries::sides`]).
 
-use crate::closest::TriangleIndex;
-use crate::grid::cubes::SparseCubes;
 use crate::extract::extract;
+use crate::grid::cubes::SparseCubes;
 use crate::grid::{dilate, pack, BrickIndex, BrickSet, Dilation};
-use crate::sides::GridSides;
+use crate::queries::closest::TriangleIndex;
+use crate::queries::sides::GridSides;
 use rayon::prelude::*;
 
 /// Direct3D-S2's truncation, in voxels.

@@ -14,8 +14,8 @@ pub mod grid_mesh;
 pub mod holes;
 pub mod sanitize;
 pub mod topology;
-pub mod triangle;
 pub mod tri_mesh;
+pub mod triangle;
 
 pub use grid_mesh::GridMesh;
 pub use tri_mesh::TriMesh;

@@ -7,8 +7,8 @@
 //! positions follow δ exactly and a gradient on positions goes back to δ through the same
 //! weights.
 
-use crate::grid::cubes::SparseCubes;
 use crate::extract::{centres_used, for_each_case};
+use crate::grid::cubes::SparseCubes;
 use crate::mc_table::{self, CENTRE, EDGES};
 use std::collections::HashMap;
 

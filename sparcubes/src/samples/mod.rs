@@ -14,10 +14,10 @@
 //!
 //! Everything is in the job's **normalized frame**: the grid cube `[0, N]³` mapped onto
 //! `[-1, 1]³` (`p = 2·g/N − 1`, so `p = 2·(source − center)·scale`). Distances are exact
-//! distances to the extracted mesh ([`crate::closest`]); their sign, negative inside, comes
+//! distances to the extracted mesh ([`crate::queries::closest`]); their sign, negative inside, comes
 //! from the closest triangle's face where the closest point lies strictly inside it
 //! ([`TriangleIndex::face_side`], exact for the closed output mesh of the sparse grid), else
-//! from the sparse grid ([`crate::sides`]). Before the grid sides set aside crossings that
+//! from the sparse grid ([`crate::queries::sides`]). Before the grid sides set aside crossings that
 //! graze a triangle's border, the two differed on about one near point in 2000
 //! (storage-rounded points on the grid's dyadic planes, where the grid's crossing count met a
 //! triangle edge), and there the face was right by the winding number (docs/PERFORMANCE.md,
@@ -34,11 +34,11 @@ pub mod rng;
 mod sharp;
 mod surface;
 
-use crate::closest::TriangleIndex;
-use crate::grid::cubes::SparseCubes;
 use crate::error::{Error, Result};
+use crate::grid::cubes::SparseCubes;
 use crate::mesh::TriMesh;
-use crate::sides::GridSides;
+use crate::queries::closest::TriangleIndex;
+use crate::queries::sides::GridSides;
 pub use fps::farthest_points;
 use rayon::prelude::*;
 use rng::Draw;
@@ -543,7 +543,7 @@ impl<'a> Distances<'a> {
 fn face_or_grid_sides<'a>(
     index: &TriangleIndex,
     grid: &[[f64; 3]],
-    closest: &[crate::closest::ClosestPoint],
+    closest: &[crate::queries::closest::ClosestPoint],
     sides: impl FnOnce() -> &'a GridSides<'a>,
 ) -> Vec<bool> {
     let face: Vec<Option<bool>> = grid

@@ -27,8 +27,8 @@ pub mod fine;
 
 use crate::flood::{flood_outside, CellSide, Flood};
 use crate::grid::BrickMask;
+use crate::queries::winding::LazyWindingTree;
 use crate::voxelize::Voxelization;
-use crate::winding::LazyWindingTree;
 use coarse::{downsample, CoarseGrid, Run};
 
 /// Coarse cells per axis at most: the sealing's grid, the same share of the object at every

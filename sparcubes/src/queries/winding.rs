@@ -23,8 +23,8 @@
 //! Everything is double precision and every sum runs in a fixed order, so a query's result does
 //! not depend on the thread count.
 
-use crate::vec3::{cross, dot, sub};
 use crate::mesh::GridMesh;
+use crate::vec3::{cross, dot, sub};
 use rayon::prelude::*;
 use std::f64::consts::PI;
 

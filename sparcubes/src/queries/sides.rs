@@ -27,10 +27,10 @@
 //! triangle's border is *unsure*, and an unsure segment is replaced by the segment to the next
 //! stored corner, or as a last resort to the nearest corner nudged off the grid's planes by
 //! 1e-4 voxel. [`crate::samples`] takes most sides from the closest face first
-//! ([`crate::closest::TriangleIndex::face_side`]) and asks this module only for the rest.
+//! ([`crate::queries::closest::TriangleIndex::face_side`]) and asks this module only for the rest.
 
-use crate::grid::cubes::SparseCubes;
 use crate::extract::cell_triangles;
+use crate::grid::cubes::SparseCubes;
 use crate::grid::{pack, split, test, BrickIndex, BrickSet, Numbered, BRICK};
 use crate::vec3::{cross, dot, sub, Vec3};
 use rayon::prelude::*;
