@@ -6,10 +6,10 @@
 //!
 //!     cargo run --release -p sparcubes --example d3_band_bench -- MESH [RESOLUTION]
 
-use sparcubes::band::{compute_band, triangle_planes};
 use sparcubes::layouts::direct3d_s2::{band_vertices, TRUNCATION};
 use sparcubes::mesh::GridMesh;
 use sparcubes::queries::closest::TriangleIndex;
+use sparcubes::stages::band::{compute_band, triangle_planes};
 use std::path::PathBuf;
 use std::process::ExitCode;
 

@@ -1,10 +1,7 @@
 //! The conversion driver: the stages of docs/ALGORITHM.md (§1–6), top to bottom, each a free
 //! function.
 
-use crate::band::{compute_band, triangle_planes, Band, CORE_REACH, REACH};
-use crate::deform::{compute_field, Field};
 use crate::error::{Error, Result};
-use crate::flood::flood_outside;
 use crate::grid::cubes::SparseCubes;
 use crate::grid::normalization::Normalization;
 use crate::grid::{
@@ -15,12 +12,15 @@ use crate::mesh::GridMesh;
 use crate::mesh::TriMesh;
 use crate::params::Params;
 use crate::queries::winding::LazyWindingTree;
-use crate::refine::{refine, RefineStats};
-use crate::regions::{classify_regions, decide_sealed, mark_air, Nesting, Regions};
-use crate::ring::ring_cells;
-use crate::seal::{seal_openings, Sealing};
-use crate::sign::{compute_signs, ring_signs, sealed_to_outside, vertex_sides};
-use crate::voxelize::voxelize;
+use crate::stages::band::{compute_band, triangle_planes, Band, CORE_REACH, REACH};
+use crate::stages::deform::{compute_field, Field};
+use crate::stages::flood::flood_outside;
+use crate::stages::refine::{refine, RefineStats};
+use crate::stages::regions::{classify_regions, decide_sealed, mark_air, Nesting, Regions};
+use crate::stages::ring::ring_cells;
+use crate::stages::seal::{seal_openings, Sealing};
+use crate::stages::sign::{compute_signs, ring_signs, sealed_to_outside, vertex_sides};
+use crate::stages::voxelize::voxelize;
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -40,7 +40,7 @@ pub struct ConvertStats {
     /// Band vertices whose distance was computed (corners of the wall cells, plus the corners
     /// of the ring cells a thin shell reaches; a vertex in both counts twice).
     pub band_vertices: u64,
-    /// Surface-free cells next to the walls that got a band of their own ([`crate::ring`]).
+    /// Surface-free cells next to the walls that got a band of their own ([`crate::stages::ring`]).
     pub ring_cells: u64,
     /// Active vertices stored.
     pub active_vertices: u64,
@@ -49,28 +49,28 @@ pub struct ConvertStats {
     /// Stored vertices that belong to a thin shell around an open part.
     pub shell_vertices: u64,
     /// Enclosed regions: connected sets of surface-free cells the outside flood cannot reach
-    /// ([`crate::regions`]).
+    /// ([`crate::stages::regions`]).
     pub enclosed_regions: u64,
     /// Enclosed regions the winding number found to be air (treated as outside).
     pub air_regions: u64,
     /// Enclosed regions whose winding number was ambiguous (kept solid).
     pub ambiguous_regions: u64,
     /// Closed parts thinner than about two cells, found inside by the winding number (groups
-    /// of sealed vertices joined with their 26 neighbours, [`crate::regions::decide_sealed`]).
+    /// of sealed vertices joined with their 26 neighbours, [`crate::stages::regions::decide_sealed`]).
     pub thin_parts: u64,
     /// Sealed parts left to the thin shell: found inside by the winding number but too thin
     /// somewhere for the grid (under a cell), or nowhere 0.3 voxel deep (these are shelled
     /// without asking the winding number, so the count includes any such pocket).
     pub shelled_thin_parts: u64,
     /// Regions sealed behind small openings and kept solid: nearly closed parts whose
-    /// openings the walls grown at the sealing scale close ([`crate::seal`]), read as solid by
+    /// openings the walls grown at the sealing scale close ([`crate::stages::seal`]), read as solid by
     /// the winding number on the coarse grid and again as enclosed regions (§2b).
     pub sealed_pockets: u64,
     /// Groups of sealed vertices inside two closed surfaces or more: closed parts overlapping
     /// by less than the grid resolves, left outside so both keep their surfaces
-    /// ([`crate::regions::OVERLAP_FROM`]).
+    /// ([`crate::stages::regions::OVERLAP_FROM`]).
     pub overlap_groups: u64,
-    /// What the rendering-based refinement did (`None`: it was off), [`crate::refine`].
+    /// What the rendering-based refinement did (`None`: it was off), [`crate::stages::refine`].
     pub refine: Option<RefineStats>,
 }
 
@@ -405,7 +405,7 @@ pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
 
     // Keep the candidate cells (wall cells and ring cells, disjoint) with a sign change (φ < 0
     // is inside, φ ≥ 0 outside) and their corners; no cell outside them has one (see
-    // `crate::ring`), so the result is closed.
+    // `crate::stages::ring`), so the result is closed.
     let core = (&band, &field.sdf[..]);
     let kept = merge_masks(
         sign_changes(&vox.walls, core, None),

@@ -27,39 +27,30 @@
 // hide that parallel structure.
 #![allow(clippy::needless_range_loop)]
 
-pub mod band;
-pub mod close_grid;
 pub mod convert;
-pub mod deform;
 pub mod error;
-pub mod extract;
-pub mod flood;
 pub mod grid;
 pub mod io;
 pub mod layouts;
-pub mod mc_table;
 pub mod mesh;
 pub mod params;
 pub mod queries;
-pub mod refine;
-pub mod regions;
-pub mod ring;
 pub mod samples;
-pub mod seal;
 #[cfg(feature = "test-shapes")]
 pub mod shapes;
-pub mod sign;
+pub mod stages;
 pub mod vec3;
-pub mod voxelize;
 
 pub use convert::{convert, Conversion, ConvertStats};
 pub use error::{Error, ErrorClass};
-pub use extract::extract;
 pub use grid::cubes::SparseCubes;
 pub use grid::normalization::Normalization;
 pub use mesh::TriMesh;
 pub use params::Params;
+pub use stages::extract::extract;
 
 // The paths other crates use, kept from before the rooms.
 pub use grid::{cubes, normalization as normalize};
 pub use mesh::{holes, topology};
+pub use stages::extract::{self, close_grid};
+pub use stages::refine;

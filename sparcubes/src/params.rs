@@ -1,7 +1,7 @@
 //! Conversion parameters, with the defaults used by the CLI and the pipeline.
 
 use crate::error::{Error, Result};
-use crate::refine::RefineParams;
+use crate::stages::refine::RefineParams;
 use serde::{Deserialize, Serialize};
 
 /// Largest supported resolution. The sparse grid keeps a dense 4-byte index per 8³ brick,
@@ -44,7 +44,7 @@ pub struct Params {
     #[serde(default, skip_serializing_if = "is_false")]
     pub inside_test: bool,
     /// Whether openings small for their part are sealed, so that a nearly closed solid stays
-    /// solid instead of becoming a thin shell (docs/ALGORITHM.md §3b, [`crate::seal`]): a
+    /// solid instead of becoming a thin shell (docs/ALGORITHM.md §3b, [`crate::stages::seal`]): a
     /// pocket that the walls grown by about 1/32 of the grid close off (openings up to about
     /// 1/15 of the grid across, the same share of the object at every resolution) and that the
     /// source's winding number reads as solid is taken back from the outside. Needs the
@@ -65,7 +65,7 @@ pub struct Params {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub object_span: Option<f64>,
     /// The rendering-based refinement of the displacements (paper step 4, docs/ALGORITHM.md
-    /// §7b, [`crate::refine`]) and its settings; `None`: off, the default (docs/QUALITY.md
+    /// §7b, [`crate::stages::refine`]) and its settings; `None`: off, the default (docs/QUALITY.md
     /// says what it measured). A job file writes `refine = true` for the default settings or
     /// a `[params.refine]` table.
     ///
@@ -75,7 +75,7 @@ pub struct Params {
     #[serde(
         default,
         skip_serializing_if = "Option::is_none",
-        deserialize_with = "crate::refine::settings::deserialize"
+        deserialize_with = "crate::stages::refine::settings::deserialize"
     )]
     pub refine: Option<RefineParams>,
 }

@@ -69,7 +69,7 @@ pub fn cubvh_voxels(cubes: &SparseCubes) -> CubvhVoxels {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::extract::sample_box;
+    use crate::stages::extract::sample_box;
 
     #[test]
     fn codes_follow_cubvh_quantisation_and_corner_order() {

@@ -10,11 +10,11 @@
 //! queries of [`crate::queries::closest`]'s tree, bounded by the truncation so that points beyond it
 //! end early), and the sign comes from the sparse grid ([`crate::queries::sides`]).
 
-use crate::extract::extract;
 use crate::grid::cubes::SparseCubes;
 use crate::grid::{dilate, pack, BrickIndex, BrickSet, Dilation};
 use crate::queries::closest::TriangleIndex;
 use crate::queries::sides::GridSides;
+use crate::stages::extract::extract;
 use rayon::prelude::*;
 
 /// Direct3D-S2's truncation, in voxels.

@@ -92,7 +92,7 @@ fn chunk_corners(coords: &[[u16; 3]], cells: &[[u16; 3]]) -> Vec<Option<[usize; 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::extract::sample_box;
+    use crate::stages::extract::sample_box;
 
     /// The binary-search lookup the walk replaces.
     fn corners_by_search(cubes: &SparseCubes, c: [u16; 3]) -> Option<[usize; 8]> {

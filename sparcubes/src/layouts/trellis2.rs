@@ -15,9 +15,9 @@
 //!   for z (1,1,0)–(1,1,1), i.e. a sign change of φ between those corners.
 
 use super::chunks_with_corners;
-use crate::extract::{cell_triangles_at, CellEdgePoints};
 use crate::grid::cubes::SparseCubes;
-use crate::mc_table::EDGES;
+use crate::stages::extract::mc_table::EDGES;
+use crate::stages::extract::{cell_triangles_at, CellEdgePoints};
 use crate::vec3::{cross, dot, norm, sub};
 use rayon::prelude::*;
 

@@ -9,7 +9,7 @@
 //!   the point's own cell without deformation): take a stored corner `v` of the point's cell,
 //!   whose side is the sign of its φ, and count how often the segment from the point to `v`'s
 //!   (deformed) position crosses the triangles of those active cells, rebuilt cell by cell
-//!   with [`crate::extract::cell_triangles`]. Every triangle that can cross the segment is
+//!   with [`crate::stages::extract::cell_triangles`]. Every triangle that can cross the segment is
 //!   among them, so an odd count flips `v`'s side.
 //! - **Elsewhere**: cells without a sign change have corners of one sign, and face-adjacent
 //!   ones share corners, so a run of such cells along +z has one side. Walk the column to the
@@ -29,9 +29,9 @@
 //! 1e-4 voxel. [`crate::samples`] takes most sides from the closest face first
 //! ([`crate::queries::closest::TriangleIndex::face_side`]) and asks this module only for the rest.
 
-use crate::extract::cell_triangles;
 use crate::grid::cubes::SparseCubes;
 use crate::grid::{pack, split, test, BrickIndex, BrickSet, Numbered, BRICK};
+use crate::stages::extract::cell_triangles;
 use crate::vec3::{cross, dot, sub, Vec3};
 use rayon::prelude::*;
 

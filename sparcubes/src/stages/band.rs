@@ -3,14 +3,14 @@
 //! The distances are computed for the corners of a set of cells in two calls: first the
 //! corners of the wall cells (the core band, every vertex within √3 of the surface), then,
 //! once signs are known, the corners of the few cells next to the walls that a thin shell
-//! reaches ([`crate::ring`]). Only triangles within the reach of a brick are binned to it, and
+//! reaches ([`crate::stages::ring`]). Only triangles within the reach of a brick are binned to it, and
 //! each brick scans its own triangles — no per-vertex tree query.
 
 use crate::grid::{for_each_bit, BrickMask, BrickSet, Numbered, BRICK};
 use crate::mesh::triangle::closest_point_on_triangle;
 use crate::mesh::GridMesh;
+use crate::stages::voxelize::triangle_box_overlap;
 use crate::vec3::{cross, dot, sub};
-use crate::voxelize::triangle_box_overlap;
 use rayon::prelude::*;
 
 /// Farthest a corner of a cell next to a wall cell can be from the surface: it is within the
@@ -264,7 +264,7 @@ pub fn triangle_planes(mesh: &GridMesh) -> Vec<[f64; 4]> {
 mod tests {
     use super::*;
     use crate::grid::{dilate, Dilation};
-    use crate::voxelize::voxelize;
+    use crate::stages::voxelize::voxelize;
 
     /// A torus crossed by a sphere, scaled and shifted off the lattice into a 48³ grid.
     fn crossed_shapes() -> (GridMesh, u32) {

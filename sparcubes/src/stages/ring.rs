@@ -7,14 +7,14 @@
 //! which is the cell's. A corner of a wall cell can disagree where a thin shell reaches past
 //! the wall cells (φ = UDF − t < 0 on an outside vertex, or t − UDF ≥ 0 in a thin cavity) or
 //! where an inside cell meets an outside cell at a corner or an edge. Only those cells'
-//! corners outside the core band get distances too (with [`crate::band::REACH`]); around
+//! corners outside the core band get distances too (with [`crate::stages::band::REACH`]); around
 //! closed parts the band stays the corners of the wall cells, and the kept cells are exactly
 //! those of a band grown around every wall cell.
 
-use crate::band::Band;
-use crate::flood::Flood;
 use crate::grid::{dilate, for_each_bit, merge_masks, BrickMask, BrickSet, Dilation};
-use crate::sign::{CoreSigns, TOUCHES_INSIDE, TOUCHES_OUTSIDE};
+use crate::stages::band::Band;
+use crate::stages::flood::Flood;
+use crate::stages::sign::{CoreSigns, TOUCHES_INSIDE, TOUCHES_OUTSIDE};
 use rayon::prelude::*;
 
 /// The surface-free cells with a corner in `core` whose φ (`sdf`, parallel to the core band's

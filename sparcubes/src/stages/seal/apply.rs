@@ -2,9 +2,9 @@
 
 use super::coarse::CoarseGrid;
 use super::fine::{bricks_of, coarse_mask};
-use crate::flood::{Flood, FULL};
 use crate::grid::{face_carry, shift, BrickIndex, BrickMask, BrickSet, NO_BRICK};
-use crate::voxelize::Voxelization;
+use crate::stages::flood::{Flood, FULL};
+use crate::stages::voxelize::Voxelization;
 use rayon::prelude::*;
 
 /// Every fine cell a sealed pocket takes, per brick key (ascending): the free cells the

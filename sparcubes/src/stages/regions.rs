@@ -1,6 +1,6 @@
 //! Stage 3b: the enclosed regions, each decided solid or air by the source's winding number.
 //!
-//! The flood ([`crate::flood`]) reaches every surface-free cell joined to the grid's border;
+//! The flood ([`crate::stages::flood`]) reaches every surface-free cell joined to the grid's border;
 //! the rest form *enclosed regions*: connected sets (through cell faces) of surface-free cells
 //! the flood cannot reach. Reachability alone would call them all solid, but whether a region
 //! is material or air is a property of the source: the inside of a cube's cavity, or the space
@@ -21,15 +21,15 @@
 //! faces are joined with a union–find whose roots are the smallest part numbers, so regions
 //! and their numbering do not depend on thread count.
 
-use crate::band::Band;
-use crate::flood::{grow_within, Flood, FULL};
 use crate::grid::{
     count, cube_offsets, dilate, face_carry, for_each_bit, is_empty, nth_bit, BrickMask, BrickSet,
     Dilation, NO_BRICK,
 };
 use crate::queries::winding::{LazyWindingTree, WindingTree};
-use crate::sign::{open_neighbours, Side};
-use crate::voxelize::Voxelization;
+use crate::stages::band::Band;
+use crate::stages::flood::{grow_within, Flood, FULL};
+use crate::stages::sign::{open_neighbours, Side};
+use crate::stages::voxelize::Voxelization;
 use rayon::prelude::*;
 
 /// Winding numbers sampled per region (or per sealed group of vertices); the median decides.
@@ -886,7 +886,7 @@ pub struct SealedCounts {
     pub shallow: u64,
 }
 
-/// Decides the vertices that are still `Unknown` after [`crate::sign::vertex_sides`]: those
+/// Decides the vertices that are still `Unknown` after [`crate::stages::sign::vertex_sides`]: those
 /// sealed in by triangles on every side, with no surface-free cell to take a side from — the
 /// inside of a closed part thinner than about two cells, or a pocket between sheets. They are
 /// grouped through grid edges no triangle crosses (a group has one side), and each group is

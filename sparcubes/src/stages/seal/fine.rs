@@ -10,9 +10,9 @@
 //! the order or the thread count.
 
 use super::coarse::CoarseGrid;
-use crate::flood::{Flood, DIRS, FULL};
 use crate::grid::BrickIndex;
 use crate::grid::{face_carry, or_assign, shift, BrickMask, BrickSet, BRICK};
+use crate::stages::flood::{Flood, DIRS, FULL};
 use rayon::prelude::*;
 use std::collections::HashMap;
 

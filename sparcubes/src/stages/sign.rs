@@ -14,13 +14,13 @@
 //!   shell 2t thick around the sheet. Elsewhere φ = ±UDF, whose zero level set is the surface
 //!   itself: closed parts are not dilated.
 
-use crate::band::Band;
-use crate::flood::Flood;
 use crate::grid::{
     cube_offsets, face_carry, for_each_bit, shift, split, test, BrickMask, BrickSet, X0, Y0,
 };
-use crate::regions::Nesting;
-use crate::voxelize::Voxelization;
+use crate::stages::band::Band;
+use crate::stages::flood::Flood;
+use crate::stages::regions::Nesting;
+use crate::stages::voxelize::Voxelization;
 use rayon::prelude::*;
 
 /// Side of a vertex.
@@ -44,7 +44,7 @@ pub struct Signs {
     pub thin: Vec<bool>,
 }
 
-/// The core band's signs and what the ring stage ([`crate::ring`], [`ring_signs`]) needs
+/// The core band's signs and what the ring stage ([`crate::stages::ring`], [`ring_signs`]) needs
 /// besides them.
 #[derive(Debug, Clone)]
 pub struct CoreSigns {
@@ -171,7 +171,7 @@ pub fn open_neighbours<'a>(
 /// inside. Each level only looks at the undecided neighbours of the previous level, so the
 /// work is linear in the vertices reached; the levels make the result independent of order.
 /// What stays unknown is sealed in by triangles on every side (inside a closed part thinner
-/// than a cell, or a pocket between sheets): [`crate::regions::decide_sealed`] decides it.
+/// than a cell, or a pocket between sheets): [`crate::stages::regions::decide_sealed`] decides it.
 fn resolve_enclosed(band: &Band, vox: &Voxelization, side: &mut [Side]) {
     let ids: Vec<u32> = (0..side.len() as u32)
         .filter(|&i| side[i as usize] == Side::Unknown)
@@ -403,7 +403,7 @@ pub fn sealed_to_outside(side: &mut [Side]) {
 }
 
 /// Decides which core vertices belong to thin shells, once every side is known (see
-/// [`vertex_sides`] and [`crate::regions::decide_sealed`]).
+/// [`vertex_sides`] and [`crate::stages::regions::decide_sealed`]).
 pub fn compute_signs(
     band: &Band,
     vox: &Voxelization,
@@ -429,7 +429,7 @@ fn thin_flags(band: &Band, walls: &BrickSet, thin_cells: &[BrickMask]) -> Vec<bo
         .collect()
 }
 
-/// Signs of the ring's own vertices (corners of the [`crate::ring`] cells that are not
+/// Signs of the ring's own vertices (corners of the [`crate::stages::ring`] cells that are not
 /// corners of wall cells), with the thin wall cells the core band found. Every such vertex
 /// touches only surface-free cells, so its side is known from the flood.
 pub fn ring_signs(band: &Band, walls: &BrickSet, flood: &Flood, core: &CoreSigns) -> Signs {
@@ -450,13 +450,13 @@ pub fn ring_signs(band: &Band, walls: &BrickSet, flood: &Flood, core: &CoreSigns
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::band::{compute_band, triangle_planes, CORE_REACH};
-    use crate::flood::{flood_outside, CellSide};
     use crate::grid::normalization::Normalization;
     use crate::grid::{dilate, Dilation, Numbered};
     use crate::mesh::GridMesh;
     use crate::shapes::{cube_with_hole, merge, open_cylinder, sphere};
-    use crate::voxelize::voxelize;
+    use crate::stages::band::{compute_band, triangle_planes, CORE_REACH};
+    use crate::stages::flood::{flood_outside, CellSide};
+    use crate::stages::voxelize::voxelize;
 
     const N: u32 = 48;
 

@@ -7,9 +7,9 @@
 //! positions follow δ exactly and a gradient on positions goes back to δ through the same
 //! weights.
 
-use crate::extract::{centres_used, for_each_case};
 use crate::grid::cubes::SparseCubes;
-use crate::mc_table::{self, CENTRE, EDGES};
+use crate::stages::extract::mc_table::{self, CENTRE, EDGES};
+use crate::stages::extract::{centres_used, for_each_case};
 use std::collections::HashMap;
 
 /// The mesh [`crate::extract()`] gives for some cubes, with each vertex as a weighted sum of
@@ -141,7 +141,7 @@ impl Surface {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::extract::{extract, sample_box};
+    use crate::stages::extract::{extract, sample_box};
 
     #[test]
     fn positions_are_those_of_the_extracted_mesh() {

@@ -8,9 +8,9 @@
 //! no cell inverts, and it never crosses the zero level set, so signs (and the topology of the
 //! extracted mesh) are the same with and without deformation.
 
-use crate::band::{Band, Nearest};
 use crate::params::Params;
-use crate::sign::{Side, Signs};
+use crate::stages::band::{Band, Nearest};
+use crate::stages::sign::{Side, Signs};
 
 /// Signed distance and displacement per band vertex.
 #[derive(Debug, Clone)]

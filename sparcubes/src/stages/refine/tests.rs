@@ -2,8 +2,8 @@
 //! wedge, a sphere), and what a refinement may and may not change.
 
 use super::*;
-use crate::extract::{extract, sample_box};
 use crate::mesh::TriMesh;
+use crate::stages::extract::{extract, sample_box};
 
 /// A generated mesh in grid coordinates as the conversion holds its source.
 fn grid_mesh(mesh: &TriMesh) -> GridMesh {

@@ -25,10 +25,10 @@ pub mod coarse;
 pub mod decide;
 pub mod fine;
 
-use crate::flood::{flood_outside, CellSide, Flood};
 use crate::grid::BrickMask;
 use crate::queries::winding::LazyWindingTree;
-use crate::voxelize::Voxelization;
+use crate::stages::flood::{flood_outside, CellSide, Flood};
+use crate::stages::voxelize::Voxelization;
 use coarse::{downsample, CoarseGrid, Run};
 
 /// Coarse cells per axis at most: the sealing's grid, the same share of the object at every
@@ -69,8 +69,6 @@ impl Scale {
 /// What [`seal_openings`] did.
 #[derive(Debug, Clone, Default)]
 pub struct Sealing {
-    /// Sealed pockets found (before their winding vote).
-    pub pockets: u64,
     /// A fine cell of each solid pocket taken back from the outside: the enclosed regions'
     /// classification (§2b) checks the region each lies in, and unseals it unless solid.
     pub seeds: Vec<[i64; 3]>,
@@ -93,10 +91,7 @@ pub fn seal_openings(
     let walls = downsample(&vox.walls, scale.cell, scale.side);
     let grown = walls.dilate(scale.radius);
     let pockets = find_pockets(vox, flood, &grown, scale);
-    let mut sealing = Sealing {
-        pockets: pockets.len() as u64,
-        ..Sealing::default()
-    };
+    let mut sealing = Sealing::default();
     if pockets.is_empty() {
         return sealing;
     }

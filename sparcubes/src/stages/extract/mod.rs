@@ -2,7 +2,7 @@
 //!
 //! Each active cell looks up its 8 corners, resolves its ambiguous faces with the asymptotic
 //! decider (which only reads the face's own values, so both cells sharing a face agree), and
-//! emits the triangles of [`crate::mc_table`]. Crossing points are keyed by their grid edge
+//! emits the triangles of [`crate::stages::extract::mc_table`]. Crossing points are keyed by their grid edge
 //! (`lower vertex index × 3 + axis`) and computed from that edge's two vertices only, so the
 //! cells sharing an edge share one vertex and the mesh is indexed and watertight.
 //!
@@ -14,10 +14,13 @@
 //! cell order. No per-triangle key list is built or sorted, and the output is the same bytes
 //! whatever the thread count.
 
+pub mod close_grid;
+pub mod mc_table;
+
 use crate::grid::cubes::SparseCubes;
 use crate::grid::normalization::Normalization;
-use crate::mc_table::{self, Case, Table, CENTRE, EDGES, FACE_CORNERS};
 use crate::mesh::TriMesh;
+use mc_table::{Case, Table, CENTRE, EDGES, FACE_CORNERS};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 

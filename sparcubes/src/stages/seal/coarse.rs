@@ -2,8 +2,8 @@
 //! 64-bit words along x. At most 128³ cells at any resolution (256 KB of bits), so every
 //! operation here is a pass over a few tens of thousands of words.
 
-use crate::flood::Flood;
 use crate::grid::{BrickIndex, BrickMask, BrickSet, BRICK};
+use crate::stages::flood::Flood;
 
 /// A set of coarse cells in the cube `0..side` per axis, as dense bits.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -56,6 +56,7 @@ impl CoarseGrid {
     }
 
     /// Number of cells in the set.
+    #[cfg(test)]
     pub fn count(&self) -> u64 {
         self.bits.iter().map(|w| w.count_ones() as u64).sum()
     }
@@ -288,37 +289,6 @@ impl CoarseGrid {
         self.words
     }
 
-    /// Grows the set by one 6-connected step (face neighbours), within the cube.
-    pub fn grow_faces(&self) -> Self {
-        let mut out = self.clone();
-        out.dilate_x(1);
-        let w = self.words;
-        let s = self.side;
-        for z in 0..s {
-            for y in 0..s {
-                let at = self.row(y, z);
-                let mut add = |from: usize| {
-                    for i in 0..w {
-                        out.bits[at + i] |= self.bits[from + i];
-                    }
-                };
-                if y > 0 {
-                    add(at - w);
-                }
-                if y + 1 < s {
-                    add(at + w);
-                }
-                if z > 0 {
-                    add(at - s * w);
-                }
-                if z + 1 < s {
-                    add(at + s * w);
-                }
-            }
-        }
-        out
-    }
-
     /// The set as runs of consecutive cells along x, in scan order (by z, then y, then x).
     pub fn runs(&self) -> Vec<Run> {
         let mut out = Vec::new();
@@ -378,6 +348,7 @@ impl CoarseGrid {
     }
 
     /// Calls `f` with every cell of the set, x fastest, then y, then z.
+    #[cfg(test)]
     pub fn for_each(&self, mut f: impl FnMut([usize; 3])) {
         for z in 0..self.side {
             for y in 0..self.side {
@@ -395,7 +366,7 @@ impl CoarseGrid {
     }
 
     /// The set as bricks of a [`BrickSet`] over the coarse grid (resolution `side`), for the
-    /// flood of [`crate::flood`].
+    /// flood of [`crate::stages::flood`].
     pub fn to_bricks(&self) -> BrickSet {
         let index = BrickIndex::for_resolution(self.side as u32);
         let dims = index.dims;
@@ -576,24 +547,6 @@ mod tests {
             for r in [0, 1, 3, 4, 7] {
                 assert_eq!(g.dilate(r), brute_dilate(&g, r as i64), "side {side} r {r}");
             }
-        }
-    }
-
-    #[test]
-    fn growing_by_faces_adds_the_six_neighbours() {
-        let mut g = CoarseGrid::new(70);
-        g.set([63, 5, 5]);
-        let grown = g.grow_faces();
-        assert_eq!(grown.count(), 7);
-        for c in [
-            [64, 5, 5],
-            [62, 5, 5],
-            [63, 4, 5],
-            [63, 6, 5],
-            [63, 5, 4],
-            [63, 5, 6],
-        ] {
-            assert!(grown.get(c), "{c:?}");
         }
     }
 

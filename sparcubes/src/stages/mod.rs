@@ -1,0 +1,13 @@
+//! The conversion's stages, each a free function over plain data, in the order
+//! [`crate::convert()`] runs them (docs/ALGORITHM.md).
+
+pub mod band;
+pub(crate) mod deform;
+pub mod extract;
+pub(crate) mod flood;
+pub mod refine;
+pub(crate) mod regions;
+pub(crate) mod ring;
+pub(crate) mod seal;
+pub(crate) mod sign;
+pub(crate) mod voxelize;
