@@ -15,8 +15,11 @@ use crate::queries::winding::LazyWindingTree;
 use crate::stages::band::{compute_band, triangle_planes, Band, CORE_REACH, REACH};
 use crate::stages::deform::{compute_field, Field};
 use crate::stages::flood::flood_outside;
+use crate::stages::inside::classify::classify_regions;
+use crate::stages::inside::nesting::Nesting;
+use crate::stages::inside::regions::{mark_air, Regions};
+use crate::stages::inside::sealed::decide_sealed;
 use crate::stages::refine::{refine, RefineStats};
-use crate::stages::regions::{classify_regions, decide_sealed, mark_air, Nesting, Regions};
 use crate::stages::ring::ring_cells;
 use crate::stages::seal::{seal_openings, Sealing};
 use crate::stages::sign::{compute_signs, ring_signs, sealed_to_outside, vertex_sides};
@@ -49,14 +52,14 @@ pub struct ConvertStats {
     /// Stored vertices that belong to a thin shell around an open part.
     pub shell_vertices: u64,
     /// Enclosed regions: connected sets of surface-free cells the outside flood cannot reach
-    /// ([`crate::stages::regions`]).
+    /// ([`crate::stages::inside`]).
     pub enclosed_regions: u64,
     /// Enclosed regions the winding number found to be air (treated as outside).
     pub air_regions: u64,
     /// Enclosed regions whose winding number was ambiguous (kept solid).
     pub ambiguous_regions: u64,
     /// Closed parts thinner than about two cells, found inside by the winding number (groups
-    /// of sealed vertices joined with their 26 neighbours, [`crate::stages::regions::decide_sealed`]).
+    /// of sealed vertices joined with their 26 neighbours, [`crate::stages::inside::sealed::decide_sealed`]).
     pub thin_parts: u64,
     /// Sealed parts left to the thin shell: found inside by the winding number but too thin
     /// somewhere for the grid (under a cell), or nowhere 0.3 voxel deep (these are shelled
@@ -68,7 +71,7 @@ pub struct ConvertStats {
     pub sealed_pockets: u64,
     /// Groups of sealed vertices inside two closed surfaces or more: closed parts overlapping
     /// by less than the grid resolves, left outside so both keep their surfaces
-    /// ([`crate::stages::regions::OVERLAP_FROM`]).
+    /// ([`crate::stages::inside::sealed::OVERLAP_FROM`]).
     pub overlap_groups: u64,
     /// What the rendering-based refinement did (`None`: it was off), [`crate::stages::refine`].
     pub refine: Option<RefineStats>,

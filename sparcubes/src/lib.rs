@@ -39,6 +39,7 @@ pub mod samples;
 #[cfg(feature = "test-shapes")]
 pub mod shapes;
 pub mod stages;
+mod union_find;
 pub mod vec3;
 
 pub use convert::{convert, Conversion, ConvertStats};

@@ -341,6 +341,16 @@ mod tests {
     use super::*;
 
     #[test]
+    fn nth_bit_walks_words() {
+        let mut m = [0u64; 8];
+        m[0] = 0b1010;
+        m[2] = 1 << 7;
+        assert_eq!(nth_bit(&m, 0), 1);
+        assert_eq!(nth_bit(&m, 1), 3);
+        assert_eq!(nth_bit(&m, 2), 128 + 7);
+    }
+
+    #[test]
     fn cube_offsets_cover_the_cube_once_x_fastest() {
         let one: Vec<[i64; 3]> = cube_offsets(1).collect();
         assert_eq!(one.len(), 27);

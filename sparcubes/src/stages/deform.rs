@@ -10,7 +10,8 @@
 
 use crate::params::Params;
 use crate::stages::band::{Band, Nearest};
-use crate::stages::sign::{Side, Signs};
+use crate::stages::sign::Signs;
+use crate::stages::vertex_side::Side;
 
 /// Signed distance and displacement per band vertex.
 #[derive(Debug, Clone)]

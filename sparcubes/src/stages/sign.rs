@@ -19,21 +19,10 @@ use crate::grid::{
 };
 use crate::stages::band::Band;
 use crate::stages::flood::Flood;
-use crate::stages::regions::Nesting;
+use crate::stages::inside::nesting::Nesting;
+use crate::stages::vertex_side::{open_neighbours, Side};
 use crate::stages::voxelize::Voxelization;
 use rayon::prelude::*;
-
-/// Side of a vertex.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[repr(u8)]
-pub enum Side {
-    /// Not decided yet.
-    Unknown = 0,
-    /// Outside every closed part.
-    Outside = 1,
-    /// Inside a closed part.
-    Inside = 2,
-}
 
 /// Per-vertex sign information (parallel to a band's vertices).
 #[derive(Debug, Clone)]
@@ -62,8 +51,6 @@ pub struct CoreSigns {
 pub const TOUCHES_OUTSIDE: u8 = 1;
 /// Bit of [`CoreSigns::touches`]: the vertex is a corner of a surface-free inside cell.
 pub const TOUCHES_INSIDE: u8 = 2;
-
-const STEPS: [[i64; 3]; 3] = [[1, 0, 0], [0, 1, 0], [0, 0, 1]];
 
 /// Which surface-free cells each vertex touches, as [`CoreSigns::touches`] bits.
 ///
@@ -136,42 +123,12 @@ fn side_from_touches(touches: u8) -> Side {
     }
 }
 
-/// Whether the grid edge between `v` and `v + e_axis` is crossed by the surface.
-#[inline]
-fn blocked(vox: &Voxelization, v: [i64; 3], axis: usize) -> bool {
-    vox.blocked[axis].contains(v)
-}
-
-/// Neighbours of vertex `c` through grid edges no triangle crosses: (number, coordinate).
-pub fn open_neighbours<'a>(
-    band: &'a Band,
-    vox: &'a Voxelization,
-    c: [u32; 3],
-) -> impl Iterator<Item = (u32, [u32; 3])> + 'a {
-    let v = [c[0] as i64, c[1] as i64, c[2] as i64];
-    (0..6).filter_map(move |k| {
-        let (axis, dir) = (k / 2, if k % 2 == 0 { -1i64 } else { 1 });
-        let step = STEPS[axis];
-        let u = [
-            v[0] + dir * step[0],
-            v[1] + dir * step[1],
-            v[2] + dir * step[2],
-        ];
-        let lower = if dir > 0 { v } else { u };
-        if blocked(vox, lower, axis) {
-            return None;
-        }
-        let j = band.verts.id(u)?;
-        Some((j, [u[0] as u32, u[1] as u32, u[2] as u32]))
-    })
-}
-
 /// Resolves `Unknown` vertices through unblocked edges, level by level: a vertex decided in
 /// level k sees only vertices decided before it, and one that sees both sides sides with
 /// inside. Each level only looks at the undecided neighbours of the previous level, so the
 /// work is linear in the vertices reached; the levels make the result independent of order.
 /// What stays unknown is sealed in by triangles on every side (inside a closed part thinner
-/// than a cell, or a pocket between sheets): [`crate::stages::regions::decide_sealed`] decides it.
+/// than a cell, or a pocket between sheets): [`crate::stages::inside::sealed::decide_sealed`] decides it.
 fn resolve_enclosed(band: &Band, vox: &Voxelization, side: &mut [Side]) {
     let ids: Vec<u32> = (0..side.len() as u32)
         .filter(|&i| side[i as usize] == Side::Unknown)
@@ -403,7 +360,7 @@ pub fn sealed_to_outside(side: &mut [Side]) {
 }
 
 /// Decides which core vertices belong to thin shells, once every side is known (see
-/// [`vertex_sides`] and [`crate::stages::regions::decide_sealed`]).
+/// [`vertex_sides`] and [`crate::stages::inside::sealed::decide_sealed`]).
 pub fn compute_signs(
     band: &Band,
     vox: &Voxelization,

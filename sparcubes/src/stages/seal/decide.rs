@@ -4,8 +4,8 @@
 
 use super::coarse::{CoarseGrid, Run};
 use crate::queries::winding::WindingTree;
-use crate::stages::regions::Sets;
-use crate::stages::regions::{median_winding, SAMPLES, SOLID_FROM};
+use crate::stages::inside::vote::{median_winding, SAMPLES, SOLID_FROM};
+use crate::union_find::Sets;
 
 /// The connected sets (through cell faces) of `set`, each as its runs in scan order (by z,
 /// then y, then x), the sets ordered by their first cell. Runs of neighbouring rows that
