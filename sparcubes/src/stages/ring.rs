@@ -11,11 +11,83 @@
 //! closed parts the band stays the corners of the wall cells, and the kept cells are exactly
 //! those of a band grown around every wall cell.
 
-use crate::grid::{dilate, for_each_bit, merge_masks, BrickMask, BrickSet, Dilation};
-use crate::stages::band::Band;
+use crate::grid::{difference, dilate, for_each_bit, merge_masks, BrickMask, BrickSet, Dilation};
+use crate::mesh::GridMesh;
+use crate::params::Params;
+use crate::stages::band::{compute_band, Band, REACH};
+use crate::stages::deform::{compute_field, Field};
 use crate::stages::flood::Flood;
-use crate::stages::sign::{CoreSigns, TOUCHES_INSIDE, TOUCHES_OUTSIDE};
+use crate::stages::sign::{ring_signs, CoreSigns, Signs, TOUCHES_INSIDE, TOUCHES_OUTSIDE};
 use rayon::prelude::*;
+
+/// The ring: its cells, and the band of its own vertices (its cells' corners that are not in
+/// the core band) with their signs and field.
+pub struct Ring {
+    /// The ring's cells, with the cells the caps of sealed openings run through.
+    pub cells: BrickSet,
+    /// Distances and closest points of the ring's own vertices.
+    pub band: Band,
+    /// Their sides and thin-shell flags.
+    pub signs: Signs,
+    /// Their φ and displacements.
+    pub field: Field,
+}
+
+/// What the ring is computed from: the mesh (in grid coordinates) with its triangles'
+/// planes, the core band with its signs and φ, the walls and the flood.
+pub struct RingInputs<'a> {
+    /// The mesh in grid coordinates.
+    pub grid: &'a GridMesh,
+    /// Its triangles' planes ([`crate::stages::band::triangle_planes`]).
+    pub planes: &'a [[f64; 4]],
+    /// The core band.
+    pub core: &'a Band,
+    /// The core band's signs.
+    pub signs: &'a CoreSigns,
+    /// The core band's φ.
+    pub sdf: &'a [f32],
+    /// The wall cells.
+    pub walls: &'a BrickSet,
+    /// The outside cells.
+    pub flood: &'a Flood,
+}
+
+/// Stage 9: the ring's cells (those of [`ring_cells`] and the `caps` of sealed openings), the
+/// distances of their own vertices (reach [`REACH`]), their signs and their field.
+pub fn ring(inputs: &RingInputs<'_>, caps: Vec<(u32, BrickMask)>, params: &Params) -> Ring {
+    let n = params.resolution;
+    let RingInputs {
+        grid,
+        planes,
+        core,
+        signs,
+        sdf,
+        walls,
+        flood,
+    } = *inputs;
+    let cells = with_caps(ring_cells(core, signs, sdf, walls, flood, n), caps, n);
+    // The ring's own vertices: corners of ring cells that are not in the core band.
+    let verts = difference(&dilate(&cells, n, Dilation::Corners), &core.verts.set, n);
+    let band = compute_band(grid, planes, verts, REACH);
+    let signs = ring_signs(&band, walls, flood, signs);
+    let field = compute_field(&band, &signs, params);
+    Ring {
+        cells,
+        band,
+        signs,
+        field,
+    }
+}
+
+/// The ring's cells with the cells the caps of sealed openings run through (stage 4): surface-free
+/// cells where a sealed pocket meets the outside, whose corners need φ as the ring's do.
+fn with_caps(rings: BrickSet, caps: Vec<(u32, BrickMask)>, n: u32) -> BrickSet {
+    if caps.is_empty() {
+        return rings;
+    }
+    let keyed = rings.keys.into_iter().zip(rings.masks).collect();
+    BrickSet::from_masks(n, merge_masks(keyed, caps))
+}
 
 /// The surface-free cells with a corner in `core` whose φ (`sdf`, parallel to the core band's
 /// vertices) disagrees with the cell's side. Whole bricks at a time: the disagreeing vertices

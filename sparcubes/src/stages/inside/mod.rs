@@ -31,3 +31,13 @@ pub mod nesting;
 pub mod regions;
 pub mod sealed;
 pub mod vote;
+
+/// Longest piece, in voxels, the winding tree cuts triangles into ([`crate::queries::winding`]): 32
+/// voxels, or 1/32 of the grid at resolutions above 1024, so the number of pieces does not
+/// grow with the resolution. 8 voxels gave the same outputs on the dev corpus at 256³ but
+/// up to 50 times as many pieces as triangles (large flat faces), and cutting, sorting and
+/// summing them was most of the inside test's time on such meshes; 16, 32 and 64 gave the
+/// same bytes and about half the time of 8 (docs/QUALITY.md, issue 15).
+pub fn winding_piece(n: u32) -> f64 {
+    (n as f64 / 32.0).max(32.0)
+}
