@@ -152,85 +152,23 @@ pub fn classify_regions(
     band: &Band,
     tree: &LazyWindingTree,
 ) -> Regions {
-    let index = &walls.index;
-    let (part_starts, masks) = wall_parts(walls, flood);
-    let empty_keys: Vec<u32> = (0..index.slots.len() as u32)
-        .filter(|&k| index.slots[k as usize] == NO_BRICK && !flood.empty_outside[k as usize])
-        .collect();
-    let wall_count = masks.len() as u32;
-    let total = wall_count as usize + empty_keys.len();
-    if total == 0 {
+    let parts = Parts::new(walls, flood);
+    if parts.total() == 0 {
         return Regions {
-            part_starts,
+            part_starts: parts.starts,
             ..Regions::default()
         };
     }
-    // Part numbers: wall parts first (by brick slot, then part), then empty bricks by key.
-    let part_of_empty = |key: u32| -> Option<u32> {
-        empty_keys
-            .binary_search(&key)
-            .ok()
-            .map(|i| wall_count + i as u32)
-    };
-    let mut sets = Sets::new(total);
-    let mask_of = |p: u32| -> BrickMask {
-        if p < wall_count {
-            masks[p as usize]
-        } else {
-            FULL
-        }
-    };
-    let key_of = |p: u32| -> u32 {
-        if p < wall_count {
-            let s = part_starts.partition_point(|&st| st <= p) - 1;
-            walls.keys[s]
-        } else {
-            empty_keys[(p - wall_count) as usize]
-        }
-    };
-    // Join parts across the +x, +y, +z face of their brick (each face pair once).
-    for p in 0..total as u32 {
-        let key = key_of(p);
-        let b = index.coord(key as usize);
-        let mask = mask_of(p);
-        for axis in 0..3 {
-            if b[axis] + 1 >= index.dims[axis] {
-                continue;
-            }
-            let carry = face_carry(&mask, axis, true);
-            if is_empty(&carry) {
-                continue;
-            }
-            let mut nb = b;
-            nb[axis] += 1;
-            let nkey = index.key(nb) as u32;
-            match index.slots[nkey as usize] {
-                NO_BRICK => {
-                    if let Some(q) = part_of_empty(nkey) {
-                        sets.union(p, q);
-                    }
-                }
-                s => {
-                    let s = s as usize;
-                    for q in part_starts[s]..part_starts[s + 1] {
-                        let m = &masks[q as usize];
-                        if (0..8).any(|z| carry[z] & m[z] != 0) {
-                            sets.union(p, q);
-                        }
-                    }
-                }
-            }
-        }
-    }
-    // Regions numbered by their smallest part.
-    let (region_of_part, regions) = sets.labels(|_| true);
+    let (region_of_part, regions) = parts.regions();
+    let mask_of = |p: u32| parts.mask_of(p);
+    let key_of = |p: u32| parts.key_of(p);
     let points = sample_points(
         regions,
         &region_of_part,
-        wall_count,
+        parts.wall_count(),
         &mask_of,
         &key_of,
-        index,
+        &walls.index,
     );
     let tree = tree.get();
     let winding: Vec<f64> = points
@@ -241,7 +179,41 @@ pub fn classify_regions(
         )
         .collect();
     let mut verdicts: Vec<Verdict> = winding.iter().map(|&w| verdict(w)).collect();
-    // Air pockets too small for the grid to shape stay solid.
+    too_small_for_air(&mut verdicts, &region_of_part, &mask_of);
+    let labelled: Vec<(BrickMask, u32)> = parts
+        .masks
+        .iter()
+        .zip(&region_of_part)
+        .map(|(&m, &r)| (m, r))
+        .collect();
+    let air: Vec<bool> = verdicts.iter().map(|&v| v == Verdict::Air).collect();
+    if air.contains(&true) {
+        let across = across_walls(band, &labelled, &key_of, &walls.index, &air, tree);
+        for (v, a) in verdicts.iter_mut().zip(across) {
+            if a.is_some_and(|a| a < WALL_FROM) {
+                *v = Verdict::Ambiguous;
+            }
+        }
+    }
+    let wall_count = parts.wall_count() as usize;
+    Regions {
+        parts: labelled,
+        empty: (parts.empty_keys.iter().enumerate())
+            .map(|(i, &k)| (k, region_of_part[wall_count + i]))
+            .collect(),
+        part_starts: parts.starts,
+        winding,
+        verdicts,
+    }
+}
+
+/// Air regions of fewer than [`AIR_MIN_CELLS`] cells (`region_of_part`, the cells of part `p`
+/// by `mask_of`) are too small for the grid to shape: ambiguous, so solid.
+fn too_small_for_air(
+    verdicts: &mut [Verdict],
+    region_of_part: &[u32],
+    mask_of: &dyn Fn(u32) -> BrickMask,
+) {
     let mut cells = vec![0u64; verdicts.len()];
     for (p, &r) in region_of_part.iter().enumerate() {
         cells[r as usize] += count(&mask_of(p as u32)) as u64;
@@ -251,30 +223,119 @@ pub fn classify_regions(
             *v = Verdict::Ambiguous;
         }
     }
-    let parts: Vec<(BrickMask, u32)> = masks
-        .into_iter()
-        .zip(&region_of_part)
-        .map(|(m, &r)| (m, r))
-        .collect();
-    let air: Vec<bool> = verdicts.iter().map(|&v| v == Verdict::Air).collect();
-    if air.contains(&true) {
-        let across = across_walls(band, &parts, &key_of, index, &air, tree);
-        for (v, a) in verdicts.iter_mut().zip(across) {
-            if a.is_some_and(|a| a < WALL_FROM) {
-                *v = Verdict::Ambiguous;
-            }
+}
+
+/// The enclosed cells of a flood as numbered parts: first the connected parts of each wall
+/// brick's enclosed cells (by brick slot, then part), then the bricks without wall cells the
+/// flood does not reach (by key), each one part.
+struct Parts<'a> {
+    /// The wall cells.
+    walls: &'a BrickSet,
+    /// Per wall brick, its first part; one more entry at the end.
+    starts: Vec<u32>,
+    /// The wall bricks' parts.
+    masks: Vec<BrickMask>,
+    /// Keys of the empty bricks the flood does not reach, ascending.
+    empty_keys: Vec<u32>,
+}
+
+impl<'a> Parts<'a> {
+    /// The parts of the cells of `walls`' brick space that `flood` does not reach.
+    fn new(walls: &'a BrickSet, flood: &Flood) -> Self {
+        let index = &walls.index;
+        let (starts, masks) = wall_parts(walls, flood);
+        let empty_keys: Vec<u32> = (0..index.slots.len() as u32)
+            .filter(|&k| index.slots[k as usize] == NO_BRICK && !flood.empty_outside[k as usize])
+            .collect();
+        Self {
+            walls,
+            starts,
+            masks,
+            empty_keys,
         }
     }
-    Regions {
-        parts,
-        empty: empty_keys
-            .iter()
-            .enumerate()
-            .map(|(i, &k)| (k, region_of_part[wall_count as usize + i]))
-            .collect(),
-        part_starts,
-        winding,
-        verdicts,
+
+    /// Parts in wall bricks (they are numbered first).
+    fn wall_count(&self) -> u32 {
+        self.masks.len() as u32
+    }
+
+    /// All parts.
+    fn total(&self) -> usize {
+        self.masks.len() + self.empty_keys.len()
+    }
+
+    /// The cells of part `p` in its brick.
+    fn mask_of(&self, p: u32) -> BrickMask {
+        if p < self.wall_count() {
+            self.masks[p as usize]
+        } else {
+            FULL
+        }
+    }
+
+    /// The brick key of part `p`.
+    fn key_of(&self, p: u32) -> u32 {
+        let wall_count = self.wall_count();
+        if p < wall_count {
+            let s = self.starts.partition_point(|&st| st <= p) - 1;
+            self.walls.keys[s]
+        } else {
+            self.empty_keys[(p - wall_count) as usize]
+        }
+    }
+
+    /// The part of the empty brick with key `key`, if the flood does not reach it.
+    fn part_of_empty(&self, key: u32) -> Option<u32> {
+        self.empty_keys
+            .binary_search(&key)
+            .ok()
+            .map(|i| self.wall_count() + i as u32)
+    }
+
+    /// Each part's region, numbered by its smallest part, and the number of regions: parts
+    /// joined across the +x, +y, +z face of their brick (each face pair once).
+    fn regions(&self) -> (Vec<u32>, usize) {
+        let index = &self.walls.index;
+        let mut sets = Sets::new(self.total());
+        for p in 0..self.total() as u32 {
+            let b = index.coord(self.key_of(p) as usize);
+            let mask = self.mask_of(p);
+            for axis in 0..3 {
+                if b[axis] + 1 >= index.dims[axis] {
+                    continue;
+                }
+                let carry = face_carry(&mask, axis, true);
+                if is_empty(&carry) {
+                    continue;
+                }
+                let mut nb = b;
+                nb[axis] += 1;
+                self.join_across(&mut sets, p, index.key(nb) as u32, &carry);
+            }
+        }
+        sets.labels(|_| true)
+    }
+
+    /// Joins part `p` with the parts of the brick with key `key` that its face cells `carry`
+    /// (moved into that brick) touch.
+    fn join_across(&self, sets: &mut Sets, p: u32, key: u32, carry: &BrickMask) {
+        match self.walls.index.slots[key as usize] {
+            NO_BRICK => {
+                if let Some(q) = self.part_of_empty(key) {
+                    sets.union(p, q);
+                }
+            }
+            s => {
+                let s = s as usize;
+                for q in self.starts[s]..self.starts[s + 1] {
+                    let m = &self.masks[q as usize];
+                    if (0..8).any(|z| carry[z] & m[z] != 0) {
+                        sets.union(p, q);
+                    }
+                }
+            }
+        }
     }
 }
 

@@ -56,7 +56,7 @@ pub const NESTED_CLEARANCE: i64 = 4;
 fn near_outside(
     band: &Band,
     side: &[Side],
-    edges: &[(u32, u32, [i64; 3], [i64; 3])],
+    edges: &[Edge],
     region: &[u32],
     wholly: &[bool],
 ) -> Vec<u32> {
@@ -118,78 +118,17 @@ impl Nesting {
     /// nested regions (`side`: every band vertex's side, none `Unknown`). Costs nothing unless
     /// two solid regions differ by [`NESTED_STEP`] or more.
     pub fn new(band: &Band, vox: &Voxelization, side: &[Side], regions: &Regions) -> Self {
-        let solid = |r: u32| regions.verdicts[r as usize] == Verdict::Solid;
-        let (lo, hi) = (0..regions.verdicts.len() as u32)
-            .filter(|&r| solid(r))
-            .map(|r| regions.winding[r as usize])
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), w| {
-                (lo.min(w), hi.max(w))
-            });
-        if hi - lo < NESTED_STEP {
+        let Some(inner) = inner_candidates(regions) else {
             return Self::default();
-        }
-        // Only a region at least NESTED_STEP above the lowest solid one can be the inner one
-        // of a nested pair, and the edges on its surface lie within a brick of its cells
+        };
+        // The edges on an inner region's surface lie within a brick of its cells
         // (`region_at` looks at most REGION_SEARCH + 1 < 8 cells away): the crossed edges
         // elsewhere (most of the surface) separate no nested pair and are skipped.
-        let inner: Vec<bool> = (0..regions.verdicts.len() as u32)
-            .map(|r| solid(r) && regions.winding[r as usize] - lo >= NESTED_STEP)
-            .collect();
         let near_inner = regions.bricks_near(&vox.walls, &inner);
-        // The crossed edges between two inside vertices there, as band vertex numbers, and
-        // their ends with coordinates.
-        let edges: Vec<(u32, u32, [i64; 3], [i64; 3])> =
-            map_blocked_edges(vox, &near_inner, |v, u, out| {
-                if let (Some(i), Some(j)) = (band.verts.id(v), band.verts.id(u)) {
-                    if side[i as usize] == Side::Inside && side[j as usize] == Side::Inside {
-                        out.push((i, j, v, u));
-                    }
-                }
-            });
-        let mut ends: Vec<(u32, [i64; 3])> = edges
-            .par_iter()
-            .flat_map_iter(|&(i, j, v, u)| [(i, v), (j, u)])
-            .collect();
-        ends.par_sort_unstable();
-        ends.dedup();
-        let found: Vec<u32> = ends
-            .par_iter()
-            .map(|&(_, c)| {
-                regions
-                    .region_at(band, vox, c)
-                    .filter(|&r| solid(r))
-                    .unwrap_or(NO_REGION)
-            })
-            .collect();
-        let mut region = vec![NO_REGION; side.len()];
-        for (&(i, _), &r) in ends.iter().zip(&found) {
-            region[i as usize] = r;
-        }
+        let edges = inside_edges(band, vox, side, &near_inner);
+        let region = end_regions(band, vox, side.len(), regions, &edges);
         let winding = regions.winding.clone();
-        // (higher region, lower region) for every edge between regions nested one in the other.
-        let mut pairs: Vec<(u32, u32)> = edges
-            .par_iter()
-            .filter_map(|&(i, j, _, _)| {
-                let (a, b) = (region[i as usize], region[j as usize]);
-                if a == NO_REGION || b == NO_REGION {
-                    return None;
-                }
-                let (wa, wb) = (winding[a as usize], winding[b as usize]);
-                if wa - wb >= NESTED_STEP {
-                    Some((a, b))
-                } else if wb - wa >= NESTED_STEP {
-                    Some((b, a))
-                } else {
-                    None
-                }
-            })
-            .collect();
-        pairs.par_sort_unstable();
-        pairs.dedup();
-        let mut wholly = vec![false; winding.len()];
-        for group in pairs.chunk_by(|a, b| a.0 == b.0) {
-            wholly[group[0].0 as usize] = group.len() == 1;
-        }
+        let mut wholly = nested_once(&edges, &region, &winding);
         // A region near an outside vertex may poke out of the other through a part too thin
         // for enclosed cells: not wholly inside it.
         if wholly.contains(&true) {
@@ -199,26 +138,7 @@ impl Nesting {
         }
         // A region with a crossed edge to an outside vertex is not wholly inside another.
         if wholly.contains(&true) {
-            // Only edges within a brick of a wholly nested region's cells can lead from it
-            // (`region_at` looks at most REGION_SEARCH + 1 < 8 cells away): most of the
-            // surface's crossed edges are skipped without a region look-up.
-            let near = regions.bricks_near(&vox.walls, &wholly);
-            let touching: Vec<u32> = map_blocked_edges(vox, &near, |v, u, out| {
-                let (Some(i), Some(j)) = (band.verts.id(v), band.verts.id(u)) else {
-                    return;
-                };
-                let inner = match (side[i as usize], side[j as usize]) {
-                    (Side::Inside, Side::Outside) => v,
-                    (Side::Outside, Side::Inside) => u,
-                    _ => return,
-                };
-                if let Some(r) = regions.region_at(band, vox, inner) {
-                    if wholly[r as usize] {
-                        out.push(r);
-                    }
-                }
-            });
-            for r in touching {
+            for r in touching_outside(band, vox, side, regions, &wholly) {
                 wholly[r as usize] = false;
             }
         }
@@ -244,4 +164,130 @@ impl Nesting {
         let inner = if wa > wb { a } else { b };
         (wa - wb).abs() >= NESTED_STEP && self.wholly[inner as usize]
     }
+}
+
+/// A crossed grid edge between two band vertices: their numbers and coordinates.
+type Edge = (u32, u32, [i64; 3], [i64; 3]);
+
+/// Per region, whether it can be the inner one of a nested pair: solid and at least
+/// [`NESTED_STEP`] above the lowest solid region; `None` when no two solid regions differ by
+/// that much.
+fn inner_candidates(regions: &Regions) -> Option<Vec<bool>> {
+    let solid = |r: u32| regions.verdicts[r as usize] == Verdict::Solid;
+    let (lo, hi) = (0..regions.verdicts.len() as u32)
+        .filter(|&r| solid(r))
+        .map(|r| regions.winding[r as usize])
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), w| {
+            (lo.min(w), hi.max(w))
+        });
+    if hi - lo < NESTED_STEP {
+        return None;
+    }
+    Some(
+        (0..regions.verdicts.len() as u32)
+            .map(|r| solid(r) && regions.winding[r as usize] - lo >= NESTED_STEP)
+            .collect(),
+    )
+}
+
+/// The crossed edges between two inside vertices whose lower end lies in a brick `near`
+/// holds.
+fn inside_edges(band: &Band, vox: &Voxelization, side: &[Side], near: &[bool]) -> Vec<Edge> {
+    map_blocked_edges(vox, near, |v, u, out| {
+        if let (Some(i), Some(j)) = (band.verts.id(v), band.verts.id(u)) {
+            if side[i as usize] == Side::Inside && side[j as usize] == Side::Inside {
+                out.push((i, j, v, u));
+            }
+        }
+    })
+}
+
+/// Per band vertex (of `vertices`), the solid region an end of one of `edges` lies in
+/// ([`Regions::region_at`]), else [`NO_REGION`]; each end looked up once.
+fn end_regions(
+    band: &Band,
+    vox: &Voxelization,
+    vertices: usize,
+    regions: &Regions,
+    edges: &[Edge],
+) -> Vec<u32> {
+    let mut ends: Vec<(u32, [i64; 3])> = edges
+        .par_iter()
+        .flat_map_iter(|&(i, j, v, u)| [(i, v), (j, u)])
+        .collect();
+    ends.par_sort_unstable();
+    ends.dedup();
+    let found: Vec<u32> = ends
+        .par_iter()
+        .map(|&(_, c)| {
+            regions
+                .region_at(band, vox, c)
+                .filter(|&r| regions.verdicts[r as usize] == Verdict::Solid)
+                .unwrap_or(NO_REGION)
+        })
+        .collect();
+    let mut region = vec![NO_REGION; vertices];
+    for (&(i, _), &r) in ends.iter().zip(&found) {
+        region[i as usize] = r;
+    }
+    region
+}
+
+/// Per region (of `winding`), whether `edges` separate it from exactly one region, lower by
+/// [`NESTED_STEP`] or more (`region` per band vertex).
+fn nested_once(edges: &[Edge], region: &[u32], winding: &[f64]) -> Vec<bool> {
+    // (higher region, lower region) for every edge between regions nested one in the other.
+    let mut pairs: Vec<(u32, u32)> = edges
+        .par_iter()
+        .filter_map(|&(i, j, _, _)| {
+            let (a, b) = (region[i as usize], region[j as usize]);
+            if a == NO_REGION || b == NO_REGION {
+                return None;
+            }
+            let (wa, wb) = (winding[a as usize], winding[b as usize]);
+            if wa - wb >= NESTED_STEP {
+                Some((a, b))
+            } else if wb - wa >= NESTED_STEP {
+                Some((b, a))
+            } else {
+                None
+            }
+        })
+        .collect();
+    pairs.par_sort_unstable();
+    pairs.dedup();
+    let mut wholly = vec![false; winding.len()];
+    for group in pairs.chunk_by(|a, b| a.0 == b.0) {
+        wholly[group[0].0 as usize] = group.len() == 1;
+    }
+    wholly
+}
+
+/// The `wholly` nested regions with a crossed edge from one of their cells to an outside
+/// vertex (a region may appear more than once). Only edges within a brick of such a region's
+/// cells can lead from it (`region_at` looks at most REGION_SEARCH + 1 < 8 cells away): most
+/// of the surface's crossed edges are skipped without a region look-up.
+fn touching_outside(
+    band: &Band,
+    vox: &Voxelization,
+    side: &[Side],
+    regions: &Regions,
+    wholly: &[bool],
+) -> Vec<u32> {
+    let near = regions.bricks_near(&vox.walls, wholly);
+    map_blocked_edges(vox, &near, |v, u, out| {
+        let (Some(i), Some(j)) = (band.verts.id(v), band.verts.id(u)) else {
+            return;
+        };
+        let inner = match (side[i as usize], side[j as usize]) {
+            (Side::Inside, Side::Outside) => v,
+            (Side::Outside, Side::Inside) => u,
+            _ => return,
+        };
+        if let Some(r) = regions.region_at(band, vox, inner) {
+            if wholly[r as usize] {
+                out.push(r);
+            }
+        }
+    })
 }

@@ -58,66 +58,28 @@ pub fn decide_sealed(
     tree: &LazyWindingTree,
     n: u32,
 ) -> SealedCounts {
-    let unknown: Vec<u32> = (0..side.len() as u32)
-        .into_par_iter()
-        .filter(|&i| side[i as usize] == Side::Unknown)
-        .collect();
-    if unknown.is_empty() {
+    let Some(sealed) = SealedVertices::of(band, side) else {
         return SealedCounts::default();
-    }
-    // Per band vertex, its position in `unknown` (or NOT_SEALED): O(1) look-ups below.
-    let mut position = vec![NOT_SEALED; side.len()];
-    for (q, &id) in unknown.iter().enumerate() {
-        position[id as usize] = q as u32;
-    }
-    let coords = band.verts.coords_of(&unknown);
-    let (group_of, members, starts) = sealed_groups(band, vox, &position, &coords);
+    };
+    let (position, coords) = (&sealed.position[..], &sealed.coords[..]);
+    let (group_of, members, starts) = sealed_groups(band, vox, position, coords);
     let groups = starts.len() - 1;
+    let first = |g: usize| members[starts[g] as usize] as usize;
     // The sealed vertices joined through their 26 neighbours: every thin part found below is
     // within one of these, so where none of its vertices lies THIN_PART_DEPTH deep, each
     // part in it would go back to the shell (below) whatever the winding number says, and
     // its groups are not asked (on the dev corpus most sealed groups are such rims, and
     // their queries, next to the surface, were most of the inside test's time on some).
-    let (reach_of, reaches) = thin_parts(band, &position, &coords, &vec![true; coords.len()]);
-    let reach_depth = deepest_per_label(band, &unknown, &reach_of, reaches, |_| true);
-    let shallow = |g: usize| {
-        let first = members[starts[g] as usize];
-        reach_depth[reach_of[first as usize] as usize] < THIN_PART_DEPTH
-    };
+    let (reach_of, reaches) = thin_parts(band, position, coords, &vec![true; coords.len()]);
+    let reach_depth = deepest_per_label(band, &sealed.unknown, &reach_of, reaches, |_| true);
+    let shallow = |g: usize| reach_depth[reach_of[first(g)] as usize] < THIN_PART_DEPTH;
     let asked: Vec<usize> = (0..groups).filter(|&g| !shallow(g)).collect();
-    let mut verdicts = vec![Verdict::Ambiguous; groups];
-    let mut overlap = vec![false; groups];
-    if !asked.is_empty() {
-        let tree = tree.get();
-        let found: Vec<f64> = asked
-            .par_iter()
-            .map_init(
-                || Vec::with_capacity(64),
-                |stack, &g| {
-                    let mut group: Vec<u32> =
-                        members[starts[g] as usize..starts[g + 1] as usize].to_vec();
-                    // Farthest from the surface first; ties by vertex number.
-                    let udf = |q: u32| band.nearest[unknown[q as usize] as usize].udf;
-                    group.sort_by(|&a, &b| udf(b).total_cmp(&udf(a)).then(a.cmp(&b)));
-                    let points: Vec<[f64; 3]> = group
-                        .iter()
-                        .take(SAMPLES)
-                        .map(|&q| coords[q as usize].map(|v| v as f64))
-                        .collect();
-                    median_winding(tree, &points, stack)
-                },
-            )
-            .collect();
-        for (&g, w) in asked.iter().zip(found) {
-            verdicts[g] = verdict(w);
-            overlap[g] = w >= OVERLAP_FROM;
-        }
-    }
+    let (verdicts, overlap) = vote_groups(band, &sealed, (&members, &starts), &asked, tree);
     let solid: Vec<bool> = group_of
         .iter()
         .map(|&g| verdicts[g as usize] == Verdict::Solid)
         .collect();
-    let found = without_lone_overlaps(band, &position, &coords, &solid, |q| {
+    let found = without_lone_overlaps(band, position, coords, &solid, |q| {
         overlap[group_of[q] as usize]
     });
     // Where every deep enough set was found inside whole (the common case), its parts are
@@ -127,22 +89,16 @@ pub fn decide_sealed(
     let (part_of, parts) = if whole {
         renumbered(&reach_of, reaches, &found)
     } else {
-        thin_parts(band, &position, &coords, &found)
+        thin_parts(band, position, coords, &found)
     };
-    let sealed = Sealed {
-        position: &position,
-        coords: &coords,
+    let found_parts = Sealed {
+        position,
+        coords,
         found: &found,
         part_of: &part_of,
     };
-    let mut too_thin = parts_with_gaps(band, vox, side, &sealed, parts, n);
-    // A part whose found vertices all lie within THIN_PART_DEPTH of the surface is held by
-    // the grid in too few places: a shell.
-    let deepest = deepest_per_label(band, &unknown, &part_of, parts, |q| found[q]);
-    for (t, &d) in too_thin.iter_mut().zip(&deepest) {
-        *t |= d < THIN_PART_DEPTH;
-    }
-    for (q, &id) in unknown.iter().enumerate() {
+    let too_thin = too_thin(band, vox, side, &sealed.unknown, &found_parts, parts, n);
+    for (q, &id) in sealed.unknown.iter().enumerate() {
         side[id as usize] = if found[q] && !too_thin[part_of[q] as usize] {
             Side::Inside
         } else {
@@ -158,12 +114,111 @@ pub fn decide_sealed(
             .filter(|&&g| verdicts[g] == Verdict::Ambiguous)
             .count() as u64,
         overlaps: (0..groups)
-            .filter(|&g| overlap[g] && !found[members[starts[g] as usize] as usize])
+            .filter(|&g| overlap[g] && !found[first(g)])
             .count() as u64,
         shallow: shallow_reaches,
         thin_parts: parts as u64 - shelled,
         shelled_parts: shelled,
     }
+}
+
+/// The band vertices still `Unknown`: their numbers, per band vertex its position among them
+/// ([`NOT_SEALED`] if none) for O(1) look-ups, and their coordinates; `None` if there is none.
+struct SealedVertices {
+    /// Band vertex numbers, ascending.
+    unknown: Vec<u32>,
+    /// Per band vertex, its position in `unknown`, or [`NOT_SEALED`].
+    position: Vec<u32>,
+    /// Per position, the vertex's coordinates.
+    coords: Vec<[u32; 3]>,
+}
+
+impl SealedVertices {
+    /// The vertices of `band` whose `side` is still `Unknown`.
+    fn of(band: &Band, side: &[Side]) -> Option<Self> {
+        let unknown: Vec<u32> = (0..side.len() as u32)
+            .into_par_iter()
+            .filter(|&i| side[i as usize] == Side::Unknown)
+            .collect();
+        if unknown.is_empty() {
+            return None;
+        }
+        let mut position = vec![NOT_SEALED; side.len()];
+        for (q, &id) in unknown.iter().enumerate() {
+            position[id as usize] = q as u32;
+        }
+        let coords = band.verts.coords_of(&unknown);
+        Some(Self {
+            unknown,
+            position,
+            coords,
+        })
+    }
+}
+
+/// The winding vote of each `asked` group (`groups`: members and CSR starts, positions in
+/// `sealed`) at its [`SAMPLES`] vertices farthest from the surface (ties by vertex number):
+/// per group its verdict (`Ambiguous` for a group not asked) and whether it is inside two
+/// closed surfaces or more ([`OVERLAP_FROM`]).
+fn vote_groups(
+    band: &Band,
+    sealed: &SealedVertices,
+    (members, starts): (&[u32], &[u32]),
+    asked: &[usize],
+    tree: &LazyWindingTree,
+) -> (Vec<Verdict>, Vec<bool>) {
+    let groups = starts.len() - 1;
+    let mut verdicts = vec![Verdict::Ambiguous; groups];
+    let mut overlap = vec![false; groups];
+    if asked.is_empty() {
+        return (verdicts, overlap);
+    }
+    let tree = tree.get();
+    let found: Vec<f64> = asked
+        .par_iter()
+        .map_init(
+            || Vec::with_capacity(64),
+            |stack, &g| {
+                let mut group: Vec<u32> =
+                    members[starts[g] as usize..starts[g + 1] as usize].to_vec();
+                // Farthest from the surface first; ties by vertex number.
+                let udf = |q: u32| band.nearest[sealed.unknown[q as usize] as usize].udf;
+                group.sort_by(|&a, &b| udf(b).total_cmp(&udf(a)).then(a.cmp(&b)));
+                let points: Vec<[f64; 3]> = group
+                    .iter()
+                    .take(SAMPLES)
+                    .map(|&q| sealed.coords[q as usize].map(|v| v as f64))
+                    .collect();
+                median_winding(tree, &points, stack)
+            },
+        )
+        .collect();
+    for (&g, w) in asked.iter().zip(found) {
+        verdicts[g] = verdict(w);
+        overlap[g] = w >= OVERLAP_FROM;
+    }
+    (verdicts, overlap)
+}
+
+/// Per thin part of `found` (of `parts`), whether the grid cannot hold it: a grid edge
+/// crosses it with both ends outside ([`parts_with_gaps`]), or none of its found vertices
+/// (`unknown`, band vertex numbers) lies [`THIN_PART_DEPTH`] below the surface, so the grid
+/// holds it in too few places. Such a part is a thin shell.
+fn too_thin(
+    band: &Band,
+    vox: &Voxelization,
+    side: &[Side],
+    unknown: &[u32],
+    found: &Sealed,
+    parts: usize,
+    n: u32,
+) -> Vec<bool> {
+    let mut too_thin = parts_with_gaps(band, vox, side, found, parts, n);
+    let deepest = deepest_per_label(band, unknown, found.part_of, parts, |q| found.found[q]);
+    for (t, &d) in too_thin.iter_mut().zip(&deepest) {
+        *t |= d < THIN_PART_DEPTH;
+    }
+    too_thin
 }
 
 /// Per label (of `count`), the largest distance to the surface of the sealed vertices
