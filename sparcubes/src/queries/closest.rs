@@ -764,7 +764,7 @@ fn morton_order(queries: &[[f64; 3]]) -> Vec<u32> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::samples::rng::uniforms;
+    use crate::products::samples::rng::uniforms;
     use crate::shapes::{merge, quad, sphere, torus};
 
     /// Brute force: the smallest squared distance over every triangle.

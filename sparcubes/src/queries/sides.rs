@@ -26,7 +26,7 @@
 //! quarter-voxel points of the bundled meshes 1.7 %). So a crossing within a tolerance of a
 //! triangle's border is *unsure*, and an unsure segment is replaced by the segment to the next
 //! stored corner, or as a last resort to the nearest corner nudged off the grid's planes by
-//! 1e-4 voxel. [`crate::samples`] takes most sides from the closest face first
+//! 1e-4 voxel. [`crate::products::samples`] takes most sides from the closest face first
 //! ([`crate::queries::closest::TriangleIndex::face_side`]) and asks this module only for the rest.
 
 use crate::grid::cubes::SparseCubes;

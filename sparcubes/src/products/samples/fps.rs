@@ -1,7 +1,8 @@
 //! Farthest point sampling, exact and deterministic: the first point is point 0, each next one
-//! the point farthest from those chosen (ties to the lowest index), as Dora's producer takes
-//! 32768 of its surface and sharp points (`sharp_edge_sampling/sharp_sample.py` L224–244 at
-//! a166e21, through `fpsample.bucket_fps_kdline_sampling`).
+//! the point farthest from those chosen (ties to the lowest index), as a consumer that keeps
+//! a farthest-point subset of its surface and sharp points takes it (`fpsample`'s
+//! `bucket_fps_kdline_sampling`; which consumer and where: docs/FORMAT.md, "Samples for
+//! vector-set VAEs").
 //!
 //! The points are bucketed into a kd-tree with leaves of at most [`LEAF`] points. Every node
 //! keeps its bounding box and its best point: the largest distance to the chosen set of the
@@ -222,7 +223,7 @@ fn bounds(points: &[[f32; 3]], ids: &[u32]) -> ([f32; 3], [f32; 3]) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::samples::rng::Draw;
+    use crate::products::samples::rng::Draw;
 
     /// Farthest point sampling by its definition, over every point at every step.
     fn brute_force(points: &[[f32; 3]], count: usize) -> Vec<u32> {

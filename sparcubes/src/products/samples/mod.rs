@@ -1,10 +1,11 @@
-//! Point samples for vector-set VAEs (3DShape2VecSet, Dora, Hunyuan3D-2.x, TripoSG,
-//! Step1X-3D), drawn from the watertight output mesh of one item:
+//! Point samples for vector-set VAEs (as 3DShape2VecSet introduced them; the consumers, their
+//! rules and their files are `sparc3d-formats`' and docs/FORMAT.md's), drawn from the
+//! watertight output mesh of one item:
 //!
 //! - **surface**: points uniform by area, with the unit normal of their triangle;
 //! - **sharp**: points uniform by length on the edges whose dihedral angle is at least
-//!   `sharp_angle_deg`, with the normalised mean of the two face normals (Dora's edge normal,
-//!   `sharp_edge_sampling/sharp_sample.py`);
+//!   `sharp_angle_deg`, with the normalised mean of the two face normals (the consumers' edge
+//!   normal);
 //! - **near**: area-uniform surface points moved by a truncated normal offset per axis
 //!   (σ cycling through `near_sigmas`), with their signed distance;
 //! - **sharp_near**: points on the sharp edges, drawn as the sharp ones, moved the same way
@@ -26,8 +27,8 @@
 //! too small for the precision keeps its sign as the smallest subnormal.
 //!
 //! Every random number is drawn from `(seed, kind, sample index)` ([`rng`]), so the samples
-//! are the same whatever the thread count. [`farthest_points`] picks the farthest-point
-//! subset that Dora's files hold from drawn points.
+//! are the same whatever the thread count. [`farthest_points`] picks a farthest-point
+//! subset of drawn points, for a consumer whose files hold one.
 
 mod fps;
 pub mod rng;
@@ -54,9 +55,9 @@ pub const MAX_PER_KIND: usize = 1 << 24;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Precision {
-    /// IEEE half precision (`<f2`), as Hunyuan3D-2.1's `watertight_and_sample.py` stores.
+    /// IEEE half precision (`<f2`).
     F16,
-    /// IEEE single precision (`<f4`), as Dora's and Step1X-3D's loaders read.
+    /// IEEE single precision (`<f4`).
     F32,
 }
 
@@ -90,7 +91,7 @@ impl Precision {
 }
 
 /// How many samples of each kind, and how they are drawn. The defaults ([`SampleParams::default`])
-/// draw enough of every kind for Hunyuan3D-2.1, Dora, Step1X-3D and TripoSG at once.
+/// draw enough of every kind for every vector-set consumer of `sparc3d-formats` at once.
 ///
 /// `sharp_near` and `sharp_near_sigmas` are read as 0 and empty when a stored config lacks
 /// them and are left out of the config's JSON while so (as `Params::seal_openings`): a job
@@ -134,28 +135,10 @@ fn is_zero(n: &usize) -> bool {
 
 impl Default for SampleParams {
     /// One draw that serves every consumer by its own rule; an exporter takes each one's
-    /// rows (a prefix, or the rows of one σ by [`sigma_rows`]). Line numbers are those of
-    /// Hunyuan3D-2.1 at 5e3ec6d, Dora at a166e21 and TripoSG at fc5c409:
-    ///
-    /// - **surface** 204800: TripoSG's `scripts/inference_vae.py` draws 204800 rows without
-    ///   replacement and fails on fewer (L12, L17–18, L43–45); Hunyuan3D-2.1 stores 124928,
-    ///   a prefix (`hy3dshape/tools/watertight/watertight_and_sample.py` L143, 499712 // 4);
-    ///   Dora stores 32768 farthest points of a 200000-point draw
-    ///   (`sharp_edge_sampling/sharp_sample.py` L123, L224–233; [`farthest_points`]).
-    /// - **near** 600000, σ cycling through 0.001, 0.005, 0.05 (200000 rows each): Dora's
-    ///   `rand_points` near block is 200000 points at σ 0.001 then 200000 at σ 0.005
-    ///   (`sharp_sample.py` L212–217), Hunyuan3D-2.1's `random_near_points` 124928 at σ 0.005
-    ///   and 124928 at σ 0.05, truncated at ±0.25 (`watertight_and_sample.py` L66–75).
-    /// - **sharp_near** 262144: 32768 rows for each σ of the union of Dora's 0.001, 0.005,
-    ///   0.007, 0.01 (32768 rows each, `sharp_sample.py` L123, L194–199) and Hunyuan3D-2.1's
-    ///   0.001, 0.003, 0.06, 0.01, 0.02, 0.04 (20821 rows each, `watertight_and_sample.py`
-    ///   L77–85). Both draw untruncated normals; at most σ 0.06, the bound of ±0.25 (over 4σ)
-    ///   redraws about one offset in 30000.
-    /// - **sharp** 124928 and **volume** 249856 in [−1.05, 1.05]³: Hunyuan3D-2.1's
-    ///   (`watertight_and_sample.py` L63–64, L143–146); Dora's volume block is 200000 points
-    ///   in the same cube (`sharp_sample.py` L218).
-    /// - `f16` storage as Hunyuan3D-2.1's, and Dora's sharp-edge angle of 15°
-    ///   (`sharp_edge_sampling/README.md`).
+    /// rows (a prefix, or the rows of one σ by [`sigma_rows`]). Each count, σ, bound, the
+    /// sharp-edge angle and the `f16` storage is what one of the vector-set consumers draws
+    /// or stores, or the union of several: docs/FORMAT.md, "Samples for vector-set VAEs",
+    /// names them with the file and line of each consumer's own source.
     fn default() -> Self {
         Self {
             surface: 204_800,
@@ -182,7 +165,7 @@ fn sigma_of(sigmas: &[f64], i: u64) -> f64 {
 /// The rows, in order, of a kind of `count` rows drawn with σ = `sigma` when the σ cycle
 /// through `sigmas` (row `i` uses `sigmas[i mod len]`, as `near` with `near_sigmas` and
 /// `sharp_near` with `sharp_near_sigmas`). `sigma` is compared exactly, as written in the
-/// config; none when it is not in `sigmas`. Dora's 200000 near rows at σ 0.001:
+/// config; none when it is not in `sigmas`. The first 200000 near rows at σ 0.001:
 /// `sigma_rows(p.near, &p.near_sigmas, 0.001).take(200_000)`.
 pub fn sigma_rows(count: usize, sigmas: &[f64], sigma: f64) -> impl Iterator<Item = usize> {
     let len = sigmas.len().max(1);

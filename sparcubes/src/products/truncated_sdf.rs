@@ -1,14 +1,10 @@
-//! Direct3D-S2's sparse SDF (DreamTechAI/Direct3D-S2): the grid points within `truncation`
-//! voxels of the surface, each with its signed distance divided by the truncation, so values
-//! lie in (−1, 1), positive outside. Direct3D-S2's `direct3d_s2/utils/mesh.py` keeps the
-//! points whose unsigned distance is below 4 voxels (`compute_valid_udf(..., threshold=4.0)`
-//! then `udf < 4 / size`), its decoder fills the rest of the grid with 1 (outside) before
-//! marching cubes, and its authors state that the truncated SDF is normalised to [−1, 1] for
-//! input and supervision (issue #34 of that repository).
+//! The truncated signed distance of the grid points near the surface: the points within
+//! `truncation` voxels of the extracted mesh, each with its signed distance divided by the
+//! truncation, so values lie in (−1, 1), positive outside.
 //!
 //! The distances are exact distances from each grid point to the extracted mesh (nearest-first
-//! queries of [`crate::queries::closest`]'s tree, bounded by the truncation so that points beyond it
-//! end early), and the sign comes from the sparse grid ([`crate::queries::sides`]).
+//! queries of [`crate::queries::closest`]'s tree, bounded by the truncation so that points
+//! beyond it end early), and the sign comes from the sparse grid ([`crate::queries::sides`]).
 
 use crate::grid::cubes::SparseCubes;
 use crate::grid::{dilate, pack, BrickIndex, BrickSet, Dilation};
@@ -17,24 +13,21 @@ use crate::queries::sides::GridSides;
 use crate::stages::extract::extract;
 use rayon::prelude::*;
 
-/// Direct3D-S2's truncation, in voxels.
-pub const TRUNCATION: f64 = 4.0;
-
-/// Direct3D-S2's sparse SDF of one item.
+/// The truncated signed distance of one item's grid points.
 #[derive(Debug, Clone, Default, PartialEq)]
-pub struct SparseSdf {
+pub struct TruncatedSdf {
     /// Grid points (x, y, z) within the truncation band, sorted.
     pub coords: Vec<[u16; 3]>,
     /// Signed distance / truncation at each point, in (−1, 1), positive outside.
     pub sdf: Vec<f32>,
 }
 
-/// The sparse SDF of `cubes` with a band of `truncation` voxels (Direct3D-S2: [`TRUNCATION`]).
-pub fn sparse_sdf(cubes: &SparseCubes, truncation: f64) -> SparseSdf {
+/// The truncated signed distance of `cubes` within `truncation` voxels of its surface.
+pub fn truncated_sdf(cubes: &SparseCubes, truncation: f64) -> TruncatedSdf {
     let n = cubes.resolution;
     let mesh = extract(cubes);
     if mesh.triangles.is_empty() || truncation.is_nan() || truncation <= 0.0 {
-        return SparseSdf::default();
+        return TruncatedSdf::default();
     }
     let coords = band_vertices(cubes, truncation).sorted_members();
     let queries: Vec<[f64; 3]> = coords.par_iter().map(|c| c.map(f64::from)).collect();
@@ -56,7 +49,7 @@ pub fn sparse_sdf(cubes: &SparseCubes, truncation: f64) -> SparseSdf {
         .flatten()
         .collect();
     let (coords, sdf) = kept.into_iter().unzip();
-    SparseSdf { coords, sdf }
+    TruncatedSdf { coords, sdf }
 }
 
 /// Every grid point that can lie within `truncation` voxels of the surface: the corners of
@@ -86,6 +79,9 @@ mod tests {
     use crate::params::Params;
     use crate::shapes::sphere;
 
+    /// The band of the test, in voxels.
+    const TRUNCATION: f64 = 4.0;
+
     #[test]
     fn band_of_a_sphere_holds_signed_scaled_distances() {
         // A sphere of radius 0.3 of the unit cube, centred: at resolution 40 its radius is
@@ -94,7 +90,7 @@ mod tests {
         let cubes = crate::convert(&mesh, &Params::with_resolution(40))
             .unwrap_or_else(|e| panic!("{e}"))
             .cubes;
-        let s = sparse_sdf(&cubes, TRUNCATION);
+        let s = truncated_sdf(&cubes, TRUNCATION);
         assert!(s.coords.len() > cubes.coords.len());
         assert!(s.coords.windows(2).all(|w| w[0] < w[1]));
         let centre = cubes.normalization.source_to_grid([0.0; 3], 40);

@@ -1,6 +1,7 @@
 //! Sharp edges of a mesh: edges shared by exactly two triangles whose normals differ by at
-//! least a given angle (Dora's rule, `sharp_edge_sampling/sharp_sample.py`, which selects
-//! Blender's "sharp" edges by dihedral angle), and length-uniform points on them.
+//! least a given angle (the vector-set consumers' rule, which selects Blender's "sharp" edges
+//! by dihedral angle; their sources in docs/FORMAT.md, "Samples for vector-set VAEs"), and
+//! length-uniform points on them.
 
 use super::rng::Draw;
 use crate::mesh::TriMesh;

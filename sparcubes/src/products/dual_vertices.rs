@@ -1,94 +1,84 @@
-//! TRELLIS.2's flexible dual grid (O-Voxel, `o-voxel/src/convert/flexible_dual_grid.cpp` and
-//! `data_toolkit/dual_grid.py` of microsoft/TRELLIS.2), computed from our surface:
+//! A dual vertex per active cell (a cell with a crossed edge), as flexible dual grids and dual
+//! contouring place them (Ju et al., "Dual Contouring of Hermite Data", 2002): the point of
+//! the closed cell that minimises the squared distances to the planes of the cell's triangles
+//! plus `regularization` × (number of crossings) × the squared distance to the mean of the
+//! crossing points on the cell's edges; with, per cell, which of the three edges through its
+//! upper corner the surface crosses (a sign change of φ between their ends).
 //!
-//! - the voxels are the active cells (every cell with a crossed edge; TRELLIS.2 activates the
-//!   four voxels around each crossed grid line, the same set);
-//! - the dual vertex minimises a quadric error inside the voxel: the squared distances to the
-//!   planes of the voxel's triangles plus `REGULARIZATION` × (number of crossings) × the
-//!   squared distance to the mean of the crossing points on the voxel's edges (TRELLIS.2's
-//!   face term with weight 1 and regularisation 1e-2), minimised over the closed voxel;
-//! - it is stored as `floor(255 · (v − voxel))` per axis, 3 × `u8` (TRELLIS.2 clamps to
-//!   [0, 1], scales by 255 and casts to `uint8`);
-//! - `intersected` bit `a` (1, 2, 4 for x, y, z) says whether the surface crosses the voxel's
-//!   grid edge along axis `a` at its upper corner in the other two axes (the edge whose four
-//!   voxels TRELLIS.2 joins into a quad): for x the edge (0,1,1)–(1,1,1), for y (1,0,1)–(1,1,1),
-//!   for z (1,1,0)–(1,1,1), i.e. a sign change of φ between those corners.
+//! The triangles and crossing points are those of our extraction ([`crate::extract()`]), so
+//! the vertices follow the watertight surface.
 
-use super::chunks_with_corners;
+use super::corners::chunks_with_corners;
 use crate::grid::cubes::SparseCubes;
 use crate::stages::extract::mc_table::EDGES;
 use crate::stages::extract::{cell_triangles_at, CellEdgePoints};
 use crate::vec3::{cross, dot, norm, sub};
 use rayon::prelude::*;
 
-/// Weight of the pull towards the mean crossing point, per crossing (TRELLIS.2's
-/// `regularization_weight=1e-2` in `data_toolkit/dual_grid.py`).
-pub const REGULARIZATION: f64 = 1e-2;
-
-/// TRELLIS.2's flexible dual grid of one item.
+/// The dual vertices of one item's active cells.
 #[derive(Debug, Clone, Default, PartialEq)]
-pub struct DualGrid {
-    /// Active voxels (cells) by minimum corner, sorted.
-    pub voxels: Vec<[u16; 3]>,
-    /// Dual vertex of each voxel in voxel-local coordinates, in [0, 1]³ (before quantisation).
+pub struct DualVertices {
+    /// Active cells by minimum corner, sorted.
+    pub cells: Vec<[u16; 3]>,
+    /// Dual vertex of each cell in cell-local coordinates, in [0, 1]³.
     pub vertices: Vec<[f32; 3]>,
-    /// Quantised dual vertices: `floor(255 · local)`.
-    pub quantized: Vec<[u8; 3]>,
-    /// Intersected flags: bit 0 x, bit 1 y, bit 2 z (module docs).
-    pub intersected: Vec<u8>,
+    /// Per cell, the surface crossing the edges through its upper corner `(1, 1, 1)`: bit 0
+    /// the edge along x (from `(0, 1, 1)`), bit 1 along y (from `(1, 0, 1)`), bit 2 along z
+    /// (from `(1, 1, 0)`); a sign change of φ between the edge's ends.
+    pub crossed: Vec<u8>,
 }
 
-/// The flexible dual grid of `cubes` (cells whose corners are not all stored are skipped).
-/// Built a chunk of cells at a time, each chunk's rows into its own vectors of known size,
-/// joined in order at the end.
-pub fn dual_grid(cubes: &SparseCubes) -> DualGrid {
-    let parts: Vec<DualGrid> = chunks_with_corners(cubes)
+/// The dual vertices of `cubes` with the pull towards the mean crossing point weighted by
+/// `regularization` per crossing (cells whose corners are not all stored are skipped). Built a
+/// chunk of cells at a time, each chunk's rows into its own vectors of known size, joined in
+/// order at the end.
+pub fn dual_vertices(cubes: &SparseCubes, regularization: f64) -> DualVertices {
+    let parts: Vec<DualVertices> = chunks_with_corners(cubes)
         .map_init(Vec::new, |tris, (cells, corners)| {
-            let mut part = DualGrid::with_capacity(cells.len());
+            let mut part = DualVertices::with_capacity(cells.len());
             for (&c, idx) in cells.iter().zip(corners) {
-                if let Some((v, flags)) = idx.and_then(|idx| dual_vertex(cubes, c, &idx, tris)) {
+                let vertex = idx.and_then(|idx| dual_vertex(cubes, c, &idx, regularization, tris));
+                if let Some((v, flags)) = vertex {
                     part.push(c, v, flags);
                 }
             }
             part
         })
         .collect();
-    let mut out = DualGrid::with_capacity(parts.iter().map(|p| p.voxels.len()).sum());
+    let mut out = DualVertices::with_capacity(parts.iter().map(|p| p.cells.len()).sum());
     for p in parts {
-        out.voxels.extend(p.voxels);
+        out.cells.extend(p.cells);
         out.vertices.extend(p.vertices);
-        out.quantized.extend(p.quantized);
-        out.intersected.extend(p.intersected);
+        out.crossed.extend(p.crossed);
     }
     out
 }
 
-impl DualGrid {
-    /// An empty grid with room for `n` voxels.
+impl DualVertices {
+    /// Empty, with room for `n` cells.
     fn with_capacity(n: usize) -> Self {
         Self {
-            voxels: Vec::with_capacity(n),
+            cells: Vec::with_capacity(n),
             vertices: Vec::with_capacity(n),
-            quantized: Vec::with_capacity(n),
-            intersected: Vec::with_capacity(n),
+            crossed: Vec::with_capacity(n),
         }
     }
 
-    /// Appends voxel `c` with its dual vertex `v` (voxel-local) and intersected `flags`.
+    /// Appends cell `c` with its dual vertex `v` (cell-local) and crossed-edge `flags`.
     fn push(&mut self, c: [u16; 3], v: [f32; 3], flags: u8) {
-        self.voxels.push(c);
-        self.quantized.push(v.map(quantize));
+        self.cells.push(c);
         self.vertices.push(v);
-        self.intersected.push(flags);
+        self.crossed.push(flags);
     }
 }
 
-/// The dual vertex (voxel-local) and intersected flags of cell `c` with corners `idx`, or
+/// The dual vertex (cell-local) and crossed-edge flags of cell `c` with corners `idx`, or
 /// `None` when no edge of it is crossed; `tris` is scratch space for the cell's triangles.
 fn dual_vertex(
     cubes: &SparseCubes,
     c: [u16; 3],
     idx: &[usize; 8],
+    regularization: f64,
     tris: &mut Vec<[[f64; 3]; 3]>,
 ) -> Option<([f32; 3], u8)> {
     let inside = idx.map(|i| cubes.sdf[i] < 0.0);
@@ -112,7 +102,7 @@ fn dual_vertex(
         return None;
     }
     let mean = mean.map(|m| m / count);
-    let w = REGULARIZATION * count;
+    let w = regularization * count;
     for i in 0..3 {
         a[i][i] += w;
         b[i] += w * mean[i];
@@ -121,7 +111,7 @@ fn dual_vertex(
     Some((v.map(|x| x as f32), flags))
 }
 
-/// The quadric `xᵀAx − 2bᵀx` (as `(A, b)`, voxel-local through `local`) summing the squared
+/// The quadric `xᵀAx − 2bᵀx` (as `(A, b)`, cell-local through `local`) summing the squared
 /// distances to the planes of the triangles of the cell whose crossing points `edges` holds;
 /// degenerate triangles add nothing.
 fn plane_quadric(
@@ -150,12 +140,6 @@ fn plane_quadric(
         }
     }
     (a, b)
-}
-
-/// TRELLIS.2's quantisation of a local coordinate: clamp to [0, 1], scale by 255, truncate.
-#[inline]
-pub fn quantize(x: f32) -> u8 {
-    (x.clamp(0.0, 1.0) * 255.0) as u8
 }
 
 /// The minimiser of `xᵀAx − 2bᵀx` (A symmetric positive definite) over `[0, 1]³`. A
@@ -386,7 +370,7 @@ mod tests {
     }
 
     #[test]
-    fn dual_vertices_inside_voxels_and_flags_match_sign_changes() {
+    fn dual_vertices_inside_cells_and_flags_match_sign_changes() {
         for mesh in [
             sphere([0.0; 3], 0.5, 24),
             cuboid([-0.5; 3], [0.4, 0.3, 0.2], &[]),
@@ -394,8 +378,8 @@ mod tests {
             let cubes = crate::convert(&mesh, &Params::with_resolution(32))
                 .unwrap_or_else(|e| panic!("{e}"))
                 .cubes;
-            let g = dual_grid(&cubes);
-            assert_eq!(g.voxels, cubes.cells);
+            let g = dual_vertices(&cubes, 1e-2);
+            assert_eq!(g.cells, cubes.cells);
             let sign: HashMap<[u16; 3], bool> = cubes
                 .coords
                 .iter()
@@ -403,17 +387,8 @@ mod tests {
                 .map(|(c, s)| (*c, *s < 0.0))
                 .collect();
             let mut flagged = 0;
-            for (((c, v), q), f) in g
-                .voxels
-                .iter()
-                .zip(&g.vertices)
-                .zip(&g.quantized)
-                .zip(&g.intersected)
-            {
+            for ((c, v), f) in g.cells.iter().zip(&g.vertices).zip(&g.crossed) {
                 assert!(v.iter().all(|x| (0.0..=1.0).contains(x)), "{c:?}: {v:?}");
-                for a in 0..3 {
-                    assert_eq!(q[a], (v[a] * 255.0) as u8);
-                }
                 let corner = |dx: u16, dy: u16, dz: u16| sign[&[c[0] + dx, c[1] + dy, c[2] + dz]];
                 let expect = u8::from(corner(0, 1, 1) != corner(1, 1, 1))
                     | (u8::from(corner(1, 0, 1) != corner(1, 1, 1)) << 1)
@@ -421,8 +396,8 @@ mod tests {
                 assert_eq!(*f, expect, "{c:?}");
                 flagged += f.count_ones();
             }
-            // Every crossed grid edge is flagged by exactly one voxel (its lower voxel in
-            // the other two axes) when that voxel is active: count them independently.
+            // Every crossed grid edge is flagged by exactly one cell (its lower cell in the
+            // other two axes) when that cell is active: count them independently.
             let mut crossed = 0;
             for (c, s) in &sign {
                 for a in 0..3 {

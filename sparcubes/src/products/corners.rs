@@ -1,19 +1,6 @@
-//! The sparse layouts other model families train on, computed from one item's stored sparse
-//! cubes (no second conversion):
-//!
-//! - [`direct3d_s2`]: Direct3D-S2's sparse SDF, grid vertices within a truncation band with
-//!   their signed distance scaled to [−1, 1];
-//! - [`trellis2`]: TRELLIS.2's flexible dual grid, per active voxel a dual vertex quantised to
-//!   3 × `u8` and three "intersected" flags;
-//! - [`cubvh`]: cubvh's sparse voxels, the 8 corner values of each active cell as sign +
-//!   magnitude bytes.
-//!
-//! Our own tensors (`coords`, `sdf`, `deformation`, `cells`) are the fourth layout. Every
-//! layout is in the item's grid (resolution N, the job's normalization).
-
-pub mod cubvh;
-pub mod direct3d_s2;
-pub mod trellis2;
+//! The corners of the active cells: for every cell its eight corners' indices among the
+//! stored vertices, found by one forward walk per chunk of cells ([`cells_with_corners`]),
+//! and their φ ([`corner_values`]).
 
 use crate::grid::cubes::SparseCubes;
 use rayon::prelude::*;
@@ -34,9 +21,9 @@ fn corner_offset(k: usize) -> [u16; 3] {
 ///
 /// Cells and coordinates are both sorted by `(x, y, z)`, and adding one offset to every cell
 /// keeps that order, so each corner is found by one forward walk through `coords` per chunk
-/// of cells instead of a binary search per corner (the layouts spent most of their time in
-/// those searches).
-pub(crate) fn cells_with_corners(
+/// of cells instead of a binary search per corner (the products built on it spent most of
+/// their time in those searches).
+pub fn cells_with_corners(
     cubes: &SparseCubes,
 ) -> impl ParallelIterator<Item = ([u16; 3], Option<[usize; 8]>)> + '_ {
     cubes.cells.par_chunks(CHUNK).flat_map_iter(move |chunk| {
@@ -46,14 +33,32 @@ pub(crate) fn cells_with_corners(
 }
 
 /// [`cells_with_corners`] a chunk at a time, in order: each run of cells with its corner
-/// table, for layouts that build their output per chunk and join the chunks at the end.
-pub(crate) fn chunks_with_corners(
+/// table, for products that build their output per chunk and join the chunks at the end.
+pub fn chunks_with_corners(
     cubes: &SparseCubes,
 ) -> impl IndexedParallelIterator<Item = (&[[u16; 3]], Vec<Option<[usize; 8]>>)> + '_ {
     cubes
         .cells
         .par_chunks(CHUNK)
         .map(move |chunk| (chunk, chunk_corners(&cubes.coords, chunk)))
+}
+
+/// The eight corner values of each active cell.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct CornerValues {
+    /// Active cells by minimum corner, sorted.
+    pub cells: Vec<[u16; 3]>,
+    /// Per cell, φ at corner `k` (at `(k & 1, k >> 1 & 1, k >> 2)`), in voxels.
+    pub values: Vec<[f32; 8]>,
+}
+
+/// φ at the eight corners of every cell of `cubes` (cells whose corners are not all stored are
+/// skipped).
+pub fn corner_values(cubes: &SparseCubes) -> CornerValues {
+    let (cells, values) = cells_with_corners(cubes)
+        .filter_map(|(c, idx)| Some((c, idx?.map(|i| cubes.sdf[i]))))
+        .unzip();
+    CornerValues { cells, values }
 }
 
 /// The corner indices of a sorted run of cells (see [`cells_with_corners`]).
@@ -132,5 +137,22 @@ mod tests {
             "{missing} of {}",
             walked.len()
         );
+    }
+
+    #[test]
+    fn corner_values_are_phi_at_the_corners_in_bit_order() {
+        // A plane x = 2.3: φ = x − 2.3 at every vertex.
+        let cubes = sample_box(8, [0; 3], [6; 3], |c| (c[0] as f32 - 2.3, [0.0; 3]));
+        let v = corner_values(&cubes);
+        assert_eq!(v.cells, cubes.cells);
+        assert_eq!(v.cells.len(), 36);
+        for (c, values) in v.cells.iter().zip(&v.values) {
+            for (k, &phi) in values.iter().enumerate() {
+                let o = corner_offset(k);
+                let at = [c[0] + o[0], c[1] + o[1], c[2] + o[2]];
+                let stored = cubes.vertex_index(at).map(|i| cubes.sdf[i]);
+                assert_eq!(Some(phi), stored, "cell {c:?} corner {k}");
+            }
+        }
     }
 }
