@@ -2,14 +2,16 @@
 //! outside ([`parts_with_gaps`]), the exact field would leave a hole, so the part goes back to
 //! the thin shell.
 
-use super::sealed::NOT_SEALED;
 use crate::grid::{cube_offsets, dilate, BrickSet, Dilation};
 use crate::stages::band::Band;
 use crate::stages::vertex_side::Side;
 use crate::stages::voxelize::Voxelization;
 use rayon::prelude::*;
 
-/// The sealed vertices as [`decide_sealed`] found them: per band vertex its position among
+/// Marker of a band vertex that is not sealed, in a position list ([`Sealed::position`]).
+pub(super) const NOT_SEALED: u32 = u32::MAX;
+
+/// The sealed vertices as `decide_sealed` found them: per band vertex its position among
 /// them ([`NOT_SEALED`] if none), and per position its coordinates, whether the winding
 /// number found it inside, and its thin part.
 pub(super) struct Sealed<'a> {

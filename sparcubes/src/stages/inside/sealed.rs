@@ -2,7 +2,7 @@
 //! joined into thin closed parts that keep their surface where the grid can hold them
 //! ([`decide_sealed`]).
 
-use super::gaps::{parts_with_gaps, Sealed};
+use super::gaps::{parts_with_gaps, Sealed, NOT_SEALED};
 use super::vote::{median_winding, verdict, Verdict, SAMPLES};
 use crate::queries::winding::LazyWindingTree;
 use crate::stages::band::Band;
@@ -256,13 +256,10 @@ pub const THIN_PART_DEPTH: f32 = 0.3;
 /// Such a group is where closed parts overlap by less than the grid resolves (a screw in a
 /// hole narrower than its shaft), not a thin part of its own. Inside, it would leave both
 /// parts' surfaces with inside on each side, as sheets inside the solid, and each would
-/// become a thin cavity 0.9 voxel off its place (§5 of docs/ALGORITHM.md); outside, as the
+/// become a thin cavity 0.9 voxel off its place (§7 of docs/ALGORITHM.md); outside, as the
 /// grid alone has it, the sliver is a thin gap whose walls are the parts' exact surfaces.
 /// Overlap regions the flood encloses keep the parts' surfaces too (the nested rule).
 pub const OVERLAP_FROM: f64 = 1.5;
-
-/// Marker of a band vertex that is not sealed, in [`decide_sealed`]'s position list.
-pub(super) const NOT_SEALED: u32 = u32::MAX;
 
 /// Groups of the sealed vertices (positions in `unknown`, `position` per band vertex) through
 /// grid edges no triangle crosses: each position's group (numbered by smallest position), and
