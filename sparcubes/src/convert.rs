@@ -65,7 +65,7 @@ pub struct ConvertStats {
     pub shelled_thin_parts: u64,
     /// Regions sealed behind small openings and kept solid: nearly closed parts whose
     /// openings the walls grown at the sealing scale close ([`crate::stages::seal`]), read as solid by
-    /// the winding number on the coarse grid and again as enclosed regions (§2b).
+    /// the winding number on the coarse grid and again as enclosed regions (§6).
     pub sealed_pockets: u64,
     /// Groups of sealed vertices inside two closed surfaces or more: closed parts overlapping
     /// by less than the grid resolves, left outside so both keep their surfaces

@@ -1,4 +1,4 @@
-//! Nearly closed solids stay solid (issue 26, docs/ALGORITHM.md §3b): closed shapes with one
+//! Nearly closed solids stay solid (issue 26, docs/ALGORITHM.md §4): closed shapes with one
 //! hole of 1–16 voxels at 256³ (and the same physical hole at 512³ and 1024³) keep their solid,
 //! open shapes stay thin shells with no volume in their mouths, and a real slot stays open.
 //!

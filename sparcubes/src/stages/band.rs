@@ -1,4 +1,4 @@
-//! Stage 4: exact unsigned distance and closest point on the grid vertices near the surface.
+//! Stage 5: exact unsigned distance and closest point on the grid vertices near the surface.
 //!
 //! The distances are computed for the corners of a set of cells in two calls: first the
 //! corners of the wall cells (the core band, every vertex within √3 of the surface), then,

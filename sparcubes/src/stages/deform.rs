@@ -1,4 +1,4 @@
-//! Stage 6: the signed distance and the deformation of every band vertex.
+//! Stage 8: the signed distance and the deformation of every band vertex.
 //!
 //! Paper step 3 moves each vertex along the distance gradient, x′ = x − η·φ·∇φ. With φ = ±UDF
 //! (or UDF − t on a shell) and ∇UDF = (x − p)/UDF for the closest point p, the step moves the

@@ -1,4 +1,4 @@
-//! Stage 6b: the surface-free cells next to the walls that the zero level set reaches.
+//! Stage 9: the surface-free cells next to the walls that the zero level set reaches.
 //!
 //! The core band holds the corners of the wall cells. A cell free of surface has a sign change
 //! only if one of its corners disagrees with the cell's own side: a vertex that is a corner of

@@ -1,4 +1,4 @@
-//! Stage 5: the sign of every band vertex, and the thin-shell treatment of open parts.
+//! Stage 7: the sign of every band vertex, and the thin-shell treatment of open parts.
 //!
 //! * A vertex touching an outside cell is outside (that cell is free of surface and joined to
 //!   the border); one touching only inside cells is inside. A vertex whose eight cells are all

@@ -1,4 +1,4 @@
-//! Stage 7: sparse marching cubes over the active cells with the deformed vertex positions.
+//! Stage 11: sparse marching cubes over the active cells with the deformed vertex positions.
 //!
 //! Each active cell looks up its 8 corners, resolves its ambiguous faces with the asymptotic
 //! decider (which only reads the face's own values, so both cells sharing a face agree), and

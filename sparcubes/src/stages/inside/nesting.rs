@@ -27,7 +27,7 @@ pub const NESTED_STEP: f64 = 0.5;
 /// own inside and the body's), and the surfaces inside it are the parts' own: they stay, as
 /// thin sheets inside the solid, as without the rule. Removing them cut each part back to what
 /// shows outside the other, which lost parts and recall on the dev corpus (docs/ALGORITHM.md
-/// §2b).
+/// §6).
 #[derive(Debug, Clone, Default)]
 pub struct Nesting {
     /// Per core band vertex: its solid enclosed region if it is an inside end of a crossed

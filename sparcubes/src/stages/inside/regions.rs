@@ -150,7 +150,7 @@ impl Regions {
         matches!(self.verdicts[r as usize], Verdict::Air | Verdict::Unsealed)
     }
 
-    /// The regions of the cells `sealed` (one in each region a sealing made, §3b) that do not
+    /// The regions of the cells `sealed` (one in each region a sealing made, stage 4) that do not
     /// read as solid are unsealed; returns how many sealed regions stay (distinct, solid).
     pub fn unseal_unless_solid(&mut self, walls: &BrickSet, sealed: &[[i64; 3]]) -> u64 {
         let mut kept: Vec<u32> = Vec::new();

@@ -21,7 +21,7 @@ pub enum Verdict {
     Air,
     /// In between: the caller keeps the answer the grid alone gives.
     Ambiguous,
-    /// A region sealed behind small openings (docs/ALGORITHM.md §3b) that is not read as
+    /// A region sealed behind small openings (docs/ALGORITHM.md §4) that is not read as
     /// solid here: back to the outside, the answer of the grid's exact flood.
     Unsealed,
 }

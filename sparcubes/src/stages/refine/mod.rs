@@ -1,4 +1,4 @@
-//! Stage 7b (paper step 4, optional): the displacements refined against renderings of the
+//! Stage 12 (paper step 4, optional): the displacements refined against renderings of the
 //! source.
 //!
 //! Sparc3D's Sparcubes refines the deformed grid by rendering (Sparc3D, §3.2, step 4): depth

@@ -10,7 +10,7 @@ pub const MAX_IMAGE: u32 = 2048;
 /// Most optimiser steps.
 pub const MAX_STEPS: u32 = 200;
 
-/// Settings of the rendering-based refinement (docs/ALGORITHM.md §7b). Stored whole in a job's
+/// Settings of the rendering-based refinement (docs/ALGORITHM.md §12). Stored whole in a job's
 /// config when the refinement is on, so a job keeps the settings it was made with.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]

@@ -97,7 +97,7 @@ pub fn component_winding(tree: &WindingTree, runs: &[Run], cell: u32) -> f64 {
 }
 
 /// Whether a sealed pocket reads as solid: the same threshold as an enclosed region's
-/// (docs/ALGORITHM.md §2b).
+/// (docs/ALGORITHM.md §6).
 pub fn is_solid(w: f64) -> bool {
     w >= SOLID_FROM
 }

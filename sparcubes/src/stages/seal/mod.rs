@@ -1,5 +1,5 @@
-//! Stage 3b: openings small for their part are sealed, so a nearly closed solid stays solid
-//! (docs/ALGORITHM.md §3b; `Params::seal_openings`, with the inside test).
+//! Stage 4: openings small for their part are sealed, so a nearly closed solid stays solid
+//! (docs/ALGORITHM.md §4; `Params::seal_openings`, with the inside test).
 //!
 //! The exact flood (§3) enters a closed part through any hole wider than about a cell, and
 //! the part then becomes a thin shell as a whole — at finer grids for smaller holes. This
@@ -7,13 +7,13 @@
 //! ([`Scale`]), with the walls grown by a few coarse cells: the grown walls close every
 //! opening narrower than about 1/16 of the grid, and what that flood does not reach but the
 //! exact flood did is a *sealed pocket*. A pocket whose source winding number reads solid
-//! (the enclosed regions' rule, §2b) is taken back from the outside; others stay outside (a
+//! (the enclosed regions' rule, §6) is taken back from the outside; others stay outside (a
 //! cavity behind a slot, the inside of a cup). The grown walls are then given back: their
 //! coarse cells go to the pocket or the outside, whichever is nearer through free cells
 //! ([`decide::compete`]), and so, cell by cell, do the fine cells of the coarse cells that hold
 //! surface next to the pocket ([`fine::compete_fine`]). Inside walls the pocket and the
 //! outside keep their own side; in an opening they meet about halfway, and the cells there
-//! ([`apply::cap_cells`]) join the ring (§6b), where the cap across the opening is extracted.
+//! ([`apply::cap_cells`]) join the ring (§9), where the cap across the opening is extracted.
 //!
 //! - [`coarse`] — the dense bit grid at the sealing scale.
 //! - [`decide`] — pockets, their winding vote, the coarse competition.
@@ -70,10 +70,10 @@ impl Scale {
 #[derive(Debug, Clone, Default)]
 pub struct Sealing {
     /// A fine cell of each solid pocket taken back from the outside: the enclosed regions'
-    /// classification (§2b) checks the region each lies in, and unseals it unless solid.
+    /// classification (§6) checks the region each lies in, and unseals it unless solid.
     pub seeds: Vec<[i64; 3]>,
     /// The fine cells the caps across the openings run through, per brick key (ascending):
-    /// candidate cells for the ring (§6b).
+    /// candidate cells for the ring (§9).
     pub caps: Vec<(u32, BrickMask)>,
 }
 
@@ -112,7 +112,7 @@ pub fn seal_openings(
         .and_not(&band)
         .and_not(&CoarseGrid::of_runs(scale.side, solid.iter().flatten()));
     let (inside, outside, kept) = decide::give_back(&solid, &others, &band, &walls);
-    // One fine cell of each pocket kept, for the enclosed regions' check (§2b).
+    // One fine cell of each pocket kept, for the enclosed regions' check (§6).
     sealing.seeds = solid
         .iter()
         .zip(&kept)
