@@ -280,7 +280,7 @@ impl<'f> Prefix<'f> {
                     format!("the body has {written} bytes, the store announced {size}"),
                 ));
             }
-            let sha256 = crate::fetch::hex(&hasher.finalize());
+            let sha256 = format!("{:x}", hasher.finalize());
             Ok(Downloaded {
                 bytes: written,
                 sha256,
