@@ -561,6 +561,7 @@ mod tests {
             sha256: String::new(),
             stamp: None,
             object: None,
+            object_etag: None,
             content_digest: String::new(),
             item_seconds: 0.0,
             started_at: 0.0,

@@ -323,6 +323,7 @@ mod tests {
             sha256: sparc3d_schema::config::hex(&Sha256::digest(bytes)),
             stamp: None,
             object: None,
+            object_etag: None,
             content_digest: String::new(),
             item_seconds: 0.0,
             started_at: 0.0,
