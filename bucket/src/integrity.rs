@@ -64,7 +64,7 @@ pub enum Finished {
     /// No record: the shard is not finished.
     No,
     /// The record, its object there as recorded.
-    Done(CompletionRecord),
+    Done(Box<CompletionRecord>),
     /// A record whose object is missing, of another size or replaced: why.
     Damaged(String),
 }
@@ -75,7 +75,7 @@ pub fn finished(prefix: &Prefix<'_>, shard: u64) -> Result<Finished> {
         return Ok(Finished::No);
     };
     Ok(match check_object(prefix, shard, &record)? {
-        None => Finished::Done(record),
+        None => Finished::Done(Box::new(record)),
         Some(why) => Finished::Damaged(why),
     })
 }

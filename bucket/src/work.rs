@@ -32,7 +32,7 @@ pub fn work_shard(
     // A damaged record is moved aside under the lease (below), never outside it.
     if let Finished::Done(r) = finished(prefix, shard)? {
         skipped(opts, shard, "already done");
-        return Ok(ShardOutcome::AlreadyDone(r));
+        return Ok(ShardOutcome::AlreadyDone(*r));
     }
     let owner = owner_name();
     let shard_stop = Arc::new(AtomicBool::new(false));
@@ -95,7 +95,7 @@ impl Leased<'_> {
         // Finished between our look and our lease, or finished but damaged.
         match finished(self.prefix, self.shard)? {
             Finished::No => {}
-            Finished::Done(r) => return Ok(ShardOutcome::AlreadyDone(r)),
+            Finished::Done(r) => return Ok(ShardOutcome::AlreadyDone(*r)),
             Finished::Damaged(why) => self.set_aside(opts, &why)?,
         }
         pull_checkpoints(self.prefix, self.job, self.shard)?;
