@@ -187,6 +187,7 @@ fn drive<'e, S: Fn() -> bool + Sync>(
             running += 1;
         }
         if running == 0 {
+            // An item aborted by the stop is back in the queue: the shard is not finished.
             return Ok(if queue.is_empty() {
                 LoopEnd::Finished
             } else {
@@ -206,7 +207,10 @@ fn drive<'e, S: Fn() -> bool + Sync>(
         match settle(work, journal, answer)? {
             Settled::Finished => {}
             Settled::Retry => queue.push_front(item),
-            Settled::Stopped => stopping = true,
+            Settled::Stopped => {
+                queue.push_front(item);
+                stopping = true;
+            }
         }
     }
 }
