@@ -162,7 +162,7 @@ impl Leased<'_> {
         if let Some(why) = self.held.lost() {
             let message = format!(
                 "shard {}: this worker lost its lease {}: {why}; it stops here and leaves the \
-                 shard to the new holder",
+                 shard to whichever worker takes it next",
                 self.shard,
                 self.prefix.url(&keys::lease(self.shard))
             );
