@@ -72,12 +72,12 @@ def test_two_inits_at_once_with_different_manifests_never_mix_their_files(tmp_pa
             errs = [p.communicate(timeout=120)[1] for p in inits]
             codes = [p.returncode for p in inits]
             assert sorted(codes) == [0, 1], (codes, errs)
-            loser = errs[codes.index(1)]
-            assert url in loser and "another" in loser and "use another prefix" in loser, loser
             job = json.loads(get(s3, BUCKET, f"race-{trial}/job.json"))
             frozen = get(s3, BUCKET, f"race-{trial}/manifest.jsonl")
-            assert job["manifest_sha256"] == hashlib.sha256(frozen).hexdigest(), trial
+            assert job["manifest_sha256"] == hashlib.sha256(frozen).hexdigest(), (trial, errs)
             assert job["items"] == len(frozen.splitlines()) == [1, 3][codes.index(0)]
+            loser = errs[codes.index(1)]
+            assert url in loser and "another" in loser and "use another prefix" in loser, loser
             st = run("status", url, "--json", env=env_for(s3, tmp_path / "scratch-st"))
             assert json.loads(st.stdout)["pending"] == job["items"]
     finally:
