@@ -33,7 +33,7 @@ TENSORS = {
 }
 
 #: Tensor columns of a shard that the reader leaves alone: the extracted mesh, stored only
-#: when a job keeps it (`schema::columns::CUBE_TENSORS` after the cube tensors).
+#: with `store_mesh = true` (`schema::columns::CUBE_TENSORS` after the cube tensors).
 UNREAD_TENSORS = ("mesh_vertices", "mesh_faces")
 
 #: Metadata columns copied into every item.

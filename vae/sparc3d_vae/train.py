@@ -99,6 +99,7 @@ class Progress:
         self.first_step: Optional[int] = None
 
     def update(self, step: int, terms: Dict[str, float]) -> None:
+        """Shows step `step`'s loss terms, rate and time left."""
         if self.first_step is None:
             self.first_step = step - 1
         done = step - self.first_step
@@ -115,6 +116,7 @@ class Progress:
         sys.stderr.flush()
 
     def close(self) -> None:
+        """Ends the line rewritten in place."""
         if self.tty:
             sys.stderr.write("\n")
 
@@ -132,14 +134,17 @@ class EMA:
 
     @torch.no_grad()
     def update(self, step: int) -> None:
+        """Moves the average towards the model's weights after step `step`."""
         d = min(self.decay, (1 + step) / (10 + step))
         for k, v in self.model.state_dict().items():
             self.shadow[k].mul_(d).add_(v.detach().float(), alpha=1 - d)
 
     def state_dict(self) -> Dict[str, torch.Tensor]:
+        """A copy of the averaged weights, as a model's `state_dict`."""
         return {k: v.clone() for k, v in self.shadow.items()}
 
     def load(self, state: Dict[str, torch.Tensor]) -> None:
+        """Takes the averaged weights of a checkpoint (float32, on the model's device)."""
         self.shadow = {k: v.detach().float().clone().to(self.shadow[k].device) for k, v in state.items()}
 
 
