@@ -27,6 +27,7 @@
 // hide that parallel structure.
 #![allow(clippy::needless_range_loop)]
 
+pub mod attributes;
 pub mod band;
 pub mod close_grid;
 pub mod closest;
@@ -41,6 +42,7 @@ pub mod grid;
 pub mod holes;
 pub mod io;
 pub mod layouts;
+pub mod materials;
 pub mod mc_table;
 pub mod mesh;
 pub mod morton;
