@@ -54,6 +54,8 @@ from .location import ObjectPath
 __all__ = [
     "TENSORS",
     "SAMPLE_TENSORS",
+    "ATTRIBUTE_TENSORS",
+    "APPEARANCE_COLUMNS",
     "OPTIONAL_SAMPLE_TENSORS",
     "samples_to_source",
     "collate_vecset",
@@ -112,7 +114,17 @@ def _columns_of(tensors: Iterable[str]) -> List[str]:
     return [f"{t}{s}" for t in tensors for s in ("", "_dtype", "_shape")]
 
 
+#: Appearance per active cell (docs/FORMAT.md, "Attributes"), present when the job has
+#: `[attributes] enabled = true`: one row per row of `cells`, uint8 (base colour sRGB [m, 3];
+#: metallic, roughness, alpha [m], 0-255 for 0-1).
+ATTRIBUTE_TENSORS = ["base_color", "metallic", "roughness", "alpha"]
+
+#: The per-item facts stored beside the attributes (docs/FORMAT.md, "Attributes").
+APPEARANCE_COLUMNS = ["materials", "textured", "textures", "texture_max_size", "alpha_modes",
+                      "vertex_colors", "appearance_not_read", "attribute_nearest_cells"]
+
 _SAMPLE_COLUMNS = _columns_of(t for t in SAMPLE_TENSORS if t not in OPTIONAL_SAMPLE_TENSORS)
+_ATTRIBUTE_COLUMNS = _columns_of(ATTRIBUTE_TENSORS) + APPEARANCE_COLUMNS
 _OPTIONAL_SAMPLE_COLUMNS = _columns_of(OPTIONAL_SAMPLE_TENSORS)
 
 #: Prefix of the provenance columns: the manifest's own columns (licence, source, name, ...),
@@ -266,10 +278,28 @@ def row_to_item(row: Dict[str, Any]) -> Dict[str, Any]:
                   if k.startswith(PROVENANCE_PREFIX)}
     if provenance:
         item["manifest"] = provenance
+    if row.get("base_color") is not None:
+        _add_attributes(item, row)
     if row.get("surface_points") is not None:
         item["samples"] = {name: decode_tensor(row, name) for name in SAMPLE_TENSORS
                            if name not in OPTIONAL_SAMPLE_TENSORS or row.get(name) is not None}
     return item
+
+
+def _add_attributes(item: Dict[str, Any], row: Dict[str, Any]) -> None:
+    """The attribute arrays (uint8, one row per row of `cells`) and the appearance facts."""
+    m = len(item["cells"])
+    for name in ATTRIBUTE_TENSORS:
+        t = decode_tensor(row, name)
+        t = t.reshape(-1, 3) if name == "base_color" else t.reshape(-1)
+        if len(t) != m:
+            raise ValueError(f"item {row['id']!r}: column {name!r} has {len(t)} rows, "
+                             f"cells has {m}")
+        item[name] = t.astype(np.uint8, copy=False)
+    facts = {c: row.get(c) for c in APPEARANCE_COLUMNS}
+    facts["alpha_modes"] = [x for x in (facts["alpha_modes"] or "").split(",") if x]
+    facts["appearance_not_read"] = [x for x in (facts["appearance_not_read"] or "").split("\n") if x]
+    item["appearance"] = facts
 
 
 def samples_to_source(item: Dict[str, Any]) -> Dict[str, np.ndarray]:
@@ -356,6 +386,8 @@ def _item_columns(path: location.Location, f: pq.ParquetFile, samples: bool) -> 
     names = f.schema_arrow.names
     jobs.require_columns(path, names, _READ_COLUMNS)
     base = _READ_COLUMNS + [c for c in names if c.startswith(PROVENANCE_PREFIX)]
+    if all(c in names for c in _ATTRIBUTE_COLUMNS):
+        base = base + _ATTRIBUTE_COLUMNS
     if not (samples and all(c in names for c in _SAMPLE_COLUMNS)):
         return base
     return base + _SAMPLE_COLUMNS + [c for c in _OPTIONAL_SAMPLE_COLUMNS if c in names]

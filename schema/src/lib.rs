@@ -6,6 +6,7 @@
 #![deny(missing_docs)]
 
 pub mod arrow;
+pub mod attribute_columns;
 pub mod class;
 pub mod columns;
 pub mod completion;
@@ -18,10 +19,12 @@ pub mod tensor;
 
 pub use class::{ErrorClass, ItemStatus};
 pub use completion::{CompletionRecord, FileStamp};
-pub use config::{JobConfig, JobFile, Limits, SampleConfig};
+pub use config::{AttributeConfig, JobConfig, JobFile, Limits, SampleConfig};
 pub use error::{Result, SchemaError};
 pub use layout::JobLayout;
-pub use row::{RowCounts, RowTensors, RowTimings, SampleTensors, ShardRow};
+pub use row::{
+    AppearanceFacts, AttributeTensors, RowCounts, RowTensors, RowTimings, SampleTensors, ShardRow,
+};
 /// The manifest's record types, owned by `sparc3d-manifests`: a shard row is built from a
 /// frozen item.
 pub use sparc3d_manifests::{FrozenItem, ManifestRecord};
