@@ -299,7 +299,7 @@ fn a_vertex_coloured_ply_gets_its_colours() -> TestResult {
          element face 6\nproperty list uchar int vertex_indices\nend_header\n",
     );
     for k in 0..8 {
-        let p = [k & 1, (k >> 1) & 1, (k >> 2) & 1].map(|b| 2 * b as i32 - 1);
+        let p = [k & 1, (k >> 1) & 1, (k >> 2) & 1].map(|b: i32| 2 * b - 1);
         let c = if p[0] < 0 { "255 0 0" } else { "0 0 255" };
         text.push_str(&format!("{} {} {} {c}\n", p[0], p[1], p[2]));
     }
@@ -357,7 +357,7 @@ fn an_obj_with_kd_only_gets_its_material_colours() -> TestResult {
     );
     let mut obj = String::from("mtllib m.mtl\n");
     for k in 0..8 {
-        let p = [k & 1, (k >> 1) & 1, (k >> 2) & 1].map(|b| 2 * b as i32 - 1);
+        let p = [k & 1, (k >> 1) & 1, (k >> 2) & 1].map(|b: i32| 2 * b - 1);
         obj.push_str(&format!("v {} {} {}\n", p[0], p[1], p[2]));
     }
     obj.push_str("usemtl rest\nf 1 3 7 5\nf 2 6 8 4\nf 1 5 6 2\nf 3 4 8 7\nf 1 2 4 3\n");
@@ -469,7 +469,12 @@ fn khr_texture_transform_picks_the_transformed_region() -> TestResult {
     for (k, (transform, want)) in cases.into_iter().enumerate() {
         let material = json!({"pbrMetallicRoughness": {"baseColorTexture": {"index": 0,
                               "extensions": {"KHR_texture_transform": transform}}}});
-        let doc = gltf(&quad(&[&|p| p]), material, &[image.clone()], json!({}));
+        let doc = gltf(
+            &quad(&[&|p| p]),
+            material,
+            std::slice::from_ref(&image),
+            json!({}),
+        );
         let s = convert(&write(dir.path(), &format!("t{k}.gltf"), doc), 32)?;
         let cells = quad_cells(&s, |x, y| {
             (0.1..0.4).contains(&x) && (0.1..0.4).contains(&y)
@@ -499,7 +504,7 @@ fn a_texture_reads_the_coordinate_set_it_names() -> TestResult {
         let doc = gltf(
             &quad(&[&set0, &set1]),
             material,
-            &[image.clone()],
+            std::slice::from_ref(&image),
             json!({}),
         );
         let s = convert(&write(dir.path(), &format!("set{set}.gltf"), doc), 32)?;

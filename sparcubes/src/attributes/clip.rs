@@ -140,12 +140,12 @@ mod tests {
         });
         let u = [4.6, 0.9, 1.5];
         let w = [1.2, 3.6, -0.3];
-        let x = [
+        let x: [f64; 3] = [
             u[1] * w[2] - u[2] * w[1],
             u[2] * w[0] - u[0] * w[2],
             u[0] * w[1] - u[1] * w[0],
         ];
-        let exact = 0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2] as f64).sqrt();
+        let exact = 0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
         assert!((area - exact).abs() < 1e-9 * exact, "{area} vs {exact}");
         // The area-weighted centroid of the pieces is the triangle's: (1/3, 1/3, 1/3).
         for k in 0..3 {

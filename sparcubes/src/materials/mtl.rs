@@ -90,7 +90,7 @@ fn map_spec(words: &[&str]) -> Option<MapSpec> {
         }
     }
     let file = words.get(i..)?.join(" ");
-    (!file.is_empty()).then(|| MapSpec { file, ..spec })
+    (!file.is_empty()).then_some(MapSpec { file, ..spec })
 }
 
 impl MapSpec {
