@@ -19,7 +19,7 @@ use crate::keys;
 use crate::lease::BucketLease;
 use anyhow::{bail, Context, Result};
 use sparc3d_schema::{CompletionRecord, JobLayout};
-use sparc3d_sources::objects::{Prefix, WriteMode, Written};
+use sparc3d_sources::objects::{Prefix, Version, WriteMode, Written};
 
 /// How a commit to the bucket ended.
 #[derive(Debug, Clone, PartialEq)]
@@ -51,10 +51,12 @@ pub fn push(
     prefix
         .upload(&keys::data(&name), &file)
         .with_context(|| format!("uploading shard {shard}"))?;
+    let object_etag = uploaded_etag(prefix, shard, &name)?;
     fence("committed")?;
     let in_bucket = CompletionRecord {
         stamp: None,
         object: Some(name.clone()),
+        object_etag,
         ..record.clone()
     };
     let bytes = serde_json::to_vec_pretty(&in_bucket)?;
@@ -79,9 +81,34 @@ pub fn push(
     }
 }
 
+/// The ETag of the upload `name` of `shard` as a HEAD request shows it, the same request
+/// [`crate::integrity::check_object`] makes later (so that a store whose listings spell ETags
+/// otherwise than its uploads' replies cannot make every later check fail).
+fn uploaded_etag(prefix: &Prefix<'_>, shard: u64, name: &str) -> Result<Option<String>> {
+    let key = keys::data(name);
+    match prefix
+        .head(&key)
+        .with_context(|| format!("shard {shard}: looking up its upload"))?
+    {
+        Some(found) => Ok(found.etag),
+        None => bail!(
+            "shard {shard}: {} is not there after its upload",
+            prefix.url(&key)
+        ),
+    }
+}
+
 /// The completion record of `shard` in the bucket, if there is one; a record that does not
 /// parse is an error naming it.
 pub fn read_record(prefix: &Prefix<'_>, shard: u64) -> Result<Option<CompletionRecord>> {
+    Ok(read_record_version(prefix, shard)?.map(|(record, _)| record))
+}
+
+/// [`read_record`] with the record object's version, for a write that replaces exactly it.
+pub fn read_record_version(
+    prefix: &Prefix<'_>,
+    shard: u64,
+) -> Result<Option<(CompletionRecord, Version)>> {
     let key = keys::record(shard);
     let Some(found) = prefix
         .get(&key)
@@ -91,7 +118,7 @@ pub fn read_record(prefix: &Prefix<'_>, shard: u64) -> Result<Option<CompletionR
     };
     let record = serde_json::from_slice(&found.bytes)
         .with_context(|| format!("{}: not a completion record", prefix.url(&key)))?;
-    Ok(Some(record))
+    Ok(Some((record, found.version)))
 }
 
 /// After this writer's record is in place: its checkpoints and every other upload of the
@@ -124,24 +151,7 @@ mod tests {
     use std::sync::Arc;
 
     fn record(bytes: &[u8]) -> CompletionRecord {
-        use sha2::{Digest, Sha256};
-        CompletionRecord {
-            shard: 0,
-            schema_version: sparc3d_schema::SCHEMA_VERSION,
-            fingerprint: "fp".into(),
-            rows: 1,
-            ok: 1,
-            failed: 0,
-            error_classes: Default::default(),
-            bytes: bytes.len() as u64,
-            sha256: sparc3d_schema::config::hex(&Sha256::digest(bytes)),
-            stamp: None,
-            object: None,
-            content_digest: String::new(),
-            item_seconds: 0.0,
-            started_at: 0.0,
-            finished_at: 0.0,
-        }
+        crate::integrity::tests::record(bytes, None)
     }
 
     /// Two writers of one shard (the second one's lease taken after the first lost it): the

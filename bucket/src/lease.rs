@@ -6,16 +6,20 @@
 //! stale lease cannot both win.
 //!
 //! The holder renews it from a heartbeat thread every third of its time to live. A renewal
-//! that is refused means another worker took the lease over (it had expired): the holder has
-//! lost it, as it has when its expiry passes without a renewal (network cut, stopped
-//! process). [`BucketLease::confirm`] renews at once and is the fence before a checkpoint and
-//! before the shard's commit: what follows a confirmed renewal happens while the lease was
-//! held a moment before, and the commit itself is a create-if-absent write, so a holder that
-//! lost its lease in between cannot replace a shard another one finished.
+//! that is refused means another worker took the lease over (it had expired), unless the
+//! object holds this holder's own last write (whose answer was lost: then that version is
+//! held); with no object there, the lease (or the bucket) was deleted. Either way the holder
+//! has lost it, as it has when its expiry passes without a renewal (network cut, stopped
+//! process). [`BucketLease::confirm`] renews at once, trying again while the lease is valid
+//! when the bucket cannot be reached, and is the fence before a checkpoint and before the
+//! shard's commit: what follows a confirmed renewal happens while the lease was held a moment
+//! before, and the commit itself is a create-if-absent write, so a holder that lost its lease
+//! in between cannot replace a shard another one finished.
 
 use crate::keys;
 use anyhow::{Context, Result};
 use sparc3d_sources::objects::{Prefix, Version, WriteMode, Written};
+use sparc3d_sources::FetchErrorKind;
 use sparc3d_workers::lease::{hostname, LeaseInfo};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -24,6 +28,18 @@ use std::time::Duration;
 
 /// Takes over a stale lease at most this many times in one [`acquire`].
 const TAKEOVER_TRIES: usize = 8;
+
+/// The longest wait between two tries of a renewal that could not reach the bucket.
+const RENEW_WAIT_MAX: Duration = Duration::from_secs(5);
+
+/// Why a renewal did not renew.
+#[derive(Debug)]
+enum Renewal {
+    /// The lease is this worker's no more (taken over, expired, or its object gone).
+    Lost(String),
+    /// The bucket could not be written or read; the lease may still be held.
+    Failed(String),
+}
 
 /// The outcome of [`acquire`].
 #[derive(Debug)]
@@ -176,9 +192,27 @@ impl BucketLease {
         }
     }
 
-    /// Renews the lease now: `Ok` while it is this worker's, else why it was lost.
+    /// Renews the lease now: `Ok` while it is this worker's, else why it was lost. A renewal
+    /// that cannot reach the bucket is tried again, with a wait doubling from 0.2 s, while the
+    /// lease is still valid: a blip of the store shorter than what is left of the lease fails
+    /// nothing; past its expiry the lease is lost.
     pub fn confirm(&self) -> std::result::Result<(), String> {
-        self.beater().renew()
+        let beater = self.beater();
+        let mut wait = Duration::from_millis(200);
+        loop {
+            let failed = match beater.renew() {
+                Ok(()) => return Ok(()),
+                Err(Renewal::Lost(why)) => return Err(why),
+                Err(Renewal::Failed(why)) => why,
+            };
+            let left = beater.left();
+            if left <= 0.0 {
+                let why = beater.check().unwrap_or_default();
+                return Err(format!("{why}; the last renewal failed: {failed}"));
+            }
+            std::thread::sleep(wait.min(Duration::from_secs_f64(left)));
+            wait = (wait * 2).min(RENEW_WAIT_MAX);
+        }
     }
 
     /// Why the lease is lost, if it is (no I/O: the expiry is checked against the clock).
@@ -250,13 +284,28 @@ impl Beater {
         })
     }
 
+    /// The seconds left before the lease expires (no I/O).
+    fn left(&self) -> f64 {
+        let expires_at = self.shared.version.lock().map(|v| v.1).unwrap_or(0.0);
+        expires_at - sparc3d_workers::now()
+    }
+
+    fn gone(&self) -> Renewal {
+        Renewal::Lost(self.lose(format!(
+            "lease {} is gone: the lease object (or its bucket) was deleted while this worker \
+             held it, so nothing more is written for the shard (was the job's prefix or bucket \
+             deleted?)",
+            self.prefix.url(&self.key)
+        )))
+    }
+
     /// One renewal: replaces exactly the version this holder wrote last.
-    fn renew(&self) -> std::result::Result<(), String> {
+    fn renew(&self) -> std::result::Result<(), Renewal> {
         if let Some(why) = self.check() {
-            return Err(why);
+            return Err(Renewal::Lost(why));
         }
         let Ok(mut version) = self.shared.version.lock() else {
-            return Err("lease state poisoned".into());
+            return Err(Renewal::Lost("lease state poisoned".into()));
         };
         let info = fresh(&self.owner, self.ttl, self.acquired_at);
         let mode = WriteMode::Replace(version.0.clone());
@@ -265,24 +314,40 @@ impl Beater {
                 *version = (written, info.expires_at);
                 Ok(())
             }
-            Ok(Written::Refused) => {
-                drop(version);
-                let now_held_by = self
-                    .prefix
-                    .get(&self.key)
-                    .ok()
-                    .flatten()
-                    .and_then(|o| serde_json::from_slice::<LeaseInfo>(&o.bytes).ok())
-                    .map(|h| format!(", and {} holds it now", h.owner))
-                    .unwrap_or_default();
-                Err(self.lose(format!(
-                    "lease {} was taken over by another worker{now_held_by}",
-                    self.prefix.url(&self.key)
-                )))
-            }
-            // A failed write is retried at the next beat; the expiry decides when it is lost.
-            Err(e) => Err(format!("renewing lease: {e}")),
+            Ok(Written::Refused) => self.refused(&mut version),
+            Err(e) if e.kind == FetchErrorKind::NotFound => Err(self.gone()),
+            // Tried again by `confirm` and at the next beat; the expiry decides when it is lost.
+            Err(e) => Err(Renewal::Failed(format!("renewing lease: {e}"))),
         }
+    }
+
+    /// After a refused renewal: the object holds another holder's lease (taken over), none
+    /// (deleted), or this holder's own last write, whose answer was lost on the way (a cut
+    /// connection, or a retry of a write that had landed): then that is the version held.
+    fn refused(&self, version: &mut (Version, f64)) -> std::result::Result<(), Renewal> {
+        let current = match self.prefix.get(&self.key) {
+            Ok(Some(current)) => current,
+            Ok(None) => return Err(self.gone()),
+            Err(e) => return Err(Renewal::Failed(format!("reading the lease back: {e}"))),
+        };
+        let holder = serde_json::from_slice::<LeaseInfo>(&current.bytes).ok();
+        // The owner name holds the host, the process and a nonce; `acquired_at` is compared
+        // within a millisecond, as serde_json's default float parsing may miss the last bit.
+        if let Some(mine) = holder.as_ref().filter(|h| {
+            h.owner == self.owner
+                && h.pid == std::process::id()
+                && (h.acquired_at - self.acquired_at).abs() < 1e-3
+        }) {
+            *version = (current.version, mine.expires_at);
+            return Ok(());
+        }
+        let now_held_by = holder
+            .map(|h| format!(", and {} holds it now", h.owner))
+            .unwrap_or_default();
+        Err(Renewal::Lost(self.lose(format!(
+            "lease {} was taken over by another worker{now_held_by}",
+            self.prefix.url(&self.key)
+        ))))
     }
 }
 
@@ -341,6 +406,54 @@ pub(crate) mod tests {
         };
         assert_eq!(read(&prefix, 0)?.map(|h| h.owner), Some("c".to_string()));
         c.release();
+        Ok(())
+    }
+
+    /// Issue 41, defect 7: a lease deleted under its holder (the bucket or the job's prefix
+    /// deleted mid-run) is said to be gone, not taken over by another worker.
+    #[test]
+    fn a_deleted_lease_is_gone_not_taken_over() -> Result<()> {
+        let prefix = memory_prefix();
+        let stop = flag();
+        let Acquired::Held(a) = acquire(&prefix, 2, "a", 60.0, Arc::clone(&stop))? else {
+            panic!("a free lease is taken")
+        };
+        prefix.delete(&keys::lease(2))?;
+        let why = a.confirm().expect_err("the renewal finds no lease");
+        assert!(why.contains("is gone") && why.contains("deleted"), "{why}");
+        assert!(!why.contains("taken over"), "{why}");
+        assert!(stop.load(Ordering::SeqCst), "the item loop is told to stop");
+        Ok(())
+    }
+
+    /// A renewal whose write landed but whose answer was lost (the connection cut on the way
+    /// back, or a retry of it refused) finds its own lease there and holds it still.
+    #[test]
+    fn a_holder_that_finds_its_own_last_write_still_holds_the_lease() -> Result<()> {
+        let prefix = memory_prefix();
+        let stop = flag();
+        let Acquired::Held(a) = acquire(&prefix, 4, "a", 60.0, Arc::clone(&stop))? else {
+            panic!("a free lease is taken")
+        };
+        // The write of a renewal the holder never heard back from: its own lease, a new ETag.
+        let Some(mine) = read(&prefix, 4)? else {
+            panic!("the lease is there")
+        };
+        let landed = LeaseInfo {
+            heartbeat_at: mine.heartbeat_at + 1.0,
+            expires_at: mine.expires_at + 1.0,
+            ..mine
+        };
+        prefix.put(&keys::lease(4), bytes(&landed), WriteMode::Overwrite)?;
+        assert_eq!(a.confirm(), Ok(()), "its own write is not another worker's");
+        assert_eq!(
+            a.confirm(),
+            Ok(()),
+            "and the version read back is the one renewed"
+        );
+        assert!(a.lost().is_none() && !stop.load(Ordering::SeqCst));
+        a.release();
+        assert!(read(&prefix, 4)?.is_none());
         Ok(())
     }
 

@@ -5,7 +5,9 @@
 //! progress as checkpoint objects ([`checkpoint`]) and the finished shard under a name of its
 //! own, committed by creating the completion record that names it ([`commit`]). `init`
 //! uploads a job made locally ([`publish`]); the read-only commands read a local view
-//! ([`view`]) kept in a scratch folder per job URL ([`scratch`]).
+//! ([`view`]) kept in a scratch folder per job URL ([`scratch`]), trusted only while the
+//! bucket still holds the objects it was copied from ([`integrity`]); `verify` hashes the
+//! objects in the bucket ([`verify`]).
 //!
 //! docs/RELIABILITY.md, "Jobs in a bucket", says what is guaranteed; docs/CLUSTER.md how to
 //! run one.
@@ -14,12 +16,14 @@
 pub mod checkpoint;
 pub mod commit;
 pub mod home;
+pub mod integrity;
 pub mod keys;
 pub mod lease;
 pub mod publish;
 pub mod quarantine;
 pub mod retry;
 pub mod scratch;
+pub mod verify;
 pub mod view;
 pub mod work;
 

@@ -1,7 +1,9 @@
-//! A damaged shard of a job in a bucket moved aside, as `verify` does on disk: its record and
-//! the upload it names are copied under `quarantine/part-NNNNN-<ms>/` with a `reason.txt`
-//! (nothing is lost), then the record is deleted (the shard is unfinished again, and the next
-//! `run` or `work` converts it), then the upload, which no record names any more.
+//! A damaged shard of a job in a bucket moved aside, as `verify` and `run` do on disk: its
+//! record and the upload it names (when it is there) are copied under
+//! `quarantine/part-NNNNN-<ms>/` with a `reason.txt` (nothing is lost), then the record is
+//! deleted (the shard is unfinished again, and the next `run` or `work` converts it), then the
+//! upload, which no record names any more. The caller holds the shard's lease (`verify`, or
+//! the worker about to convert the shard again).
 
 use crate::commit::read_record;
 use crate::keys;

@@ -8,7 +8,7 @@ use anyhow::{bail, Context, Result};
 use sha2::{Digest, Sha256};
 use sparc3d_sources::objects::Prefix;
 use sparc3d_sources::RemoteUrl;
-use sparc3d_workers::Job;
+use sparc3d_workers::{Job, WorkerError};
 use std::path::{Path, PathBuf};
 
 /// The scratch folder of the job at `url`: `base` (else `SPARC3D_SCRATCH`, else the temporary
@@ -48,11 +48,43 @@ pub fn pull_job(prefix: &Prefix<'_>, dir: &Path, read_only: bool) -> Result<(Job
     };
     replace(&dir.join(keys::MANIFEST), &manifest.bytes)?;
     replace(&dir.join(keys::JOB_FILE), &job_file.bytes)?;
-    if read_only {
-        Ok(Job::open_read_only(dir)?)
+    let opened = if read_only {
+        Job::open_read_only(dir)
     } else {
-        Ok((Job::open(dir)?, Vec::new()))
-    }
+        Job::open(dir).map(|job| (job, Vec::new()))
+    };
+    opened.map_err(|e| damaged(prefix, dir, e))
+}
+
+/// The error of a bucket job whose files the local copy in `dir` refused: said of the
+/// bucket's objects (the copy is only where they were checked), with what to do.
+fn damaged(prefix: &Prefix<'_>, dir: &Path, e: WorkerError) -> anyhow::Error {
+    let what = match e {
+        WorkerError::BadFile { path, reason } if path.starts_with(dir) => {
+            let name = path
+                .strip_prefix(dir)
+                .unwrap_or(&path)
+                .display()
+                .to_string();
+            format!("{}: {reason}", prefix.url(&name))
+        }
+        WorkerError::EditedJob { problems, .. } => format!(
+            "its files are not as `sparc3d init` wrote them: {}",
+            problems.join("; ")
+        ),
+        other => return other.into(),
+    };
+    anyhow::anyhow!(
+        "the job at {} is damaged: {what} (checked in a local copy in {}). If {} or {} were \
+         edited, restore them as `init` wrote them; if they come from two `init`s at once with \
+         different manifests (possible before sparc3d refused that), the job cannot be \
+         repaired: make it again under another prefix, or delete every object under that \
+         prefix and run `init` again",
+        prefix.root().to_string().trim_end_matches('/'),
+        dir.display(),
+        prefix.url(keys::JOB_FILE),
+        prefix.url(keys::MANIFEST),
+    )
 }
 
 /// Writes `bytes` at `path` unless it holds them already (atomically: a temporary file, then

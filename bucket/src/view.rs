@@ -1,26 +1,32 @@
 //! What the read-only commands see of a job whose home is a bucket.
 //!
 //! - [`shard_states`]: each shard's state from one listing of `shards/` and the leases: done
-//!   (a record whose object is there with the recorded size), running (a live lease), pending,
-//!   or damaged (a record whose object is missing or of another size); the checkpoints of the
+//!   (a record whose object is there as recorded: its size, and its ETag when the record has
+//!   one), running (a live lease), pending, or damaged (a record whose object is missing, of
+//!   another size or replaced: [`crate::integrity::object_mismatch`]); the checkpoints of the
 //!   unfinished shards are brought into the local copy, so that `status` counts their items.
-//! - [`mirror`]: a job folder made of the bucket's finished shards, each downloaded once (kept
-//!   while its record is unchanged) and hashed on the way, for `ls`, `failures`, `inspect`,
-//!   `show`, `export`, `report` and `verify`. A download that does not match its record keeps
-//!   the record's size and sha256, so those commands report the shard as damaged, as they
-//!   would on disk.
+//! - [`mirror`]: a job folder made of the bucket's finished shards, for `ls`, `failures`,
+//!   `inspect`, `show`, `export`, `report`, `validate`, `eval` and `retry`, each downloaded
+//!   once and hashed on the way, and kept only while the listing shows the object it was
+//!   copied from (same ETag and size). A download that does not match its record keeps the
+//!   record's size and sha256, and a missing object leaves the record without its file, so
+//!   those commands report the shard as damaged, as they would on disk. (`verify` reads the
+//!   bucket itself: [`crate::verify`].)
 
 use crate::commit::read_record;
+use crate::integrity::object_mismatch;
 use crate::keys;
 use anyhow::{Context, Result};
 use sparc3d_schema::CompletionRecord;
+use sparc3d_sources::list::Listed;
 use sparc3d_sources::objects::Prefix;
+use sparc3d_sources::FetchErrorKind;
 use sparc3d_workers::store::state::ShardState;
 use sparc3d_workers::Job;
 use std::collections::BTreeMap;
 
-/// The objects under `shards/`, by name, with their sizes.
-fn shard_objects(prefix: &Prefix<'_>) -> Result<BTreeMap<String, u64>> {
+/// The objects under `shards/`, by name, as listed (size and ETag).
+fn shard_objects(prefix: &Prefix<'_>) -> Result<BTreeMap<String, Listed>> {
     let found = prefix
         .list(keys::SHARDS)
         .with_context(|| format!("listing {}", prefix.url(keys::SHARDS)))?;
@@ -28,7 +34,7 @@ fn shard_objects(prefix: &Prefix<'_>) -> Result<BTreeMap<String, u64>> {
         .into_iter()
         .map(|l| {
             let key = prefix.relative_key(&l);
-            (key.trim_start_matches(keys::SHARDS).to_string(), l.size)
+            (key.trim_start_matches(keys::SHARDS).to_string(), l)
         })
         .collect())
 }
@@ -59,19 +65,15 @@ pub fn shard_states(prefix: &Prefix<'_>, job: &Job) -> Result<Vec<ShardState>> {
 fn finished_state(
     prefix: &Prefix<'_>,
     shard: u64,
-    objects: &BTreeMap<String, u64>,
+    objects: &BTreeMap<String, Listed>,
 ) -> Result<ShardState> {
     let Some(record) = read_record(prefix, shard)? else {
         return Ok(ShardState::Pending);
     };
-    let name = object_name(shard, &record);
-    Ok(match objects.get(&name) {
-        Some(&size) if size == record.bytes => ShardState::Done(record),
-        Some(&size) => ShardState::Damaged(format!(
-            "its object {name} has {size} bytes, its record says {}",
-            record.bytes
-        )),
-        None => ShardState::Damaged(format!("its object {name} is missing")),
+    let found = objects.get(&object_name(shard, &record));
+    Ok(match object_mismatch(shard, &record, found) {
+        None => ShardState::Done(record),
+        Some(why) => ShardState::Damaged(why),
     })
 }
 
@@ -88,58 +90,121 @@ fn unfinished_state(prefix: &Prefix<'_>, job: &Job, shard: u64) -> Result<ShardS
 /// otherwise: a read-only command on a large job would otherwise copy the whole dataset.
 pub const DEFAULT_MAX_BYTES: u64 = 20 << 30;
 
+/// What [`mirror`] did.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Mirrored {
+    /// Shards downloaded now.
+    pub fetched: u64,
+    /// Finished shards whose object the listing shows is not the one their record names
+    /// (missing, of another size, replaced), with why; the commands reading the copy report a
+    /// missing or changed one as damaged.
+    pub damaged: Vec<(u64, String)>,
+}
+
 /// Makes `job`'s folder (a local copy of the bucket job's files) hold every finished shard of
-/// the bucket as a job folder does: `shards/part-NNNNN.parquet` and its record. Shards already
-/// there under an unchanged record are kept. Returns how many were downloaded. More than
-/// `SPARC3D_VIEW_MAX_BYTES` (default [`DEFAULT_MAX_BYTES`]) to download is refused before
-/// anything is, naming the size.
-pub fn mirror(prefix: &Prefix<'_>, job: &Job) -> Result<u64> {
+/// the bucket as a job folder does: `shards/part-NNNNN.parquet` and its record. A local copy
+/// is kept only while its record is unchanged and the listing shows the object it was copied
+/// from (its ETag, recorded in the local record's `object_etag`, and its size); any other is
+/// downloaded again. A shard whose object is missing keeps its record without the file, so
+/// that it reads as damaged. More than `SPARC3D_VIEW_MAX_BYTES` (default
+/// [`DEFAULT_MAX_BYTES`]) to download is refused before anything is, naming the size.
+pub fn mirror(prefix: &Prefix<'_>, job: &Job) -> Result<Mirrored> {
     let layout = &job.layout;
     std::fs::create_dir_all(layout.shards_dir())
         .with_context(|| format!("creating {}", layout.shards_dir().display()))?;
+    let objects = shard_objects(prefix)?;
     let mut todo = Vec::new();
+    let mut damaged = Vec::new();
     for shard in 0..job.file.shards {
         let Some(record) = read_record(prefix, shard)? else {
             let _ = std::fs::remove_file(layout.completion(shard));
             let _ = std::fs::remove_file(layout.shard_file(shard));
             continue;
         };
-        let local = CompletionRecord {
-            object: None,
-            ..record.clone()
-        };
-        if !kept(job, shard, &local) {
-            todo.push((shard, record, local));
+        let listed = objects.get(&object_name(shard, &record));
+        if let Some(why) = object_mismatch(shard, &record, listed) {
+            damaged.push((shard, why));
+        }
+        match listed {
+            None => without_object(job, shard, &record)?,
+            Some(l) if kept(job, shard, &record, l) => {}
+            Some(_) => todo.push((shard, record)),
         }
     }
     check_size(prefix, &todo)?;
     let fetched = todo.len() as u64;
-    for (shard, record, local) in todo {
-        let _ = std::fs::remove_file(layout.completion(shard));
-        let name = object_name(shard, &record);
-        let file = layout.shard_file(shard);
-        let got = prefix
-            .download(&keys::data(&name), &file)
-            .with_context(|| format!("downloading shard {shard}"))?;
-        // A stamp only when the bytes are the recorded ones: otherwise every check hashes the
-        // file and finds it damaged.
-        let stamp = (got.sha256 == record.sha256 && got.bytes == record.bytes)
-            .then(|| std::fs::metadata(&file).ok())
-            .flatten()
-            .map(|m| sparc3d_workers::fsutil::file_stamp(&m));
-        let local = CompletionRecord { stamp, ..local };
-        let bytes = serde_json::to_vec_pretty(&local)?;
-        crate::scratch::replace(&layout.completion(shard), &bytes)?;
+    for (shard, record) in todo {
+        if !fetch(prefix, job, shard, &record)? {
+            let name = object_name(shard, &record);
+            damaged.push((
+                shard,
+                format!("its object shards/{name} is missing from the bucket"),
+            ));
+        }
     }
-    Ok(fetched)
+    Ok(Mirrored { fetched, damaged })
+}
+
+/// The bucket's `record` as the local copy holds it: no object name (the file is
+/// `part-NNNNN.parquet`), the local file's `stamp` and the ETag of the object copied.
+fn local_record(
+    record: &CompletionRecord,
+    stamp: Option<sparc3d_schema::FileStamp>,
+    object_etag: Option<String>,
+) -> CompletionRecord {
+    CompletionRecord {
+        object: None,
+        stamp,
+        object_etag,
+        ..record.clone()
+    }
+}
+
+/// A finished shard whose object is missing from the bucket: its record without the file, as
+/// a job folder that lost a shard file has it.
+fn without_object(job: &Job, shard: u64, record: &CompletionRecord) -> Result<()> {
+    let file = job.layout.shard_file(shard);
+    match std::fs::remove_file(&file) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+            return Err(e).with_context(|| format!("removing {}", file.display()))
+        }
+        _ => {}
+    }
+    let bytes = serde_json::to_vec_pretty(&local_record(record, None, None))?;
+    crate::scratch::replace(&job.layout.completion(shard), &bytes)
+}
+
+/// Downloads `shard`'s object into the local copy, hashing it on the way, and writes its
+/// local record; `false` when the object was gone by then.
+fn fetch(prefix: &Prefix<'_>, job: &Job, shard: u64, record: &CompletionRecord) -> Result<bool> {
+    let layout = &job.layout;
+    let _ = std::fs::remove_file(layout.completion(shard));
+    let key = keys::data(&object_name(shard, record));
+    let file = layout.shard_file(shard);
+    let got = match prefix.download(&key, &file) {
+        Ok(got) => got,
+        Err(e) if e.kind == FetchErrorKind::NotFound => {
+            without_object(job, shard, record)?;
+            return Ok(false);
+        }
+        Err(e) => {
+            return Err(e).with_context(|| format!("downloading shard {shard} ({key})"));
+        }
+    };
+    // A stamp only when the bytes are the recorded ones: otherwise every check hashes the
+    // file and finds it damaged.
+    let stamp = (got.sha256 == record.sha256 && got.bytes == record.bytes)
+        .then(|| std::fs::metadata(&file).ok())
+        .flatten()
+        .map(|m| sparc3d_workers::fsutil::file_stamp(&m));
+    let bytes = serde_json::to_vec_pretty(&local_record(record, stamp, got.etag))?;
+    crate::scratch::replace(&layout.completion(shard), &bytes)?;
+    Ok(true)
 }
 
 /// Refuses a download of more than the view's byte budget.
-fn check_size(
-    prefix: &Prefix<'_>,
-    todo: &[(u64, CompletionRecord, CompletionRecord)],
-) -> Result<()> {
-    let bytes: u64 = todo.iter().map(|(_, r, _)| r.bytes).sum();
+fn check_size(prefix: &Prefix<'_>, todo: &[(u64, CompletionRecord)]) -> Result<()> {
+    let bytes: u64 = todo.iter().map(|(_, r)| r.bytes).sum();
     let max = match std::env::var("SPARC3D_VIEW_MAX_BYTES") {
         Ok(v) => v
             .trim()
@@ -162,8 +227,9 @@ fn check_size(
 }
 
 /// Whether the local copy of `shard` is the bucket's: its record is `record` (but for the
-/// stamp) and its file is there with the recorded size.
-fn kept(job: &Job, shard: u64, record: &CompletionRecord) -> bool {
+/// stamp and the ETag), its file is there with the recorded size, and it was copied from the
+/// object `listed` (the same ETag; a store that lists no ETag gets no trust).
+fn kept(job: &Job, shard: u64, record: &CompletionRecord, listed: &Listed) -> bool {
     let layout = &job.layout;
     let Ok(bytes) = std::fs::read(layout.completion(shard)) else {
         return false;
@@ -171,13 +237,10 @@ fn kept(job: &Job, shard: u64, record: &CompletionRecord) -> bool {
     let Ok(have) = serde_json::from_slice::<CompletionRecord>(&bytes) else {
         return false;
     };
-    let same = CompletionRecord {
-        stamp: None,
-        ..have.clone()
-    } == CompletionRecord {
-        stamp: None,
-        ..record.clone()
-    };
+    let copied_from = have.object_etag.clone();
+    let same = local_record(&have, None, None) == local_record(record, None, None);
     let size = std::fs::metadata(layout.shard_file(shard)).map(|m| m.len());
-    same && size.is_ok_and(|s| s == record.bytes)
+    same && copied_from.is_some()
+        && copied_from == listed.etag
+        && size.is_ok_and(|s| s == record.bytes)
 }

@@ -5,7 +5,8 @@
 //! the shard and create its record ([`crate::commit`]).
 
 use crate::checkpoint::Checkpoints;
-use crate::commit::{push, read_record, Pushed};
+use crate::commit::{push, Pushed};
+use crate::integrity::{finished, Finished};
 use crate::keys;
 use crate::lease::{acquire, Acquired, BucketLease};
 use anyhow::{Context, Result};
@@ -28,9 +29,10 @@ pub fn work_shard(
     opts: &mut WorkOptions,
     every: Duration,
 ) -> Result<ShardOutcome> {
-    if let Some(r) = read_record(prefix, shard)? {
+    // A damaged record is moved aside under the lease (below), never outside it.
+    if let Finished::Done(r) = finished(prefix, shard)? {
         skipped(opts, shard, "already done");
-        return Ok(ShardOutcome::AlreadyDone(r));
+        return Ok(ShardOutcome::AlreadyDone(*r));
     }
     let owner = owner_name();
     let shard_stop = Arc::new(AtomicBool::new(false));
@@ -90,9 +92,11 @@ struct Leased<'a> {
 impl Leased<'_> {
     /// Processes the shard in the scratch copy and pushes it to the bucket.
     fn work(&self, opts: &mut WorkOptions, every: Duration) -> Result<ShardOutcome> {
-        // Finished between our look and our lease.
-        if let Some(r) = read_record(self.prefix, self.shard)? {
-            return Ok(ShardOutcome::AlreadyDone(r));
+        // Finished between our look and our lease, or finished but damaged.
+        match finished(self.prefix, self.shard)? {
+            Finished::No => {}
+            Finished::Done(r) => return Ok(ShardOutcome::AlreadyDone(*r)),
+            Finished::Damaged(why) => self.set_aside(opts, &why)?,
         }
         pull_checkpoints(self.prefix, self.job, self.shard)?;
         let checkpoints = Arc::new(Mutex::new(Checkpoints::new(
@@ -107,6 +111,22 @@ impl Leased<'_> {
             Ok(ShardOutcome::Done(r)) | Ok(ShardOutcome::AlreadyDone(r)) => self.push(opts, &r),
             other => self.stopped(opts, other, &checkpoints),
         }
+    }
+
+    /// Moves the shard, whose record's object is missing, of another size or replaced, aside
+    /// in the bucket ([`crate::quarantine`]), so that it is converted again here.
+    fn set_aside(&self, opts: &mut WorkOptions, why: &str) -> Result<()> {
+        let shard = self.shard;
+        self.held
+            .confirm()
+            .map_err(|lost| anyhow::anyhow!("shard {shard}: not moved aside: {lost}"))?;
+        let moved_to = crate::quarantine::quarantine(self.prefix, shard, why)?;
+        (opts.events)(Event::ShardDamaged {
+            shard,
+            reason: why.to_string(),
+            moved_to: moved_to.unwrap_or_default(),
+        });
+        Ok(())
     }
 
     /// The item loop of `sparc3d_workers` in the scratch copy, checkpointing after items and
@@ -142,7 +162,7 @@ impl Leased<'_> {
         if let Some(why) = self.held.lost() {
             let message = format!(
                 "shard {}: this worker lost its lease {}: {why}; it stops here and leaves the \
-                 shard to the new holder",
+                 shard to whichever worker takes it next",
                 self.shard,
                 self.prefix.url(&keys::lease(self.shard))
             );

@@ -94,6 +94,19 @@ fn tokens(text: &str) -> Result<Vec<Token>> {
     Ok(out)
 }
 
+/// What a parse error says it found: the token in plain words, or the filter's end.
+fn found(t: Option<&Token>) -> String {
+    match t {
+        None => "the end of the filter".into(),
+        Some(Token::Word { text, quoted: true }) => format!("the quoted value {text:?}"),
+        Some(Token::Word {
+            text,
+            quoted: false,
+        }) => format!("the word {text:?}"),
+        Some(Token::Mark(m)) => format!("`{m}`"),
+    }
+}
+
 /// Whether `t` is the bare keyword `kw` (any case).
 fn is_keyword(t: Option<&Token>, kw: &str) -> bool {
     matches!(t, Some(Token::Word { text, quoted: false }) if text.eq_ignore_ascii_case(kw))
@@ -116,7 +129,11 @@ impl Parser<'_> {
     fn word(&mut self, what: &str) -> Result<String> {
         match self.next() {
             Some(Token::Word { text, .. }) => Ok(text),
-            other => bail!("--where {:?}: expected {what}, found {other:?}", self.text),
+            other => bail!(
+                "--where {:?}: expected {what}, found {}",
+                self.text,
+                found(other.as_ref())
+            ),
         }
     }
 
@@ -124,8 +141,9 @@ impl Parser<'_> {
         match self.next() {
             Some(Token::Mark(m)) if m == mark => Ok(()),
             other => bail!(
-                "--where {:?}: expected `{mark}`, found {other:?}",
-                self.text
+                "--where {:?}: expected `{mark}`, found {}",
+                self.text,
+                found(other.as_ref())
             ),
         }
     }
@@ -139,8 +157,9 @@ impl Parser<'_> {
                 Some(Token::Mark(")")) => return Ok(values),
                 Some(Token::Mark(",")) => values.push(self.word("a value")?),
                 other => bail!(
-                    "--where {:?}: expected `,` or `)`, found {other:?}",
-                    self.text
+                    "--where {:?}: expected `,` or `)`, found {}",
+                    self.text,
+                    found(other.as_ref())
                 ),
             }
         }
@@ -153,14 +172,20 @@ impl Parser<'_> {
             Some(Token::Mark("!=")) => (true, vec![self.word("a value")?]),
             t if is_keyword(t.as_ref(), "in") => (false, self.list()?),
             t if is_keyword(t.as_ref(), "not") => {
-                if !is_keyword(self.next().as_ref(), "in") {
-                    bail!("--where {:?}: expected `in` after `not`", self.text);
+                let after = self.next();
+                if !is_keyword(after.as_ref(), "in") {
+                    bail!(
+                        "--where {:?}: expected `in` after `not`, found {}",
+                        self.text,
+                        found(after.as_ref())
+                    );
                 }
                 (true, self.list()?)
             }
             other => bail!(
-                "--where {:?}: expected `=`, `!=`, `in` or `not in` after {column}, found {other:?}",
-                self.text
+                "--where {:?}: expected `=`, `!=`, `in` or `not in` after {column}, found {}",
+                self.text,
+                found(other.as_ref())
             ),
         };
         Ok(Condition {
@@ -182,8 +207,12 @@ impl Filter {
         };
         let mut conditions = vec![p.condition()?];
         while p.at < tokens.len() {
-            if !is_keyword(p.next().as_ref(), "and") {
-                bail!("--where {text:?}: conditions are joined by `and`");
+            let joint = p.next();
+            if !is_keyword(joint.as_ref(), "and") {
+                bail!(
+                    "--where {text:?}: conditions are joined by `and`, found {}",
+                    found(joint.as_ref())
+                );
             }
             conditions.push(p.condition()?);
         }
@@ -286,6 +315,28 @@ mod tests {
             "",
         ] {
             assert!(Filter::parse(bad).is_err(), "{bad}");
+        }
+        // Issue 41, defect 7: what was found is said in words, never as Rust debug text.
+        for (bad, said) in [
+            ("type license", "after type, found the word \"license\""),
+            (
+                "license in (cc0 'by')",
+                "expected `,` or `)`, found the quoted value \"by\"",
+            ),
+            ("license in", "expected `(`, found the end of the filter"),
+            ("= cc0", "expected a column name, found `=`"),
+            (
+                "license = cc0 or x = y",
+                "joined by `and`, found the word \"or\"",
+            ),
+            ("license not (cc0)", "expected `in` after `not`, found `(`"),
+        ] {
+            let e = Filter::parse(bad)
+                .err()
+                .map(|e| e.to_string())
+                .unwrap_or_default();
+            assert!(e.contains(said), "{bad}: {e}");
+            assert!(!e.contains("Some(") && !e.contains("Word {"), "{e}");
         }
         let e = ids("licence = cc0", &rows)
             .err()

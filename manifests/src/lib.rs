@@ -2,7 +2,8 @@
 //! ([`table`], its path column chosen by one rule: [`path_column`]) and written by `manifest
 //! build` ([`mod@write`]), or made by scanning a folder ([`folder_scan`]) or listing a bucket
 //! prefix ([`bucket_scan`]); files identified by
-//! their sha256 ([`hash`]); every other column kept as provenance; rows chosen by `--where`
+//! their sha256 ([`hash`]); column names read without case, two that fold to one refused
+//! ([`columns`]); every other column kept as provenance; rows chosen by `--where`
 //! ([`filter`]); and the rows frozen into a job's items, each with its index and shard, or
 //! appended to a growing job ([`freeze`], [`record`]).
 //!
@@ -12,6 +13,7 @@
 #![deny(missing_docs)]
 
 pub mod bucket_scan;
+pub mod columns;
 pub mod filter;
 pub mod folder_scan;
 pub mod freeze;

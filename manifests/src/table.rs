@@ -2,7 +2,8 @@
 //! a path column is a manifest (which column: [`crate::path_column`], one rule for the whole
 //! manifest); `id` (or `sha256`) is optional. Relative paths are resolved against the
 //! manifest's folder; URLs are kept as they are. Every other column is kept as provenance ([`RawRecord::extra`]).
-//! Column names are lower-cased.
+//! Column names are read without case; two that are one name without it are refused
+//! ([`crate::columns`]).
 
 use crate::path_column::PathColumn;
 use crate::record::{ManifestRecord, KNOWN_COLUMNS, PATH_COLUMNS};
@@ -168,10 +169,12 @@ fn read_parquet_table(path: &Path) -> Result<Vec<BTreeMap<String, String>>> {
     for batch in reader {
         let batch = batch.with_context(|| format!("reading {}", path.display()))?;
         let schema = batch.schema();
+        let names: Vec<&str> = schema.fields().iter().map(|f| f.name().as_str()).collect();
+        let names = crate::columns::folded(&names, path, "the schema")?;
         for i in 0..batch.num_rows() {
             let mut m = BTreeMap::new();
-            for (f, col) in schema.fields().iter().zip(batch.columns()) {
-                let name = f.name().to_ascii_lowercase();
+            for (name, col) in names.iter().zip(batch.columns()) {
+                let name = name.clone();
                 let known =
                     KNOWN_COLUMNS.contains(&name.as_str()) || PATH_COLUMNS.contains(&name.as_str());
                 let value = match string_at(col.as_ref(), i) {
@@ -204,12 +207,12 @@ pub fn read(path: &Path, path_column: Option<&str>) -> Result<Manifest> {
                 .delimiter(if ext(path) == "tsv" { b'\t' } else { b',' })
                 .from_path(path)
                 .with_context(|| format!("opening {}", path.display()))?;
-            let headers: Vec<String> = r
+            let header = r
                 .headers()
                 .with_context(|| format!("reading {}", path.display()))?
-                .iter()
-                .map(|h| h.trim().to_ascii_lowercase())
-                .collect();
+                .clone();
+            let names: Vec<&str> = header.iter().collect();
+            let headers = crate::columns::folded(&names, path, "the header")?;
             let mut rows = Vec::new();
             for rec in r.records() {
                 let rec = rec.with_context(|| format!("reading {}", path.display()))?;
@@ -233,12 +236,15 @@ pub fn read(path: &Path, path_column: Option<&str>) -> Result<Manifest> {
                 }
                 let v: serde_json::Map<String, serde_json::Value> = serde_json::from_str(line)
                     .with_context(|| format!("{}: line {}", path.display(), n + 1))?;
+                let names: Vec<&str> = v.keys().map(String::as_str).collect();
+                let keys = crate::columns::folded(&names, path, &format!("line {}", n + 1))?;
                 rows.push(
-                    v.into_iter()
+                    keys.into_iter()
+                        .zip(v.into_iter().map(|(_, v)| v))
                         .filter_map(|(k, v)| match v {
-                            serde_json::Value::String(s) => Some((k.to_ascii_lowercase(), s)),
+                            serde_json::Value::String(s) => Some((k, s)),
                             serde_json::Value::Null => None,
-                            other => Some((k.to_ascii_lowercase(), other.to_string())),
+                            other => Some((k, other.to_string())),
                         })
                         .collect(),
                 );
@@ -285,6 +291,67 @@ mod tests {
         assert_eq!(extra(&m.records[1]), [("likes", ""), ("tag", "t")]);
         assert_eq!(m.records[1].column("tag"), Some("t"));
         assert_eq!(m.records[1].column("nope"), None);
+        Ok(())
+    }
+
+    /// Issue 41, defect 4: `Licence,licence` kept the second column's values, and
+    /// `id,uri,sha256,ID,Uri` took the ids and paths from `ID` and `Uri`. Each format refuses
+    /// such names, naming both.
+    #[test]
+    fn columns_that_are_one_name_without_case_are_refused_naming_both() -> Result<()> {
+        use arrow_array::{ArrayRef, RecordBatch};
+        use std::sync::Arc;
+        let dir = tempfile::tempdir()?;
+        let refusal = |path: &Path| {
+            read(path, None)
+                .err()
+                .map(|e| format!("{e:#}"))
+                .unwrap_or_default()
+        };
+        let csv = dir.path().join("licence.csv");
+        std::fs::write(
+            &csv,
+            "uri,Licence,licence
+a.obj,cc0,by-nc
+",
+        )?;
+        let e = refusal(&csv);
+        assert!(e.contains("\"Licence\" and \"licence\""), "{e}");
+        let csv = dir.path().join("ids.csv");
+        std::fs::write(
+            &csv,
+            "id,uri,sha256,ID,Uri
+mine,a.obj,,theirs,b.obj
+",
+        )?;
+        let e = refusal(&csv);
+        assert!(
+            e.contains("\"id\" and \"ID\"") && e.contains("the header"),
+            "{e}"
+        );
+        let jsonl = dir.path().join("m.jsonl");
+        std::fs::write(
+            &jsonl,
+            "{\"uri\":\"a.obj\"}\n{\"uri\":\"b.obj\",\"Uri\":\"c.obj\"}\n",
+        )?;
+        let e = refusal(&jsonl);
+        // (in the order serde_json keeps an object's keys)
+        assert!(
+            e.contains("line 2") && e.contains("\"Uri\"") && e.contains("\"uri\""),
+            "{e}"
+        );
+        let parquet = dir.path().join("m.parquet");
+        let column = |v: &str| Arc::new(StringArray::from(vec![v])) as ArrayRef;
+        let batch = RecordBatch::try_from_iter([("uri", column("a.obj")), ("URI", column("b"))])?;
+        let mut w = parquet::arrow::ArrowWriter::try_new(
+            std::fs::File::create(&parquet)?,
+            batch.schema(),
+            None,
+        )?;
+        w.write(&batch)?;
+        w.close()?;
+        let e = refusal(&parquet);
+        assert!(e.contains("\"uri\" and \"URI\""), "{e}");
         Ok(())
     }
 

@@ -32,31 +32,47 @@ pub fn refuse(job: &Path, what: &str) -> Result<()> {
 }
 
 /// The folder a read-only command reads for JOB: JOB itself when it is a folder; for a bucket
-/// URL, a local view with every finished shard (downloaded once, kept while unchanged), said
-/// on stderr.
+/// URL, a local view with every finished shard (downloaded once, kept while the bucket holds
+/// the same objects), said on stderr with the shards whose object is not the recorded one.
 pub fn local_view(job: &Path) -> Result<PathBuf> {
     let url = match JobHome::parse(job)? {
         JobHome::Folder(dir) => return Ok(dir),
         JobHome::Bucket(url) => url,
     };
-    let (_, local, fetched) = mirrored(&url)?;
+    let (_, local, mirrored) = mirrored(&url)?;
     let dir = local.layout.root;
     eprintln!(
-        "{url}: read through a local copy in {} ({fetched} shards downloaded now)",
-        dir.display()
+        "{url}: read through a local copy in {} ({} shards downloaded now)",
+        dir.display(),
+        mirrored.fetched
     );
+    for (shard, why) in &mirrored.damaged {
+        eprintln!(
+            "warning: {url}: shard {shard}: {why}; `sparc3d verify {url}` hashes it and moves \
+             it aside if damaged, then `sparc3d run {url}` converts it again"
+        );
+    }
     Ok(dir)
 }
 
 /// The view folder of the bucket job at `url` (`view/` of its scratch folder) with the job
 /// files and every finished shard copied; the job's objects, the copy opened as the read-only
-/// commands open a job, and how many shards were downloaded now.
-fn mirrored(url: &RemoteUrl) -> Result<(Prefix<'static>, sparc3d_workers::Job, u64)> {
+/// commands open a job, and what the copy found.
+fn mirrored(url: &RemoteUrl) -> Result<(Prefix<'static>, sparc3d_workers::Job, view::Mirrored)> {
     let prefix = prefix(url)?;
+    let (local, _) = view_job(url, &prefix)?;
+    let mirrored = view::mirror(&prefix, &local)?;
+    Ok((prefix, local, mirrored))
+}
+
+/// The job files of the bucket job at `url` in its view folder, opened read-only (with the
+/// warnings of a job edited after `init`).
+pub fn view_job(
+    url: &RemoteUrl,
+    prefix: &Prefix<'_>,
+) -> Result<(sparc3d_workers::Job, Vec<String>)> {
     let dir = scratch::folder(url, None).join("view");
-    let (local, _) = scratch::pull_job(&prefix, &dir, true)?;
-    let fetched = view::mirror(&prefix, &local)?;
-    Ok((prefix, local, fetched))
+    scratch::pull_job(prefix, &dir, true)
 }
 
 /// The local copy of the bucket job at `url` that a worker works in (`work/` of its scratch

@@ -1,15 +1,17 @@
 //! The workers of `sparc3d run`: `sparc3d work JOB --shard-index I --events --parent-pid P`
 //! processes on this machine, started and watched through the one child-process supervisor
-//! (`sparc3d_workers::process`), their JSON-line events read into the pool's channel.
+//! (`sparc3d_workers::process`), their JSON-line events read into the pool's channel, their
+//! share of the lanes written to their stdin (`--control-stdin`).
 
 use crate::pool::{Launcher, Worker};
 use anyhow::{Context, Result};
 use sparc3d_workers::events::Event;
+use sparc3d_workers::lanes::Share;
 use sparc3d_workers::lease::LeaseInfo;
 use sparc3d_workers::process::{Process, ProcessOptions};
 use sparc3d_workers::store::state::{shard_state, Check, ShardState};
 use sparc3d_workers::Job;
-use std::io::{BufRead, BufReader};
+use std::io::{BufRead, BufReader, Write};
 use std::path::PathBuf;
 use std::process::{Command, ExitStatus, Stdio};
 use std::sync::mpsc::Sender;
@@ -30,8 +32,8 @@ pub struct LocalWorkers<'a> {
     pub threads: usize,
 }
 
-/// A `work` process.
-pub struct WorkProcess(Process);
+/// A `work` process, and the pipe that gives it new shares.
+pub struct WorkProcess(Process, Option<std::process::ChildStdin>);
 
 impl Worker for WorkProcess {
     fn try_wait(&mut self) -> Option<ExitStatus> {
@@ -58,6 +60,18 @@ impl Worker for WorkProcess {
         self.0.wait_stderr_end(Some(Duration::from_secs(5)));
         self.0.stderr_tail(STDERR_TAIL_BYTES).trim().to_string()
     }
+
+    /// One JSON line on its stdin; a worker that has exited no longer needs it.
+    fn set_share(&mut self, share: Share) {
+        let Some(pipe) = self.1.as_mut() else { return };
+        let sent = serde_json::to_string(&share)
+            .map_err(std::io::Error::other)
+            .and_then(|line| writeln!(pipe, "{line}"))
+            .and_then(|_| pipe.flush());
+        if sent.is_err() {
+            self.1 = None;
+        }
+    }
 }
 
 impl Launcher for LocalWorkers<'_> {
@@ -78,8 +92,9 @@ impl Launcher for LocalWorkers<'_> {
             .arg("--events")
             .arg("--parent-pid")
             .arg(std::process::id().to_string())
+            .arg("--control-stdin")
             .args(&self.limit_args)
-            .stdin(Stdio::null())
+            .stdin(Stdio::piped())
             .stdout(Stdio::piped());
         if std::env::var_os("RAYON_NUM_THREADS").is_none() {
             cmd.env("RAYON_NUM_THREADS", self.threads.to_string());
@@ -93,6 +108,7 @@ impl Launcher for LocalWorkers<'_> {
         };
         let mut process = Process::spawn(&mut cmd, &options)
             .with_context(|| format!("starting a worker for shard {shard}"))?;
+        let control = process.take_stdin();
         if let Some(out) = process.take_stdout() {
             let tx = events.clone();
             std::thread::spawn(move || {
@@ -105,7 +121,7 @@ impl Launcher for LocalWorkers<'_> {
                 }
             });
         }
-        Ok(WorkProcess(process))
+        Ok(WorkProcess(process, control))
     }
 
     fn lease(&mut self, shard: u64) -> Option<LeaseInfo> {

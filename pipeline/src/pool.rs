@@ -12,6 +12,7 @@
 use crate::stuck::Watch;
 use anyhow::Result;
 use sparc3d_workers::events::Event;
+use sparc3d_workers::lanes::Share;
 use sparc3d_workers::lease::LeaseInfo;
 use sparc3d_workers::store::state::ShardState;
 use std::collections::{BTreeMap, HashMap, VecDeque};
@@ -42,6 +43,8 @@ pub trait Worker {
     fn pid(&self) -> u32;
     /// The end of its error output, once it has exited (empty when it printed none).
     fn error_tail(&mut self) -> String;
+    /// Gives it a new share of the machine (items at once, threads each).
+    fn set_share(&mut self, share: Share);
 }
 
 /// Starts workers and reads shards' states: the pool's view of the job.
@@ -99,6 +102,35 @@ struct Running<W> {
     shard: u64,
     /// Whether it makes progress (its lease).
     watch: Watch,
+    /// Items it converts at once (its share of the pool's lanes).
+    lanes: usize,
+    /// Items of its shard not finished yet, once it said (its `ShardStarted` event).
+    left: Option<u64>,
+}
+
+impl<W: Worker> Running<W> {
+    fn new(worker: W, shard: u64) -> Self {
+        Self {
+            worker,
+            shard,
+            watch: Watch::new(),
+            lanes: 1,
+            left: None,
+        }
+    }
+
+    /// Follows its shard's items left from its events.
+    fn count(&mut self, e: &Event) {
+        match e {
+            Event::ShardStarted { items, done, .. } => {
+                self.left = Some(items.saturating_sub(*done))
+            }
+            Event::ItemFinished { status, .. } if status != "retry" => {
+                self.left = self.left.map(|n| n.saturating_sub(1));
+            }
+            _ => {}
+        }
+    }
 }
 
 /// The shards to start now, and those leased by another live worker (to wait for, with the
@@ -131,9 +163,13 @@ pub fn plan(
     (queue, waiting)
 }
 
-/// The pool of worker slots over a job's shards.
+/// The pool of worker slots over a job's shards. Its lanes (as many as slots) are spread over
+/// the running workers ([`crate::lane_plan`]): a slot left free because no shard is queued
+/// lends its lane to a worker with items left.
 pub struct Pool<L: Launcher> {
     launcher: L,
+    /// Threads per lane given with each share (0: the workers' environment decides).
+    threads: usize,
     queue: VecDeque<u64>,
     waiting: BTreeMap<u64, String>,
     slots: Vec<Option<Running<L::Worker>>>,
@@ -166,6 +202,7 @@ impl<L: Launcher> Pool<L> {
         let (events_tx, events) = mpsc::channel();
         Self {
             launcher,
+            threads: 0,
             queue,
             waiting,
             slots: (0..workers.max(1)).map(|_| None).collect(),
@@ -179,6 +216,12 @@ impl<L: Launcher> Pool<L> {
             events_tx,
             events,
         }
+    }
+
+    /// Gives each lane `threads` threads (0, the default: as the workers' environment says).
+    pub fn with_threads(mut self, threads: usize) -> Self {
+        self.threads = threads;
+        self
     }
 
     /// Runs workers until every shard is finished or given up, or until `stop()` turns true
@@ -213,6 +256,9 @@ impl<L: Launcher> Pool<L> {
                 break;
             }
             self.take_events(observer);
+            if !stopping {
+                self.share_lanes();
+            }
             for (slot, r, status) in self.exited() {
                 if let Some(slot) = slot {
                     observer.slot_shard(slot, None);
@@ -232,23 +278,45 @@ impl<L: Launcher> Pool<L> {
         Ok(self.errors)
     }
 
-    /// Starts the next shards in the free slots.
+    /// Starts the next shards in the free slots, as far as free lanes allow.
     fn fill_slots(&mut self, observer: &mut dyn Observer) -> Result<()> {
+        let used: usize = self.slots.iter().flatten().map(|r| r.lanes).sum();
+        let mut free = self.slots.len().saturating_sub(used);
         for (slot, s) in self.slots.iter_mut().enumerate() {
+            if free == 0 {
+                break;
+            }
             if s.is_none() {
                 let Some(shard) = self.queue.pop_front() else {
                     break;
                 };
                 let worker = self.launcher.spawn(shard, slot, &self.events_tx)?;
-                *s = Some(Running {
-                    worker,
-                    shard,
-                    watch: Watch::new(),
-                });
+                *s = Some(Running::new(worker, shard));
                 observer.slot_shard(slot, Some(shard));
+                free -= 1;
             }
         }
         Ok(())
+    }
+
+    /// Spreads the lanes over the running workers again, telling those whose share changed.
+    fn share_lanes(&mut self) {
+        let holders: Vec<crate::lane_plan::Holder> = self
+            .slots
+            .iter()
+            .flatten()
+            .map(|r| crate::lane_plan::Holder { left: r.left })
+            .collect();
+        let lanes = crate::lane_plan::share(self.slots.len(), &holders, self.queue.len());
+        for (r, lanes) in self.slots.iter_mut().flatten().zip(lanes) {
+            if r.lanes != lanes {
+                r.lanes = lanes;
+                r.worker.set_share(Share {
+                    lanes,
+                    threads: self.threads,
+                });
+            }
+        }
     }
 
     /// Shards held elsewhere: finished there, or free to take over.
@@ -313,6 +381,7 @@ impl<L: Launcher> Pool<L> {
         while let Some((slot, e)) = next {
             if let Some(r) = self.slots[slot].as_mut() {
                 r.watch.saw_event();
+                r.count(&e);
             }
             match e {
                 Event::ItemStarted { uri, .. } => observer.item_started(slot, &uri),
@@ -439,6 +508,8 @@ mod tests {
     enum Script {
         /// Finishes the shard and exits 0.
         Finish,
+        /// Finishes the shard after a while.
+        FinishSlowly,
         /// Says it is writing (leaving its slot), then finishes after a while.
         WriteSlowly,
         /// Is killed by SIGKILL.
@@ -463,6 +534,8 @@ mod tests {
         most_alive: usize,
         terminated: usize,
         killed: Vec<u32>,
+        /// Shares given to workers: (shard, lanes).
+        shares: Vec<(u64, usize)>,
     }
 
     struct FakeWorker {
@@ -488,6 +561,7 @@ mod tests {
             sha256: String::new(),
             stamp: None,
             object: None,
+            object_etag: None,
             content_digest: String::new(),
             item_seconds: 0.0,
             started_at: 0.0,
@@ -518,7 +592,7 @@ mod tests {
             let raw = match self.script {
                 _ if self.killed => libc::SIGKILL,
                 _ if self.stopped => 0,
-                Script::Finish | Script::WriteSlowly => {
+                Script::Finish | Script::FinishSlowly | Script::WriteSlowly => {
                     w.states.insert(self.shard, done(self.shard));
                     0
                 }
@@ -543,6 +617,12 @@ mod tests {
         }
         fn error_tail(&mut self) -> String {
             "error: no such mesh".into()
+        }
+        fn set_share(&mut self, share: Share) {
+            self.world
+                .borrow_mut()
+                .shares
+                .push((self.shard, share.lanes));
         }
     }
 
@@ -586,7 +666,10 @@ mod tests {
             if script == Script::WriteSlowly {
                 events.send((slot, Event::ShardWriting { shard }))?;
             }
-            let turns_left = if script == Script::WriteSlowly { 10 } else { 2 };
+            let turns_left = match script {
+                Script::WriteSlowly | Script::FinishSlowly => 10,
+                _ => 2,
+            };
             Ok(FakeWorker {
                 world: self.world.clone(),
                 shard,
@@ -794,6 +877,28 @@ mod tests {
             !lines.iter().any(|l| l.ends_with("restarting it")),
             "{lines:?}"
         );
+        Ok(())
+    }
+
+    /// Issue 46: a job of one shard keeps every lane busy.
+    #[test]
+    fn a_lone_shard_gets_every_lane() -> Result<()> {
+        let (world, errors, _) = run_pool(1, 3, &[], &[], &[], &|| false)?;
+        assert!(errors.is_empty(), "{errors:?}");
+        assert_eq!(world.spawned, vec![(0, 0)], "one worker for one shard");
+        assert_eq!(world.shares, vec![(0, 3)]);
+        Ok(())
+    }
+
+    /// Issue 46: the lane of a worker that finished goes to the one with items left; while
+    /// shards are queued, each worker converts one item at a time.
+    #[test]
+    fn a_finished_workers_lane_goes_to_the_shard_still_converting() -> Result<()> {
+        let scripts: &[(u64, &[Script])] = &[(2, &[Script::FinishSlowly])];
+        let (world, errors, _) = run_pool(3, 2, scripts, &[], &[], &|| false)?;
+        assert!(errors.is_empty(), "{errors:?}");
+        assert_eq!(world.most_alive, 2);
+        assert_eq!(world.shares, vec![(2, 2)], "{:?}", world.shares);
         Ok(())
     }
 }

@@ -11,7 +11,23 @@ use std::time::{Duration, Instant};
 #[derive(Debug, Clone, Default)]
 struct Slot {
     shard: Option<u64>,
+    /// The item it started last, and when.
     item: Option<(String, Instant)>,
+    /// Items it converts now (more than one with several lanes).
+    busy: usize,
+}
+
+/// What a run's workers did, as their events said.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Counts {
+    /// Items ok in the job (before and during this run).
+    pub ok: u64,
+    /// Items failed in the job.
+    pub failed: u64,
+    /// Crashes retried in this run.
+    pub retried: u64,
+    /// The most items converting at once in this run.
+    pub most_at_once: usize,
 }
 
 /// Counters and display of a local run.
@@ -23,6 +39,9 @@ pub struct Progress {
     failed: u64,
     retried: u64,
     done_this_run: u64,
+    /// Items converting now, over all workers, and the most at once.
+    at_once: usize,
+    most_at_once: usize,
     start: Instant,
     interval: Duration,
     last_log: Instant,
@@ -61,6 +80,8 @@ impl Progress {
             failed,
             retried: 0,
             done_this_run: 0,
+            at_once: 0,
+            most_at_once: 0,
             start: now,
             interval: Duration::from_secs_f64(log_interval_s.max(0.1)),
             last_log: now,
@@ -80,8 +101,11 @@ impl Progress {
     /// A worker slot took a shard (or became idle with `None`).
     pub fn slot_shard(&mut self, slot: usize, shard: Option<u64>) {
         if let Some(s) = self.slots.get_mut(slot) {
-            s.shard = shard;
-            s.item = None;
+            self.at_once = self.at_once.saturating_sub(s.busy);
+            *s = Slot {
+                shard,
+                ..Slot::default()
+            };
         }
     }
 
@@ -89,6 +113,9 @@ impl Progress {
     pub fn item_started(&mut self, slot: usize, uri: &str) {
         if let Some(s) = self.slots.get_mut(slot) {
             s.item = Some((uri.to_string(), Instant::now()));
+            s.busy += 1;
+            self.at_once += 1;
+            self.most_at_once = self.most_at_once.max(self.at_once);
         }
     }
 
@@ -103,7 +130,13 @@ impl Progress {
             self.done_this_run += 1;
         }
         if let Some(s) = self.slots.get_mut(slot) {
-            s.item = None;
+            if s.busy > 0 {
+                s.busy -= 1;
+                self.at_once = self.at_once.saturating_sub(1);
+            }
+            if s.busy == 0 {
+                s.item = None;
+            }
         }
     }
 
@@ -128,9 +161,13 @@ impl Progress {
         let s = &self.slots[i];
         match (&s.shard, &s.item) {
             (Some(sh), Some((uri, t))) => format!(
-                "w{i}: shard {sh} {} ({})",
+                "w{i}: shard {sh} {} ({}){}",
                 uri.rsplit('/').next().unwrap_or(uri),
-                format_seconds(t.elapsed().as_secs_f64())
+                format_seconds(t.elapsed().as_secs_f64()),
+                match s.busy {
+                    0 | 1 => String::new(),
+                    n => format!(" and {} more", n - 1),
+                }
             ),
             (Some(sh), None) => format!("w{i}: shard {sh}"),
             _ => format!("w{i}: idle"),
@@ -171,14 +208,19 @@ impl Progress {
         );
     }
 
-    /// Clears the bars and returns (ok, failed, retried).
-    pub fn finish(self) -> (u64, u64, u64) {
+    /// Clears the bars and returns what the workers did.
+    pub fn finish(self) -> Counts {
         if let Some((_, main, lines)) = &self.bars {
             for l in lines {
                 l.finish_and_clear();
             }
             main.finish_and_clear();
         }
-        (self.ok, self.failed, self.retried)
+        Counts {
+            ok: self.ok,
+            failed: self.failed,
+            retried: self.retried,
+            most_at_once: self.most_at_once,
+        }
     }
 }

@@ -37,7 +37,9 @@ impl Stop {
 }
 
 /// SIGINT/SIGTERM request a stop ([`Stop`]); SIGXFSZ is ignored so that a file-size limit
-/// makes writes fail with an error instead of killing the process.
+/// makes writes fail with an error instead of killing the process, and SIGPIPE so that a
+/// write to a child that has just exited (a worker's share, an item worker's next item) fails
+/// with an error its caller handles instead of killing `run` or `work`.
 pub fn install_signals() -> Result<Stop> {
     let stop = Stop {
         flag: Arc::new(AtomicBool::new(false)),
@@ -52,6 +54,7 @@ pub fn install_signals() -> Result<Stop> {
     // SAFETY: setting a signal's disposition to SIG_IGN has no preconditions.
     unsafe {
         libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+        libc::signal(libc::SIGPIPE, libc::SIG_IGN);
     }
     Ok(stop)
 }

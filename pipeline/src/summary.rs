@@ -146,14 +146,16 @@ pub fn summarize_states(job: &Job, states: &[ShardState]) -> JobSummary {
             s.item_seconds += d.total_s;
             last = last.max(d.at);
         }
-        if let (ShardState::Running(_), Some((index, at))) = (state, js.in_flight) {
-            if let Some(item) = job.items.get(index as usize) {
-                s.in_flight.push(InFlight {
-                    shard,
-                    id: item.record.id.clone(),
-                    uri: item.record.uri.clone(),
-                    seconds: (now - at).max(0.0),
-                });
+        if matches!(state, ShardState::Running(_)) {
+            for (&index, &at) in &js.in_flight {
+                if let Some(item) = job.items.get(index as usize) {
+                    s.in_flight.push(InFlight {
+                        shard,
+                        id: item.record.id.clone(),
+                        uri: item.record.uri.clone(),
+                        seconds: (now - at).max(0.0),
+                    });
+                }
             }
         }
     }

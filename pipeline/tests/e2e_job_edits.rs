@@ -2,7 +2,8 @@
 //! hand edits of a job's own files are found when the job is opened. An edited resolution or
 //! shard size, an out-of-range resolution and an edited path in the frozen manifest are refused
 //! by every command that changes the job (naming the file and what differs), read-only commands
-//! say what they found, and `init` with the original manifest names the edited line. Restored,
+//! say what they found, and `init` with the original manifest names the edited line (with
+//! another manifest, the first line where the frozen copy differs from it). Restored,
 //! the job finishes as a clean one would. `verify` killed part-way never leaves a note for a
 //! shard still in place.
 
@@ -193,6 +194,24 @@ fn an_edited_path_in_the_frozen_manifest_is_refused_and_init_names_the_line() {
     assert!(!err.contains("already initialised"), "{err}");
     assert!(
         err.contains("this manifest is the one") && err.contains("line "),
+        "{err}"
+    );
+    assert!(
+        err.contains("wuson.stl") && err.contains("sphere.obj"),
+        "{err}"
+    );
+    // Issue 41, defect 7: with another manifest (its last row left out), `init` said two
+    // hashes; it names the first line where the frozen copy differs from that manifest.
+    let text = std::fs::read_to_string(&m).unwrap_or_default();
+    let rows: Vec<&str> = text.lines().collect();
+    let other = tmp.path().join("fewer.csv");
+    std::fs::write(&other, rows[..rows.len() - 1].join("\n") + "\n")
+        .unwrap_or_else(|e| panic!("{e}"));
+    let out = sparc3d(&init_args(&job, &other));
+    let err = stderr(&out);
+    assert!(!out.status.success(), "{err}");
+    assert!(
+        err.contains("is not the one") && err.contains("first differs from this manifest at line"),
         "{err}"
     );
     assert!(

@@ -48,6 +48,12 @@ pub struct CompletionRecord {
     /// (docs/RELIABILITY.md, "Jobs in a bucket"). Absent on disk.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub object: Option<String>,
+    /// The ETag of that object (quotes removed) as the store gave it once uploaded, so that a
+    /// listing shows, without reading it, whether the object is still the one recorded; in a
+    /// local copy of a bucket job's shard, the ETag of the object copied. Absent on disk and
+    /// in records of older versions (docs/RELIABILITY.md, "Jobs in a bucket").
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub object_etag: Option<String>,
     /// Hex content digest of the rows, excluding run-dependent columns.
     pub content_digest: String,
     /// Sum of the items' `time_total_s`.

@@ -1,9 +1,11 @@
 //! Fetching one remote object whole into memory: the byte cap checked against the object's
 //! size before the body is read and again as it streams, the body counted against that size
-//! (a short one is truncated), and its sha256 taken as it streams and checked when one is
-//! expected. The buffer is allocated once, at the announced size (up to 256 MiB before any
-//! byte arrived): the mesh readers need the whole file in memory anyway, so a temporary file
-//! would add a copy and no saving.
+//! (a short one is truncated), and its sha256 checked when one is expected. The buffer is
+//! allocated once, at the announced size (up to 256 MiB before any byte arrived): the mesh
+//! readers need the whole file in memory anyway, so a temporary file would add a copy and no
+//! saving. Bucket objects (`s3://`, `gs://`, `az://`) come through `object_store`;
+//! `http(s)://` objects through [`crate::http`], which also reads bodies of no announced
+//! length and decodes gzip.
 
 use crate::error::{FetchError, FetchErrorKind};
 use crate::limits::FetchLimits;
@@ -29,6 +31,7 @@ pub struct Fetched {
 pub struct Fetcher {
     runtime: tokio::runtime::Runtime,
     stores: Stores,
+    http: reqwest::Client,
     limits: FetchLimits,
 }
 
@@ -47,9 +50,13 @@ impl Fetcher {
                     format!("cannot start the fetch runtime: {e}"),
                 )
             })?;
+        let stores = Stores::new(limits);
+        // After `Stores::new`, which installs the TLS provider reqwest's client needs.
+        let http = crate::http::client(&limits)?;
         Ok(Self {
             runtime,
-            stores: Stores::new(limits),
+            stores,
+            http,
             limits,
         })
     }
@@ -66,10 +73,14 @@ impl Fetcher {
         url: &RemoteUrl,
         expected_sha256: Option<&str>,
     ) -> Result<Fetched, FetchError> {
-        let store = self.stores.get(url)?;
-        let fetched = self
-            .runtime
-            .block_on(get(&*store, url, self.limits.max_bytes))?;
+        let fetched = if url.scheme.is_bucket() {
+            let store = self.stores.get(url)?;
+            self.runtime
+                .block_on(get(&*store, url, self.limits.max_bytes))?
+        } else {
+            self.runtime
+                .block_on(crate::http::get(&self.http, url, &self.limits))?
+        };
         match expected_sha256 {
             Some(want) if !want.eq_ignore_ascii_case(&fetched.sha256) => Err(FetchError::new(
                 url.to_string(),
@@ -113,20 +124,15 @@ pub fn shared() -> Result<&'static Fetcher, FetchError> {
         .map_err(Clone::clone)
 }
 
-/// Bytes as lower-case hex (a sha256 as the manifests and completion records write it).
-pub(crate) fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
-}
-
 /// The object store path of `url`'s key.
 pub(crate) fn object_path(url: &RemoteUrl) -> ObjectPath {
     ObjectPath::from_iter(url.key().split('/').filter(|p| !p.is_empty()))
 }
 
 /// The most bytes reserved from an announced size before any arrived.
-const PREALLOCATE_AT_MOST: u64 = 256 << 20;
+pub(crate) const PREALLOCATE_AT_MOST: u64 = 256 << 20;
 
-fn too_large(url: &RemoteUrl, size: String, cap: u64) -> FetchError {
+pub(crate) fn too_large(url: &RemoteUrl, size: String, cap: u64) -> FetchError {
     FetchError::new(
         url.to_string(),
         FetchErrorKind::TooLarge,
@@ -178,6 +184,8 @@ async fn get(store: &dyn ObjectStore, url: &RemoteUrl, cap: u64) -> Result<Fetch
             ),
         ));
     }
-    let sha256 = hex(&hasher.finalize());
+    // sha2's own lower-case hex (two digits a byte), as `sparc3d_schema::hex` writes every
+    // other digest; this crate sits below the schema and does not depend on it.
+    let sha256 = format!("{:x}", hasher.finalize());
     Ok(Fetched { bytes, sha256 })
 }

@@ -1,8 +1,9 @@
 //! Where an item's bytes come from. A manifest's `uri` is a local path, a `file://` URL, or a
 //! remote object: `http(s)://host/path`, `s3://bucket/key`, `gs://bucket/key`,
-//! `az://container/path` ([`location`]). Remote objects are fetched whole into memory through
-//! the Arrow project's `object_store` (one client for S3, GCS, Azure and HTTP) with connect and
-//! read time-outs, retries with backoff on throttling and server errors, a byte cap checked
+//! `az://container/path` ([`location`]). Remote objects are fetched whole into memory (bucket
+//! objects through the Arrow project's `object_store`, one client for S3, GCS and Azure;
+//! `http(s)://` through reqwest, `http`) with connect and read time-outs, retries with
+//! backoff on throttling, server errors and cut connections ([`limits`]), a byte cap checked
 //! against the object's size before the body is read and again while it streams, and the
 //! sha256 taken while it streams ([`fetch`]); a bucket prefix can be listed ([`list`]); the
 //! objects of a job whose home is a bucket are read and written, conditionally where two
@@ -17,6 +18,7 @@
 mod aws_profile;
 pub mod error;
 pub mod fetch;
+mod http;
 pub mod limits;
 pub mod list;
 pub mod location;

@@ -2,7 +2,7 @@
 //! data-centre link; `SPARC3D_FETCH_*` environment variables override them at run time (they
 //! are not part of a job's fingerprint, like `--item-timeout`).
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 /// The limits of one fetch.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -12,11 +12,16 @@ pub struct FetchLimits {
     /// Longest wait for the next bytes of a response (headers or body) before the attempt
     /// fails and is retried; resets whenever bytes arrive.
     pub read_timeout: Duration,
-    /// Retries after a failed attempt (connection errors, time-outs, 429, 5xx), with
-    /// exponential backoff from [`FetchLimits::initial_backoff`] up to
-    /// [`FetchLimits::max_backoff`].
+    /// The most retries after a failed attempt (connection errors, time-outs, 429, 5xx); the
+    /// default, 100, is more than [`FetchLimits::retry_for`] has room for, so the time ends
+    /// them.
     pub retries: usize,
-    /// The first backoff.
+    /// How long after its first attempt a failing request is still retried: an outage of the
+    /// store or server shorter than this fails nothing. The default, 60 s, is a bucket lease's
+    /// default time to live (`sparc3d work --lease-ttl`), so a blip that a lease outlives
+    /// fails no item and no upload either.
+    pub retry_for: Duration,
+    /// The first backoff; each next one doubles, up to [`FetchLimits::max_backoff`].
     pub initial_backoff: Duration,
     /// The longest backoff.
     pub max_backoff: Duration,
@@ -31,7 +36,8 @@ impl Default for FetchLimits {
         Self {
             connect_timeout: Duration::from_secs(10),
             read_timeout: Duration::from_secs(30),
-            retries: 5,
+            retries: 100,
+            retry_for: Duration::from_secs(60),
             initial_backoff: Duration::from_millis(200),
             max_backoff: Duration::from_secs(15),
             max_bytes: 4 << 30,
@@ -40,7 +46,7 @@ impl Default for FetchLimits {
 }
 
 /// The environment variables read by [`FetchLimits::from_env`], with what each sets.
-pub const ENV_VARS: [(&str, &str); 4] = [
+pub const ENV_VARS: [(&str, &str); 5] = [
     (
         "SPARC3D_FETCH_CONNECT_TIMEOUT",
         "connect time-out in seconds (default 10)",
@@ -50,8 +56,12 @@ pub const ENV_VARS: [(&str, &str); 4] = [
         "read time-out in seconds (default 30)",
     ),
     (
+        "SPARC3D_FETCH_RETRY_FOR",
+        "seconds a failing request is retried for (default 60)",
+    ),
+    (
         "SPARC3D_FETCH_RETRIES",
-        "retries after a failed attempt (default 5)",
+        "the most retries of one request (default 100: SPARC3D_FETCH_RETRY_FOR ends them first)",
     ),
     (
         "SPARC3D_FETCH_MAX_BYTES",
@@ -82,12 +92,85 @@ impl FetchLimits {
         if let Some(s) = read(ENV_VARS[1].0)? {
             limits.read_timeout = Duration::from_secs_f64(s);
         }
-        if let Some(n) = read(ENV_VARS[2].0)? {
-            limits.retries = n as usize;
+        if let Some(s) = read(ENV_VARS[2].0)? {
+            limits.retry_for = Duration::from_secs_f64(s);
         }
         if let Some(n) = read(ENV_VARS[3].0)? {
+            limits.retries = n as usize;
+        }
+        if let Some(n) = read(ENV_VARS[4].0)? {
             limits.max_bytes = n as u64;
         }
         Ok(limits)
+    }
+}
+
+/// The waits between the attempts of one request: [`FetchLimits::initial_backoff`] doubling up
+/// to [`FetchLimits::max_backoff`], while fewer than [`FetchLimits::retries`] retries were made
+/// and less than [`FetchLimits::retry_for`] has passed since the first attempt.
+#[derive(Debug)]
+pub struct Backoff {
+    limits: FetchLimits,
+    started: Instant,
+    retries: usize,
+    next: Duration,
+}
+
+impl Backoff {
+    /// The waits of a request whose first attempt starts now.
+    pub fn new(limits: &FetchLimits) -> Self {
+        Self {
+            limits: *limits,
+            started: Instant::now(),
+            retries: 0,
+            next: limits.initial_backoff,
+        }
+    }
+
+    /// The wait before the next retry, or `None` when no retry is left.
+    pub fn next_wait(&mut self) -> Option<Duration> {
+        if self.retries >= self.limits.retries || self.started.elapsed() >= self.limits.retry_for {
+            return None;
+        }
+        self.retries += 1;
+        let wait = self.next;
+        self.next = (self.next * 2).min(self.limits.max_backoff);
+        Some(wait)
+    }
+
+    /// The retries made so far and the seconds since the first attempt, for messages.
+    pub fn said(&self) -> String {
+        format!(
+            "after {} retries in {:.1} s",
+            self.retries,
+            self.started.elapsed().as_secs_f64()
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn backoff_doubles_to_its_longest_and_ends_by_count_or_time() {
+        let limits = FetchLimits {
+            retries: 8,
+            ..FetchLimits::default()
+        };
+        let mut b = Backoff::new(&limits);
+        let waits: Vec<u128> = std::iter::from_fn(|| b.next_wait())
+            .map(|d| d.as_millis())
+            .collect();
+        assert_eq!(waits, [200, 400, 800, 1600, 3200, 6400, 12800, 15000]);
+        let by_time = FetchLimits {
+            retry_for: Duration::ZERO,
+            ..FetchLimits::default()
+        };
+        assert_eq!(Backoff::new(&by_time).next_wait(), None);
+        // By default the time ends the retries: 100 waits are more than 60 s.
+        let mut b = Backoff::new(&FetchLimits::default());
+        let total: Duration = std::iter::from_fn(|| b.next_wait()).sum();
+        assert!(total > FetchLimits::default().retry_for, "{total:?}");
     }
 }

@@ -73,6 +73,14 @@ pub struct Downloaded {
     pub bytes: u64,
     /// Their sha256 (lower-case hex).
     pub sha256: String,
+    /// The ETag of the object read (quotes removed, as in a listing), when the store gives
+    /// one.
+    pub etag: Option<String>,
+}
+
+/// An ETag as listings give it: without its quotes (a GET or HEAD keeps them).
+pub fn bare_etag(etag: &str) -> String {
+    etag.trim_matches('"').to_string()
 }
 
 /// The objects under one prefix of a bucket (`s3://bucket/jobs/a` holds `jobs/a/...`); keys
@@ -154,11 +162,21 @@ impl<'f> Prefix<'f> {
 
     /// Whether an object is at `key`, with its size.
     pub fn size(&self, key: &str) -> Result<Option<u64>, FetchError> {
+        Ok(self.head(key)?.map(|l| l.size))
+    }
+
+    /// The object at `key` as a listing shows it (size and ETag, read with one HEAD
+    /// request), or `None` when there is none.
+    pub fn head(&self, key: &str) -> Result<Option<Listed>, FetchError> {
         let path = self.path(key);
         self.fetcher
             .block_on(async {
                 match self.store.head(&path).await {
-                    Ok(meta) => Ok(Some(meta.size)),
+                    Ok(meta) => Ok(Some(Listed {
+                        url: self.url(key),
+                        size: meta.size,
+                        etag: meta.e_tag.as_deref().map(bare_etag),
+                    })),
                     Err(object_store::Error::NotFound { .. }) => Ok(None),
                     Err(e) => Err(e),
                 }
@@ -240,7 +258,7 @@ impl<'f> Prefix<'f> {
     }
 
     /// Streams the object at `key` into a new file at `file`, hashing it on the way; a body
-    /// that breaks off is an error (the file is then removed).
+    /// that breaks off is an error (the file is then removed), and so is no object.
     pub fn download(&self, key: &str, file: &Path) -> Result<Downloaded, FetchError> {
         let local = |e: std::io::Error| {
             FetchError::new(
@@ -249,15 +267,40 @@ impl<'f> Prefix<'f> {
                 format!("writing {}: {e}", file.display()),
             )
         };
-        let path = self.path(key);
         let mut out = std::io::BufWriter::new(std::fs::File::create(file).map_err(local)?);
-        let result = self.fetcher.block_on(async {
-            let result = self
-                .store
-                .get(&path)
-                .await
-                .map_err(|e| self.error(key, &e))?;
+        let result = match self.stream(key, &mut out) {
+            Ok(Some(got)) => out.flush().map(|()| got).map_err(local),
+            Ok(None) => Err(FetchError::new(
+                self.url(key).to_string(),
+                FetchErrorKind::NotFound,
+                "no object there",
+            )),
+            Err(e) => Err(e),
+        };
+        if result.is_err() {
+            let _ = std::fs::remove_file(file);
+        }
+        result
+    }
+
+    /// Reads the object at `key` whole and hashes it without keeping its bytes (what holds
+    /// it, checked, not copied); `None` when there is no object.
+    pub fn hash(&self, key: &str) -> Result<Option<Downloaded>, FetchError> {
+        self.stream(key, &mut std::io::sink())
+    }
+
+    /// Streams the object at `key` into `out`, hashing it on the way; `None` when there is
+    /// no object. A body that breaks off or is shorter than announced is an error.
+    fn stream(&self, key: &str, out: &mut dyn Write) -> Result<Option<Downloaded>, FetchError> {
+        let path = self.path(key);
+        self.fetcher.block_on(async {
+            let result = match self.store.get(&path).await {
+                Ok(r) => r,
+                Err(object_store::Error::NotFound { .. }) => return Ok(None),
+                Err(e) => return Err(self.error(key, &e)),
+            };
             let size = result.meta.size;
+            let etag = result.meta.e_tag.as_deref().map(bare_etag);
             let mut hasher = Sha256::new();
             let mut written = 0u64;
             let mut body = result.into_stream();
@@ -269,10 +312,15 @@ impl<'f> Prefix<'f> {
                     err
                 })?;
                 hasher.update(&chunk);
-                out.write_all(&chunk).map_err(local)?;
+                out.write_all(&chunk).map_err(|e| {
+                    FetchError::new(
+                        self.url(key).to_string(),
+                        FetchErrorKind::Other,
+                        e.to_string(),
+                    )
+                })?;
                 written += chunk.len() as u64;
             }
-            out.flush().map_err(local)?;
             if written != size {
                 return Err(FetchError::new(
                     self.url(key).to_string(),
@@ -280,16 +328,12 @@ impl<'f> Prefix<'f> {
                     format!("the body has {written} bytes, the store announced {size}"),
                 ));
             }
-            let sha256 = crate::fetch::hex(&hasher.finalize());
-            Ok(Downloaded {
+            Ok(Some(Downloaded {
                 bytes: written,
-                sha256,
-            })
-        });
-        if result.is_err() {
-            let _ = std::fs::remove_file(file);
-        }
-        result
+                sha256: format!("{:x}", hasher.finalize()),
+                etag,
+            }))
+        })
     }
 
     /// Every object whose key starts with `key_prefix` (relative to this prefix), sorted by
@@ -322,7 +366,7 @@ impl<'f> Prefix<'f> {
                 out.push(Listed {
                     url: self.root.with_key(meta.location.as_ref()),
                     size: meta.size,
-                    etag: meta.e_tag.map(|t| t.trim_matches('"').to_string()),
+                    etag: meta.e_tag.as_deref().map(bare_etag),
                 });
             }
             Ok(out)

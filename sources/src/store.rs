@@ -1,4 +1,4 @@
-//! One `object_store` client per bucket (or HTTP origin), made on first use and kept for the
+//! One `object_store` client per bucket, made on first use and kept for the
 //! process, configured from the environment as each cloud's own tools are:
 //!
 //! - `s3://`: `AWS_ACCESS_KEY_ID`, `AWS_SECRET_ACCESS_KEY`, `AWS_SESSION_TOKEN`, `AWS_REGION`
@@ -13,9 +13,9 @@
 //!   (`AZURE_STORAGE_SAS_KEY`), a client secret (`AZURE_CLIENT_ID`, `AZURE_CLIENT_SECRET`,
 //!   `AZURE_TENANT_ID`), workload identity, or managed identity; `AZURE_STORAGE_ENDPOINT` for
 //!   Azurite.
-//! - `http(s)://`: no credentials.
 //!
-//! Every client has the [`FetchLimits`]' time-outs and retries.
+//! Every client has the [`FetchLimits`]' time-outs and retries. `http(s)://` objects (no
+//! credentials) are fetched by [`crate::http`] with a client of its own, not through these.
 
 use crate::error::{FetchError, FetchErrorKind};
 use crate::limits::FetchLimits;
@@ -23,7 +23,6 @@ use crate::location::{RemoteUrl, Scheme};
 use object_store::aws::{AmazonS3Builder, AmazonS3ConfigKey};
 use object_store::azure::MicrosoftAzureBuilder;
 use object_store::gcp::GoogleCloudStorageBuilder;
-use object_store::http::HttpBuilder;
 use object_store::{BackoffConfig, ClientOptions, ObjectStore, RetryConfig};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
@@ -76,10 +75,16 @@ impl Stores {
             backoff: BackoffConfig {
                 init_backoff: self.limits.initial_backoff,
                 max_backoff: self.limits.max_backoff,
-                base: 2.0,
+                // object_store draws each wait uniformly between the first backoff and `base`
+                // times the previous wait (object_store 0.14, src/client/backoff.rs): base 4
+                // doubles the wait on average; base 2 lengthened it by 0.1 s a retry, so that
+                // five retries ended 1.5-3.5 s after the first attempt.
+                base: 4.0,
             },
+            // Both end the retries (object_store's `RetryContext::exhausted`); the time is the
+            // limit that holds by default (FetchLimits::retries).
             max_retries: self.limits.retries,
-            retry_timeout: Duration::from_secs(300),
+            retry_timeout: self.limits.retry_for,
         }
     }
 
@@ -97,13 +102,12 @@ impl Stores {
         };
         let store: Arc<dyn ObjectStore> = match url.scheme {
             Scheme::Http | Scheme::Https => {
-                let origin = format!("{}://{bucket}", url.scheme.as_str());
-                let built = HttpBuilder::new()
-                    .with_url(origin)
-                    .with_client_options(self.client_options(url.scheme == Scheme::Http))
-                    .with_retry(self.retry())
-                    .build();
-                Arc::new(built.map_err(failed)?)
+                return Err(FetchError::new(
+                    url.to_string(),
+                    FetchErrorKind::Location,
+                    "an HTTP server is not a bucket: it cannot be listed or hold a job (its \
+                     objects are fetched one by one)",
+                ))
             }
             Scheme::S3 => {
                 let mut builder = AmazonS3Builder::from_env();

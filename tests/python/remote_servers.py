@@ -2,6 +2,7 @@
 faults injected per path (slowness, 5xx, truncated bodies, redirects, a changed body), and
 moto's S3 server holding a bucket. No test reaches beyond 127.0.0.1."""
 
+import gzip
 import http.server
 import os
 import pathlib
@@ -23,7 +24,12 @@ class FaultyHandler(http.server.SimpleHTTPRequestHandler):
     ("status", code, times) answers `code` that many times (None: always), then serves;
     ("slow", seconds) waits before answering; ("truncate",) sends the announced length but
     half the body; ("redirect", target) answers 302 to `target`; ("body", bytes) serves
-    other bytes. `server.hits[path]` counts the requests."""
+    other bytes; ("chunked",) sends the body in chunks (Transfer-Encoding: chunked, no
+    Content-Length); ("close",) sends it without a length and closes the connection at its end
+    (HTTP/1.0 style); ("encoded", coding) sends it gzip-compressed ("gzip") or as it is under
+    another Content-Encoding name; ("partial",) answers 206 with the first half and a
+    Content-Range, as a server answering a range nobody asked for would.
+    `server.hits[path]` counts the requests."""
 
     def log_message(self, *args):
         pass
@@ -75,6 +81,9 @@ class FaultyHandler(http.server.SimpleHTTPRequestHandler):
             self.send_header("Content-Length", str(len(body)))
             self.end_headers()
             self.wfile.write(body)
+        elif kind in ("chunked", "close", "encoded", "partial"):
+            data = (pathlib.Path(self.server.root) / path.lstrip("/")).read_bytes()
+            self.send_shaped(kind, fault, data)
         elif kind in ("truncate", "body"):
             data = (pathlib.Path(self.server.root) / path.lstrip("/")).read_bytes()
             body = fault[1] if kind == "body" else data
@@ -84,6 +93,45 @@ class FaultyHandler(http.server.SimpleHTTPRequestHandler):
             self.wfile.write(body[: len(body) // 2] if kind == "truncate" else body)
             self.wfile.flush()
             self.close_connection = True
+
+
+    def send_shaped(self, kind, fault, data):
+        """The body `data` framed or encoded as the fault `kind` says."""
+        if kind == "partial":
+            half = data[: len(data) // 2]
+            self.send_response(206)
+            self.send_header("Content-Range", "bytes 0-%d/%d" % (len(half) - 1, len(data)))
+            self.send_header("Content-Length", str(len(half)))
+            self.end_headers()
+            self.wfile.write(half)
+            return
+        if kind == "encoded":
+            body = gzip.compress(data) if fault[1] == "gzip" else data
+            self.send_response(200)
+            self.send_header("Content-Encoding", fault[1])
+            self.send_header("Content-Length", str(len(body)))
+            self.end_headers()
+            self.wfile.write(body)
+            return
+        if kind == "close":
+            # No length and no chunks: the body ends when the connection closes.
+            self.protocol_version = "HTTP/1.0"
+            self.send_response(200)
+            self.end_headers()
+            self.wfile.write(data)
+            self.wfile.flush()
+            self.close_connection = True
+            return
+        self.protocol_version = "HTTP/1.1"
+        self.send_response(200)
+        self.send_header("Transfer-Encoding", "chunked")
+        self.end_headers()
+        for at in range(0, len(data), 1000):
+            piece = data[at:at + 1000]
+            self.wfile.write(b"%x\r\n%s\r\n" % (len(piece), piece))
+        self.wfile.write(b"0\r\n\r\n")
+        self.wfile.flush()
+        self.close_connection = True
 
 
 class FaultyServer:

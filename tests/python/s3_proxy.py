@@ -1,11 +1,14 @@
 """A reverse proxy on loopback in front of an S3 server (moto), for the bucket-job tests and
 benchmark: it counts the requests by method and by what they touch, and injects faults per
-rule: answer a status (503 SlowDown) a number of times, or cut the connection after part of a
-request's body (a network cut in the middle of an upload)."""
+rule: answer a status (503 SlowDown) a number of times, cut the connection after part of a
+request's body (a network cut in the middle of an upload), hold a request back for a while,
+or go down: every connection closed unanswered for some seconds (a store restarting)."""
 
 import http.client
 import http.server
+import socket
 import threading
+import time
 
 from remote_servers import free_port
 
@@ -39,6 +42,14 @@ class Handler(http.server.BaseHTTPRequestHandler):
         proxy = self.server.proxy
         length = int(self.headers.get("Content-Length") or 0)
         fault = proxy.take_fault(self.command, self.path)
+        if fault and fault[0] == "down":
+            proxy.go_down(fault[1])
+        if proxy.is_down():
+            self.close_connection = True
+            self.connection.shutdown(socket.SHUT_RDWR)
+            return
+        if fault and fault[0] == "delay":
+            time.sleep(fault[1])
         if fault and fault[0] == "cut":
             self.rfile.read(length // 2)
             self.close_connection = True
@@ -75,14 +86,18 @@ class Handler(http.server.BaseHTTPRequestHandler):
 
 class S3Proxy:
     """Listens on a free loopback port and forwards to `upstream_port`; `env` is the
-    endpoint for sparc3d. `faults` holds rules (method, key substring, action, times):
-    action ("status", code) or ("cut",)."""
+    endpoint for sparc3d. `faults` holds rules (method, key substring, action, times, skip):
+    action ("status", code), ("cut",), ("delay", seconds) or ("down", seconds), taken by the
+    matching requests after the first `skip`. `refused` counts the requests closed unanswered
+    while down."""
 
     def __init__(self, upstream_port):
         self.upstream_port = upstream_port
         self.lock = threading.Lock()
         self.counts = {}
         self.faults = []
+        self.down_until = 0.0
+        self.refused = 0
         self.server = http.server.ThreadingHTTPServer(("127.0.0.1", free_port()), Handler)
         self.server.daemon_threads = True
         self.server.proxy = self
@@ -94,21 +109,35 @@ class S3Proxy:
             key = (method, kind_of(path))
             self.counts[key] = self.counts.get(key, 0) + 1
 
-    def add_fault(self, method, key_part, action, times):
+    def add_fault(self, method, key_part, action, times, skip=0):
         with self.lock:
-            self.faults.append([method, key_part, action, times])
+            self.faults.append([method, key_part, action, times, skip])
 
     def take_fault(self, method, path):
         with self.lock:
             for rule in self.faults:
                 if rule[0] == method and rule[1] in path and rule[3] > 0:
+                    if rule[4] > 0:
+                        rule[4] -= 1
+                        continue
                     rule[3] -= 1
                     return rule[2]
         return None
 
+    def go_down(self, seconds):
+        with self.lock:
+            self.down_until = time.time() + seconds
+
+    def is_down(self):
+        with self.lock:
+            down = time.time() < self.down_until
+            self.refused += down
+            return down
+
     def reset(self):
         with self.lock:
             self.counts, self.faults = {}, []
+            self.down_until, self.refused = 0.0, 0
 
     def close(self):
         self.server.shutdown()

@@ -293,3 +293,43 @@ def test_an_object_over_the_byte_cap_is_too_large(tmp_path, web):
     lines = [l for l in run("failures", job, env=env).stdout.splitlines() if l.strip()]
     assert len(lines) == 1 and lines[0].startswith("too_large\tbig\t"), lines
     assert "the object is %d bytes, over the cap of %d" % (size, size - 1) in lines[0], lines[0]
+
+
+def test_bodies_without_a_length_gzip_and_an_unasked_part(tmp_path, web):
+    """Issue 41, defect 6: a body without Content-Length (chunked, or ended by the connection's
+    close) failed every time; a gzip-encoded one was taken as the object (a sha256 mismatch,
+    or without a sha256 a file that does not parse); a 206 to a plain GET was taken for the
+    whole object. Bodies of no length and gzip convert as the files; the 206 and a coding
+    sparc3d does not decode are `fetch` failures that say so."""
+    server, root = web
+    faults = {
+        "sphere.obj": ("chunked",),
+        "cube.off": ("close",),
+        "wuson.stl": ("encoded", "gzip"),
+        "box_textured.glb": ("encoded", "gzip"),
+        "cube_binary.ply": ("partial",),
+        "brotli.off": ("encoded", "br"),
+    }
+    for n, fault in faults.items():
+        shutil.copy(EXAMPLES / n.replace("brotli.off", "cube.off"), root / n)
+        server.faults["/" + n] = fault
+    # The gzip-encoded glTF without a sha256: its id is the decoded file's.
+    rows = [[n, server.url + "/" + n, "" if n == "box_textured.glb" else sha256(root / n)]
+            for n in faults]
+    m = write_manifest(tmp_path / "m.csv", rows, ("id", "uri", "sha256"))
+    env = clean_env(FAST)
+    job = tmp_path / "job"
+    run("init", job, "--manifest", m, "--resolution", 32, "--shard-size", 3, env=env)
+    run("run", job, "--workers", 2, env=env, check=False)
+    lines = run("failures", job, env=env).stdout.splitlines()
+    failed = {l.split("\t")[1]: l for l in lines if l.strip()}
+    assert sorted(failed) == ["brotli.off", "cube_binary.ply"], lines
+    assert failed["cube_binary.ply"].startswith("fetch\t"), failed
+    assert "206" in failed["cube_binary.ply"], failed["cube_binary.ply"]
+    assert "Content-Encoding" in failed["brotli.off"] and '"br"' in failed["brotli.off"], failed
+    table = job_rows(job).to_pylist()
+    ok = {r["id"]: r for r in table if r["status"] == "ok"}
+    assert sorted(ok) == ["box_textured.glb", "cube.off", "sphere.obj", "wuson.stl"], table
+    for n, r in ok.items():
+        assert r["source_sha256"] == sha256(root / n), n
+    assert server.hits["/cube_binary.ply"] == 1  # a 206 is refused, not retried

@@ -7,7 +7,8 @@
 //! from disk or fetched from a URL), [`convert`] (the one function that touches geometry), [`child`] (the isolated
 //! process that runs it), [`process`] (the one child-process supervisor: stderr tail,
 //! parent-death signal, time limit, resource use), [`supervisor`] (runs items in a child, with
-//! a watchdog, and classifies its deaths), [`shard`] (the loop over a shard's items), [`store`]
+//! a watchdog, and classifies its deaths), [`shard`] (a shard: lease, resume, write; its items converted a few at once by
+//! `item_loop`, as many as [`lanes`] says), [`store`]
 //! (shards on disk: write, check against their completion records, read back), [`events`]
 //! (progress reports).
 #![deny(missing_docs)]
@@ -18,10 +19,12 @@ pub mod error;
 pub mod events;
 pub mod frame;
 pub mod fsutil;
+mod item_loop;
 pub mod job;
 pub mod job_files;
 pub mod job_lock;
 pub mod journal;
+pub mod lanes;
 pub mod lease;
 pub mod parent;
 pub mod process;

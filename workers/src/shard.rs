@@ -6,15 +6,16 @@
 
 use crate::error::{Result, WorkerError};
 use crate::events::Event;
-use crate::frame::Record;
+use crate::item_loop::{fence, run_items, LoopEnd, ShardWork};
 use crate::job::Job;
 use crate::journal::{self, Journal};
+use crate::lanes::LaneBudget;
 use crate::lease::{self, Acquired, Lease};
 use crate::store::commit::Committed;
 use crate::store::state::{self, Check, Completion};
-use crate::supervisor::{ChildCommand, ItemOutcome, ItemRunner};
-use sparc3d_schema::{CompletionRecord, ErrorClass, FrozenItem, ItemStatus, Limits, ShardRow};
-use std::sync::atomic::{AtomicBool, Ordering};
+use crate::supervisor::ChildCommand;
+use sparc3d_schema::{CompletionRecord, Limits};
+use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
 /// What [`WorkOptions::after_item`] calls after each item.
@@ -36,6 +37,8 @@ pub struct WorkOptions {
     /// holds whole item histories), with this holder's journal; an error stops the shard.
     /// A job whose home is a bucket uploads checkpoints here.
     pub after_item: Option<AfterItem>,
+    /// Items converted at once and threads each ([`LaneBudget::single`]: one at a time).
+    pub budget: Arc<LaneBudget>,
 }
 
 /// What happened to a shard.
@@ -125,22 +128,6 @@ pub fn clear_leftovers(job: &Job, shard: u64, lease_ttl_s: f64) -> Result<()> {
     Ok(())
 }
 
-/// `Ok` while this worker holds the lease of `shard`; else the error that stops it.
-fn fence(held: &Lease, shard: u64) -> Result<()> {
-    held.check().map_err(|loss| WorkerError::LeaseLost {
-        shard,
-        lease: loss.lease,
-        why: loss.why,
-    })
-}
-
-/// Appends `record` to this holder's journal once the lease is checked. A holder stopped
-/// between the check and the write still writes only to its own file.
-fn append(journal: &mut Journal, held: &Lease, shard: u64, record: &Record) -> Result<()> {
-    fence(held, shard)?;
-    journal.append(record)
-}
-
 fn run_leased(
     job: &Job,
     shard: u64,
@@ -177,30 +164,15 @@ fn run_leased(
         items: items.len() as u64,
         done: journal.state.done.len() as u64,
     });
-    let config = &job.file.config;
-    let mut runner = ItemRunner::new(opts.child.clone(), config, opts.limits)?;
-    let resolution = config.params.resolution;
-    for item in items {
-        if journal.state.done.contains_key(&item.index) {
-            continue;
-        }
-        loop {
-            match attempt(
-                &mut journal,
-                opts,
-                shard,
-                held,
-                &mut runner,
-                item,
-                resolution,
-            )? {
-                Attempt::Finished => break,
-                Attempt::Retry => continue,
-                Attempt::Stopped => return Ok(ShardOutcome::Stopped),
-            }
-        }
+    let mut work = ShardWork {
+        shard,
+        held,
+        config: &job.file.config,
+        opts,
+    };
+    if let LoopEnd::Stopped = run_items(&mut work, &mut journal, items)? {
+        return Ok(ShardOutcome::Stopped);
     }
-    drop(runner);
     (opts.events)(Event::ShardWriting { shard });
     // Every result on disk (and any failed background flush reported) before the shard.
     journal.sync()?;
@@ -228,145 +200,4 @@ fn run_leased(
             ShardOutcome::AlreadyDone(record)
         }
     })
-}
-
-/// How one attempt at an item ended, for the loop over a shard's items.
-enum Attempt {
-    /// The item has its final row in the journal.
-    Finished,
-    /// It crashed and is to be tried again.
-    Retry,
-    /// A stop was requested; the attempt is recorded as aborted.
-    Stopped,
-}
-
-/// One attempt at `item`: give it up when it killed its worker too often, else journal its
-/// start, run it in the item worker, and journal the result, the crash to retry, or the abort.
-fn attempt(
-    journal: &mut Journal,
-    opts: &mut WorkOptions,
-    shard: u64,
-    held: &Lease,
-    runner: &mut ItemRunner,
-    item: &FrozenItem,
-    resolution: u32,
-) -> Result<Attempt> {
-    if opts.stop.load(Ordering::SeqCst) {
-        return Ok(Attempt::Stopped);
-    }
-    let attempts = journal
-        .state
-        .attempts
-        .get(&item.index)
-        .cloned()
-        .unwrap_or_default();
-    if attempts.interrupted() >= opts.limits.max_interrupted_attempts {
-        let message = format!(
-            "the worker was killed {} times while converting this item",
-            attempts.interrupted()
-        );
-        let class = ErrorClass::Crashed;
-        let mut row = ShardRow::failed_item(item, resolution, class, message);
-        row.attempts = attempts.started;
-        finish(journal, held, opts, shard, row)?;
-        return Ok(Attempt::Finished);
-    }
-    append(
-        journal,
-        held,
-        shard,
-        &Record::Start {
-            index: item.index,
-            attempt: attempts.started + 1,
-            at: crate::now(),
-        },
-    )?;
-    (opts.events)(Event::ItemStarted {
-        shard,
-        index: item.index,
-        id: item.record.id.clone(),
-        uri: item.record.uri.clone(),
-    });
-    let t = std::time::Instant::now();
-    // A lost lease stops the item like Ctrl-C does; the abort's append then reports it.
-    let stop = || opts.stop.load(Ordering::SeqCst) || held.is_lost();
-    let outcome = runner.run(item, &stop)?;
-    let seconds = t.elapsed().as_secs_f64();
-    match outcome {
-        ItemOutcome::Finished(mut row) => {
-            row.attempts = attempts.started + 1;
-            row.timings.total_s = seconds;
-            finish(journal, held, opts, shard, *row)?;
-            Ok(Attempt::Finished)
-        }
-        ItemOutcome::Stopped => {
-            let abort = Record::Abort {
-                index: item.index,
-                at: crate::now(),
-            };
-            append(journal, held, shard, &abort)?;
-            Ok(Attempt::Stopped)
-        }
-        ItemOutcome::Died {
-            class,
-            message,
-            stderr_tail,
-        } => {
-            if class.is_crash() && attempts.crashes < opts.limits.max_crash_retries {
-                let crash = Record::Crash {
-                    index: item.index,
-                    class,
-                    message,
-                    at: crate::now(),
-                };
-                append(journal, held, shard, &crash)?;
-                (opts.events)(Event::ItemFinished {
-                    shard,
-                    index: item.index,
-                    status: "retry".into(),
-                    class: Some(class.as_str().into()),
-                    seconds,
-                });
-                return Ok(Attempt::Retry);
-            }
-            let mut row = ShardRow::failed_item(item, resolution, class, message);
-            row.stderr_tail = (!stderr_tail.is_empty()).then_some(stderr_tail);
-            row.attempts = attempts.started + 1;
-            row.timings.total_s = seconds;
-            finish(journal, held, opts, shard, row)?;
-            Ok(Attempt::Finished)
-        }
-    }
-}
-
-/// Journals `row` as the item's final result and reports it.
-fn finish(
-    journal: &mut Journal,
-    held: &Lease,
-    opts: &mut WorkOptions,
-    shard: u64,
-    row: ShardRow,
-) -> Result<()> {
-    let event = Event::ItemFinished {
-        shard,
-        index: row.item_index,
-        status: match row.status {
-            ItemStatus::Ok => "ok",
-            ItemStatus::Failed => "failed",
-            ItemStatus::Skipped => "skipped",
-        }
-        .into(),
-        class: row.error_class.map(|c| c.as_str().to_string()),
-        seconds: row.timings.total_s,
-    };
-    let done = Record::Done {
-        row: Box::new(row),
-        at: crate::now(),
-    };
-    append(journal, held, shard, &done)?;
-    (opts.events)(event);
-    if let Some(checkpoint) = opts.after_item.as_mut() {
-        checkpoint(journal)?;
-    }
-    Ok(())
 }

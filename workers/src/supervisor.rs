@@ -76,6 +76,8 @@ pub struct ItemRunner {
     config_line: String,
     limits: Limits,
     proc: Option<ChildProc>,
+    /// Threads of the item worker's conversions (`RAYON_NUM_THREADS`; 0: the environment's).
+    threads: usize,
 }
 
 fn signal_name(sig: i32) -> &'static str {
@@ -152,7 +154,20 @@ impl ItemRunner {
             config_line,
             limits,
             proc: None,
+            threads: 0,
         })
+    }
+
+    /// Converts the next items with `threads` threads (0: as the environment says): an idle
+    /// item worker started with another count is replaced at the next item. The output does
+    /// not depend on it.
+    pub fn set_threads(&mut self, threads: usize) {
+        if threads != self.threads {
+            self.threads = threads;
+            if let Some(mut p) = self.proc.take() {
+                p.kill();
+            }
+        }
     }
 
     fn spawn(&self) -> Result<ChildProc> {
@@ -165,6 +180,9 @@ impl ItemRunner {
             .envs(self.cmd.env.iter().map(|(k, v)| (k, v)))
             .stdin(Stdio::piped())
             .stdout(Stdio::piped());
+        if self.threads > 0 {
+            cmd.env("RAYON_NUM_THREADS", self.threads.to_string());
+        }
         let options = ProcessOptions {
             own_process_group: true,
             stderr_tail_bytes: TAIL_BYTES,

@@ -74,6 +74,7 @@ fn options(script: &str, limits: Limits, stop: bool) -> WorkOptions {
         stop: Arc::new(AtomicBool::new(stop)),
         events: Box::new(|_| {}),
         after_item: None,
+        budget: sparc3d_workers::lanes::LaneBudget::single(),
     }
 }
 

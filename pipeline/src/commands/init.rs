@@ -85,30 +85,75 @@ pub fn build_config(args: &ConfigArgs) -> Result<JobConfig> {
     Ok(config)
 }
 
-/// When the manifest given to `init` again is the one the job was made from (its frozen text
-/// has the sha256 `job.json` recorded) but the job's frozen copy is not: the first line where
-/// they differ, for the error that refuses the job.
-fn frozen_copy_differs(layout: &JobLayout, text: &str, sha256: &str) -> Option<String> {
+/// When the job's frozen copy is not what `init` froze (its sha256 is not the one `job.json`
+/// recorded): the first line where it differs from `text`, the manifest given to `init` again
+/// frozen now, for the error that refuses the job. With the manifest the job was made from,
+/// that is the edited line; with another, the first line where the two differ.
+fn frozen_copy_differs(
+    layout: &JobLayout,
+    shown: &Path,
+    text: &str,
+    sha256: &str,
+) -> Option<String> {
     let file: JobFile = sparc3d_workers::fsutil::read_json(&layout.job_file()).ok()?;
     let frozen = std::fs::read_to_string(layout.manifest()).ok()?;
-    if file.manifest_sha256 != sha256 || frozen == text {
-        return None;
+    if sparc3d_workers::fsutil::bytes_sha256(frozen.as_bytes()) == file.manifest_sha256 {
+        return None; // the frozen copy is as `init` wrote it: something else was edited
     }
-    let mut lines = frozen.lines().zip(text.lines()).enumerate();
-    let line = match lines.find(|(_, (a, b))| a != b) {
-        Some((n, (now, meant))) => format!("line {}: {now}, where it froze {meant}", n + 1),
+    let first = frozen
+        .lines()
+        .zip(text.lines())
+        .enumerate()
+        .find(|(_, (a, b))| a != b);
+    let differs = |theirs: &str| match first {
+        Some((n, (now, meant))) => format!("line {}: {now}, where {theirs} {meant}", n + 1),
         None => format!(
-            "{} lines, where it froze {}",
+            "{} lines, where {theirs} {}",
             frozen.lines().count(),
             text.lines().count()
         ),
     };
-    Some(format!(
-        "this manifest is the one {} was made from, but its frozen copy {} was edited since: \
-         {line}",
-        layout.root.display(),
-        layout.manifest().display()
-    ))
+    let copy = shown.join("manifest.jsonl");
+    Some(if file.manifest_sha256 == sha256 {
+        format!(
+            "this manifest is the one {} was made from, but its frozen copy {} was edited \
+             since: {}",
+            shown.display(),
+            copy.display(),
+            differs("it froze")
+        )
+    } else {
+        format!(
+            "its frozen copy {} was edited since `init` (and this manifest is not the one {} \
+             was made from); the frozen copy first differs from this manifest at {}",
+            copy.display(),
+            shown.display(),
+            differs("this manifest freezes to")
+        )
+    })
+}
+
+/// `e`, a job's refusal, naming the job `shown` rather than the folder `root` it was checked
+/// in (a bucket job is checked in a local copy).
+fn named_as(
+    e: sparc3d_workers::WorkerError,
+    root: &Path,
+    shown: &Path,
+) -> sparc3d_workers::WorkerError {
+    use sparc3d_workers::WorkerError;
+    match e {
+        WorkerError::EditedJob { problems, .. } => WorkerError::EditedJob {
+            root: shown.to_path_buf(),
+            problems,
+        },
+        WorkerError::BadFile { path, reason } => WorkerError::BadFile {
+            path: path
+                .strip_prefix(root)
+                .map_or_else(|_| path.clone(), |name| shown.join(name)),
+            reason,
+        },
+        other => other,
+    }
 }
 
 /// Runs `sparc3d init`.
@@ -245,7 +290,8 @@ pub fn create_named(
     };
     if layout.job_file().exists() {
         let existing = sparc3d_workers::Job::open(&layout.root).map_err(|e| {
-            match frozen_copy_differs(&layout, &text, &manifest_sha256) {
+            let e = named_as(e, &layout.root, shown);
+            match frozen_copy_differs(&layout, shown, &text, &manifest_sha256) {
                 Some(line) => anyhow::Error::new(e).context(line),
                 None => e.into(),
             }

@@ -1,6 +1,8 @@
-//! `sparc3d run JOB [--workers N] [--item-timeout 10m] [--item-memory 8G]`: the local
-//! orchestrator. Runs up to N `sparc3d work --events` processes, one shard each, shows
-//! progress, and stops cleanly on Ctrl-C or SIGTERM; a later `run` resumes.
+//! `sparc3d run JOB [--workers N|auto] [--item-timeout 10m] [--item-memory 8G]`: the local
+//! orchestrator. Runs `sparc3d work --events` processes, one shard each, N items at once in
+//! all (a worker converts several of its shard's items at once when shards are fewer than N:
+//! `lane_plan.rs`), shows progress, and stops cleanly on Ctrl-C or SIGTERM; a later `run`
+//! resumes.
 //! `sparc3d run DIR_OR_MANIFEST --job OUT` first makes the job OUT (as `manifest build` and
 //! `init` would) when it does not exist yet, and resumes it when it does.
 //!
@@ -41,8 +43,10 @@ pub struct Args {
     /// With --job and a manifest: `--path-column` and `--where`, as for `init`.
     #[command(flatten)]
     pub source: super::init::SourceArgs,
-    /// Worker processes (default: number of cores).
-    #[arg(long)]
+    /// Items converted at once (`auto`, the default: one per core, as far as memory holds
+    /// items at their memory limit). A shard's items are spread over several workers' lanes
+    /// when there are fewer shards than workers; the shards written are the same for any N.
+    #[arg(long, value_name = "N|auto", value_parser = parse_workers)]
     pub workers: Option<usize>,
     /// Seconds between progress lines when not on a terminal.
     #[arg(long, default_value = "10s", value_parser = parse_duration)]
@@ -57,10 +61,11 @@ pub struct Args {
 
 /// Runs `sparc3d run`.
 pub fn run(args: Args) -> Result<ExitCode> {
+    let requested = args.workers.filter(|&n| n > 0);
     if let (sparc3d_bucket::JobHome::Bucket(url), None) =
         (sparc3d_bucket::JobHome::parse(&args.input)?, &args.job)
     {
-        return crate::bucket_home::run(&url, &args.input, args.workers, &args.limits.to_args());
+        return crate::bucket_home::run(&url, &args.input, requested, &args.limits.to_args());
     }
     let job_dir = crate::job_setup::job_for_run(
         &args.input,
@@ -71,11 +76,14 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let _lock = crate::job_setup::hold_shared(&job_dir)?;
     let job = Job::open(&job_dir)?;
     let stop = install_signals()?;
-    let cores = std::thread::available_parallelism()
-        .map(|n| n.get())
-        .unwrap_or(1);
-    let workers = args.workers.unwrap_or(cores).max(1);
-    let threads = (cores / workers).max(1);
+    let plan = crate::machine::plan(
+        requested,
+        crate::machine::cores(),
+        crate::machine::available_memory(),
+        args.limits.apply(job.file.config.limits).item_memory_bytes,
+        crate::machine::threads_from_env(),
+    );
+    let workers = plan.workers;
     let start = Instant::now();
     let states = shard_states(&job, Check::Quick)?;
     let before = summarize_states(&job, &states);
@@ -88,27 +96,27 @@ pub fn run(args: Args) -> Result<ExitCode> {
     );
     let (queue, waiting) = pool::plan(&states, &progress);
     progress.println(&format!(
-        "{}: {} items, {} shards left, {workers} workers",
+        "{}: {} items, {} shards left, {}",
         job_dir.display(),
         before.pending,
-        queue.len() + waiting.len()
+        queue.len() + waiting.len(),
+        plan.why
     ));
     let launcher = LocalWorkers {
         job: &job,
         job_dir: job_dir.clone(),
         limit_args: args.limits.to_args(),
-        threads,
+        threads: plan.threads.max(1),
     };
     // An error of the pool itself (a worker that cannot be started: too many open files) ends
     // the run like a failed shard: said, then what is left is named below.
     let lease_ttl = std::time::Duration::from_secs_f64(args.limits.lease_ttl.max(0.1));
-    let (errors, pool_error) = match Pool::new(launcher, workers, queue, waiting, lease_ttl)
-        .run(&mut progress, &|| stop.requested())
-    {
+    let pool = Pool::new(launcher, workers, queue, waiting, lease_ttl).with_threads(plan.threads);
+    let (errors, pool_error) = match pool.run(&mut progress, &|| stop.requested()) {
         Ok(errors) => (errors, None),
         Err(e) => (Vec::new(), Some(e)),
     };
-    let (ok, failed, retried) = progress.finish();
+    let counts = progress.finish();
     if let Some(e) = &pool_error {
         eprintln!("error: {}{}", crate::describe(e), os_hint(e));
     }
@@ -116,13 +124,17 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let after = summarize(&job)?;
     let converted = (after.ok + after.failed).saturating_sub(before.ok + before.failed);
     eprintln!(
-        "{converted} items in {} ({ok} ok, {failed} failed in total, {retried} crash retries); \
-         {} of {} shards done; item time {:.1}s over {:.1}s wall on {workers} workers",
+        "{converted} items in {} ({} ok, {} failed in total, {} crash retries); {} of {} shards \
+         done; item time {:.1}s over {:.1}s wall on {workers} workers (most items at once: {})",
         format_seconds(elapsed),
+        counts.ok,
+        counts.failed,
+        counts.retried,
         after.shards_done,
         after.shards,
         after.item_seconds - before.item_seconds,
         elapsed,
+        counts.most_at_once,
     );
     // The last line points to the failures, whatever the outcome.
     let failures_hint = || {
@@ -158,6 +170,19 @@ pub fn run(args: Args) -> Result<ExitCode> {
         return super::validate::after_run(&job_dir, sample);
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// `--workers N` or `auto` (given as 0: the run picks).
+fn parse_workers(s: &str) -> Result<usize, String> {
+    if s.eq_ignore_ascii_case("auto") {
+        return Ok(0);
+    }
+    match s.parse::<usize>() {
+        Ok(n) if n > 0 => Ok(n),
+        _ => Err(format!(
+            "{s:?} is not a number of workers (1 or more) or `auto`"
+        )),
+    }
 }
 
 /// The hint for an I/O error inside `e` (the open-file limit, a full disk), or nothing.

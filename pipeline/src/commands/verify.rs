@@ -1,12 +1,14 @@
 //! `sparc3d verify JOB [--dry-run] [--json]`: hashes every finished shard against its
 //! completion record, moves damaged shards aside (into `JOB/quarantine/`, nothing is deleted)
 //! so that the next `run` converts them again, and says which they are. Exits 1 when any
-//! shard was damaged. A job in a bucket is hashed in its local view (downloaded), and its
-//! damaged shards are moved aside in the bucket (`sparc3d_bucket::quarantine`).
+//! shard was damaged. In a job in a bucket, every finished shard's object is read from the
+//! bucket and hashed, whatever local copy there is, and damaged shards (a missing object
+//! included) are moved aside in the bucket (`sparc3d_bucket::verify`).
 
 use anyhow::Result;
 use rayon::prelude::*;
 use serde::Serialize;
+use sparc3d_bucket::verify::{verify_shard as verify_in_bucket, Verified as InBucket};
 use sparc3d_workers::store::state::{verify_shard, Verified};
 use sparc3d_workers::Job;
 use std::path::PathBuf;
@@ -16,7 +18,8 @@ use std::time::Instant;
 /// Arguments of `sparc3d verify`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Job folder, or the bucket prefix that is the job's home (read through a local copy).
+    /// Job folder, or the bucket prefix that is the job's home (its objects read from the
+    /// bucket).
     pub job: PathBuf,
     /// Only report: leave damaged shards where they are.
     #[arg(long)]
@@ -66,26 +69,18 @@ struct Report {
 }
 
 /// Runs `sparc3d verify`.
-pub fn run(mut args: Args) -> Result<ExitCode> {
-    // In a bucket, the local view is checked, and damaged shards are moved aside in the
-    // bucket itself.
+pub fn run(args: Args) -> Result<ExitCode> {
     let name = args.job.display().to_string();
-    let home = sparc3d_bucket::JobHome::parse(&args.job)?;
-    args.job = crate::bucket_home::local_view(&args.job)?;
-    let job = Job::open(&args.job)?;
-    let in_bucket = matches!(home, sparc3d_bucket::JobHome::Bucket(_));
-    let mut report = verify_job(&job, !args.dry_run && !in_bucket)?;
-    if let (sparc3d_bucket::JobHome::Bucket(url), false) = (&home, args.dry_run) {
-        let prefix = crate::bucket_home::prefix(url)?;
-        for p in report.problems.iter_mut().filter(|p| p.state == "damaged") {
-            let reason = p.reason.clone().unwrap_or_default();
-            p.moved_to = sparc3d_bucket::quarantine::quarantine(&prefix, p.shard, &reason)?;
+    let (report, in_bucket) = match sparc3d_bucket::JobHome::parse(&args.job)? {
+        sparc3d_bucket::JobHome::Folder(dir) => {
+            (verify_job(&Job::open(&dir)?, !args.dry_run)?, false)
         }
-    }
+        sparc3d_bucket::JobHome::Bucket(url) => (verify_bucket(&url, !args.dry_run)?, true),
+    };
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
-        print_text(&report, &name);
+        print_text(&report, &name, in_bucket);
     }
     Ok(if report.damaged > 0 {
         ExitCode::FAILURE
@@ -94,17 +89,89 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
     })
 }
 
+/// One shard's result, on disk or in a bucket.
+enum Found {
+    NotFinished,
+    /// Good: its bytes, and whether its stamp (its ETag in a bucket) was re-recorded.
+    Good {
+        bytes: u64,
+        restamped: bool,
+    },
+    Damaged {
+        reason: String,
+        moved_to: Option<String>,
+    },
+    /// Left alone; why.
+    Busy {
+        reason: String,
+    },
+}
+
+impl From<Verified> for Found {
+    fn from(v: Verified) -> Self {
+        match v {
+            Verified::NotFinished => Found::NotFinished,
+            Verified::Good { record, restamped } => Found::Good {
+                bytes: record.bytes,
+                restamped,
+            },
+            Verified::Damaged { reason, moved_to } => Found::Damaged {
+                reason,
+                moved_to: moved_to.map(|p| p.display().to_string()),
+            },
+            Verified::Busy { reason, owner } => Found::Busy {
+                reason: format!("{reason}; leased by {owner}, left alone"),
+            },
+        }
+    }
+}
+
+impl From<InBucket> for Found {
+    fn from(v: InBucket) -> Self {
+        match v {
+            InBucket::NotFinished => Found::NotFinished,
+            InBucket::Good { record, rerecorded } => Found::Good {
+                bytes: record.bytes,
+                restamped: rerecorded,
+            },
+            InBucket::Damaged { reason, moved_to } => Found::Damaged { reason, moved_to },
+            InBucket::Busy { reason } => Found::Busy { reason },
+        }
+    }
+}
+
 /// Hashes every finished shard of `job` against its completion record (in parallel) and
 /// tallies the results; with `move_damaged`, damaged shards are moved into quarantine.
 fn verify_job(job: &Job, move_damaged: bool) -> Result<Report> {
     let start = Instant::now();
-    let results: Vec<(u64, Verified)> = (0..job.file.shards)
+    let results: Vec<(u64, Found)> = (0..job.file.shards)
         .into_par_iter()
         .map(|shard| {
             let v = verify_shard(&job.layout, shard, job.fingerprint(), move_damaged)?;
-            Ok((shard, v))
+            Ok((shard, v.into()))
         })
         .collect::<Result<_>>()?;
+    Ok(tally(job, results, start))
+}
+
+/// [`verify_job`] for the job in the bucket at `url`: every finished shard's object read from
+/// the bucket and hashed (never the local copy), damaged ones moved aside in the bucket.
+fn verify_bucket(url: &sparc3d_sources::RemoteUrl, move_damaged: bool) -> Result<Report> {
+    let start = Instant::now();
+    let prefix = crate::bucket_home::prefix(url)?;
+    let (job, _) = crate::bucket_home::view_job(url, &prefix)?;
+    let results: Vec<(u64, Found)> = (0..job.file.shards)
+        .into_par_iter()
+        .map(|shard| {
+            let v = verify_in_bucket(&prefix, shard, job.fingerprint(), move_damaged)?;
+            Ok((shard, v.into()))
+        })
+        .collect::<Result<_>>()?;
+    Ok(tally(&job, results, start))
+}
+
+/// The report of `results`, one per shard of `job`, found since `start`.
+fn tally(job: &Job, results: Vec<(u64, Found)>, start: Instant) -> Report {
     let mut r = Report {
         shards: job.file.shards,
         finished: 0,
@@ -117,43 +184,41 @@ fn verify_job(job: &Job, move_damaged: bool) -> Result<Report> {
         problems: Vec::new(),
     };
     let items_of = |shard: u64| job.items.iter().filter(|i| i.shard == shard).count() as u64;
-    for (shard, v) in results {
-        match v {
-            Verified::NotFinished => {}
-            Verified::Good { record, restamped } => {
-                r.finished += 1;
+    for (shard, found) in results {
+        r.finished += !matches!(found, Found::NotFinished) as u64;
+        match found {
+            Found::NotFinished => {}
+            Found::Good { bytes, restamped } => {
                 r.good += 1;
-                r.bytes_hashed += record.bytes;
+                r.bytes_hashed += bytes;
                 r.restamped += restamped as u64;
             }
-            Verified::Damaged { reason, moved_to } => {
-                r.finished += 1;
+            Found::Damaged { reason, moved_to } => {
                 r.damaged += 1;
                 r.problems.push(ShardReport {
-                    shard,
                     state: "damaged",
                     reason: Some(reason),
-                    moved_to: moved_to.map(|p| p.display().to_string()),
+                    moved_to,
                     items: Some(items_of(shard)),
+                    ..ShardReport::new(shard)
                 });
             }
-            Verified::Busy { reason, owner } => {
-                r.finished += 1;
+            Found::Busy { reason } => {
                 r.busy += 1;
                 r.problems.push(ShardReport {
                     state: "busy",
-                    reason: Some(format!("{reason}; leased by {owner}, left alone")),
+                    reason: Some(reason),
                     ..ShardReport::new(shard)
                 });
             }
         }
     }
     r.seconds = start.elapsed().as_secs_f64();
-    Ok(r)
+    r
 }
 
 /// Prints one line per damaged or busy shard, with what to run next, and the tally.
-fn print_text(r: &Report, root: &str) {
+fn print_text(r: &Report, root: &str, in_bucket: bool) {
     for p in &r.problems {
         let reason = p.reason.as_deref().unwrap_or_default();
         match (&p.moved_to, p.state) {
@@ -172,13 +237,12 @@ fn print_text(r: &Report, root: &str) {
             _ => println!("shard {}: {reason}", p.shard),
         }
     }
-    let restamped = if r.restamped > 0 {
-        format!(
-            " ({} touched but unchanged: stamps re-recorded)",
-            r.restamped
-        )
-    } else {
-        String::new()
+    let restamped = match (r.restamped, in_bucket) {
+        (0, _) => String::new(),
+        (n, false) => format!(" ({n} touched but unchanged: stamps re-recorded)"),
+        (n, true) => {
+            format!(" ({n} objects unchanged under a new or unrecorded ETag: ETags recorded)")
+        }
     };
     println!(
         "{} of {} shards finished: {} good, {} damaged, {} busy; {:.1} MB hashed in {:.2} s{restamped}",

@@ -1,5 +1,5 @@
 //! `sparc3d work JOB (--shard-index I | --array [--shards-per-task K] [--offset O])`: processes
-//! shards in this process (one supervised item worker at a time). Idempotent: a finished shard
+//! shards in this process (one supervised item worker at a time, or `--lanes N` at once). Idempotent: a finished shard
 //! is skipped after checking its completion record. For Slurm arrays and Kubernetes indexed
 //! jobs, `--array` reads `SLURM_ARRAY_TASK_ID` or `JOB_COMPLETION_INDEX`.
 
@@ -8,6 +8,7 @@ use crate::units::{format_seconds, format_size, parse_duration, parse_size, with
 use anyhow::{bail, Context, Result};
 use sparc3d_schema::Limits;
 use sparc3d_workers::events::Event;
+use sparc3d_workers::lanes::{LaneBudget, Share};
 use sparc3d_workers::supervisor::ChildCommand;
 use sparc3d_workers::{process_shard, Job, ShardOutcome, WorkOptions};
 use std::io::Write;
@@ -107,6 +108,19 @@ pub struct Args {
     /// Print progress events as JSON lines on stdout (used by `run`).
     #[arg(long)]
     pub events: bool,
+    /// Items of a shard converted at once, each in its own item worker, with
+    /// `RAYON_NUM_THREADS` / N threads each (at least 1) unless `--threads` says otherwise.
+    /// The shard written is the same for any N.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..=1024))]
+    pub lanes: u64,
+    /// Threads per conversion (default: the environment's `RAYON_NUM_THREADS`, else the
+    /// cores divided among the lanes).
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=4096))]
+    pub threads: Option<u64>,
+    /// Read new shares (`{"lanes":N,"threads":T}` lines) on stdin while working (used by
+    /// `run`, which moves the lanes of finished workers to those with items left).
+    #[arg(long, hide = true)]
+    pub control_stdin: bool,
     /// Pid of the orchestrator that started this worker: the worker stops (as on SIGTERM)
     /// when it dies, so that no worker outlives `run` holding a lease (used by `run`).
     #[arg(long, hide = true)]
@@ -193,6 +207,7 @@ fn work_shards(args: &Args, job: &Job, process: &mut ShardFn<'_>) -> Result<Exit
         stop: stop.flag.clone(),
         events: Box::new(move |e: Event| report_event(events, &e)),
         after_item: None,
+        budget: budget(args),
     };
     for shard in shards {
         if shard >= job.file.shards {
@@ -217,6 +232,27 @@ fn work_shards(args: &Args, job: &Job, process: &mut ShardFn<'_>) -> Result<Exit
         }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// This worker's share of the machine: `--lanes` at `--threads` each (by default the cores, or
+/// `RAYON_NUM_THREADS`, divided among the lanes), changed by control lines on stdin with
+/// `--control-stdin`.
+fn budget(args: &Args) -> std::sync::Arc<LaneBudget> {
+    let lanes = args.lanes as usize;
+    let threads = match args.threads {
+        Some(t) => t as usize,
+        // One lane keeps today's behaviour: the item worker inherits the environment.
+        None if lanes == 1 => 0,
+        None => (crate::machine::threads_from_env_or_cores() / lanes).max(1),
+    };
+    let budget = LaneBudget::new(Share { lanes, threads });
+    if args.control_stdin {
+        sparc3d_workers::lanes::follow_control(
+            std::io::BufReader::new(std::io::stdin()),
+            budget.clone(),
+        );
+    }
+    budget
 }
 
 /// An event as a JSON line on stdout (`--events`), or the damaged-shard note on stderr.

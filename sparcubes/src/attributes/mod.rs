@@ -19,7 +19,7 @@ pub mod clip;
 pub mod mips;
 pub mod shade;
 
-use crate::closest::TriangleIndex;
+use crate::queries::closest::TriangleIndex;
 use crate::cubes::SparseCubes;
 use crate::materials::Appearance;
 use crate::mesh::TriMesh;

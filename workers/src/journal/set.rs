@@ -217,7 +217,7 @@ mod tests {
         a.append(&done(&failed(0, "by a")))?;
         a.append(&start(1))?;
         let earlier = read(&layout, 0, Some("fp"))?;
-        assert_eq!(earlier.in_flight.map(|x| x.0), Some(1));
+        assert_eq!(earlier.in_flight.keys().next(), Some(&1));
         let mut b = Journal::create(&layout.holder_journal(0, "b"), 0, "fp", earlier)?;
         for (i, msg) in [(1, "by b"), (2, "by b")] {
             b.append(&start(i))?;
@@ -246,7 +246,7 @@ mod tests {
             b.path(),
             "the latest row wins"
         );
-        assert!(later.attempts.is_empty() && later.in_flight.is_none());
+        assert!(later.attempts.is_empty() && later.in_flight.is_empty());
         Ok(())
     }
 

@@ -68,8 +68,9 @@ pub struct JournalState {
     pub done: BTreeMap<u64, DoneItem>,
     /// Attempts of items not finished.
     pub attempts: HashMap<u64, Attempts>,
-    /// The item started last and not finished, with its start time (of the latest journal).
-    pub in_flight: Option<(u64, f64)>,
+    /// Items started and not finished, with their start times (of the latest journal: one
+    /// holder, converting one item at a time or several with lanes).
+    pub in_flight: BTreeMap<u64, f64>,
     /// Unix time of the first record.
     pub created_at: Option<f64>,
     /// Bytes of valid frames (of one file; summed over merged ones).
@@ -92,13 +93,11 @@ impl JournalState {
             }
             Record::Start { index, at, .. } => {
                 self.attempts.entry(*index).or_default().started += 1;
-                self.in_flight = Some((*index, *at));
+                self.in_flight.insert(*index, *at);
             }
             Record::Done { row, at } => {
                 self.attempts.remove(&row.item_index);
-                if self.in_flight.map(|(i, _)| i) == Some(row.item_index) {
-                    self.in_flight = None;
-                }
+                self.in_flight.remove(&row.item_index);
                 self.done.insert(
                     row.item_index,
                     DoneItem {
@@ -120,18 +119,18 @@ impl JournalState {
                 let a = self.attempts.entry(*index).or_default();
                 a.crashes += 1;
                 a.last_crash = Some((*class, message.clone()));
-                self.in_flight = None;
+                self.in_flight.remove(index);
             }
             Record::Abort { index, .. } => {
                 self.attempts.entry(*index).or_default().aborted += 1;
-                self.in_flight = None;
+                self.in_flight.remove(index);
             }
         }
     }
 
     /// Adds what a later journal of the same shard says: its finished items (a row of an item
     /// finished in both wins over the earlier one: the same item converted twice, e.g. by a
-    /// holder that lost its lease), its attempts added to these, its item in flight.
+    /// holder that lost its lease), its attempts added to these, its items in flight.
     pub fn absorb(&mut self, later: JournalState) {
         if self.header.is_none() {
             self.header = later.header;
@@ -149,9 +148,7 @@ impl JournalState {
         self.torn |= later.torn;
         let done = &self.done;
         self.attempts.retain(|index, _| !done.contains_key(index));
-        if self.in_flight.is_some_and(|(i, _)| done.contains_key(&i)) {
-            self.in_flight = None;
-        }
+        self.in_flight.retain(|index, _| !done.contains_key(index));
     }
 }
 

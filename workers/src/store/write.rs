@@ -225,6 +225,7 @@ fn write_parquet(
         sha256: file_sha256,
         stamp: None,
         object: None,
+        object_etag: None,
         content_digest: sparc3d_schema::config::hex(&digest.finalize()),
         item_seconds,
         started_at,
