@@ -396,6 +396,26 @@ mod tests {
     }
 
     #[test]
+    fn coords_of_answers_numbers_in_any_order() {
+        // The inside test asks for the corners of a part in the order it meets them, not in
+        // number order: a number below the previous one went back no brick, subtracted past
+        // zero (a panic with overflow checks, brick coordinates of the wrong brick without).
+        let (_, set) = scattered();
+        let numbered = Numbered::new(set);
+        let all = numbered.coords();
+        let ids: Vec<u32> = (0..numbered.len as u32).rev().step_by(3).collect();
+        let expected: Vec<[u32; 3]> = ids.iter().map(|&i| all[i as usize]).collect();
+        assert!(numbered.offsets.iter().filter(|&&o| o > 0).count() > 2);
+        assert_eq!(numbered.coords_of(&ids), expected);
+        let shuffled: Vec<u32> = ids
+            .iter()
+            .map(|&i| (i * 37) % numbered.len as u32)
+            .collect();
+        let expected: Vec<[u32; 3]> = shuffled.iter().map(|&i| all[i as usize]).collect();
+        assert_eq!(numbered.coords_of(&shuffled), expected);
+    }
+
+    #[test]
     fn sorted_members_lists_every_member_in_order() {
         let (coords, set) = scattered();
         let got: Vec<[u32; 3]> = set
@@ -693,12 +713,17 @@ impl Numbered {
         );
     }
 
-    /// Coordinates of the members with the given numbers (ascending), without materialising
-    /// every member's coordinates.
+    /// Coordinates of the members with the given numbers (each below `len`, in any order),
+    /// without materialising every member's coordinates: ascending numbers walk the bricks
+    /// forward, a smaller one than the last is found by bisection.
     pub fn coords_of(&self, ids: &[u32]) -> Vec<[u32; 3]> {
         let mut out = Vec::with_capacity(ids.len());
         let mut s = 0;
         for &id in ids {
+            if id < self.offsets[s] {
+                // The last brick whose first member is at most `id` (brick 0's is 0).
+                s = self.offsets.partition_point(|&first| first <= id) - 1;
+            }
             while s + 1 < self.offsets.len() && self.offsets[s + 1] <= id {
                 s += 1;
             }
