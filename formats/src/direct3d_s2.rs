@@ -1,6 +1,7 @@
 //! Direct3D-S2's sparse SDF (`SparseSDFVAE.encode`, `direct3d_s2/models/autoencoders/ss_vae.py`
 //! L75-91 of DreamTechAI/Direct3D-S2: `sparse_index` [N, 3], `sparse_sdf` [N, 1]), computed
-//! from the stored grid by [`sparcubes::layouts::direct3d_s2`]: the grid points within 4
+//! from the stored grid as its truncated signed distance
+//! ([`sparcubes::products::truncated_sdf`]) at [`TRUNCATION`]: the grid points within 4
 //! voxels of the surface, signed distance / 4 voxels, positive outside.
 //!
 //! Frame: its `sparse2mesh` (ss_vae.py L107-129) fills a `res³` grid with +1 and puts index
@@ -12,7 +13,7 @@
 //! consumer frame ([`check`]); `--frame normalized` writes it in the job's own frame.
 
 use crate::{identity_arrays, npz::Array, npz_file, Frame, Item, ItemExport, JobCheck, Result};
-use sparcubes::layouts::direct3d_s2;
+use sparcubes::products::truncated_sdf::truncated_sdf;
 use sparcubes::Params;
 
 /// `--help` line.
@@ -21,6 +22,13 @@ pub const ABOUT: &str = "Direct3D-S2's sparse SDF: <item>.npz (sparse_index, spa
 /// The share of its cube Direct3D-S2's objects span: ±0.95 of [−1, 1] (`utils/mesh.py`
 /// L14-23), the `params.object_span` a job needs for this export.
 pub const OBJECT_SPAN: f64 = 0.95;
+
+/// Direct3D-S2's truncation, in voxels: its `direct3d_s2/utils/mesh.py` keeps the points whose
+/// unsigned distance is below 4 voxels (`compute_valid_udf(..., threshold=4.0)` then
+/// `udf < 4 / size`), its decoder fills the rest of the grid with 1 (outside) before marching
+/// cubes, and its authors state that the truncated SDF is normalised to [−1, 1] for input and
+/// supervision (issue #34 of that repository).
+pub const TRUNCATION: f64 = 4.0;
 
 /// The resolutions of Direct3D-S2's two sparse VAEs (`pipeline.py` L26-29, L126-137).
 pub const RESOLUTIONS: [u32; 2] = [512, 1024];
@@ -52,7 +60,7 @@ pub fn check(params: &Params, frame: Frame) -> JobCheck {
 /// job's margin), where its fill value +1 has the right sign.
 pub fn files(item: &Item) -> Result<ItemExport> {
     let n = item.cubes.resolution;
-    let s = direct3d_s2::sparse_sdf(item.cubes, direct3d_s2::TRUNCATION);
+    let s = truncated_sdf(item.cubes, TRUNCATION);
     let (index, sdf): (Vec<[i32; 3]>, Vec<f32>) = s
         .coords
         .iter()

@@ -1,6 +1,22 @@
 //! TRELLIS.2's flexible dual grid as its `FlexiDualGridDataset`
 //! (`trellis2/datasets/flexi_dual_grid.py` of microsoft/TRELLIS.2) reads it, computed from the
-//! stored grid by [`sparcubes::layouts::trellis2`]:
+//! stored grid's dual vertices ([`sparcubes::products::dual_vertices`]) as O-Voxel makes them
+//! (`o-voxel/src/convert/flexible_dual_grid.cpp` and `data_toolkit/dual_grid.py`):
+//!
+//! - the voxels are the active cells (every cell with a crossed edge; TRELLIS.2 activates the
+//!   four voxels around each crossed grid line, the same set);
+//! - the dual vertex minimises a quadric error inside the voxel: the squared distances to the
+//!   planes of the voxel's triangles plus [`REGULARIZATION`] × (number of crossings) × the
+//!   squared distance to the mean of the crossing points on the voxel's edges (TRELLIS.2's
+//!   face term with weight 1 and regularisation 1e-2), minimised over the closed voxel;
+//! - it is stored as `floor(255 · (v − voxel))` per axis, 3 × `u8` (TRELLIS.2 clamps to
+//!   [0, 1], scales by 255 and casts to `uint8`, [`quantize`]);
+//! - `intersected` bit `a` (1, 2, 4 for x, y, z) says whether the surface crosses the voxel's
+//!   grid edge along axis `a` at its upper corner in the other two axes (the edge whose four
+//!   voxels TRELLIS.2 joins into a quad): for x the edge (0,1,1)–(1,1,1), for y (1,0,1)–(1,1,1),
+//!   for z (1,1,0)–(1,1,1), i.e. a sign change of φ between those corners.
+//!
+//! The files:
 //!
 //! - `dual_grid_<N>/<key>.vxz`: o_voxel's container ([`crate::vxz`]) of the active voxels with
 //!   `vertices` (3 × `u8`, the dual vertex inside its voxel, `floor(255·local)`) and
@@ -38,8 +54,8 @@
 use crate::pickle::{self, Value};
 use crate::vxz::{self, Attr};
 use crate::{Error, ExportFile, Item, ItemExport, JobCheck, Listed, Result};
-use sparcubes::layouts::trellis2;
-use sparcubes::Params;
+use sparcubes::products::dual_vertices::dual_vertices;
+use sparcubes::{Params, SparseCubes};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -60,7 +76,7 @@ pub const FREE_CELLS: u32 = 3;
 /// Room left between the object's box and each side of TRELLIS.2's grid, in voxels: an open
 /// surface becomes a shell reaching 0.9 voxel beyond it (`t` of docs/ALGORITHM.md §5), and
 /// the normalization shifts the object by up to 0.037 voxel per axis
-/// (`sparcubes::normalize::GRID_OFFSET`) so that faces never lie on grid planes; a surface
+/// (`sparcubes::grid::normalization::GRID_OFFSET`) so that faces never lie on grid planes; a surface
 /// past TRELLIS.2's last grid plane would need a voxel outside its grid.
 pub const ROOM_CELLS: f64 = 1.0;
 
@@ -146,7 +162,7 @@ pub fn files(item: &Item) -> Result<ItemExport> {
     let grid = Trellis2Grid::of(item.cubes.resolution, item.object_span);
     let n = grid.size;
     let key = item.source_sha256.unwrap_or(item.stem);
-    let g = trellis2::dual_grid(item.cubes);
+    let g = dual_grid(item.cubes);
     let coords = voxels_in(&g.voxels, grid)?;
     let vertices: Vec<u8> = g.quantized.iter().flatten().copied().collect();
     let attrs = [
@@ -183,6 +199,36 @@ pub fn files(item: &Item) -> Result<ItemExport> {
         ],
         listing,
     })
+}
+
+/// Weight of the pull towards the mean crossing point, per crossing (TRELLIS.2's
+/// `regularization_weight=1e-2` in `data_toolkit/dual_grid.py`).
+pub const REGULARIZATION: f64 = 1e-2;
+
+/// TRELLIS.2's flexible dual grid of one item.
+struct DualGrid {
+    /// Active voxels (cells) by minimum corner, sorted.
+    voxels: Vec<[u16; 3]>,
+    /// Quantised dual vertices ([`quantize`]).
+    quantized: Vec<[u8; 3]>,
+    /// Intersected flags: bit 0 x, bit 1 y, bit 2 z (module docs).
+    intersected: Vec<u8>,
+}
+
+/// The flexible dual grid of `cubes`, with TRELLIS.2's regularisation and quantisation.
+fn dual_grid(cubes: &SparseCubes) -> DualGrid {
+    let d = dual_vertices(cubes, REGULARIZATION);
+    DualGrid {
+        quantized: d.vertices.iter().map(|v| v.map(quantize)).collect(),
+        voxels: d.cells,
+        intersected: d.crossed,
+    }
+}
+
+/// TRELLIS.2's quantisation of a local coordinate: clamp to [0, 1], scale by 255, truncate.
+#[inline]
+pub fn quantize(x: f32) -> u8 {
+    (x.clamp(0.0, 1.0) * 255.0) as u8
 }
 
 /// The job's voxels as indices of `grid`; refuses a voxel outside it (a surface in the

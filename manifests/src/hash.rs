@@ -3,12 +3,8 @@
 //! finds.
 
 use sha2::{Digest, Sha256};
+use sparc3d_schema::hex::hex;
 use std::path::{Path, PathBuf};
-
-/// Lower-case hex of `bytes`.
-pub fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
-}
 
 /// A file that could not be hashed: what was being done, the file, and the I/O error.
 #[derive(Debug)]
@@ -58,11 +54,6 @@ pub fn source_sha256(uri: &str) -> anyhow::Result<String> {
     }
 }
 
-/// Hex sha256 of bytes in memory.
-pub fn bytes_sha256(bytes: &[u8]) -> String {
-    hex(&Sha256::digest(bytes))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -74,7 +65,6 @@ mod tests {
         std::fs::write(&path, b"abc")?;
         let abc = "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad";
         assert_eq!(file_sha256(&path)?, abc);
-        assert_eq!(bytes_sha256(b"abc"), abc);
         let missing = file_sha256(&dir.path().join("missing.obj"))
             .err()
             .map(|e| e.to_string())

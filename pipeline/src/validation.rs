@@ -3,7 +3,7 @@
 //!
 //! Each sampled row is decoded (the same decode as `show`), its mesh extracted in the source
 //! frame and written to a temporary PLY next to a PLY of the source as `sparc3d` loads it
-//! (node transforms applied). One Python process (`ops/validate/validate.py`, built into the
+//! (node transforms applied). One Python process (`pipeline/validate/validate.py`, built into the
 //! binary) checks the whole sample, one JSON line in and one out per item: boundary edges,
 //! non-manifold edges and vertices, orientation, volume, components, and the Hausdorff
 //! distance both ways. The report goes to `JOB/validation/report.jsonl` and
@@ -21,10 +21,10 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
 
 /// The validator script, built into the binary so an installed `sparc3d` needs no checkout.
-const VALIDATE_PY: &str = include_str!("../../ops/validate/validate.py");
+const VALIDATE_PY: &str = include_str!("../validate/validate.py");
 
 /// The one command that installs what the validator needs.
-pub const INSTALL_HINT: &str = "python3 -m pip install -r ops/validate/requirements.txt";
+pub const INSTALL_HINT: &str = "python3 -m pip install -r pipeline/validate/requirements.txt";
 
 /// The smallest default sample (all `ok` items when there are fewer): 1% of a small job is
 /// one item, which says little.
@@ -38,7 +38,7 @@ interpreter that imports both is used, tried in this order:
   2. $VIRTUAL_ENV/bin/python (the activated virtual environment)
   3. .venv/bin/python next to the job folder, inside it, and in the current folder
   4. python3 on PATH
-Install what it needs with: python3 -m pip install -r ops/validate/requirements.txt";
+Install what it needs with: python3 -m pip install -r pipeline/validate/requirements.txt";
 
 /// What to check and how.
 #[derive(Debug, Clone, Copy)]

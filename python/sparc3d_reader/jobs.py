@@ -37,6 +37,7 @@ import pyarrow.parquet as pq
 
 from . import location
 from .location import Location, ObjectPath
+from .schema import META_COLUMNS, META_FINGERPRINT, STATUSES
 
 Verify = Union[bool, str]
 
@@ -383,17 +384,14 @@ def warn_shards(message: str) -> None:
 
 # --- the rows of a shard against the frozen manifest ----------------------------------------
 
-#: Columns the row checks read (small: no tensors).
-CHECK_COLUMNS = ["item_index", "id", "uri", "status", "resolution", "center_x", "center_y",
-                 "center_z", "scale"]
-
-_STATUSES = ("ok", "failed", "skipped")
+#: Columns the row checks read (small: no tensors): the metadata columns of every item.
+CHECK_COLUMNS = META_COLUMNS
 
 
 def check_footer(shard: Shard, f: pq.ParquetFile) -> Optional[str]:
     """None when a job shard's footer names the job's fingerprint, else what it names."""
     meta = f.metadata.metadata or {}
-    found = meta.get(b"sparc3d.fingerprint", b"missing").decode(errors="replace")
+    found = meta.get(META_FINGERPRINT.encode(), b"missing").decode(errors="replace")
     if shard.job is not None and found != shard.job.fingerprint:
         return f"its footer has fingerprint {found}, the job's is {shard.job.fingerprint}"
     return None
@@ -430,8 +428,8 @@ def _not_the_item(row: Dict, item: Tuple[str, str]) -> Optional[str]:
         return f"the manifest says id {item[0]!r}"
     if row["uri"] != item[1]:
         return f"uri {row['uri']!r}, the manifest says {item[1]!r}"
-    if row["status"] not in _STATUSES:
-        return f"status {row['status']!r} is none of {', '.join(_STATUSES)}"
+    if row["status"] not in STATUSES:
+        return f"status {row['status']!r} is none of {', '.join(STATUSES)}"
     return None
 
 

@@ -40,20 +40,24 @@ class ObjectPath:
 
     @property
     def bucket(self) -> str:
+        """The bucket (or container): the key's first part."""
         return self.key.split("/", 1)[0]
 
     @property
     def name(self) -> str:
+        """The key's last part, as `pathlib.Path.name`."""
         return self.key.rsplit("/", 1)[-1]
 
     @property
     def parent(self) -> "ObjectPath":
+        """The prefix holding this object (the bucket itself has none above it)."""
         return ObjectPath(self.scheme, self.key.rsplit("/", 1)[0]) if "/" in self.key else self
 
     def __truediv__(self, name: str) -> "ObjectPath":
         return ObjectPath(self.scheme, f"{self.key}/{name}")
 
     def with_name(self, name: str) -> "ObjectPath":
+        """The object beside this one called `name`."""
         return self.parent / name
 
     def __str__(self) -> str:
@@ -261,6 +265,7 @@ def stamp(path: Location) -> Tuple[int, int, int, int]:
 
 
 def exists(path: Location) -> bool:
+    """Whether a file, folder, object or prefix is there."""
     if isinstance(path, pathlib.Path):
         return path.exists()
     return filesystem(path).get_file_info(path.key).type != pafs.FileType.NotFound

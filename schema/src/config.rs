@@ -3,7 +3,6 @@
 use crate::error::{Result, SchemaError};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
-use sha2::{Digest, Sha256};
 
 /// Per-item limits and retry policy. Run-time settings: they may change between runs of the
 /// same job (`run --item-timeout`), so they are not part of the fingerprint.
@@ -157,7 +156,7 @@ impl JobConfig {
             crate::SCHEMA_VERSION,
             canonical_text(&v)
         );
-        Ok(hex(&Sha256::digest(text.as_bytes())))
+        Ok(crate::hex::sha256_hex(text.as_bytes()))
     }
 
     /// Builds a config from defaults overlaid with a partial JSON object (e.g. a parsed
@@ -339,10 +338,9 @@ fn diff(a: &Value, b: &Value, path: &str, out: &mut Vec<String>) {
     }
 }
 
-/// Lower-case hex of bytes.
-pub fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
-}
+/// Lower-case hex of bytes ([`crate::hex::hex`], also found here by the crates that used it
+/// before it had a module of its own).
+pub use crate::hex::hex;
 
 /// The job file (`job.json`): what `init` froze.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

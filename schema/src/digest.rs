@@ -2,7 +2,7 @@
 //! (timings, attempts, captured stderr), so that two runs of the same job agree whatever the
 //! number of workers or interruptions.
 
-use crate::config::hex;
+use crate::hex::hex;
 use crate::row::ShardRow;
 use sha2::{Digest, Sha256};
 

@@ -1,6 +1,7 @@
-//! Contracts shared by every part of sparc3d: the job config and its
-//! fingerprint, the layout of a job folder, the Arrow schema of a shard row and the tensor
-//! encodings (dtype, byte order, zstd), and the completion record that marks a shard done.
+//! Contracts shared by every part of sparc3d: the manifest record and the frozen item, the job
+//! config and its fingerprint, the layout of a job folder, the Arrow schema of a shard row and
+//! the tensor encodings (dtype, byte order, zstd), the completion record that marks a shard
+//! done, and how a digest is written (hex, sha256).
 //!
 //! This crate does no I/O beyond encoding and decoding its own types.
 #![deny(missing_docs)]
@@ -12,7 +13,9 @@ pub mod completion;
 pub mod config;
 pub mod digest;
 pub mod error;
+pub mod hex;
 pub mod layout;
+pub mod manifest;
 pub mod row;
 pub mod tensor;
 
@@ -21,10 +24,8 @@ pub use completion::{CompletionRecord, FileStamp};
 pub use config::{JobConfig, JobFile, Limits, SampleConfig};
 pub use error::{Result, SchemaError};
 pub use layout::JobLayout;
+pub use manifest::{FrozenItem, ManifestRecord};
 pub use row::{RowCounts, RowTensors, RowTimings, SampleTensors, ShardRow};
-/// The manifest's record types, owned by `sparc3d-manifests`: a shard row is built from a
-/// frozen item.
-pub use sparc3d_manifests::{FrozenItem, ManifestRecord};
 pub use tensor::{DType, EncodedTensor};
 
 /// Version of the shard format; bumped on any change to columns or encodings. Version 2 stores

@@ -3,9 +3,9 @@
 use crate::class::{ErrorClass, ItemStatus};
 use crate::columns as c;
 use crate::error::{Result, SchemaError};
+use crate::manifest::FrozenItem;
 use crate::tensor::{DType, EncodedTensor};
 use serde::{Deserialize, Serialize};
-use sparc3d_manifests::FrozenItem;
 use sparcubes::samples::{Precision, SampleParams, Samples};
 use sparcubes::{Normalization, SparseCubes};
 use std::collections::BTreeMap;

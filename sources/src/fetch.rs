@@ -124,11 +124,6 @@ pub fn shared() -> Result<&'static Fetcher, FetchError> {
         .map_err(Clone::clone)
 }
 
-/// Bytes as lower-case hex (a sha256 as the manifests and completion records write it).
-pub(crate) fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
-}
-
 /// The object store path of `url`'s key.
 pub(crate) fn object_path(url: &RemoteUrl) -> ObjectPath {
     ObjectPath::from_iter(url.key().split('/').filter(|p| !p.is_empty()))
@@ -189,6 +184,8 @@ async fn get(store: &dyn ObjectStore, url: &RemoteUrl, cap: u64) -> Result<Fetch
             ),
         ));
     }
-    let sha256 = hex(&hasher.finalize());
+    // sha2's own lower-case hex (two digits a byte), as `sparc3d_schema::hex` writes every
+    // other digest; this crate sits below the schema and does not depend on it.
+    let sha256 = format!("{:x}", hasher.finalize());
     Ok(Fetched { bytes, sha256 })
 }

@@ -14,7 +14,7 @@
 //!   allows (the whole object again).
 
 use crate::error::{FetchError, FetchErrorKind};
-use crate::fetch::{hex, too_large, Fetched, PREALLOCATE_AT_MOST};
+use crate::fetch::{too_large, Fetched, PREALLOCATE_AT_MOST};
 use crate::limits::{Backoff, FetchLimits};
 use crate::location::RemoteUrl;
 use reqwest::header::{HeaderMap, ACCEPT_ENCODING, CONTENT_ENCODING, CONTENT_LENGTH};
@@ -112,7 +112,7 @@ async fn attempt(client: &reqwest::Client, url: &RemoteUrl, cap: u64) -> Result<
         Coding::Identity => body,
         Coding::Gzip => gunzip(url, &body, cap)?,
     };
-    let sha256 = hex(&Sha256::digest(&bytes));
+    let sha256 = format!("{:x}", Sha256::digest(&bytes));
     Ok(Fetched { bytes, sha256 })
 }
 

@@ -330,7 +330,7 @@ impl<'f> Prefix<'f> {
             }
             Ok(Some(Downloaded {
                 bytes: written,
-                sha256: crate::fetch::hex(&hasher.finalize()),
+                sha256: format!("{:x}", hasher.finalize()),
                 etag,
             }))
         })

@@ -4,7 +4,7 @@
 //!
 //!     cargo run --release -p sparcubes --example closest_bench [SEGMENTS] [QUERIES]
 
-use sparcubes::closest::TriangleIndex;
+use sparcubes::queries::closest::TriangleIndex;
 use sparcubes::samples::rng::Draw;
 use sparcubes::shapes::sphere;
 use std::time::Instant;

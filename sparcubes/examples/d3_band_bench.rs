@@ -1,17 +1,20 @@
-//! The Direct3D-S2 band's distances two ways on one real mesh: the exact triangle-major scan
-//! of every triangle within the truncation (`band::compute_band`, what the export used first)
-//! and the bounded nearest-first queries of `closest::TriangleIndex` that
-//! `layouts::direct3d_s2::sparse_sdf` uses now. Prints the wall and CPU time of each and how
-//! many band points' distances differ by more than 1e-4 voxel:
+//! The truncated SDF's band distances two ways on one real mesh: the exact triangle-major scan
+//! of every triangle within the truncation (`band::compute_band`, what the sparse-SDF export
+//! used first) and the bounded nearest-first queries of `closest::TriangleIndex` that
+//! `products::truncated_sdf` uses now. Prints the wall and CPU time of each and how many band
+//! points' distances differ by more than 1e-4 voxel:
 //!
 //!     cargo run --release -p sparcubes --example d3_band_bench -- MESH [RESOLUTION]
 
-use sparcubes::band::{compute_band, triangle_planes};
-use sparcubes::closest::TriangleIndex;
-use sparcubes::layouts::direct3d_s2::{band_vertices, TRUNCATION};
-use sparcubes::voxelize::GridMesh;
+use sparcubes::mesh::GridMesh;
+use sparcubes::products::truncated_sdf::band_vertices;
+use sparcubes::queries::closest::TriangleIndex;
+use sparcubes::stages::band::{compute_band, triangle_planes};
 use std::path::PathBuf;
 use std::process::ExitCode;
+
+/// The band, in voxels: the sparse-SDF export's (`sparc3d-formats`).
+const TRUNCATION: f64 = 4.0;
 
 #[path = "common/clock.rs"]
 mod clock;

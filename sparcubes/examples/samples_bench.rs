@@ -1,15 +1,16 @@
 //! Where the time of vector-set samples goes on one real mesh: conversion, extraction, the
 //! closest-point tree, the near and volume distance queries, the grid sides, `sample` as a
 //! whole (default parameters except the counts: 250k surface, near and volume points, no
-//! sharp ones, as `ops/bench/samples_overhead.sh`), and the Direct3D-S2 layout. Wall and
+//! sharp ones, as `ops/bench/samples_overhead.sh`), and the truncated SDF of
+//! the sparse-SDF export (a 4-voxel band). Wall and
 //! CPU seconds of each step:
 //!
 //!     cargo run --release -p sparcubes --example samples_bench -- MESH [RESOLUTION] [--no-layout]
 
-use sparcubes::closest::TriangleIndex;
+use sparcubes::queries::closest::TriangleIndex;
+use sparcubes::queries::sides::GridSides;
 use sparcubes::samples::rng::Draw;
 use sparcubes::samples::{sample, SampleParams};
-use sparcubes::sides::GridSides;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -77,18 +78,19 @@ fn main() -> ExitCode {
     let inside = near_in.len() + volume_in.len();
     let sides_s = t.secs(2);
     // How often the closest triangle's face gives the side, and whether it agrees.
-    let face =
-        |points: &[[f64; 3]], closest: &[sparcubes::closest::ClosestPoint], grid: &[bool]| {
-            let mut answered = 0;
-            let mut differ = 0;
-            for ((p, c), g) in points.iter().zip(closest).zip(grid) {
-                if let Some(f) = index.face_side(*p, c) {
-                    answered += 1;
-                    differ += usize::from(f != *g);
-                }
+    let face = |points: &[[f64; 3]],
+                closest: &[sparcubes::queries::closest::ClosestPoint],
+                grid: &[bool]| {
+        let mut answered = 0;
+        let mut differ = 0;
+        for ((p, c), g) in points.iter().zip(closest).zip(grid) {
+            if let Some(f) = index.face_side(*p, c) {
+                answered += 1;
+                differ += usize::from(f != *g);
             }
-            format!("{answered} by the face, {differ} differ")
-        };
+        }
+        format!("{answered} by the face, {differ} differ")
+    };
     let faces = format!(
         "near {}, volume {}",
         face(&near, &a, &near_in),
@@ -110,17 +112,14 @@ fn main() -> ExitCode {
         }
     };
     let sample_s = t.secs(2);
-    // The Direct3D-S2 layout, unless `--no-layout` is given.
+    // The truncated SDF (a 4-voxel band), unless `--no-layout` is given.
     let layout = if args.get(2).is_some_and(|a| a == "--no-layout") {
         String::new()
     } else {
         let t = Clock::start();
-        let sdf = sparcubes::layouts::direct3d_s2::sparse_sdf(
-            &conversion.cubes,
-            sparcubes::layouts::direct3d_s2::TRUNCATION,
-        );
+        let sdf = sparcubes::products::truncated_sdf::truncated_sdf(&conversion.cubes, 4.0);
         format!(
-            "; direct3d-s2 layout {} ({} points, checksum {:.3})",
+            "; truncated sdf {} ({} points, checksum {:.3})",
             t.secs(2),
             sdf.sdf.len(),
             sdf.sdf.iter().map(|&v| v as f64).sum::<f64>(),

@@ -2,7 +2,7 @@
 //! they were before sharp-near samples (124928 surface, 124928 sharp, 249856 near at σ 0.005 and
 //! 0.05, 249856 volume), or `new` (`SampleParams::default()`: 204800 surface, 124928 sharp,
 //! 600000 near, 262144 sharp-near, 249856 volume), then, with `new`, the 32768 farthest of the
-//! surface points (Dora's `fps_coarse_surface`). Prints the seconds of the conversion,
+//! surface points (a consumer's `fps_coarse_surface`). Prints the seconds of the conversion,
 //! extraction, `sample` and `farthest_points` (wall and CPU):
 //!
 //!     cargo run --release -p sparcubes --example samples_defaults -- MESH [RESOLUTION] [old|new]

@@ -4,67 +4,63 @@
 //! Any triangle mesh becomes a sparse cube grid with a signed distance and a deformation on
 //! every active vertex ([`SparseCubes`]), from which a watertight, 2-manifold mesh is
 //! extracted. Closed parts keep their true surface, open parts become thin closed shells, and
-//! no component is dropped. The stages of [`convert`] are free functions over plain data, one
-//! module each:
+//! no component is dropped.
 //!
-//! 1. [`normalize`] — fit the mesh into the grid with a margin,
-//! 2. [`voxelize`] — wall cells (cells a triangle touches) and grid edges a triangle crosses,
-//! 3. [`flood`] — outside cells by a hierarchical flood fill (bricks, then cells); [`seal`] —
-//!    openings small for their part sealed, so nearly closed solids stay solid,
-//! 4. [`band`] — exact unsigned distance and closest point on the vertices near the surface,
-//! 5. [`sign`] — inside/outside per vertex, thin-shell treatment of open parts,
-//! 6. [`deform`] — φ and the bounded displacement of each vertex towards the surface; [`ring`]
-//!    — the surface-free cells next to the walls a thin shell reaches, with their own band,
-//! 7. [`extract`] — marching cubes over the active cells → closed manifold mesh; [`refine`]
-//!    (optional, paper step 4) — the displacements refined against renderings of the source.
+//! The crate is in rooms:
 //!
-//! The crate knows nothing of jobs or file formats beyond loading and saving meshes ([`io`]).
-//! Quality metrics and preview pictures are crates of their own (`sparc3d-metrics`,
-//! `sparc3d-render`, ARCHITECTURE.md says why); the generated test meshes of `shapes` are built
-//! only with the `test-shapes` feature, which tests turn on through `[dev-dependencies]`.
+//! - [`grid`] — the grid's data: bricks and their masks, Morton codes, the normalization,
+//!   the output [`SparseCubes`];
+//! - [`mesh`] — [`TriMesh`], the mesh in grid coordinates, one triangle's closest point, and
+//!   the tools on a whole mesh (sanitizing, topology, hole filling);
+//! - [`stages`] — the conversion, whose stages [`convert()`] runs in order (numbered as in
+//!   docs/ALGORITHM.md): 1 normalize, 2 voxelize (wall cells, crossed grid edges), 3 flood
+//!   (outside cells), 4 seal (openings small for their part), 5 band (exact distances near
+//!   the surface), 6 the inside test (enclosed regions, sealed vertices, nesting, by the
+//!   winding number), 7 sign (sides, thin shells), 8 deform (φ and the displacement), 9 ring
+//!   (the cells a thin shell reaches), 10 assemble (the stored cubes); 11 is [`extract()`]
+//!   (marching cubes → a closed manifold mesh), and 12, optional, the refinement against
+//!   renderings ([`refine`], the paper's step 4);
+//! - [`queries`] — closest points, the winding number, the output's inside and outside;
+//! - [`products`] — what other crates build on: samples, corner values, dual vertices, the
+//!   truncated SDF;
+//! - [`io`] — loading and saving meshes;
+//! - [`params`], [`error`] and [`convert`](mod@convert), the driver.
+//!
+//! The crate knows nothing of jobs, of file formats beyond meshes, or of who reads its
+//! products (`sparc3d-formats` does). Quality metrics and preview pictures are crates of their
+//! own (`sparc3d-metrics`, `sparc3d-render`, ARCHITECTURE.md says why); the generated test
+//! meshes of `shapes` are built only with the `test-shapes` feature, which tests turn on
+//! through `[dev-dependencies]`.
 #![deny(missing_docs)]
 // Geometry code indexes several arrays by the same axis or word number; iterator chains would
 // hide that parallel structure.
 #![allow(clippy::needless_range_loop)]
 
-pub mod band;
-pub mod close_grid;
-pub mod closest;
 pub mod convert;
-pub mod cubes;
-pub mod deform;
-pub mod duplicate_faces;
 pub mod error;
-pub mod extract;
-pub mod flood;
 pub mod grid;
-pub mod holes;
 pub mod io;
-pub mod layouts;
-pub mod mc_table;
 pub mod mesh;
-pub mod morton;
-pub mod normalize;
 pub mod params;
-pub mod refine;
-pub mod regions;
-pub mod ring;
-pub mod samples;
-pub mod sanitize;
-pub mod seal;
+pub mod products;
+pub mod queries;
 #[cfg(feature = "test-shapes")]
 pub mod shapes;
-pub mod sides;
-pub mod sign;
-pub mod topology;
+pub mod stages;
+mod union_find;
 pub mod vec3;
-pub mod voxelize;
-pub mod winding;
 
 pub use convert::{convert, Conversion, ConvertStats};
-pub use cubes::SparseCubes;
 pub use error::{Error, ErrorClass};
-pub use extract::extract;
+pub use grid::cubes::SparseCubes;
+pub use grid::normalization::Normalization;
 pub use mesh::TriMesh;
-pub use normalize::Normalization;
 pub use params::Params;
+pub use stages::extract::extract;
+
+// The paths other crates use, kept from before the rooms.
+pub use grid::{cubes, normalization as normalize};
+pub use mesh::{holes, topology};
+pub use products::samples;
+pub use stages::extract::{self, close_grid};
+pub use stages::refine;

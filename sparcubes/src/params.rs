@@ -1,7 +1,7 @@
 //! Conversion parameters, with the defaults used by the CLI and the pipeline.
 
 use crate::error::{Error, Result};
-use crate::refine::RefineParams;
+use crate::stages::refine::RefineParams;
 use serde::{Deserialize, Serialize};
 
 /// Largest supported resolution. The sparse grid keeps a dense 4-byte index per 8³ brick,
@@ -30,7 +30,7 @@ pub struct Params {
     /// Largest displacement per axis, in voxels; below 0.5 so neighbouring vertices never swap
     /// order and cells never invert.
     pub deform_max: f32,
-    /// Whether to run the inside test (docs/ALGORITHM.md §2b): enclosed regions decided solid
+    /// Whether to run the inside test (docs/ALGORITHM.md §6): enclosed regions decided solid
     /// or air by the source's winding number, so parts inside hollow hulls keep their
     /// surfaces, and closed parts 1–2 voxels thick keep their thickness. On by default: on
     /// the dev corpus at 256³ it makes 10 meshes better and none worse beyond noise, and
@@ -44,7 +44,7 @@ pub struct Params {
     #[serde(default, skip_serializing_if = "is_false")]
     pub inside_test: bool,
     /// Whether openings small for their part are sealed, so that a nearly closed solid stays
-    /// solid instead of becoming a thin shell (docs/ALGORITHM.md §3b, [`crate::seal`]): a
+    /// solid instead of becoming a thin shell (docs/ALGORITHM.md §4, [`crate::stages::seal`]): a
     /// pocket that the walls grown by about 1/32 of the grid close off (openings up to about
     /// 1/15 of the grid across, the same share of the object at every resolution) and that the
     /// source's winding number reads as solid is taken back from the outside. Needs the
@@ -55,8 +55,8 @@ pub struct Params {
     #[serde(default, skip_serializing_if = "is_false")]
     pub seal_openings: bool,
     /// The fraction of the grid's side that the object's longest side spans, when a consumer's
-    /// frame fixes it (Direct3D-S2's objects span 0.95 of its cube, `normalize_mesh(mesh,
-    /// scale=0.95)` in its `direct3d_s2/utils/mesh.py` L14-23); `None`: `(N − 2·margin_cells)/N`,
+    /// frame fixes it (`sparc3d-formats` says which consumer needs which span, and where it
+    /// comes from); `None`: `(N − 2·margin_cells)/N`,
     /// the object as large as the margin allows. The margin it leaves, `(1 − span)·N/2` cells
     /// per side, must be at least 3 cells, as [`Params::margin_cells`].
     ///
@@ -65,7 +65,7 @@ pub struct Params {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub object_span: Option<f64>,
     /// The rendering-based refinement of the displacements (paper step 4, docs/ALGORITHM.md
-    /// §7b, [`crate::refine`]) and its settings; `None`: off, the default (docs/QUALITY.md
+    /// §12, [`crate::stages::refine`]) and its settings; `None`: off, the default (docs/QUALITY.md
     /// says what it measured). A job file writes `refine = true` for the default settings or
     /// a `[params.refine]` table.
     ///
@@ -75,7 +75,7 @@ pub struct Params {
     #[serde(
         default,
         skip_serializing_if = "Option::is_none",
-        deserialize_with = "crate::refine::settings::deserialize"
+        deserialize_with = "crate::stages::refine::settings::deserialize"
     )]
     pub refine: Option<RefineParams>,
 }
@@ -193,7 +193,7 @@ impl Params {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::normalize::Normalization;
+    use crate::grid::normalization::Normalization;
 
     #[test]
     fn an_object_span_sets_the_fit_and_must_leave_three_cells() {

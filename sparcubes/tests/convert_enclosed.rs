@@ -4,7 +4,7 @@
 //! explicitly, and `off_keeps_the_conversion_without_the_test` checks that off means off and
 //! that the default is on.
 
-use sparcubes::band::closest_point_on_triangle;
+use sparcubes::mesh::triangle::closest_point_on_triangle;
 use sparcubes::{convert, extract, shapes, topology, ConvertStats, Params, SparseCubes, TriMesh};
 
 const N: u32 = 64;

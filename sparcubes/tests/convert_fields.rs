@@ -119,7 +119,7 @@ fn thin_closed_plate_is_kept_as_a_shell() {
 #[test]
 fn nested_shells_both_present() {
     // Without the inside test: with it (the default) a solid inside a solid with no air
-    // between is one solid and the inner surface goes (docs/ALGORITHM.md §2b;
+    // between is one solid and the inner surface goes (docs/ALGORITHM.md §6;
     // convert_enclosed.rs checks that side).
     let outer = shapes::sphere([0.0; 3], 1.0, 48);
     let inner = shapes::sphere([0.0; 3], 0.5, 32);

@@ -2,7 +2,7 @@
 //! 2-manifold and outward oriented; closed shapes keep their surface; open ones become thin
 //! shells; no part is dropped.
 
-use sparcubes::band::closest_point_on_triangle;
+use sparcubes::mesh::triangle::closest_point_on_triangle;
 use sparcubes::{convert, extract, shapes, topology, Params, SparseCubes, TriMesh};
 
 fn convert_extract(mesh: &TriMesh, n: u32, deform: bool) -> (SparseCubes, TriMesh) {
@@ -156,7 +156,7 @@ fn nested_shells_and_non_manifold_input() {
         shapes::sphere([0.0; 3], 0.5, 16),
     ]);
     // With the inside test (the default) the inner solid sphere lies in solid material with
-    // no air between: one solid, no interior surface (docs/ALGORITHM.md §2b). Without it the
+    // no air between: one solid, no interior surface (docs/ALGORITHM.md §6). Without it the
     // inner surface stays, a closed sheet of its own.
     let (_, out) = convert_extract(&nested, 48, true);
     assert_closed_manifold("nested", &out);

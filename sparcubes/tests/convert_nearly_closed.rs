@@ -1,4 +1,4 @@
-//! Nearly closed solids stay solid (issue 26, docs/ALGORITHM.md §3b): closed shapes with one
+//! Nearly closed solids stay solid (issue 26, docs/ALGORITHM.md §4): closed shapes with one
 //! hole of 1–16 voxels at 256³ (and the same physical hole at 512³ and 1024³) keep their solid,
 //! open shapes stay thin shells with no volume in their mouths, and a real slot stays open.
 //!
@@ -6,9 +6,9 @@
 //! 1.5 voxels from the source surface, the source's winding number says what is solid
 //! (|w| ≥ ½) and the output's (a closed mesh) what the output encloses.
 
-use sparcubes::closest::TriangleIndex;
-use sparcubes::voxelize::GridMesh;
-use sparcubes::winding::WindingTree;
+use sparcubes::mesh::GridMesh;
+use sparcubes::queries::closest::TriangleIndex;
+use sparcubes::queries::winding::WindingTree;
 use sparcubes::{convert, extract, shapes, topology, ConvertStats, Params, SparseCubes, TriMesh};
 
 /// What the output encloses against the source's solid, over the sample points.

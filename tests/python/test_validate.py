@@ -12,7 +12,7 @@ import pytest
 pymeshlab = pytest.importorskip("pymeshlab")
 
 from sparc3d_cli import ROOT, run as run_cli
-VALIDATE_PY = ROOT / "ops" / "validate" / "validate.py"
+VALIDATE_PY = ROOT / "pipeline" / "validate" / "validate.py"
 MESHES = ["sphere.obj", "cube.off", "cube_binary.ply", "wuson.stl", "box_textured.glb"]
 CHECKS = {"watertight", "manifold", "oriented", "volume", "components", "hausdorff"}
 
@@ -105,7 +105,7 @@ def test_a_failed_check_gives_a_nonzero_exit(jobs):
 def test_missing_pymeshlab_names_the_install_command(jobs):
     r = run("validate", jobs[0], check=False, SPARC3D_PYTHON="/bin/false")
     assert r.returncode == 2
-    assert "python3 -m pip install -r ops/validate/requirements.txt" in r.stderr
+    assert "python3 -m pip install -r pipeline/validate/requirements.txt" in r.stderr
 
 
 def ask(requests):

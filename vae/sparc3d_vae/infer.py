@@ -17,7 +17,7 @@ import struct
 import sys
 import tempfile
 from pathlib import Path
-from typing import Any, Callable, Dict, Iterable, Iterator, List, Optional, Sequence
+from typing import Any, Callable, Dict, Iterable, Iterator, List, Optional, Sequence, Tuple
 
 import numpy as np
 import pyarrow as pa
@@ -180,48 +180,13 @@ def extract(binary: str, cubes_file: Path, item_id: str, out: Path, fill_holes: 
     return run_sparc3d(binary, *args)
 
 
-def mesh_components(path: Path) -> int:
-    """Connected pieces (faces sharing vertices) of a triangle mesh as `sparc3d extract` writes
-    it: binary little-endian PLY, float x y z per vertex, `list uchar uint` triangles."""
-    data = Path(path).read_bytes()
-    end = data.find(b"end_header\n")
-    if end < 0:
-        raise UsageError(f"{path}: not a PLY file")
-    end += len(b"end_header\n")
-    header = data[:end].decode("ascii", "replace").split("\n")
-    counts = {w[1]: int(w[2]) for w in (l.split() for l in header) if len(w) == 3 and w[0] == "element"}
-    props = [l for l in header if l.startswith("property")]
-    expected = ["property float x", "property float y", "property float z",
-                "property list uchar uint vertex_indices"]
-    if "format binary_little_endian 1.0" not in header or props != expected:
-        raise UsageError(f"{path}: not a PLY as sparc3d writes it (binary, float xyz, uint faces)")
-    nv, nf = counts.get("vertex", 0), counts.get("face", 0)
-    tri = np.frombuffer(data, np.dtype([("n", "u1"), ("v", "<u4", (3,))]), count=nf, offset=end + 12 * nv)
-    if nf and not (tri["n"] == 3).all():
-        raise UsageError(f"{path}: a face that is not a triangle")
-    f = tri["v"].astype(np.int64)
-    if nf == 0:
-        return 0
-    # Label propagation with pointer jumping: every vertex ends with the smallest index of
-    # its piece.
-    label = np.arange(nv, dtype=np.int64)
-    a = np.concatenate([f[:, 0], f[:, 1]])
-    b = np.concatenate([f[:, 1], f[:, 2]])
-    while True:
-        la, lb = label[a], label[b]
-        low = np.minimum(la, lb)
-        new = label.copy()
-        np.minimum.at(new, la, low)
-        np.minimum.at(new, lb, low)
-        while True:
-            jumped = new[new]
-            if np.array_equal(jumped, new):
-                break
-            new = jumped
-        if np.array_equal(new, label):
-            break
-        label = new
-    return int(len(np.unique(label[np.unique(f)])))
+def reported_pieces(summary: Dict[str, Any], mesh: Path) -> int:
+    """The pieces (triangles connected through shared vertices) of a mesh `sparc3d extract`
+    wrote, from its summary: the binary's topology report, not a count of our own."""
+    if "components" not in summary:
+        raise UsageError(f"sparc3d extract reported no components for {mesh}: a sparc3d older "
+                         "than this sparc3d-vae (rebuild it from the same checkout)")
+    return int(summary["components"])
 
 
 def within_20pct(pieces: int, reference: int) -> bool:
@@ -405,9 +370,10 @@ def evaluate(ckpt: Path, data: Sequence[str], sample: int, seed: int, out: Path,
         i = samples.index_of(s.id)
         shard = samples.ds.paths[samples.ds.index[i][0]]
         ref = out / f"{safe_name(s.id)}.sparcubes.ply"
-        run_sparc3d(binary, "extract", shard, "--id", s.id, "-o", ref)
+        ref_summary = run_sparc3d(binary, "extract", shard, "--id", s.id, "-o", ref)
         row["eval_samples"] = samples_per_mesh or eval_samples(res)
-        row.update(_measure(binary, mesh, ref, Path(s.meta["uri"]), res, row["eval_samples"]))
+        counts = (reported_pieces(r, mesh), reported_pieces(ref_summary, ref))
+        row.update(_measure(binary, mesh, ref, Path(s.meta["uri"]), res, row["eval_samples"], counts))
         print(f"{s.id}: CD {row['vs_sparcubes']['cd_voxels']:.3f} vox vs Sparcubes, "
               f"watertight {row['watertight_before_fill']} → {row['watertight']}", file=sys.stderr)
     summary = {"checkpoint": str(loaded.path), "data": list(data), "sample": len(rows),
@@ -417,14 +383,14 @@ def evaluate(ckpt: Path, data: Sequence[str], sample: int, seed: int, out: Path,
     return summary
 
 
-def _measure(binary: str, mesh: Path, ref: Path, src: Path, res: int, points: int) -> Dict[str, Any]:
+def _measure(binary: str, mesh: Path, ref: Path, src: Path, res: int, points: int,
+             counts: Tuple[int, int]) -> Dict[str, Any]:
     """One reconstruction against its Sparcubes mesh, and both against the source when it is
     a readable file (the Sparcubes mesh is the floor the VAE cannot beat); the pieces of both
-    and the converter's own at N ± 1."""
+    (`counts`, as `sparc3d extract` reported them) and the converter's own at N ± 1."""
     ruler = ("--resolution", res, "--samples", points)
     row: Dict[str, Any] = {"vs_sparcubes": _metrics(run_sparc3d(binary, "eval", ref, mesh, *ruler)),
-                           "components": mesh_components(mesh),
-                           "sparcubes_components": mesh_components(ref)}
+                           "components": counts[0], "sparcubes_components": counts[1]}
     if not src.is_file():
         return row
     try:

@@ -28,7 +28,7 @@ import torch
 from torch.nn.parallel import DistributedDataParallel
 
 from . import augment, distributed
-from .config import Config, load_config
+from .config import Config, TrainConfig, load_config
 from .data import DataError, Sample, Samples, job_info, make_batch
 from .loss import vae_loss
 from .model import SparconvVAE
@@ -99,6 +99,7 @@ class Progress:
         self.first_step: Optional[int] = None
 
     def update(self, step: int, terms: Dict[str, float]) -> None:
+        """Shows step `step`'s loss terms, rate and time left."""
         if self.first_step is None:
             self.first_step = step - 1
         done = step - self.first_step
@@ -115,6 +116,7 @@ class Progress:
         sys.stderr.flush()
 
     def close(self) -> None:
+        """Ends the line rewritten in place."""
         if self.tty:
             sys.stderr.write("\n")
 
@@ -132,14 +134,17 @@ class EMA:
 
     @torch.no_grad()
     def update(self, step: int) -> None:
+        """Moves the average towards the model's weights after step `step`."""
         d = min(self.decay, (1 + step) / (10 + step))
         for k, v in self.model.state_dict().items():
             self.shadow[k].mul_(d).add_(v.detach().float(), alpha=1 - d)
 
     def state_dict(self) -> Dict[str, torch.Tensor]:
+        """A copy of the averaged weights, as a model's `state_dict`."""
         return {k: v.clone() for k, v in self.shadow.items()}
 
     def load(self, state: Dict[str, torch.Tensor]) -> None:
+        """Takes the averaged weights of a checkpoint (float32, on the model's device)."""
         self.shadow = {k: v.detach().float().clone().to(self.shadow[k].device) for k, v in state.items()}
 
 
@@ -329,54 +334,14 @@ def _loop(cfg: Config, state: Optional[Dict[str, Any]], init: Optional[InitWeigh
           world: distributed.World) -> Dict[str, Any]:
     """The optimisation steps of `train` (in the process group when there is one)."""
     seed_everything(cfg.train.seed)
-    model = SparconvVAE(cfg.model).to(device)
-    if init is not None:
-        load_weights(model, init.weights, f"--init-from {init.path}")
-    opt = torch.optim.AdamW(model.parameters(), lr=cfg.train.lr, weight_decay=cfg.train.weight_decay)
-    ema = EMA(model, cfg.train.ema_decay) if cfg.train.ema_decay > 0 else None
-    start = 0
-    init_record = init.record() if init is not None else (state or {}).get("init_from")
-    if state is not None:
-        model.load_state_dict(state["model"])
-        opt.load_state_dict(state["optimizer"])
-        start = int(state["step"])
-        if ema is not None:
-            ema.load(state.get("ema") or model.state_dict())
+    model, opt, ema, start = _model_and_optimizer(cfg, state, init, device)
     # Every rank starts from the same weights (same seed); DDP checks the shapes and
     # broadcasts rank 0's weights once more.
     net = DistributedDataParallel(model) if world.distributed else model
-
-    log = log_file = tb = None
-    if world.main:
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "config.json").write_text(json.dumps(cfg.to_dict(), indent=2) + "\n")
-        log_path = out / "loss.csv"
-        if state is not None:
-            _rewind_log(log_path, start)
-        new_log = not log_path.exists()
-        log_file = open(log_path, "a", newline="")
-        log = csv.DictWriter(log_file, LOG_FIELDS)
-        if new_log:
-            log.writeheader()
-        tb = _tensorboard(out)
-
-    def checkpoint(step: int) -> None:
-        digests = distributed.gather_digests(distributed.weights_digest(model.state_dict()), world)
-        if len(set(digests)) > 1:
-            raise RuntimeError(f"the ranks' weights differ at step {step} ({digests}): a bug")
-        if world.main:
-            save_checkpoint(ckpt_path, {
-                "config": cfg.to_dict(), "model": model.state_dict(),
-                "optimizer": opt.state_dict(), "step": step, "world_size": world.size,
-                "rank_digests": digests,
-                **({"ema": ema.state_dict()} if ema is not None else {}),
-                **({"init_from": init_record} if init_record else {}),
-                "rng": {"torch": torch.get_rng_state(),
-                        "cuda": torch.cuda.get_rng_state() if device.type == "cuda" else None},
-                "data": {"ids_digest": ids_digest, "items": len(samples),
-                         "resolutions": info.resolutions}})
-        distributed.barrier(world)
-
+    log = _RunLog(out, cfg, state is not None, start) if world.main else None
+    saver = _Saver(ckpt_path, cfg, model, opt, ema, device, world,
+                   init.record() if init is not None else (state or {}).get("init_from"),
+                   {"ids_digest": ids_digest, "items": len(samples), "resolutions": info.resolutions})
     t = cfg.train
     if world.main and init is not None and start == 0:
         at = ", ".join(f"{r}³" for r in init.resolutions or []) or "an unrecorded resolution"
@@ -388,7 +353,6 @@ def _loop(cfg: Config, state: Optional[Dict[str, Any]], init: Optional[InitWeigh
     began = time.monotonic()
     cells_done = 0
     model.train()
-    width = 8 + (24 if cfg.model.deformation else 0)
     for step in range(start, t.steps):
         lr = learning_rate(step, cfg)
         for group in opt.param_groups:
@@ -396,44 +360,13 @@ def _loop(cfg: Config, state: Optional[Dict[str, Any]], init: Optional[InitWeigh
         # The latent noise of a step is a function of (seed, step, rank): a resumed run draws
         # the same noise as an uninterrupted one.
         torch.manual_seed((t.seed * 1_000_003 + step) * 4099 + world.rank)
-        everyone = [pool[j] for j in batch_indices(step, len(pool), t.batch_size, t.seed)]
-        mine = distributed.shard(list(enumerate(everyone)), world)
-        if t.augment_rotations:
-            batch = [augment.rotate_sample(samples[i], augment.rotation_for(t.seed, step, pos))
-                     for pos, i in mine]
-        else:
-            batch = [samples[i] for _, i in mine]
-        fits = [s for s in batch if len(s.cells) <= t.max_cells_per_batch]
-        for s in batch:
-            if len(s.cells) > t.max_cells_per_batch and s.id not in skipped:
-                skipped[s.id] = len(s.cells)
-                print(f"\nwarning: item {s.id!r} has {len(s.cells)} cells, more than "
-                      f"train.max_cells_per_batch = {t.max_cells_per_batch}; skipped",
-                      file=sys.stderr)
+        fits = _step_items(samples, pool, step, t, world, skipped)
         local_cells = sum(len(s.cells) for s in fits)
         total_cells = int(distributed.all_sum(torch.tensor([local_cells], dtype=torch.int64), world))
         if total_cells == 0:
             continue
         opt.zero_grad(set_to_none=True)
-        # Each part's loss is weighted by its share of the global batch's cells; DDP averages
-        # the ranks' gradients (divides by the world size), hence the factor world.size.
-        parts = [[fits[i] for i in part] for part in split_parts(fits, t.max_cells_per_batch)]
-        if not parts:
-            parts = [[_placeholder(width)]]
-        sums = torch.zeros(len(LOSS_TERMS), dtype=torch.float64)
-        for p, chosen in enumerate(parts):
-            x = make_batch(chosen, device)
-            weight = len(x.coords) / total_cells if local_cells else 0.0
-            sync = p == len(parts) - 1 or not world.distributed
-            what = f"step {step + 1}, a batch part of {len(chosen)} item(s)"
-            with memory_guard(what, len(x.coords), t.max_cells_per_batch, device), \
-                    (contextlib.nullcontext() if sync else net.no_sync()):
-                with autocast(device):
-                    dec, mean, logvar, structure = net(x, sample=True, teacher_forcing=t.teacher_forcing,
-                                                      siblings=t.structure == "siblings")
-                    loss, part_terms = vae_loss(dec, logvar, mean, structure, x.feats, cfg.loss)
-                (loss * (weight * world.size)).backward()
-            sums += torch.tensor([part_terms[k] for k in LOSS_TERMS], dtype=torch.float64) * weight
+        sums = _forward_backward(net, fits, local_cells, total_cells, step, cfg, device, world)
         if t.grad_clip > 0:
             torch.nn.utils.clip_grad_norm_(model.parameters(), t.grad_clip)
         opt.step()
@@ -442,29 +375,151 @@ def _loop(cfg: Config, state: Optional[Dict[str, Any]], init: Optional[InitWeigh
         terms = dict(zip(LOSS_TERMS, distributed.all_sum(sums, world).tolist()))
         cells_done += total_cells
         done = step + 1
-        if world.main and (done % t.log_every == 0 or done == t.steps):
-            row = {**{k: f"{v:.6g}" for k, v in terms.items()}, "step": done, "lr": f"{lr:.6g}",
-                   "cells": total_cells, "seconds": f"{time.monotonic() - began:.2f}"}
-            log.writerow(row)
-            log_file.flush()
-            if tb is not None:
-                for k, v in terms.items():
-                    tb.add_scalar(f"loss/{k}", v, done)
-                tb.add_scalar("lr", lr, done)
+        if log is not None and (done % t.log_every == 0 or done == t.steps):
+            log.write(done, terms, lr, total_cells, time.monotonic() - began)
             progress.update(done, terms)
         if done % t.checkpoint_every == 0 or done == t.steps:
-            checkpoint(done)
+            saver.save(done)
     if progress is not None:
         progress.close()
-    if log_file is not None:
-        log_file.close()
-    if tb is not None:
-        tb.close()
+    if log is not None:
+        log.close()
     if start >= t.steps and not ckpt_path.exists():
-        checkpoint(start)
+        saver.save(start)
     seconds = time.monotonic() - began
     return {"steps": t.steps, "resumed_from": start, "terms": terms, "seconds": seconds,
             "steps_per_second": (t.steps - start) / seconds if seconds > 0 else 0.0,
             "skipped": skipped, "items": len(pool), "world_size": world.size,
             "peak_gpu_bytes": torch.cuda.max_memory_allocated(device) if device.type == "cuda" else None,
             "cells_per_second": cells_done / seconds if seconds > 0 else 0.0}
+
+
+def _model_and_optimizer(cfg: Config, state: Optional[Dict[str, Any]], init: Optional[InitWeights],
+                         device: torch.device):
+    """The model (from `--init-from`'s weights when given), AdamW, the EMA when asked, and the
+    first step: all as the checkpoint left them when resuming."""
+    model = SparconvVAE(cfg.model).to(device)
+    if init is not None:
+        load_weights(model, init.weights, f"--init-from {init.path}")
+    opt = torch.optim.AdamW(model.parameters(), lr=cfg.train.lr, weight_decay=cfg.train.weight_decay)
+    ema = EMA(model, cfg.train.ema_decay) if cfg.train.ema_decay > 0 else None
+    start = 0
+    if state is not None:
+        model.load_state_dict(state["model"])
+        opt.load_state_dict(state["optimizer"])
+        start = int(state["step"])
+        if ema is not None:
+            ema.load(state.get("ema") or model.state_dict())
+    return model, opt, ema, start
+
+
+class _RunLog:
+    """What rank 0 writes as it goes: `config.json`, `loss.csv` (rewound to the checkpoint's
+    step when resuming) and TensorBoard's scalars when it is installed."""
+
+    def __init__(self, out: Path, cfg: Config, resumed: bool, start: int):
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "config.json").write_text(json.dumps(cfg.to_dict(), indent=2) + "\n")
+        log_path = out / "loss.csv"
+        if resumed:
+            _rewind_log(log_path, start)
+        new_log = not log_path.exists()
+        self.file = open(log_path, "a", newline="")
+        self.csv = csv.DictWriter(self.file, LOG_FIELDS)
+        if new_log:
+            self.csv.writeheader()
+        self.tb = _tensorboard(out)
+
+    def write(self, done: int, terms: Dict[str, float], lr: float, cells: int, seconds: float) -> None:
+        """One logged step: a row of loss.csv (flushed) and its TensorBoard scalars."""
+        row = {**{k: f"{v:.6g}" for k, v in terms.items()}, "step": done, "lr": f"{lr:.6g}",
+               "cells": cells, "seconds": f"{seconds:.2f}"}
+        self.csv.writerow(row)
+        self.file.flush()
+        if self.tb is not None:
+            for k, v in terms.items():
+                self.tb.add_scalar(f"loss/{k}", v, done)
+            self.tb.add_scalar("lr", lr, done)
+
+    def close(self) -> None:
+        """Closes loss.csv and TensorBoard's writer."""
+        self.file.close()
+        if self.tb is not None:
+            self.tb.close()
+
+
+class _Saver:
+    """Writes the run's checkpoint (rank 0), once every rank's weights are known to agree."""
+
+    def __init__(self, path: Path, cfg: Config, model: SparconvVAE, opt: torch.optim.Optimizer,
+                 ema: Optional[EMA], device: torch.device, world: distributed.World,
+                 init_record: Optional[Dict[str, Any]], data: Dict[str, Any]):
+        self.path, self.cfg, self.model, self.opt, self.ema = path, cfg, model, opt, ema
+        self.device, self.world, self.init_record, self.data = device, world, init_record, data
+
+    def save(self, step: int) -> None:
+        """The checkpoint at `step`: config, weights, optimizer, EMA, RNG state and the data's
+        digest; a RuntimeError when the ranks' weights differ (a bug)."""
+        world = self.world
+        digests = distributed.gather_digests(distributed.weights_digest(self.model.state_dict()), world)
+        if len(set(digests)) > 1:
+            raise RuntimeError(f"the ranks' weights differ at step {step} ({digests}): a bug")
+        if world.main:
+            save_checkpoint(self.path, {
+                "config": self.cfg.to_dict(), "model": self.model.state_dict(),
+                "optimizer": self.opt.state_dict(), "step": step, "world_size": world.size,
+                "rank_digests": digests,
+                **({"ema": self.ema.state_dict()} if self.ema is not None else {}),
+                **({"init_from": self.init_record} if self.init_record else {}),
+                "rng": {"torch": torch.get_rng_state(),
+                        "cuda": torch.cuda.get_rng_state() if self.device.type == "cuda" else None},
+                "data": self.data})
+        distributed.barrier(world)
+
+
+def _step_items(samples: Samples, pool: List[int], step: int, t: TrainConfig, world: distributed.World,
+                skipped: Dict[str, int]) -> List[Sample]:
+    """This rank's share of a step's global batch (rotated when `augment_rotations`), less the
+    items over `max_cells_per_batch`, each named once in a warning and in `skipped`."""
+    everyone = [pool[j] for j in batch_indices(step, len(pool), t.batch_size, t.seed)]
+    mine = distributed.shard(list(enumerate(everyone)), world)
+    if t.augment_rotations:
+        batch = [augment.rotate_sample(samples[i], augment.rotation_for(t.seed, step, pos))
+                 for pos, i in mine]
+    else:
+        batch = [samples[i] for _, i in mine]
+    fits = [s for s in batch if len(s.cells) <= t.max_cells_per_batch]
+    for s in batch:
+        if len(s.cells) > t.max_cells_per_batch and s.id not in skipped:
+            skipped[s.id] = len(s.cells)
+            print(f"\nwarning: item {s.id!r} has {len(s.cells)} cells, more than "
+                  f"train.max_cells_per_batch = {t.max_cells_per_batch}; skipped",
+                  file=sys.stderr)
+    return fits
+
+
+def _forward_backward(net, fits: List[Sample], local_cells: int, total_cells: int, step: int,
+                      cfg: Config, device: torch.device, world: distributed.World) -> torch.Tensor:
+    """The gradients of a step's loss on this rank's items, in parts of at most
+    `max_cells_per_batch` cells; returns the loss terms weighted by this rank's share."""
+    t = cfg.train
+    # Each part's loss is weighted by its share of the global batch's cells; DDP averages
+    # the ranks' gradients (divides by the world size), hence the factor world.size.
+    parts = [[fits[i] for i in part] for part in split_parts(fits, t.max_cells_per_batch)]
+    if not parts:
+        parts = [[_placeholder(8 + (24 if cfg.model.deformation else 0))]]
+    sums = torch.zeros(len(LOSS_TERMS), dtype=torch.float64)
+    for p, chosen in enumerate(parts):
+        x = make_batch(chosen, device)
+        weight = len(x.coords) / total_cells if local_cells else 0.0
+        sync = p == len(parts) - 1 or not world.distributed
+        what = f"step {step + 1}, a batch part of {len(chosen)} item(s)"
+        with memory_guard(what, len(x.coords), t.max_cells_per_batch, device), \
+                (contextlib.nullcontext() if sync else net.no_sync()):
+            with autocast(device):
+                dec, mean, logvar, structure = net(x, sample=True, teacher_forcing=t.teacher_forcing,
+                                                  siblings=t.structure == "siblings")
+                loss, part_terms = vae_loss(dec, logvar, mean, structure, x.feats, cfg.loss)
+            (loss * (weight * world.size)).backward()
+        sums += torch.tensor([part_terms[k] for k in LOSS_TERMS], dtype=torch.float64) * weight
+    return sums

@@ -140,25 +140,14 @@ def test_deformation_is_read_and_predicted_when_the_job_stores_it(tmp_path, bina
     assert np.abs(cubes["deformation"]).max() > 0  # the decoded δ reaches the extractor
 
 
-def test_mesh_components_counts_pieces(tmp_path, trained, job32, binary):
-    """`infer.mesh_components` against trimesh's count: on two tetrahedra written in the PLY
-    layout `sparc3d extract` uses, and on the decoded meshes of the trained model."""
-    import struct
+def test_evaluated_pieces_are_the_binarys_count(tmp_path, trained, job32, binary):
+    """The pieces `evaluate` reports are `sparc3d extract`'s topology report of each mesh it
+    wrote (the reconstruction and the Sparcubes mesh), checked against trimesh's count; a
+    summary without the count (a binary older than the package) is refused, naming the mesh."""
+    from sparc3d_vae.runtime import UsageError
 
-    from sparc3d_vae.infer import mesh_components
-
-    # Two tetrahedra, far apart, in the layout sparc3d writes.
-    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], np.float32)
-    verts = np.concatenate([v, v + 5])
-    tet = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
-    faces = np.concatenate([tet, tet + 4])
-    head = ("ply\nformat binary_little_endian 1.0\nelement vertex 8\nproperty float x\n"
-            "property float y\nproperty float z\nelement face 8\n"
-            "property list uchar uint vertex_indices\nend_header\n").encode()
-    body = verts.tobytes() + b"".join(struct.pack("<B3I", 3, *f) for f in faces.tolist())
-    (tmp_path / "two.ply").write_bytes(head + body)
-    assert mesh_components(tmp_path / "two.ply") == 2
-    assert len(trimesh.load(tmp_path / "two.ply", process=False).split(only_watertight=False)) == 2
+    with pytest.raises(UsageError, match="no components for old.ply"):
+        infer.reported_pieces({"faces": 12}, "old.ply")
     run, _, _ = trained
     summary = infer.evaluate(run, [str(job32)], 2, 0, tmp_path / "eval", "cpu", binary)
     for row in summary["items"]:

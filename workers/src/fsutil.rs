@@ -60,7 +60,7 @@ pub fn file_sha256(path: &Path) -> Result<String> {
 
 /// Hex sha256 of bytes in memory (a source file as the worker read it).
 pub fn bytes_sha256(bytes: &[u8]) -> String {
-    sparc3d_manifests::hash::bytes_sha256(bytes)
+    sparc3d_schema::hex::sha256_hex(bytes)
 }
 
 /// The stamp of a file from its metadata: modification and change times and inode.

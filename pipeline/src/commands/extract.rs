@@ -108,14 +108,19 @@ pub fn run(args: Args) -> Result<ExitCode> {
         mesh.triangles.len(),
         before.boundary_edges
     );
-    if args.fill_holes {
+    let written = if args.fill_holes {
         let (filled, stats, after) = fill_holes::fill_and_check(&mesh);
         mesh = filled;
         summary.extend(fill_holes::summary_fields(&stats, &after));
         line = format!("{line}; {}", fill_holes::summary_line(&stats, &after));
+        after
     } else {
         summary.insert("watertight".into(), json!(before.is_watertight()));
-    }
+        before
+    };
+    // The pieces of the mesh written (triangles connected through shared vertices), so that a
+    // caller (the VAE's evaluation) counts them without reading the file back.
+    summary.insert("components".into(), json!(written.components));
     summary.insert("faces".into(), json!(mesh.triangles.len()));
     summary.insert("vertices".into(), json!(mesh.positions.len()));
     if !args.grid_frame {

@@ -2,7 +2,7 @@
 //! inside test (`--inside-test` / `--no-inside-test`) and the sealing of small openings
 //! (`--no-seal-openings`), which asks the inside test's winding number.
 
-/// Whether to run the inside test (docs/ALGORITHM.md §2b) and seal small openings (§3b). Both
+/// Whether to run the inside test (docs/ALGORITHM.md §6) and seal small openings (§4). Both
 /// on by default everywhere — in `convert`, `preview`, benchmarks and new jobs: the inside
 /// test made 10 dev meshes better and none worse beyond noise at 256³ (docs/QUALITY.md, "Round
 /// four"), the sealing keeps nearly closed solids solid (docs/QUALITY.md, issue 26).
@@ -10,7 +10,7 @@
 pub struct InsideTestArgs {
     /// Run the inside test (the default; accepted so older command lines keep working):
     /// enclosed regions decided solid or air by the source's winding number, keeping parts
-    /// inside hollow hulls and thin closed parts (docs/ALGORITHM.md §2b).
+    /// inside hollow hulls and thin closed parts (docs/ALGORITHM.md §6).
     #[arg(long, conflicts_with = "no_inside_test")]
     pub inside_test: bool,
     /// Switch the inside test off: every region the outside fill cannot reach stays solid
@@ -20,7 +20,7 @@ pub struct InsideTestArgs {
     #[arg(long)]
     pub no_inside_test: bool,
     /// Do not seal small openings: a closed part with a hole wider than about a voxel becomes
-    /// a thin shell as a whole, as before the sealing existed (docs/ALGORITHM.md §3b).
+    /// a thin shell as a whole, as before the sealing existed (docs/ALGORITHM.md §4).
     #[arg(long)]
     pub no_seal_openings: bool,
 }

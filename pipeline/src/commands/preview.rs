@@ -37,11 +37,11 @@ pub struct Args {
     #[command(flatten)]
     pub resolution: crate::resolution_arg::ResolutionArg,
     /// A mesh is converted with the inside test on unless `--no-inside-test` (as `convert`;
-    /// docs/ALGORITHM.md §2b). Neither flag applies to a job's item, drawn as the job made it.
+    /// docs/ALGORITHM.md §6). Neither flag applies to a job's item, drawn as the job made it.
     #[command(flatten)]
     pub inside_test: super::inside_test_args::InsideTestArgs,
     /// A mesh is refined against renderings of its source when `--refine` (as `convert`;
-    /// docs/ALGORITHM.md §7b), so a before/after pair is two calls. A job's item is drawn as
+    /// docs/ALGORITHM.md §12), so a before/after pair is two calls. A job's item is drawn as
     /// the job stored it (refined when its job refines).
     #[command(flatten)]
     pub refine: super::refine_args::RefineArgs,

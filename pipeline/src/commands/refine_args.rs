@@ -1,10 +1,10 @@
 //! `--refine` and its settings: the rendering-based refinement of the displacements
-//! (docs/ALGORITHM.md §7b), off by default.
+//! (docs/ALGORITHM.md §12), off by default.
 
 use sparcubes::refine::RefineParams;
 
 /// Whether to refine the displacements against renderings of the source (paper step 4), and
-/// with which settings; each setting left out takes its default (docs/ALGORITHM.md §7b).
+/// with which settings; each setting left out takes its default (docs/ALGORITHM.md §12).
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct RefineArgs {
     /// Refine the displacements against depth and normal renderings of the source (off by

@@ -3,7 +3,7 @@
 //!
 //! Each sampled row is decoded (the same decode as `show`), its mesh extracted in the source
 //! frame and written to a temporary PLY next to a PLY of the source as `sparc3d` loads it
-//! (node transforms applied). One Python process (`ops/validate/validate.py`, built into the
+//! (node transforms applied). One Python process (`pipeline/validate/validate.py`, built into the
 //! binary) checks the whole sample, one JSON line in and one out per item: boundary edges,
 //! non-manifold edges and vertices, orientation, volume, components, and the Hausdorff
 //! distance both ways. The report goes to `JOB/validation/report.jsonl` and

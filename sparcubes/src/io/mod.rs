@@ -1,7 +1,7 @@
 //! Loading and saving meshes: OBJ, PLY, STL, OFF, glTF/GLB in; PLY, OBJ, STL, GLB out.
 //!
 //! [`load`] picks the reader by extension (case-insensitive), or by content when the extension
-//! says nothing, and then [`crate::sanitize`]s what it read. Every reader takes the whole file as
+//! says nothing, and then [`crate::mesh::sanitize`]s what it read. Every reader takes the whole file as
 //! bytes, never trusts a count from a header for an allocation, and turns anything it cannot
 //! read into an [`Error`] that names the file; a panic inside a third-party parser is caught and
 //! reported the same way. Only regular files are read ([`open_regular`]): a FIFO, a device or a
@@ -23,10 +23,10 @@ mod write;
 
 pub use write::PendingSave;
 
-use crate::duplicate_faces::drop_duplicate_faces;
 use crate::error::{Error, Result};
+use crate::mesh::duplicate_faces::drop_duplicate_faces;
+use crate::mesh::sanitize::drop_invalid;
 use crate::mesh::TriMesh;
-use crate::sanitize::drop_invalid;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;
 
@@ -54,7 +54,7 @@ pub struct LoadStats {
     /// Vertices dropped because no kept face used them.
     pub vertices_unused: u64,
     /// Triangles dropped because an earlier one has the same three vertex indices (in any
-    /// order): [`crate::duplicate_faces`].
+    /// order): [`crate::mesh::duplicate_faces`].
     pub faces_duplicate: u64,
     /// Vertices the file defines, when its reader keeps only those a face uses (OBJ): what
     /// an empty mesh's message counts.
