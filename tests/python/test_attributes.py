@@ -77,7 +77,7 @@ def test_a_job_without_the_section_has_no_attribute_columns(jobs):
     assert all("base_color" not in it for it in reader.iter_items(without_job))
     with_names = pq.ParquetFile(with_job / "shards" / "part-00000.parquet").schema_arrow.names
     assert set(with_names) - set(names) == set(
-        reader._columns_of(reader.ATTRIBUTE_TENSORS) + reader.APPEARANCE_COLUMNS)
+        reader.schema.ATTRIBUTE_COLUMNS)
 
 
 def pathlib_name(uri):
