@@ -50,7 +50,8 @@ from .exports import (ExportDataset, collate_cubvh, collate_direct3d_s2, cubvh_c
 from .items import iter_items, row_to_item, samples_to_source
 from .jobs import ShardWarning, Verify
 from .location import ObjectPath
-from .schema import (CONSUMER_FORMATS, EXPORT_FORMATS, META_COLUMNS, OPTIONAL_SAMPLE_TENSORS,
+from .schema import (APPEARANCE_COLUMNS, ATTRIBUTE_TENSORS, CONSUMER_FORMATS, EXPORT_FORMATS,
+                     META_COLUMNS, OPTIONAL_SAMPLE_TENSORS,
                      PROVENANCE_PREFIX, SAMPLE_TENSORS, SCHEMA_VERSION, TENSORS)
 from .shards import PathLike, check_schema_version, read_job_config, shard_config, shard_paths
 from .tensors import (decode_tensor, encode_tensor, iter_tensor_rows, write_completion_record,
@@ -59,6 +60,8 @@ from .tensors import (decode_tensor, encode_tensor, iter_tensor_rows, write_comp
 __all__ = [
     "TENSORS",
     "SAMPLE_TENSORS",
+    "ATTRIBUTE_TENSORS",
+    "APPEARANCE_COLUMNS",
     "OPTIONAL_SAMPLE_TENSORS",
     "samples_to_source",
     "collate_vecset",

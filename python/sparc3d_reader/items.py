@@ -9,7 +9,8 @@ import pyarrow.parquet as pq
 
 from . import jobs, location
 from .jobs import Verify
-from .schema import (OPTIONAL_SAMPLE_COLUMNS, OPTIONAL_SAMPLE_TENSORS, PROVENANCE_PREFIX,
+from .schema import (APPEARANCE_COLUMNS, ATTRIBUTE_COLUMNS, ATTRIBUTE_TENSORS,
+                     OPTIONAL_SAMPLE_COLUMNS, OPTIONAL_SAMPLE_TENSORS, PROVENANCE_PREFIX,
                      READ_COLUMNS, SAMPLE_COLUMNS, SAMPLE_TENSORS, TENSORS)
 from .shards import PathLike, all_shards, check_row_count, check_version, naming, usable
 from .tensors import decode_tensor
@@ -42,10 +43,28 @@ def row_to_item(row: Dict[str, Any]) -> Dict[str, Any]:
                   if k.startswith(PROVENANCE_PREFIX)}
     if provenance:
         item["manifest"] = provenance
+    if row.get("base_color") is not None:
+        _add_attributes(item, row)
     if row.get("surface_points") is not None:
         item["samples"] = {name: decode_tensor(row, name) for name in SAMPLE_TENSORS
                            if name not in OPTIONAL_SAMPLE_TENSORS or row.get(name) is not None}
     return item
+
+
+def _add_attributes(item: Dict[str, Any], row: Dict[str, Any]) -> None:
+    """The attribute arrays (uint8, one row per row of `cells`) and the appearance facts."""
+    m = len(item["cells"])
+    for name in ATTRIBUTE_TENSORS:
+        t = decode_tensor(row, name)
+        t = t.reshape(-1, 3) if name == "base_color" else t.reshape(-1)
+        if len(t) != m:
+            raise ValueError(f"item {row['id']!r}: column {name!r} has {len(t)} rows, "
+                             f"cells has {m}")
+        item[name] = t.astype(np.uint8, copy=False)
+    facts = {c: row.get(c) for c in APPEARANCE_COLUMNS}
+    facts["alpha_modes"] = [x for x in (facts["alpha_modes"] or "").split(",") if x]
+    facts["appearance_not_read"] = [x for x in (facts["appearance_not_read"] or "").split("\n") if x]
+    item["appearance"] = facts
 
 
 def samples_to_source(item: Dict[str, Any]) -> Dict[str, np.ndarray]:
@@ -72,6 +91,8 @@ def item_columns(path: location.Location, f: pq.ParquetFile, samples: bool) -> L
     names = f.schema_arrow.names
     jobs.require_columns(path, names, READ_COLUMNS)
     base = READ_COLUMNS + [c for c in names if c.startswith(PROVENANCE_PREFIX)]
+    if all(c in names for c in ATTRIBUTE_COLUMNS):
+        base = base + ATTRIBUTE_COLUMNS
     if not (samples and all(c in names for c in SAMPLE_COLUMNS)):
         return base
     return base + SAMPLE_COLUMNS + [c for c in OPTIONAL_SAMPLE_COLUMNS if c in names]

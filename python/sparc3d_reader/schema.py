@@ -76,3 +76,13 @@ READ_COLUMNS = META_COLUMNS + tensor_columns(TENSORS)
 SAMPLE_COLUMNS = tensor_columns(t for t in SAMPLE_TENSORS if t not in OPTIONAL_SAMPLE_TENSORS)
 #: The sample columns of the optional kinds (read where the shard has them).
 OPTIONAL_SAMPLE_COLUMNS = tensor_columns(OPTIONAL_SAMPLE_TENSORS)
+
+#: Appearance per active cell (docs/FORMAT.md, "Attributes"), present when the job has
+#: `[attributes] enabled = true`: one row per row of `cells`, uint8 (base colour sRGB [m, 3];
+#: metallic, roughness, alpha [m], 0-255 for 0-1).
+ATTRIBUTE_TENSORS = ["base_color", "metallic", "roughness", "alpha"]
+#: The per-item facts stored beside the attributes (docs/FORMAT.md, "Attributes").
+APPEARANCE_COLUMNS = ["materials", "textured", "textures", "texture_max_size", "alpha_modes",
+                      "vertex_colors", "appearance_not_read", "attribute_nearest_cells"]
+#: Every column of the attributes (read where the shard has them all).
+ATTRIBUTE_COLUMNS = tensor_columns(ATTRIBUTE_TENSORS) + APPEARANCE_COLUMNS

@@ -27,6 +27,22 @@ pub fn schema() -> SchemaRef {
 /// column names, in order): [`schema`]'s columns, then one nullable `utf8` column
 /// `manifest.<name>` each.
 pub fn schema_with(provenance: &[String]) -> SchemaRef {
+    schema_for(provenance, false)
+}
+
+/// The blob, dtype and shape fields of the tensor `stem`.
+pub(crate) fn tensor_fields(stem: &str) -> [Field; 3] {
+    [
+        Field::new(stem, DataType::Binary, true),
+        Field::new(c::dtype_column(stem), DataType::Utf8, true),
+        Field::new(c::shape_column(stem), shape_type(), true),
+    ]
+}
+
+/// [`schema_with`], with the appearance columns ([`crate::attribute_columns`]) after the
+/// tensors when `attributes` (a job with `[attributes]`); without them the schema is
+/// exactly [`schema_with`]'s.
+pub fn schema_for(provenance: &[String], attributes: bool) -> SchemaRef {
     use DataType::*;
     let mut f = vec![
         Field::new(c::ITEM_INDEX, UInt64, false),
@@ -52,9 +68,10 @@ pub fn schema_with(provenance: &[String]) -> SchemaRef {
     }
     f.push(Field::new(c::TIME_STAGES, Utf8, false));
     for t in c::tensors() {
-        f.push(Field::new(t, Binary, true));
-        f.push(Field::new(c::dtype_column(t), Utf8, true));
-        f.push(Field::new(c::shape_column(t), shape_type(), true));
+        f.extend(tensor_fields(t));
+    }
+    if attributes {
+        f.extend(crate::attribute_columns::fields());
     }
     for name in provenance {
         f.push(Field::new(c::provenance_column(name), Utf8, true));
@@ -121,6 +138,33 @@ pub fn rows_to_batch(rows: &[ShardRow]) -> Result<RecordBatch> {
 /// Builds a record batch of rows (in the given order) with [`schema_with`]`(provenance)`: a
 /// row without a value for one of the columns holds null there.
 pub fn rows_to_batch_with(rows: &[ShardRow], provenance: &[String]) -> Result<RecordBatch> {
+    rows_to_batch_for(rows, provenance, false)
+}
+
+/// The blob, dtype and shape arrays of one tensor over rows (`None`: null in that row).
+pub(crate) fn tensor_arrays(ts: &[Option<&EncodedTensor>]) -> [ArrayRef; 3] {
+    [
+        Arc::new(BinaryArray::from_opt_vec(
+            ts.iter().map(|t| t.map(|t| t.blob.as_slice())).collect(),
+        )),
+        Arc::new(StringArray::from(
+            ts.iter()
+                .map(|t| t.map(|t| t.dtype.as_str()))
+                .collect::<Vec<_>>(),
+        )),
+        Arc::new(ListArray::from_iter_primitive::<Int64Type, _, _>(
+            ts.iter()
+                .map(|t| t.map(|t| t.shape.iter().map(|&d| Some(d as i64)).collect::<Vec<_>>())),
+        )),
+    ]
+}
+
+/// [`rows_to_batch_with`] with [`schema_for`]`(provenance, attributes)`.
+pub fn rows_to_batch_for(
+    rows: &[ShardRow],
+    provenance: &[String],
+    attributes: bool,
+) -> Result<RecordBatch> {
     let strs = |f: &dyn Fn(&ShardRow) -> Option<&str>| -> ArrayRef {
         Arc::new(StringArray::from(rows.iter().map(f).collect::<Vec<_>>()))
     };
@@ -174,23 +218,18 @@ pub fn rows_to_batch_with(rows: &[ShardRow], provenance: &[String]) -> Result<Re
     )));
     for stem in c::tensors() {
         let ts: Vec<Option<&EncodedTensor>> = rows.iter().map(|r| tensor_of(r, stem)).collect();
-        cols.push(Arc::new(BinaryArray::from_opt_vec(
-            ts.iter().map(|t| t.map(|t| t.blob.as_slice())).collect(),
-        )));
-        cols.push(Arc::new(StringArray::from(
-            ts.iter()
-                .map(|t| t.map(|t| t.dtype.as_str()))
-                .collect::<Vec<_>>(),
-        )));
-        cols.push(Arc::new(ListArray::from_iter_primitive::<Int64Type, _, _>(
-            ts.iter()
-                .map(|t| t.map(|t| t.shape.iter().map(|&d| Some(d as i64)).collect::<Vec<_>>())),
-        )));
+        cols.extend(tensor_arrays(&ts));
+    }
+    if attributes {
+        cols.extend(crate::attribute_columns::columns(rows));
     }
     for name in provenance {
         cols.push(strs(&|r| r.provenance.get(name).map(String::as_str)));
     }
-    Ok(RecordBatch::try_new(schema_with(provenance), cols)?)
+    Ok(RecordBatch::try_new(
+        schema_for(provenance, attributes),
+        cols,
+    )?)
 }
 
 fn col<'a, T: 'static>(batch: &'a RecordBatch, name: &str) -> Result<&'a T> {
@@ -223,7 +262,11 @@ fn opt_f64(a: &Float64Array, i: usize) -> Option<f64> {
 /// The tensor `stem` of row `i`; `None` when its blob is null, or when the batch has no such
 /// column and the tensor is one of [`c::SAMPLE_TENSORS`] (a read that left the samples out,
 /// or a shard written before that kind existed).
-fn read_tensor(batch: &RecordBatch, stem: &str, i: usize) -> Result<Option<EncodedTensor>> {
+pub(crate) fn read_tensor(
+    batch: &RecordBatch,
+    stem: &str,
+    i: usize,
+) -> Result<Option<EncodedTensor>> {
     if batch.column_by_name(stem).is_none() && c::SAMPLE_TENSORS.contains(&stem) {
         return Ok(None);
     }
@@ -320,6 +363,7 @@ fn cube_tensors_at(batch: &RecordBatch, i: usize) -> Result<Option<RowTensors>> 
                 mesh_vertices: None,
                 mesh_faces: None,
                 samples: None,
+                attributes: None,
             }),
             _ => None,
         },
@@ -394,6 +438,7 @@ pub fn batch_to_rows(batch: &RecordBatch) -> Result<Vec<ShardRow>> {
                 mesh_vertices: read_tensor(batch, "mesh_vertices", i)?,
                 mesh_faces: read_tensor(batch, "mesh_faces", i)?,
                 samples: SampleTensors::from_lookup(|stem| read_tensor(batch, stem, i))?,
+                attributes: crate::attribute_columns::tensors_at(batch, i)?,
                 ..t
             }),
             None => None,
@@ -426,6 +471,7 @@ pub fn batch_to_rows(batch: &RecordBatch) -> Result<Vec<ShardRow>> {
                 .iter()
                 .filter_map(|(name, a)| Some((name.clone(), opt_str(a, i)?)))
                 .collect(),
+            appearance: crate::attribute_columns::facts_at(batch, i),
         });
     }
     Ok(rows)
@@ -483,6 +529,7 @@ pub(crate) mod tests {
             },
             tensors: Some(tensors),
             provenance: Default::default(),
+            appearance: None,
         };
         let mut failed =
             ShardRow::failed(1, "b", "/x/b.obj", 64, ErrorClass::ParseError, "bad".into());

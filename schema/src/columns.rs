@@ -137,6 +137,38 @@ pub const SAMPLE_TENSORS: [&str; 11] = [
 /// read as absent.
 pub const OPTIONAL_SAMPLE_TENSORS: [&str; 2] = [SHARP_NEAR_POINTS, SHARP_NEAR_SDF];
 
+/// Base colour of each active cell, `m × 3` `<u1`, sRGB, one row per row of `cells` (only
+/// with `[attributes]`).
+pub const BASE_COLOR: &str = "base_color";
+/// Metallic of each active cell, `m` `<u1` (0–255 for 0–1).
+pub const METALLIC: &str = "metallic";
+/// Roughness of each active cell, `m` `<u1` (0–255 for 0–1).
+pub const ROUGHNESS: &str = "roughness";
+/// Alpha (coverage) of each active cell, `m` `<u1` (0–255 for 0–1).
+pub const ALPHA: &str = "alpha";
+
+/// The attribute tensors, in column order: present in the shards of a job with
+/// `[attributes] enabled = true` only, after the sample tensors.
+pub const ATTRIBUTE_TENSORS: [&str; 4] = [BASE_COLOR, METALLIC, ROUGHNESS, ALPHA];
+
+/// Materials the source defines and uses (`u32`; only with `[attributes]`).
+pub const MATERIALS: &str = "materials";
+/// Whether any texture was read (`bool`).
+pub const TEXTURED: &str = "textured";
+/// Textures read and used (`u32`).
+pub const TEXTURES: &str = "textures";
+/// Largest side of those textures in pixels (`u32`, 0 without any).
+pub const TEXTURE_MAX_SIZE: &str = "texture_max_size";
+/// Alpha modes of the materials used (`utf8`, comma-separated glTF names, sorted).
+pub const ALPHA_MODES: &str = "alpha_modes";
+/// Whether the source has vertex colours (`bool`).
+pub const VERTEX_COLORS: &str = "vertex_colors";
+/// Features of the source's appearance that were not read (`utf8`, one per line, sorted).
+pub const APPEARANCE_NOT_READ: &str = "appearance_not_read";
+/// Active cells no source triangle crosses, which took the closest surface point's values
+/// (`u64`).
+pub const NEAREST_CELLS: &str = "attribute_nearest_cells";
+
 /// Name of a tensor's dtype column.
 pub fn dtype_column(tensor: &str) -> String {
     format!("{tensor}_dtype")

@@ -58,6 +58,27 @@ pub struct JobConfig {
     /// left out while unset, so a job without it keeps its JSON and its fingerprint.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub preset: Option<String>,
+    /// Appearance sampled at each item's active cells (`[attributes]`). Left out of the
+    /// canonical config while disabled, so jobs without it keep their fingerprint.
+    #[serde(default, skip_serializing_if = "AttributeConfig::is_disabled")]
+    pub attributes: AttributeConfig,
+}
+
+/// The `[attributes]` section of a job config: `enabled = true` stores base colour, metallic,
+/// roughness and alpha for every active cell, read from the source's materials, textures and
+/// vertex colours (docs/FORMAT.md, "Attributes").
+#[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct AttributeConfig {
+    /// Whether each ok item gets the attribute columns.
+    pub enabled: bool,
+}
+
+impl AttributeConfig {
+    /// Whether attributes are off (the section is then left out of the canonical config).
+    pub fn is_disabled(&self) -> bool {
+        !self.enabled
+    }
 }
 
 /// The `[samples]` section of a job config: `enabled = true` alone draws the documented
@@ -91,6 +112,7 @@ impl Default for JobConfig {
             limits: Limits::default(),
             samples: SampleConfig::default(),
             preset: None,
+            attributes: AttributeConfig::default(),
         }
     }
 }
@@ -187,6 +209,7 @@ impl JobConfig {
                 }
             })?;
             m.insert("samples".into(), samples);
+            m.insert("attributes".into(), serde_json::json!({ "enabled": false }));
             // `params.object_span` is left out while unset (`Params::object_span`); offer it.
             if let Some(Value::Object(params)) = m.get_mut("params") {
                 params.entry("object_span").or_insert(Value::Null);
@@ -413,6 +436,29 @@ mod tests {
         assert_eq!(old.fingerprint()?, OLD_DEFAULT_FINGERPRINT);
         // Written back (a resumed job's job.json), it still has no key.
         assert!(!old.to_canonical_json()?.contains("inside_test"));
+        Ok(())
+    }
+
+    #[test]
+    fn attributes_are_off_by_default_and_change_the_fingerprint_only_when_on() -> Result<()> {
+        let old: JobConfig =
+            serde_json::from_str(OLD_DEFAULT_CONFIG).map_err(|source| SchemaError::Json {
+                context: "test".into(),
+                source,
+            })?;
+        assert!(!old.attributes.enabled);
+        assert_eq!(old.fingerprint()?, OLD_DEFAULT_FINGERPRINT);
+        assert!(!JobConfig::default()
+            .to_canonical_json()?
+            .contains("attributes"));
+        let on = JobConfig::from_overrides(&serde_json::json!({"attributes": {"enabled": true}}))?;
+        assert!(on.attributes.enabled);
+        assert_ne!(on.fingerprint()?, JobConfig::default().fingerprint()?);
+        let off =
+            JobConfig::from_overrides(&serde_json::json!({"attributes": {"enabled": false}}))?;
+        assert_eq!(off.fingerprint()?, JobConfig::default().fingerprint()?);
+        let typo = JobConfig::from_overrides(&serde_json::json!({"attributes": {"enable": true}}));
+        assert!(typo.is_err_and(|e| e.to_string().contains("attributes.enable")));
         Ok(())
     }
 

@@ -74,6 +74,18 @@ pub fn update_row(h: &mut Sha256, row: &ShardRow) {
         }
         None => h.update([0]),
     }
+    // Rows without appearance facts leave the digest as it was before they existed (their
+    // attribute tensors are in `tensors` above, only where present).
+    if let Some(a) = &row.appearance {
+        field(h, b"appearance");
+        h.update(a.materials.to_le_bytes());
+        h.update(a.textures.to_le_bytes());
+        h.update(a.texture_max_size.to_le_bytes());
+        field(h, a.alpha_modes.join(",").as_bytes());
+        h.update([u8::from(a.vertex_colors)]);
+        field(h, a.not_read.join("\n").as_bytes());
+        h.update(a.nearest_cells.to_le_bytes());
+    }
     // Rows without provenance leave the digest as it was before provenance columns existed.
     if !row.provenance.is_empty() {
         field(h, crate::columns::PROVENANCE_PREFIX.as_bytes());

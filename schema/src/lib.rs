@@ -7,6 +7,7 @@
 #![deny(missing_docs)]
 
 pub mod arrow;
+pub mod attribute_columns;
 pub mod class;
 pub mod columns;
 pub mod completion;
@@ -21,11 +22,13 @@ pub mod tensor;
 
 pub use class::{ErrorClass, ItemStatus};
 pub use completion::{CompletionRecord, FileStamp};
-pub use config::{JobConfig, JobFile, Limits, SampleConfig};
+pub use config::{AttributeConfig, JobConfig, JobFile, Limits, SampleConfig};
 pub use error::{Result, SchemaError};
 pub use layout::JobLayout;
 pub use manifest::{FrozenItem, ManifestRecord};
-pub use row::{RowCounts, RowTensors, RowTimings, SampleTensors, ShardRow};
+pub use row::{
+    AppearanceFacts, AttributeTensors, RowCounts, RowTensors, RowTimings, SampleTensors, ShardRow,
+};
 pub use tensor::{DType, EncodedTensor};
 
 /// Version of the shard format; bumped on any change to columns or encodings. Version 2 stores

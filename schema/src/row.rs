@@ -6,6 +6,8 @@ use crate::error::{Result, SchemaError};
 use crate::manifest::FrozenItem;
 use crate::tensor::{DType, EncodedTensor};
 use serde::{Deserialize, Serialize};
+use sparcubes::attributes::CellAttributes;
+use sparcubes::materials::Facts;
 use sparcubes::samples::{Precision, SampleParams, Samples};
 use sparcubes::{Normalization, SparseCubes};
 use std::collections::BTreeMap;
@@ -65,6 +67,121 @@ pub struct RowTensors {
     pub mesh_faces: Option<EncodedTensor>,
     /// Vector-set samples, when the job draws them.
     pub samples: Option<SampleTensors>,
+    /// Appearance per active cell, when the job samples it (`[attributes]`); `None` leaves
+    /// the row's journal form and digest as they were before attributes existed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub attributes: Option<AttributeTensors>,
+}
+
+/// The encoded appearance of an item's active cells (columns
+/// [`crate::columns::ATTRIBUTE_TENSORS`]), one row per row of `cells`.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct AttributeTensors {
+    /// Base colour, `m × 3` `<u1`, sRGB.
+    pub base_color: EncodedTensor,
+    /// Metallic, `m` `<u1`.
+    pub metallic: EncodedTensor,
+    /// Roughness, `m` `<u1`.
+    pub roughness: EncodedTensor,
+    /// Alpha, `m` `<u1`.
+    pub alpha: EncodedTensor,
+}
+
+impl AttributeTensors {
+    /// Encodes sampled attributes.
+    pub fn from_attributes(a: &CellAttributes, level: i32) -> Result<Self> {
+        Ok(Self {
+            base_color: EncodedTensor::from_u8x3(&a.base_color, level)?,
+            metallic: EncodedTensor::from_u8(&a.metallic, level)?,
+            roughness: EncodedTensor::from_u8(&a.roughness, level)?,
+            alpha: EncodedTensor::from_u8(&a.alpha, level)?,
+        })
+    }
+
+    /// Decodes the attributes (`nearest_cells` is not a tensor and reads 0), checking that
+    /// the four have the same number of rows.
+    pub fn to_attributes(&self) -> Result<CellAttributes> {
+        let a = CellAttributes {
+            base_color: self.base_color.to_u8x3(c::BASE_COLOR)?,
+            metallic: self.metallic.to_u8(c::METALLIC)?,
+            roughness: self.roughness.to_u8(c::ROUGHNESS)?,
+            alpha: self.alpha.to_u8(c::ALPHA)?,
+            nearest_cells: 0,
+        };
+        let m = a.base_color.len();
+        if [a.metallic.len(), a.roughness.len(), a.alpha.len()] != [m; 3] {
+            return Err(SchemaError::Tensor {
+                name: "base_color/metallic/roughness/alpha".into(),
+                reason: "the four attribute tensors differ in length".into(),
+            });
+        }
+        Ok(a)
+    }
+
+    /// The tensors with their column stems, in column order.
+    pub fn iter(&self) -> [(&'static str, Option<&EncodedTensor>); 4] {
+        [
+            (c::BASE_COLOR, Some(&self.base_color)),
+            (c::METALLIC, Some(&self.metallic)),
+            (c::ROUGHNESS, Some(&self.roughness)),
+            (c::ALPHA, Some(&self.alpha)),
+        ]
+    }
+
+    /// Builds the set from tensors looked up by column stem; `None` when any is missing.
+    pub fn from_lookup(
+        mut get: impl FnMut(&'static str) -> Result<Option<EncodedTensor>>,
+    ) -> Result<Option<Self>> {
+        let (Some(base_color), Some(metallic), Some(roughness), Some(alpha)) = (
+            get(c::BASE_COLOR)?,
+            get(c::METALLIC)?,
+            get(c::ROUGHNESS)?,
+            get(c::ALPHA)?,
+        ) else {
+            return Ok(None);
+        };
+        Ok(Some(Self {
+            base_color,
+            metallic,
+            roughness,
+            alpha,
+        }))
+    }
+}
+
+/// What an item's appearance is made of (the row's appearance columns; only with
+/// `[attributes]`).
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct AppearanceFacts {
+    /// Materials the source defines and uses.
+    pub materials: u32,
+    /// Textures read and used.
+    pub textures: u32,
+    /// Largest side of those textures, in pixels.
+    pub texture_max_size: u32,
+    /// Alpha modes of the materials used (glTF names, sorted).
+    pub alpha_modes: Vec<String>,
+    /// Whether the source has vertex colours.
+    pub vertex_colors: bool,
+    /// Features not read, each naming where it is.
+    pub not_read: Vec<String>,
+    /// Active cells that took the closest surface point's values.
+    pub nearest_cells: u64,
+}
+
+impl AppearanceFacts {
+    /// The facts of a read appearance and its sampled cells.
+    pub fn new(f: &Facts, a: &CellAttributes) -> Self {
+        Self {
+            materials: f.materials,
+            textures: f.textures,
+            texture_max_size: f.largest_texture,
+            alpha_modes: f.alpha_modes.clone(),
+            vertex_colors: f.vertex_colors,
+            not_read: f.not_read.clone(),
+            nearest_cells: a.nearest_cells,
+        }
+    }
 }
 
 /// The encoded vector-set samples of an item (columns [`crate::columns::SAMPLE_TENSORS`]):
@@ -287,6 +404,7 @@ impl RowTensors {
             mesh_vertices: None,
             mesh_faces: None,
             samples: None,
+            attributes: None,
         })
     }
 
@@ -335,6 +453,14 @@ impl RowTensors {
         if let Some(s) = self.samples.as_mut() {
             v.extend(s.blobs_mut());
         }
+        if let Some(a) = self.attributes.as_mut() {
+            v.extend([
+                &mut a.base_color.blob,
+                &mut a.metallic.blob,
+                &mut a.roughness.blob,
+                &mut a.alpha.blob,
+            ]);
+        }
         v
     }
 
@@ -351,6 +477,10 @@ impl RowTensors {
         match &self.samples {
             Some(s) => v.extend(s.iter()),
             None => v.extend(c::SAMPLE_TENSORS.map(|n| (n, None))),
+        }
+        // Only where present: a row without attributes lists (and digests) as before.
+        if let Some(a) = &self.attributes {
+            v.extend(a.iter());
         }
         v
     }
@@ -391,6 +521,10 @@ pub struct ShardRow {
     /// line: filled in when the shard is written, stored as `manifest.<name>` columns.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub provenance: BTreeMap<String, String>,
+    /// What the item's appearance is made of, when the job samples attributes and the item
+    /// converted.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub appearance: Option<AppearanceFacts>,
 }
 
 impl ShardRow {
@@ -419,6 +553,7 @@ impl ShardRow {
             timings: RowTimings::default(),
             tensors: None,
             provenance: BTreeMap::new(),
+            appearance: None,
         }
     }
 

@@ -255,6 +255,22 @@ impl EncodedTensor {
         }
     }
 
+    /// Encodes `n × 3` bytes (in three byte planes, as the wider tensors).
+    pub fn from_u8x3(v: &[[u8; 3]], level: i32) -> Result<Self> {
+        Ok(Self {
+            dtype: DType::U8,
+            shape: vec![v.len() as u64, 3],
+            blob: compress(&to_planes(v.as_flattened(), 3, 1), level)?,
+        })
+    }
+
+    /// Decodes an `n × 3` `<u1` tensor.
+    pub fn to_u8x3(&self, name: &str) -> Result<Vec<[u8; 3]>> {
+        self.check(name, DType::U8, Some(3))?;
+        let raw = self.raw_bytes(name)?;
+        Ok(raw.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
+    }
+
     /// Decodes an `n` `<u1` tensor.
     pub fn to_u8(&self, name: &str) -> Result<Vec<u8>> {
         self.check(name, DType::U8, None)?;

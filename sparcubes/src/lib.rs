@@ -24,6 +24,8 @@
 //! - [`products`] — what other crates build on: samples, corner values, dual vertices, the
 //!   truncated SDF;
 //! - [`io`] — loading and saving meshes;
+//! - [`materials`] — a source's appearance as it is read: materials, textures, vertex colours;
+//! - [`attributes`] — that appearance sampled at the active cells (PBR on voxels);
 //! - [`params`], [`error`] and [`convert`](mod@convert), the driver.
 //!
 //! The crate knows nothing of jobs, of file formats beyond meshes, or of who reads its
@@ -36,10 +38,12 @@
 // hide that parallel structure.
 #![allow(clippy::needless_range_loop)]
 
+pub mod attributes;
 pub mod convert;
 pub mod error;
 pub mod grid;
 pub mod io;
+pub mod materials;
 pub mod mesh;
 pub mod params;
 pub mod products;

@@ -4,9 +4,10 @@
 //! all go through it; each asks only for the steps it needs ([`Steps`]).
 
 use sparc3d_schema::{
-    EncodedTensor, ErrorClass, FrozenItem, ItemStatus, JobConfig, RowCounts, RowTensors,
-    RowTimings, SampleTensors, SchemaError, ShardRow,
+    AppearanceFacts, AttributeTensors, EncodedTensor, ErrorClass, FrozenItem, ItemStatus,
+    JobConfig, RowCounts, RowTensors, RowTimings, SampleTensors, SchemaError, ShardRow,
 };
+use sparcubes::attributes::CellAttributes;
 use sparcubes::io::{Buffers, LoadStats};
 use sparcubes::samples::{SampleParams, Samples};
 use sparcubes::{Conversion, Params, TriMesh};
@@ -30,6 +31,10 @@ pub struct Steps<'a> {
     pub keep_mesh: bool,
     /// Encode the tensors, and how.
     pub encode: Option<Encoding>,
+    /// Sample the source's appearance at the active cells (a job with `[attributes]`,
+    /// `convert --attributes`): its bytes are kept until the conversion is done and parsed
+    /// again for materials then, so the conversion's peak memory does not hold them parsed.
+    pub attributes: bool,
 }
 
 /// How [`convert_file`] encodes the tensors.
@@ -75,6 +80,8 @@ pub struct Converted {
     pub mesh: Option<TriMesh>,
     /// The encoded tensors, when encoded.
     pub tensors: Option<RowTensors>,
+    /// The attributes of the active cells and what the appearance is made of, when sampled.
+    pub attributes: Option<(CellAttributes, AppearanceFacts)>,
     /// Seconds per stage.
     pub seconds: StageSeconds,
 }
@@ -91,6 +98,9 @@ pub enum StageError {
     /// Drawing the samples.
     #[error("samples: {0}")]
     Samples(sparcubes::Error),
+    /// Reading the appearance for the attributes.
+    #[error("attributes: {0}")]
+    Attributes(sparcubes::Error),
     /// Encoding the tensors.
     #[error(transparent)]
     Encode(SchemaError),
@@ -100,9 +110,10 @@ impl StageError {
     /// The error class a failed row records.
     pub fn class(&self) -> ErrorClass {
         match self {
-            StageError::Load(e) | StageError::Convert(e) | StageError::Samples(e) => {
-                e.class().into()
-            }
+            StageError::Load(e)
+            | StageError::Convert(e)
+            | StageError::Samples(e)
+            | StageError::Attributes(e) => e.class().into(),
             StageError::Encode(_) => ErrorClass::EncodeError,
         }
     }
@@ -143,7 +154,7 @@ pub fn convert_bytes(
     let fail = |error, seconds| Box::new(Failed { error, seconds });
     let t = started;
     let loaded = sparcubes::io::load_read_with(&bytes, path, buffers);
-    drop(bytes);
+    let kept = steps.attributes.then_some(bytes);
     let (source, load_stats) = match loaded {
         Ok(loaded) => (loaded.mesh, loaded.stats),
         Err(e) => return Err(fail(StageError::Load(e), seconds)),
@@ -198,6 +209,13 @@ pub fn convert_bytes(
         }
         _ => None,
     };
+    let attributes = match kept {
+        Some(bytes) => match attributes_of(&bytes, path, buffers, &conversion, &mut seconds) {
+            Ok(a) => Some(a),
+            Err(e) => return Err(fail(StageError::Attributes(e), seconds)),
+        },
+        None => None,
+    };
     let store_mesh = steps.encode.is_some_and(|e| e.store_mesh);
     if !(steps.keep_mesh || store_mesh) {
         mesh = None;
@@ -208,7 +226,8 @@ pub fn convert_bytes(
         Some(encoding) => {
             let t = Instant::now();
             let drawn = samples.as_ref().zip(steps.samples);
-            match encode(&conversion, mesh.as_ref(), drawn, encoding) {
+            let cells = attributes.as_ref().map(|a| &a.0);
+            match encode(&conversion, mesh.as_ref(), drawn, cells, encoding) {
                 Ok(tensors) => {
                     seconds.timings.encode_s = t.elapsed().as_secs_f64();
                     seconds.add("encode", seconds.timings.encode_s);
@@ -227,8 +246,28 @@ pub fn convert_bytes(
         output_faces,
         mesh: if steps.keep_mesh { mesh } else { None },
         tensors,
+        attributes,
         seconds,
     })
+}
+
+/// Reads the appearance from the source's `bytes` and samples it at the converted cells,
+/// timed as the stage `attributes`.
+fn attributes_of(
+    bytes: &[u8],
+    path: &Path,
+    buffers: Buffers,
+    conversion: &Conversion,
+    seconds: &mut StageSeconds,
+) -> Result<(CellAttributes, AppearanceFacts), sparcubes::Error> {
+    let t = Instant::now();
+    let appearance = sparcubes::materials::read(bytes, path, buffers)?;
+    let cells = sparcubes::attributes::sample(&conversion.cubes, &appearance);
+    let facts = AppearanceFacts::new(&appearance.facts, &cells);
+    let s = t.elapsed().as_secs_f64();
+    seconds.timings.stages.push(("attributes".to_string(), s));
+    seconds.add("attributes", s);
+    Ok((cells, facts))
 }
 
 /// The cubes' tensors, with the mesh's when it is to be stored.
@@ -236,6 +275,7 @@ fn encode(
     conversion: &Conversion,
     mesh: Option<&TriMesh>,
     samples: Option<(&Samples, &SampleParams)>,
+    cells: Option<&CellAttributes>,
     encoding: Encoding,
 ) -> Result<RowTensors, SchemaError> {
     let level = encoding.zstd_level;
@@ -246,6 +286,9 @@ fn encode(
     }
     if let Some((s, params)) = samples {
         tensors.samples = Some(SampleTensors::from_samples(s, params, level)?);
+    }
+    if let Some(a) = cells {
+        tensors.attributes = Some(AttributeTensors::from_attributes(a, level)?);
     }
     Ok(tensors)
 }
@@ -303,6 +346,7 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
             zstd_level: config.zstd_level,
             store_mesh: config.store_mesh,
         }),
+        attributes: config.attributes.enabled,
     };
     let done = match convert_bytes(bytes, path, buffers, steps, started) {
         Ok(done) => done,
@@ -347,6 +391,7 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
         timings: done.seconds.timings,
         tensors: done.tensors,
         provenance: Default::default(),
+        appearance: done.attributes.map(|a| a.1),
     }
 }
 
@@ -391,6 +436,7 @@ mod tests {
                 zstd_level: 3,
                 store_mesh: true,
             }),
+            attributes: false,
         };
         let done = convert_file(&example("cube.off"), steps).map_err(|f| f.error)?;
         let names: Vec<&str> = done
@@ -442,6 +488,7 @@ mod tests {
                 zstd_level: 3,
                 store_mesh: false,
             }),
+            attributes: false,
         };
         let done = convert_file(&example("cube.off"), steps).map_err(|f| f.error)?;
         let stats = done
@@ -471,6 +518,7 @@ mod tests {
             samples: None,
             keep_mesh: false,
             encode: None,
+            attributes: false,
         };
         let Err(failed) = convert_file(&example("missing.obj"), steps) else {
             panic!("a missing file converted")

@@ -141,6 +141,7 @@ fn measure(args: &Args, row: &mut BenchRow) -> anyhow::Result<()> {
             zstd_level: args.zstd_level,
             store_mesh: false,
         }),
+        attributes: false,
     };
     let done = match convert_file(&args.input, steps) {
         Ok(done) => done,
@@ -151,6 +152,7 @@ fn measure(args: &Args, row: &mut BenchRow) -> anyhow::Result<()> {
                 StageError::Load(_) => format!("load {name}"),
                 StageError::Convert(_) => format!("convert {name} at {}", args.resolution.get()),
                 StageError::Samples(_) => format!("sample {name}"),
+                StageError::Attributes(_) => format!("read the appearance of {name}"),
                 StageError::Encode(_) => format!("encode {name}"),
             };
             return Err(anyhow::Error::new(error).context(context));

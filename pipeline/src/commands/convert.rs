@@ -32,6 +32,10 @@ pub struct Args {
     /// Print the summary as JSON.
     #[arg(long)]
     pub json: bool,
+    /// Also sample the source's appearance (base colour, metallic, roughness, alpha) at the
+    /// active cells, as a job with `[attributes] enabled = true` does, and summarise it.
+    #[arg(long)]
+    pub attributes: bool,
 }
 
 /// Why an output can have more components than its input, when it has: read without it, the
@@ -59,10 +63,12 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         samples: None,
         keep_mesh: true,
         encode: None,
+        attributes: args.attributes,
     };
     let done = convert_file(&args.input, steps).map_err(|failed| {
         let context = match failed.error {
             StageError::Load(_) => "loading",
+            StageError::Attributes(_) => "reading the appearance of",
             _ => "converting",
         };
         anyhow::Error::new(failed.error).context(format!("{context} {}", args.input.display()))
@@ -117,6 +123,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         "stage_seconds": stages.iter().map(|(k, v)| (k.to_string(), json!(v))).collect::<serde_json::Map<_, _>>(),
         "total_seconds": total,
         "peak_rss_bytes": peak,
+        "attributes": done.attributes.as_ref().map(|(cells, facts)| attributes_summary(cells, facts)),
     });
     if args.json {
         println!("{summary}");
@@ -157,6 +164,30 @@ fn save_while_checking(
             check_seconds,
             write_seconds + t.elapsed().as_secs_f64(),
         ))
+    })
+}
+
+/// The summary of sampled attributes: what the appearance is made of and the cells' mean
+/// values (base colour as the mean of the stored sRGB bytes).
+fn attributes_summary(
+    cells: &sparcubes::attributes::CellAttributes,
+    facts: &sparc3d_schema::AppearanceFacts,
+) -> Value {
+    let n = cells.alpha.len().max(1) as f64;
+    let mean = |v: &mut dyn Iterator<Item = u8>| v.map(f64::from).sum::<f64>() / n;
+    let color = [0, 1, 2].map(|c| mean(&mut cells.base_color.iter().map(|p| p[c])));
+    json!({
+        "materials": facts.materials,
+        "textures": facts.textures,
+        "texture_max_size": facts.texture_max_size,
+        "alpha_modes": facts.alpha_modes,
+        "vertex_colors": facts.vertex_colors,
+        "not_read": facts.not_read,
+        "nearest_cells": facts.nearest_cells,
+        "mean_base_color": color,
+        "mean_metallic": mean(&mut cells.metallic.iter().copied()),
+        "mean_roughness": mean(&mut cells.roughness.iter().copied()),
+        "mean_alpha": mean(&mut cells.alpha.iter().copied()),
     })
 }
 
@@ -228,6 +259,7 @@ fn print_text(v: &Value, load: &LoadStats, stages: &[(String, f64)]) {
         "  watertight   {}, manifold {}",
         v["watertight"], v["manifold"]
     );
+    print_attributes(&v["attributes"]);
     let parts: Vec<String> = stages
         .iter()
         .map(|(k, v)| format!("{k} {:.3}s", v))
@@ -236,6 +268,27 @@ fn print_text(v: &Value, load: &LoadStats, stages: &[(String, f64)]) {
     println!("  time         {:.3}s: {}", total, parts.join(", "));
     if let Some(p) = v["peak_rss_bytes"].as_u64() {
         println!("  peak memory  {:.1} MB", p as f64 / 1e6);
+    }
+}
+
+/// Prints the attributes part of the summary, when there is one.
+fn print_attributes(a: &Value) {
+    if a.is_null() {
+        return;
+    }
+    let c = &a["mean_base_color"];
+    println!(
+        "  attributes   {} materials, {} textures (largest {} px), alpha modes {}, vertex colours {}; \
+         mean base colour ({:.0}, {:.0}, {:.0}), metallic {:.0}, roughness {:.0}, alpha {:.0}; \
+         {} cells from the nearest surface",
+        a["materials"], a["textures"], a["texture_max_size"], a["alpha_modes"], a["vertex_colors"],
+        c[0].as_f64().unwrap_or_default(), c[1].as_f64().unwrap_or_default(),
+        c[2].as_f64().unwrap_or_default(), a["mean_metallic"].as_f64().unwrap_or_default(),
+        a["mean_roughness"].as_f64().unwrap_or_default(), a["mean_alpha"].as_f64().unwrap_or_default(),
+        a["nearest_cells"]
+    );
+    for item in a["not_read"].as_array().into_iter().flatten() {
+        println!("  not read     {}", item.as_str().unwrap_or_default());
     }
 }
 

@@ -36,7 +36,7 @@ pub const MAX_NODE_INSTANCES: usize = 1 << 20;
 /// Walks the scene's node instances without reading any data, and refuses the file before
 /// anything is allocated when the instances, or the vertices or triangles they would
 /// produce, exceed the limits.
-fn check_expansion(scene: &gltf::Scene, path: &Path) -> Result<()> {
+pub(crate) fn check_expansion(scene: &gltf::Scene, path: &Path) -> Result<()> {
     let mut stack: Vec<(gltf::Node, usize)> = scene.nodes().map(|n| (n, 0)).collect();
     let (mut instances, mut vertices, mut triangles) = (0usize, 0usize, 0usize);
     while let Some((node, depth)) = stack.pop() {
@@ -123,7 +123,7 @@ pub(crate) fn read(
 /// Parses and validates the document. Missing POSITION `min`/`max` (common in exported files,
 /// and never used here) is tolerated; glTF 1.0 and required extensions we cannot read (Draco
 /// compression, ...) are reported as unsupported formats.
-fn open(bytes: &[u8], path: &Path) -> Result<gltf::Gltf> {
+pub(crate) fn open(bytes: &[u8], path: &Path) -> Result<gltf::Gltf> {
     let unsupported = |reason: String| Error::UnsupportedFormat {
         path: path.to_path_buf(),
         reason,
@@ -174,7 +174,11 @@ fn open(bytes: &[u8], path: &Path) -> Result<gltf::Gltf> {
 }
 
 /// The data of every buffer, in order.
-fn load_buffers(gltf: &gltf::Gltf, path: &Path, external: Buffers) -> Result<Vec<Vec<u8>>> {
+pub(crate) fn load_buffers(
+    gltf: &gltf::Gltf,
+    path: &Path,
+    external: Buffers,
+) -> Result<Vec<Vec<u8>>> {
     let mut out = Vec::new();
     for buffer in gltf.buffers() {
         let data = match buffer.source() {
@@ -276,7 +280,8 @@ fn read_uri(uri: &str, path: &Path, external: Buffers) -> Result<Vec<u8>> {
     })
 }
 
-fn percent_decode(s: &str) -> Option<String> {
+/// Decodes `%XX` escapes; `None` when one is malformed or the result is not UTF-8.
+pub(crate) fn percent_decode(s: &str) -> Option<String> {
     let b = s.as_bytes();
     let mut out = Vec::with_capacity(b.len());
     let mut i = 0;
@@ -518,19 +523,19 @@ fn read_accessor(acc: &gltf::Accessor, buffers: &[Vec<u8>], path: &Path) -> Resu
     Ok(out)
 }
 
-const IDENTITY: [[f64; 4]; 4] = [
+pub(crate) const IDENTITY: [[f64; 4]; 4] = [
     [1.0, 0.0, 0.0, 0.0],
     [0.0, 1.0, 0.0, 0.0],
     [0.0, 0.0, 1.0, 0.0],
     [0.0, 0.0, 0.0, 1.0],
 ];
 
-fn to_f64(m: [[f32; 4]; 4]) -> [[f64; 4]; 4] {
+pub(crate) fn to_f64(m: [[f32; 4]; 4]) -> [[f64; 4]; 4] {
     m.map(|c| c.map(f64::from))
 }
 
 /// Product of column-major matrices `a * b`.
-fn mul(a: &[[f64; 4]; 4], b: &[[f64; 4]; 4]) -> [[f64; 4]; 4] {
+pub(crate) fn mul(a: &[[f64; 4]; 4], b: &[[f64; 4]; 4]) -> [[f64; 4]; 4] {
     let mut r = [[0.0; 4]; 4];
     for (c, col) in r.iter_mut().enumerate() {
         for (row, x) in col.iter_mut().enumerate() {
@@ -541,7 +546,7 @@ fn mul(a: &[[f64; 4]; 4], b: &[[f64; 4]; 4]) -> [[f64; 4]; 4] {
 }
 
 /// Applies a column-major affine matrix to a point.
-fn transform(m: &[[f64; 4]; 4], p: [f64; 3]) -> [f64; 3] {
+pub(crate) fn transform(m: &[[f64; 4]; 4], p: [f64; 3]) -> [f64; 3] {
     let mut q = [0.0; 3];
     for (row, x) in q.iter_mut().enumerate() {
         *x = m[0][row] * p[0] + m[1][row] * p[1] + m[2][row] * p[2] + m[3][row];

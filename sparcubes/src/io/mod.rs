@@ -14,7 +14,7 @@
 //! earlier one (same vertex indices) is dropped and counted in [`LoadStats::faces_duplicate`].
 //! [`save`] writes to a temporary file beside the target and renames it.
 
-mod gltf;
+pub(crate) mod gltf;
 mod obj;
 mod off;
 mod ply;

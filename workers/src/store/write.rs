@@ -48,7 +48,7 @@ pub fn writer_properties(job: &Job, shard: u64) -> Result<WriterProperties> {
     let mut b = WriterProperties::builder()
         .set_compression(Compression::ZSTD(level))
         .set_key_value_metadata(Some(kv));
-    for stem in columns::tensors() {
+    for stem in columns::tensors().chain(columns::ATTRIBUTE_TENSORS) {
         let col = ColumnPath::from(stem);
         b = b
             .set_column_compression(col.clone(), Compression::UNCOMPRESSED)
@@ -164,12 +164,13 @@ fn write_parquet(
         source,
     };
     let provenance = provenance_names(job, shard);
+    let attributes = job.file.config.attributes.enabled;
     let mut writer = ArrowWriter::try_new(
         HashingFile {
             file,
             hash: Sha256::new(),
         },
-        sparc3d_schema::arrow::schema_with(&provenance),
+        sparc3d_schema::arrow::schema_for(&provenance, attributes),
         Some(writer_properties(job, shard)?),
     )
     .map_err(pq_err)?;
@@ -182,7 +183,7 @@ fn write_parquet(
         if rows.is_empty() {
             return Ok(());
         }
-        let batch = sparc3d_schema::arrow::rows_to_batch_with(rows, &provenance)?;
+        let batch = sparc3d_schema::arrow::rows_to_batch_for(rows, &provenance, attributes)?;
         writer.write(&batch).map_err(pq_err)?;
         writer.flush().map_err(pq_err)?;
         rows.clear();

@@ -1,0 +1,302 @@
+//! glTF 2.0 appearance: the metallic-roughness materials, their textures and samplers,
+//! `KHR_texture_transform`, `TEXCOORD_0`/`_1` and `COLOR_0`, on the triangles of the same
+//! scene walk as the shape's reader ([`crate::io`]), with the same node transforms.
+//!
+//! Read: `baseColorFactor` and `baseColorTexture`, `metallicFactor`, `roughnessFactor` and
+//! `metallicRoughnessTexture` (metallic in blue, roughness in green, glTF 2.0 §3.9.2),
+//! `alphaMode` and `alphaCutoff`, each texture's `texCoord`, sampler wrap modes and
+//! magnification filter, and `KHR_texture_transform` (parsed from the JSON itself, so the
+//! shape's reader is unchanged). Images are PNG or JPEG, in a buffer view, a `data:` URI or a
+//! file beside the glTF file. Named as not read: every material extension
+//! (`KHR_materials_*`, specular-glossiness among them), emissive, normal and occlusion
+//! textures, images in other formats or that fail to decode.
+
+use super::image::{self, Image};
+use super::{sibling, AlphaMode, Appearance, Material, ScalarMap, TextureRef, Wrap};
+use crate::error::Result;
+use crate::io::gltf::{check_expansion, load_buffers, mul, open, to_f64, transform, IDENTITY};
+use crate::io::{parse_err, Buffers};
+use base64::Engine as _;
+use gltf::texture::WrappingMode;
+use serde_json::Value;
+use std::path::Path;
+
+pub(crate) fn read(bytes: &[u8], path: &Path, external: Buffers) -> Result<Appearance> {
+    let doc = open(bytes, path)?;
+    let buffers = load_buffers(&doc, path, external)?;
+    let json = raw_json(bytes);
+    let mut out = Appearance::default();
+    out.materials = doc
+        .materials()
+        .map(|m| material(&m, &json, &mut out.facts))
+        .collect();
+    out.images = doc
+        .images()
+        .map(|im| decode_image(&im, &buffers, path, external, &mut out.facts))
+        .collect();
+    let Some(scene) = doc.default_scene().or_else(|| doc.scenes().next()) else {
+        return Ok(out);
+    };
+    check_expansion(&scene, path)?;
+    let mut stack: Vec<(gltf::Node, [[f64; 4]; 4])> =
+        scene.nodes().map(|n| (n, IDENTITY)).collect();
+    while let Some((node, parent)) = stack.pop() {
+        let world = mul(&parent, &to_f64(node.transform().matrix()));
+        if let Some(m) = node.mesh() {
+            for prim in m.primitives() {
+                primitive(&prim, &world, &buffers, path, &mut out)?;
+            }
+        }
+        stack.extend(node.children().map(|c| (c, world)));
+    }
+    Ok(out)
+}
+
+/// The JSON of a `.gltf` file, or of a `.glb` file's JSON chunk (for the extensions the
+/// `gltf` crate is not built to read); `Null` when it cannot be found.
+fn raw_json(bytes: &[u8]) -> Value {
+    let text = if bytes.starts_with(b"glTF") && bytes.len() >= 20 {
+        let len = u32::from_le_bytes([bytes[12], bytes[13], bytes[14], bytes[15]]) as usize;
+        bytes.get(20..20usize.saturating_add(len)).unwrap_or(&[])
+    } else {
+        bytes
+    };
+    serde_json::from_slice(text).unwrap_or(Value::Null)
+}
+
+/// The material `m`, with what it uses that is not read named in `facts`.
+fn material(m: &gltf::Material, json: &Value, facts: &mut super::Facts) -> Material {
+    let index = m.index().unwrap_or(usize::MAX);
+    let raw = &json["materials"][index];
+    // Names come from the JSON: the `gltf` crate is built without its `names` feature.
+    let name = raw["name"].as_str();
+    let label = match name {
+        Some(n) => format!("material {index} (`{}`)", sibling::clip(n)),
+        None => format!("material {index}"),
+    };
+    if let Some(ext) = raw["extensions"].as_object() {
+        for key in ext.keys() {
+            facts.skip(format!("{label}: extension {key}"));
+        }
+    }
+    for (key, what) in [
+        ("emissiveTexture", "emissive texture"),
+        ("normalTexture", "normal texture"),
+        ("occlusionTexture", "occlusion texture"),
+    ] {
+        if !raw[key].is_null() {
+            facts.skip(format!("{label}: {what}"));
+        }
+    }
+    if raw["emissiveFactor"]
+        .as_array()
+        .is_some_and(|f| f.iter().any(|x| x.as_f64().is_some_and(|x| x != 0.0)))
+    {
+        facts.skip(format!("{label}: emissive colour"));
+    }
+    let pbr = m.pbr_metallic_roughness();
+    let raw_pbr = &raw["pbrMetallicRoughness"];
+    let base = pbr
+        .base_color_texture()
+        .map(|t| texture_ref(&t, &raw_pbr["baseColorTexture"]));
+    let mr = pbr
+        .metallic_roughness_texture()
+        .map(|t| texture_ref(&t, &raw_pbr["metallicRoughnessTexture"]));
+    Material {
+        name: name.unwrap_or(&label).to_string(),
+        base_color: pbr.base_color_factor(),
+        base_color_map: base,
+        metallic: pbr.metallic_factor(),
+        metallic_map: mr.map(|texture| ScalarMap {
+            texture,
+            channel: 2,
+        }),
+        roughness: pbr.roughness_factor(),
+        roughness_map: mr.map(|texture| ScalarMap {
+            texture,
+            channel: 1,
+        }),
+        alpha_map: None,
+        alpha_mode: match m.alpha_mode() {
+            gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
+            gltf::material::AlphaMode::Mask => AlphaMode::Mask(m.alpha_cutoff().unwrap_or(0.5)),
+            gltf::material::AlphaMode::Blend => AlphaMode::Blend,
+        },
+    }
+}
+
+/// A texture reference from a `textureInfo`, with its sampler and `KHR_texture_transform`
+/// (read from `raw`, the textureInfo's JSON).
+fn texture_ref(info: &gltf::texture::Info, raw: &Value) -> TextureRef {
+    let tex = info.texture();
+    let sampler = tex.sampler();
+    let wrap = |w: WrappingMode| match w {
+        WrappingMode::ClampToEdge => Wrap::Clamp,
+        WrappingMode::MirroredRepeat => Wrap::Mirror,
+        WrappingMode::Repeat => Wrap::Repeat,
+    };
+    let mut out = TextureRef {
+        image: tex.source().index(),
+        set: info.tex_coord() as usize,
+        transform: super::IDENTITY_UV,
+        wrap: [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())],
+        nearest: sampler.mag_filter() == Some(gltf::texture::MagFilter::Nearest),
+    };
+    let t = &raw["extensions"]["KHR_texture_transform"];
+    if t.is_object() {
+        let num = |v: &Value, d: f64| v.as_f64().unwrap_or(d);
+        let (ox, oy) = (num(&t["offset"][0], 0.0), num(&t["offset"][1], 0.0));
+        let (sx, sy) = (num(&t["scale"][0], 1.0), num(&t["scale"][1], 1.0));
+        let r = num(&t["rotation"], 0.0);
+        let (s, c) = r.sin_cos();
+        // translation · rotation · scale, rotation [[c, s], [−s, c]] (row-major): the
+        // ratified KHR_texture_transform README, as three.js and Babylon.js apply it.
+        out.transform = [
+            [(c * sx) as f32, (s * sy) as f32, ox as f32],
+            [(-s * sx) as f32, (c * sy) as f32, oy as f32],
+        ];
+        if let Some(set) = t["texCoord"].as_u64() {
+            out.set = set as usize;
+        }
+    }
+    out
+}
+
+/// The bytes of an image: a buffer view, a `data:` URI or a file beside the glTF file.
+fn image_bytes(
+    im: &gltf::Image,
+    buffers: &[Vec<u8>],
+    path: &Path,
+    external: Buffers,
+) -> std::result::Result<Vec<u8>, String> {
+    match im.source() {
+        gltf::image::Source::View { view, .. } => {
+            let data = buffers
+                .get(view.buffer().index())
+                .ok_or("its buffer is missing")?;
+            let end = view.offset().checked_add(view.length());
+            end.and_then(|e| data.get(view.offset()..e))
+                .map(<[u8]>::to_vec)
+                .ok_or_else(|| "its buffer view runs past its buffer".to_string())
+        }
+        gltf::image::Source::Uri { uri, .. } => {
+            if let Some(rest) = uri.strip_prefix("data:") {
+                let (_, payload) = rest
+                    .split_once(";base64,")
+                    .ok_or("only base64 data URIs are read")?;
+                return base64::engine::general_purpose::STANDARD
+                    .decode(payload.trim())
+                    .map_err(|e| format!("bad base64: {e}"));
+            }
+            let name = crate::io::gltf::percent_decode(uri).ok_or("bad percent-encoding")?;
+            sibling::read(&name, path, external)
+                .map_err(|e| format!("`{}`: {e}", sibling::clip(&name)))
+        }
+    }
+}
+
+/// Decodes an image; one that cannot be read is `None` and named in `facts`.
+fn decode_image(
+    im: &gltf::Image,
+    buffers: &[Vec<u8>],
+    path: &Path,
+    external: Buffers,
+    facts: &mut super::Facts,
+) -> Option<Image> {
+    let decoded = image_bytes(im, buffers, path, external).and_then(|b| image::decode(&b));
+    match decoded {
+        Ok(image) => Some(image),
+        Err(why) => {
+            facts.skip(format!("image {}: {why}", im.index()));
+            None
+        }
+    }
+}
+
+/// Appends one primitive's triangles with their corners' texture coordinates and colours.
+fn primitive(
+    prim: &gltf::Primitive,
+    world: &[[f64; 4]; 4],
+    buffers: &[Vec<u8>],
+    path: &Path,
+    out: &mut Appearance,
+) -> Result<()> {
+    use gltf::mesh::Mode;
+    if !matches!(
+        prim.mode(),
+        Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+    ) {
+        return Ok(());
+    }
+    let reader = prim.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
+    let bad = |what: &str| parse_err(path, format!("glTF primitive {}: {what}", prim.index()));
+    let Some(positions) = reader.read_positions() else {
+        return Ok(());
+    };
+    let positions: Vec<[f32; 3]> = positions
+        .map(|p| {
+            let q = transform(world, [p[0] as f64, p[1] as f64, p[2] as f64]);
+            [q[0] as f32, q[1] as f32, q[2] as f32]
+        })
+        .collect();
+    let n = positions.len();
+    let indices: Vec<u32> = match (prim.indices(), reader.read_indices()) {
+        (Some(_), Some(i)) => i.into_u32().collect(),
+        (Some(_), None) => return Err(bad("its indices cannot be read")),
+        (None, _) => (0..n as u32).collect(),
+    };
+    let uv: [Option<Vec<[f32; 2]>>; 2] =
+        [0, 1].map(|s| reader.read_tex_coords(s).map(|t| t.into_f32().collect()));
+    let color: Option<Vec<[f32; 4]>> = reader.read_colors(0).map(|c| c.into_rgba_f32().collect());
+    let surface = &mut out.surface;
+    let base = surface.positions.len() as u32;
+    surface.positions.extend(positions);
+    let uv_base = [0, 1].map(|s| surface.uv[s].values.len() as u32);
+    for (s, v) in uv.iter().enumerate() {
+        if let Some(v) = v.as_ref().filter(|v| v.len() == n) {
+            surface.uv[s].values.extend(v);
+        }
+    }
+    let color_base = surface.color.values.len() as u32;
+    if let Some(c) = color.as_ref().filter(|c| c.len() == n) {
+        surface.color.values.extend(c);
+    }
+    let material = prim.material().index().map(|i| i as u32);
+    for tri in triangles(prim.mode(), &indices) {
+        if tri.iter().any(|&i| i as usize >= n) {
+            continue;
+        }
+        let t = surface.triangles.len();
+        surface.triangles.push(tri.map(|i| base + i));
+        surface
+            .material
+            .push(material.unwrap_or(out.materials.len() as u32));
+        for s in 0..2 {
+            if uv[s].as_ref().is_some_and(|v| v.len() == n) {
+                surface.uv[s].push(t, tri.map(|i| uv_base[s] + i));
+            }
+        }
+        if color.as_ref().is_some_and(|c| c.len() == n) {
+            surface.color.push(t, tri.map(|i| color_base + i));
+        }
+    }
+    Ok(())
+}
+
+/// The triangles of a list, strip or fan of indices (strips with every other one flipped).
+fn triangles(mode: gltf::mesh::Mode, idx: &[u32]) -> Vec<[u32; 3]> {
+    use gltf::mesh::Mode;
+    let n = idx.len();
+    match mode {
+        Mode::Triangles => idx.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+        Mode::TriangleStrip => (0..n.saturating_sub(2))
+            .map(|k| match k % 2 {
+                0 => [idx[k], idx[k + 1], idx[k + 2]],
+                _ => [idx[k + 1], idx[k], idx[k + 2]],
+            })
+            .collect(),
+        _ => (1..n.saturating_sub(1))
+            .map(|k| [idx[0], idx[k], idx[k + 1]])
+            .collect(),
+    }
+}

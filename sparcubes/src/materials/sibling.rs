@@ -1,0 +1,57 @@
+//! Files named by a mesh file (an OBJ's material library, a texture, a glTF image), read only
+//! from inside the mesh file's own folder, as glTF buffers are ([`crate::io`]): no absolute
+//! path, no `..`, no URI scheme, and on disk a path that resolves (through links) inside the
+//! folder; a file fetched from a URL reads its siblings through [`Buffers::Relative`].
+
+use crate::io::Buffers;
+use std::path::{Component, Path};
+
+/// Reads the file `name` (relative to the mesh file at `path`; `\` read as `/`, as Windows
+/// exporters write it), or says why not.
+pub fn read(name: &str, path: &Path, buffers: Buffers) -> Result<Vec<u8>, String> {
+    let name = name.trim().replace('\\', "/");
+    if name.is_empty() || name.contains('\0') {
+        return Err("an empty name".into());
+    }
+    if let Some((scheme, _)) = name.split_once(':') {
+        if scheme.len() > 1 && scheme.chars().all(|c| c.is_ascii_alphanumeric()) {
+            return Err("only relative paths are read (it has a URI scheme)".into());
+        }
+    }
+    let rel = Path::new(&name);
+    if rel
+        .components()
+        .any(|c| !matches!(c, Component::Normal(_) | Component::CurDir))
+    {
+        return Err("absolute paths and `..` components are not read".into());
+    }
+    if let Buffers::Relative(reader) = buffers {
+        let plain: Vec<&str> = name
+            .split('/')
+            .filter(|p| !p.is_empty() && *p != ".")
+            .collect();
+        return reader(&plain.join("/"));
+    }
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let real_dir = std::fs::canonicalize(dir).map_err(|e| e.to_string())?;
+    let real = std::fs::canonicalize(dir.join(rel)).map_err(|e| format!("{e}"))?;
+    if !real.starts_with(&real_dir) {
+        return Err(format!(
+            "it resolves to `{}`, outside the mesh file's folder",
+            real.display()
+        ));
+    }
+    crate::io::read_file(&real).map_err(|e| e.to_string())
+}
+
+/// Short form of a name for messages.
+pub fn clip(s: &str) -> String {
+    let mut out: String = s.chars().take(80).collect();
+    if out.len() < s.len() {
+        out.push('…');
+    }
+    out
+}
