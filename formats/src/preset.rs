@@ -183,7 +183,12 @@ mod tests {
 
     #[test]
     fn each_preset_gives_a_job_its_consumer_takes_without_a_warning() {
-        for text in ["trellis2@128", "trellis2@512", "direct3d-s2", "direct3d-s2@1024"] {
+        for text in [
+            "trellis2@128",
+            "trellis2@512",
+            "direct3d-s2",
+            "direct3d-s2@1024",
+        ] {
             let preset = Preset::parse(text).unwrap_or_else(|e| panic!("{text}: {e}"));
             assert_eq!(preset.name(), text);
             let params = params_of(preset.settings());
@@ -195,7 +200,10 @@ mod tests {
         assert_eq!(t.ok().and_then(|s| s.resolution), Some(134));
         for c in [Consumer::Dora, Consumer::Step1x3d, Consumer::Triposg] {
             let s = Preset::parse(c.name()).map(|p| p.settings());
-            assert!(s.is_ok_and(|s| s.samples && s.object_span.is_none()), "{c:?}");
+            assert!(
+                s.is_ok_and(|s| s.samples && s.object_span.is_none()),
+                "{c:?}"
+            );
             // The defaults that `samples.enabled = true` draws serve it.
             let d = sparcubes::samples::SampleParams::default();
             assert!(c.missing(Some(&d)).is_empty(), "{c:?}");

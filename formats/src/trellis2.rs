@@ -502,7 +502,10 @@ mod tests {
         assert!(refused.contains("--for trellis2@518"), "{refused}");
         assert!(refused.contains("params.resolution = 524"), "{refused}");
         let own = check(&params, Frame::Normalized);
-        assert!(own.required.is_empty() && own.warnings[0].contains("1.17 %"), "{own:?}");
+        assert!(
+            own.required.is_empty() && own.warnings[0].contains("1.17 %"),
+            "{own:?}"
+        );
     }
 
     #[test]

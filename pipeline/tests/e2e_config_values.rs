@@ -98,8 +98,8 @@ fn random_doubles_in_every_float_key_survive_init_and_run() {
         ]);
         // job.json holds the values read, and the fingerprint of the config read in-process.
         let file = job_json(&job);
-        let expected: JobConfig = serde_json::from_value(wanted.clone())
-            .unwrap_or_else(|e| panic!("seed {seed}: {e}"));
+        let expected: JobConfig =
+            serde_json::from_value(wanted.clone()).unwrap_or_else(|e| panic!("seed {seed}: {e}"));
         let stored: JobConfig = serde_json::from_value(file["config"].clone())
             .unwrap_or_else(|e| panic!("seed {seed}: {e}"));
         assert_eq!(stored, expected, "seed {seed}");
@@ -119,7 +119,10 @@ fn trellis2_preset_sets_its_grid_exactly_and_the_export_takes_it_without_a_warni
     let init = sparc3d(&["init", s(&job), "--manifest", s(&m), "--for", "trellis2@48"]);
     let said = String::from_utf8_lossy(&init.stderr);
     assert!(init.status.success(), "{said}");
-    assert!(said.contains("made for trellis2@48") && !said.contains("warning"), "{said}");
+    assert!(
+        said.contains("made for trellis2@48") && !said.contains("warning"),
+        "{said}"
+    );
     let config = &job_json(&job)["config"];
     assert_eq!(config["params"]["resolution"], 54);
     let (_, span) = sparc3d_formats::trellis2::job_for_grid(48);
@@ -129,7 +132,10 @@ fn trellis2_preset_sets_its_grid_exactly_and_the_export_takes_it_without_a_warni
     let out = dir.path().join("t2");
     let export = sparc3d(&["export", s(&job), "--format", "trellis2", "--out", s(&out)]);
     let said = String::from_utf8_lossy(&export.stderr);
-    assert!(export.status.success() && !said.contains("warning"), "{said}");
+    assert!(
+        export.status.success() && !said.contains("warning"),
+        "{said}"
+    );
     assert!(out.join("dual_grid_48").is_dir(), "{said}");
 }
 
@@ -190,7 +196,10 @@ fn flags_beside_a_preset_win_and_init_says_what_no_longer_fits() {
         "32",
     ];
     ok(&hand_args);
-    assert_eq!(job_json(&hand)["fingerprint"], job_json(&dora)["fingerprint"]);
+    assert_eq!(
+        job_json(&hand)["fingerprint"],
+        job_json(&dora)["fingerprint"]
+    );
     assert!(job_json(&hand)["config"].get("preset").is_none());
     let again = sparc3d(&[
         "init",
@@ -233,8 +242,21 @@ fn run_with_job_takes_a_preset_and_refuses_it_for_a_job_made_otherwise() {
     // The same job again with another consumer's preset: its settings differ, refused.
     let other = sparc3d(&["run", s(&job), "--for", "dora"]);
     let said = String::from_utf8_lossy(&other.stderr);
-    assert!(!other.status.success() && said.contains("samples"), "{said}");
-    let bad = sparc3d(&["init", s(&dir.path().join("x")), "--manifest", s(&dir.path().join("m.csv")), "--for", "trellis2"]);
+    assert!(
+        !other.status.success() && said.contains("samples"),
+        "{said}"
+    );
+    let bad = sparc3d(&[
+        "init",
+        s(&dir.path().join("x")),
+        "--manifest",
+        s(&dir.path().join("m.csv")),
+        "--for",
+        "trellis2",
+    ]);
     let said = String::from_utf8_lossy(&bad.stderr);
-    assert!(!bad.status.success() && said.contains("trellis2@512"), "{said}");
+    assert!(
+        !bad.status.success() && said.contains("trellis2@512"),
+        "{said}"
+    );
 }

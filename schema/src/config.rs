@@ -312,12 +312,19 @@ fn refine_base(overrides: &Value) -> Result<Value> {
     {
         return Ok(Value::Null);
     }
-    serde_json::to_value(sparcubes::refine::RefineParams::default()).map_err(|source| {
-        SchemaError::Json {
-            context: "serializing the refine settings".into(),
-            source,
-        }
-    })
+    let mut base =
+        serde_json::to_value(sparcubes::refine::RefineParams::default()).map_err(|source| {
+            SchemaError::Json {
+                context: "serializing the refine settings".into(),
+                source,
+            }
+        })?;
+    // `image` is left out while automatic (`RefineParams::image`); offer it, so that
+    // `[params.refine] image = 512` is a setting, not an unknown key.
+    if let Value::Object(m) = &mut base {
+        m.entry("image").or_insert(Value::Null);
+    }
+    Ok(base)
 }
 
 fn merge(base: &mut Value, over: &Value, path: &str) -> Result<()> {
@@ -630,6 +637,10 @@ mod tests {
                 }
             })?;
         assert_eq!(back, table);
+        // The picture size is a setting too, though the default table leaves it out.
+        let sized =
+            JobConfig::from_overrides(&serde_json::json!({"params": {"refine": {"image": 512}}}))?;
+        assert_eq!(sized.params.refine.and_then(|r| r.image), Some(512));
         // Out of range or misspelt: refused by name.
         for (bad, key) in [
             (serde_json::json!({"views": 0}), "refine.views"),
@@ -770,7 +781,9 @@ mod tests {
         };
         assert_eq!(made_for.fingerprint()?, plain.fingerprint()?);
         assert!(made_for.diff_keys(&plain)?.is_empty());
-        assert!(made_for.to_canonical_json()?.contains("\"preset\":\"dora\""));
+        assert!(made_for
+            .to_canonical_json()?
+            .contains("\"preset\":\"dora\""));
         assert!(!plain.to_canonical_json()?.contains("preset"));
         Ok(())
     }

@@ -5,10 +5,10 @@
 
 use crate::units::with_default;
 use anyhow::{bail, Context, Result};
+use sparc3d_formats::preset::Preset;
 use sparc3d_manifests::filter::Filter;
 use sparc3d_manifests::table as manifest_io;
 use sparc3d_manifests::RawRecord;
-use sparc3d_formats::preset::Preset;
 use sparc3d_schema::{JobConfig, JobFile, JobLayout};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
