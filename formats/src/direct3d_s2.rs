@@ -40,9 +40,12 @@ pub fn check(params: &Params, frame: Frame) -> JobCheck {
     if frame == Frame::Consumer && params.object_span != Some(OBJECT_SPAN) {
         out.required.push(format!(
             "params.object_span = {OBJECT_SPAN} (Direct3D-S2's objects span ±0.95 of its cube; \
-             this job's span {:.6} of the grid; or export with --frame normalized to write the \
-             job's own frame)",
-            params.span()
+             this job's span {:.6} of the grid): make the job with --for {}; or export with \
+             --frame normalized to write the job's own frame",
+            params.span(),
+            crate::preset::Preset::advice(crate::Consumer::Direct3dS2, params.resolution)
+                .map(|p| p.name())
+                .unwrap_or_default()
         ));
     }
     if !RESOLUTIONS.contains(&params.resolution) {
@@ -93,6 +96,7 @@ mod tests {
             c.required[0].starts_with("params.object_span = 0.95"),
             "{c:?}"
         );
+        assert!(c.required[0].contains("--for direct3d-s2@512"), "{c:?}");
         assert!(check(&p, Frame::Normalized).required.is_empty());
         p.object_span = Some(0.95);
         assert_eq!(check(&p, Frame::Consumer), JobCheck::default());

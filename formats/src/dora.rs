@@ -17,7 +17,8 @@
 //!
 //! Distances are **positive inside** (pysdf's sign), in its frame: the bounding box centred,
 //! its longest side onto ±1 (`to_watertight_mesh.py` `remesh` L48-54). A mesh without a sharp
-//! edge gets no file (its producer writes none, L257-258) and is named as failed.
+//! edge gets no file, as its producer writes none (L257-258): the export counts it as left
+//! out, not failed.
 //! `train.json` lists the files by absolute path (its loader opens each entry as it is, L123),
 //! `val.json` and `test.json` a few of them ([`split_lists`]).
 
@@ -84,7 +85,7 @@ pub(crate) fn near_and_volume_needs(p: &SampleParams) -> Vec<Need> {
 pub fn files(item: &Item) -> Result<ItemExport> {
     let stored = item.stored_samples()?;
     let (s, p) = (stored.samples, stored.params);
-    require_sharp(s, p.sharp_angle_deg, FPS_ROWS, "Dora")?;
+    require_sharp(s, FPS_ROWS, "Dora")?;
     let place = item.placement(HALF_EXTENT);
     let fps = |points: &[[f32; 3]], normals: &[[f32; 3]], name: &str| {
         let picked = farthest_points(points, FPS_ROWS);

@@ -3,9 +3,13 @@
 /// Why an item (or a listing) could not be written in a consumer's layout.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
-    /// The item lacks what the consumer needs (samples, sharp edges, enough points).
+    /// The item lacks what the consumer needs (samples, enough points).
     #[error("{0}")]
     Missing(String),
+    /// The consumer's own pipeline would leave this item out (Dora's sampler writes nothing
+    /// for a mesh without sharp edges): not a failure, counted apart by the export.
+    #[error("{0}")]
+    LeftOut(String),
     /// A file would exceed what its format can hold.
     #[error("{0}")]
     TooLarge(String),

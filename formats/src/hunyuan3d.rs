@@ -16,7 +16,9 @@
 //! `normalize_mesh`, L23-44: the bounding box centred, its longest side onto ±0.9999). Its
 //! public producer instead anchors meshes at the origin in [0, 0.99] (`normalize_to_unit_box`
 //! L160-170) while drawing volume points in the centred ±1.05: we follow the inference frame,
-//! which the released VAE decodes (docs/FORMAT.md, "Exports"). Its DiT loader also reads 24
+//! which the released VAE decodes (docs/FORMAT.md, "Exports"). A mesh without a sharp edge is
+//! left out, as its producer leaves it: `sharp_sample_pointcloud` (L29-59) indexes the empty
+//! list of sharp edges and raises, so no file is written. Its DiT loader also reads 24
 //! RGBA renders in `<item>/render_cond/`, which are not ours to make.
 
 use crate::arrays::{floats, placed, point_normal_rows, Width};
@@ -76,7 +78,7 @@ pub fn missing(samples: Option<&SampleParams>) -> Vec<String> {
 pub fn files(item: &Item) -> Result<ItemExport> {
     let stored = item.stored_samples()?;
     let (s, p) = (stored.samples, stored.params);
-    require_sharp(s, p.sharp_angle_deg, SURFACE_ROWS, "Hunyuan3D-2.1")?;
+    require_sharp(s, SURFACE_ROWS, "Hunyuan3D-2.1")?;
     let place = item.placement(HALF_EXTENT);
     let take = |v: &[[f32; 3]], n: usize| v[..n.min(v.len())].to_vec();
     let mut surface = crate::identity_arrays(item);

@@ -22,6 +22,7 @@ pub mod frame;
 pub mod hunyuan3d;
 pub mod npz;
 pub mod pickle;
+pub mod preset;
 mod select;
 pub mod step1x3d;
 pub mod trellis2;
@@ -112,8 +113,8 @@ impl Consumer {
                 &[Frame::Consumer, Frame::Normalized, Frame::Source]
             }
             Consumer::Vecset => &[Frame::Normalized, Frame::Source],
-            Consumer::Direct3dS2 => &[Frame::Consumer, Frame::Normalized],
-            Consumer::Trellis2 | Consumer::Cubvh => &[Frame::Consumer],
+            Consumer::Direct3dS2 | Consumer::Trellis2 => &[Frame::Consumer, Frame::Normalized],
+            Consumer::Cubvh => &[Frame::Consumer],
         }
     }
 
@@ -144,7 +145,7 @@ impl Consumer {
     pub fn check(self, params: &Params, frame: Frame) -> JobCheck {
         match self {
             Consumer::Direct3dS2 => direct3d_s2::check(params, frame),
-            Consumer::Trellis2 => trellis2::check(params),
+            Consumer::Trellis2 => trellis2::check(params, frame),
             // Samples move into a consumer's cube exactly, whatever the job's span.
             Consumer::Hunyuan3d21
             | Consumer::Dora
@@ -194,7 +195,8 @@ pub struct Item<'a> {
     pub item_index: u64,
     /// Its file stem in the export, unique within the job (`<index>-<id>`, shortened).
     pub stem: &'a str,
-    /// sha256 of its source file, when the manifest has it (TRELLIS.2 names files by it).
+    /// sha256 of its source file: the manifest's, else the one its row recorded of the bytes
+    /// converted (TRELLIS.2 names files by it).
     pub source_sha256: Option<&'a str>,
     /// Its sparse cubes (with the job's normalization).
     pub cubes: &'a SparseCubes,
@@ -270,6 +272,9 @@ pub struct ItemExport {
     pub files: Vec<ExportFile>,
     /// The item's columns in the consumer's listing (name → value), if it reads one.
     pub listing: BTreeMap<String, String>,
+    /// What the files lack that some of the consumer's configs read (Step1X-3D's
+    /// `sharp_surface` of an item without sharp edges), counted by the export.
+    pub note: Option<&'static str>,
 }
 
 /// One exported item as the listing files see it.

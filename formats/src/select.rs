@@ -142,15 +142,26 @@ pub(crate) fn samples_off() -> Vec<String> {
     vec!["samples.enabled = true (the job draws no samples)".into()]
 }
 
-/// An error unless the item has at least `want` sharp-edge points: consumers whose loaders read
-/// sharp points (Hunyuan3D-2.1, Dora, Step1X-3D) cannot take a mesh without a sharp edge.
-pub(crate) fn require_sharp(s: &Samples, angle: f64, want: usize, who: &str) -> Result<()> {
-    if s.sharp_points.len() >= want {
-        return Ok(());
+/// Whether the item has at least `want` sharp-edge points (none when the mesh has no edge
+/// sharper than `samples.sharp_angle_deg`).
+pub(crate) fn has_sharp(s: &Samples, want: usize) -> bool {
+    s.sharp_points.len() >= want
+}
+
+/// An error unless the item has at least `want` sharp-edge points, for a consumer whose loader
+/// reads them and whose own sampler writes nothing for a mesh without a sharp edge (Dora's
+/// `sharp_sample.py` L257-258, Hunyuan3D-2.1's `sharp_sample_pointcloud`, which indexes an
+/// empty edge list): such an item is left out, as `who`'s own sampler leaves it
+/// ([`Error::LeftOut`]); too few points from a mesh that has sharp edges is a job drawing too
+/// few ([`Error::Missing`]).
+pub(crate) fn require_sharp(s: &Samples, want: usize, who: &str) -> Result<()> {
+    match s.sharp_points.len() {
+        n if n >= want => Ok(()),
+        0 => Err(Error::LeftOut(format!(
+            "no sharp edges, as {who}'s own sampler"
+        ))),
+        n => Err(Error::Missing(format!(
+            "{n} sharp-edge points, {who} needs {want} (raise samples.sharp)"
+        ))),
     }
-    Err(Error::Missing(format!(
-        "{} sharp-edge points, {who} needs {want} (the mesh has no edge sharper than \
-         samples.sharp_angle_deg = {angle}°)",
-        s.sharp_points.len()
-    )))
 }

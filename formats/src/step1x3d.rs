@@ -7,10 +7,17 @@
 //! points to Dora's (README L75), so the samples follow Dora's recipe ([`crate::dora`]): near
 //! points at σ 0.001 and 0.005, volume points in ±1.05, `float32`, the distance **positive
 //! inside** (its occupancy is `sdf ≥ 1e-3`, L186-188), the frame Dora's (longest side ±1).
+//!
+//! `sharp_surface` is read only where `with_sharp_data` is on (L108-110): its autoencoder
+//! config `configs/train-geometry-autoencoder/michelangelo.yaml` has it off (L13), its
+//! diffusion configs (`configs/train-geometry-diffusion/*.yaml`) on. An item without sharp
+//! edges is written without `sharp_surface` ([`NO_SHARP`]), so the autoencoder trains on every
+//! item and a `with_sharp_data: True` run stops at such an item with a `KeyError` naming the
+//! key, never reads made-up rows; the export counts those items.
 
 use crate::arrays::{floats, point_normal_rows, Width};
 use crate::dora::{self, near_and_volume, near_and_volume_needs, signed_rows};
-use crate::select::{require_sharp, samples_off, unmet, Need};
+use crate::select::{has_sharp, samples_off, unmet, Need};
 use crate::{npz::Array, npz_file, ExportFile, Item, ItemExport, Listed, Result};
 use sparcubes::samples::SampleParams;
 
@@ -20,6 +27,10 @@ pub const ABOUT: &str =
 
 /// Rows of `surface` and of `sharp_surface`.
 const SURFACE_ROWS: usize = 124_928;
+
+/// The note of an item written without `sharp_surface` (the export counts them).
+pub const NO_SHARP: &str = "without sharp_surface (no sharp edges): read by Step1X-3D's \
+    autoencoder config (with_sharp_data: False), not by its with_sharp_data: True configs";
 
 /// The `[samples]` counts it needs.
 pub fn missing(samples: Option<&SampleParams>) -> Vec<String> {
@@ -38,24 +49,24 @@ pub fn missing(samples: Option<&SampleParams>) -> Vec<String> {
 pub fn files(item: &Item) -> Result<ItemExport> {
     let stored = item.stored_samples()?;
     let (s, p) = (stored.samples, stored.params);
-    require_sharp(s, p.sharp_angle_deg, SURFACE_ROWS, "Step1X-3D")?;
     let place = item.placement(dora::HALF_EXTENT);
     let n = SURFACE_ROWS.min(s.surface_points.len());
     let (near, volume) = near_and_volume(s, p, &item.consumer_cube(dora::HALF_EXTENT))?;
+    let rows = |name: &str, points: &[[f32; 3]], normals: &[[f32; 3]]| {
+        floats(
+            name,
+            vec![n, 6],
+            &point_normal_rows(&points[..n], &normals[..n], &place),
+            Width::F32,
+        )
+    };
     let mut arrays = crate::identity_arrays(item);
+    arrays.push(rows("surface", &s.surface_points, &s.surface_normals));
+    let sharp = has_sharp(s, n);
+    if sharp {
+        arrays.push(rows("sharp_surface", &s.sharp_points, &s.sharp_normals));
+    }
     arrays.extend([
-        floats(
-            "surface",
-            vec![n, 6],
-            &point_normal_rows(&s.surface_points[..n], &s.surface_normals[..n], &place),
-            Width::F32,
-        ),
-        floats(
-            "sharp_surface",
-            vec![n, 6],
-            &point_normal_rows(&s.sharp_points[..n], &s.sharp_normals[..n], &place),
-            Width::F32,
-        ),
         floats(
             "near_surface_points",
             vec![near.len(), 4],
@@ -72,6 +83,7 @@ pub fn files(item: &Item) -> Result<ItemExport> {
     ]);
     Ok(ItemExport {
         files: vec![npz_file(format!("surfaces/{}.npz", item.stem), &arrays)?],
+        note: (!sharp).then_some(NO_SHARP),
         ..Default::default()
     })
 }

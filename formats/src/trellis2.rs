@@ -29,8 +29,9 @@
 //!   `StandardDatasetBase.__init__` L21-56 reads one per listed folder), with the columns
 //!   `filter_metadata` (L92-104) asks for, and `data_dir.json` itself ([`listing`]).
 //!
-//! `<key>` is the item's source sha256 when the manifest has it (TRELLIS.2 names files by the
-//! asset's sha256), else the item's export stem.
+//! `<key>` is the item's source sha256 (TRELLIS.2 names files by the asset's sha256): the
+//! manifest's, else the one its row recorded of the bytes it converted (a manifest of ids
+//! alone), never the export stem, which is no sha256.
 //!
 //! Frame: TRELLIS.2's grid spans the aabb [−0.5, 0.5]³ at resolution G (`dual_grid.py`
 //! L58-66), and its dataset rescales every mesh dump so that its longest side spans 0.99999
@@ -38,22 +39,29 @@
 //! (the converter keeps 3 free cells per side), so a job made for TRELLIS.2 converts on a
 //! grid 6 cells larger with the object at TRELLIS.2's size, and the export cuts the free
 //! cells off ([`Trellis2Grid`]): `resolution = G + 6` and
-//! `object_span = 0.99999 · G / (G + 6)` give TRELLIS.2's grid of G exactly (voxel `i` of the
-//! export is cell `i + 3` of the job). Any other job is exported on its own grid as it is,
-//! where the object spans `params.span()` of it (at most `(N − 6)/N`): the files overlay each
-//! other, but `read_mesh` enlarges the dump to 0.99999 and [`check`] warns with the factor.
+//! `object_span = (0.99999 · G − 2) / (G + 6)` ([`job_for_grid`], what `--for trellis2@G`
+//! sets) give TRELLIS.2's grid of G exactly (voxel `i` of the export is cell `i + 3` of the
+//! job). Any other job is refused in that frame and written on its own grid with `--frame
+//! normalized`, where the object spans `params.span()` of it (at most `(N − 6)/N`): the files
+//! overlay each other, but `read_mesh` enlarges the dump to 0.99999 and [`check`] warns with the
+//! factor.
 //! The mesh dump is written in the export's aabb frame (`(cell − offset) / G − 0.5`), so
 //! `(coord + vertices/255)/G − 0.5` lies on it. The axes are the source's (TRELLIS.2's own
 //! dumps are Blender's Z-up world).
 //!
-//! `intersected` differs in kind: TRELLIS.2 sets a bit where a triangle of the source crosses
-//! the edge (`flexible_dual_grid.cpp` L148-156, any number of crossings), we set it where φ
-//! changes sign along the edge of our watertight surface: an edge crossed an even number of
-//! times, or by an open sheet we thickened, reads differently.
+//! `intersected`: TRELLIS.2 sets a bit where a triangle of the mesh it converts crosses the
+//! edge (`flexible_dual_grid.cpp` L148-156), we where φ changes sign along it; on our
+//! watertight output, the mesh dump, the two are the same bits (marching cubes crosses exactly
+//! the edges with a sign change; measured in docs/FORMAT.md, "`intersected`"), which is what
+//! its SC-VAE learns to predict and renders against.
+//!
+//! Frames (`--frame`): `consumer` is TRELLIS.2's grid exactly and needs a job made for it
+//! (`--for trellis2@G`, [`check`] refuses any other); `normalized` writes the job's own grid
+//! as it is.
 
 use crate::pickle::{self, Value};
 use crate::vxz::{self, Attr};
-use crate::{Error, ExportFile, Item, ItemExport, JobCheck, Listed, Result};
+use crate::{Error, ExportFile, Frame, Item, ItemExport, JobCheck, Listed, Result};
 use sparcubes::products::dual_vertices::dual_vertices;
 use sparcubes::{Params, SparseCubes};
 use std::collections::BTreeMap;
@@ -103,10 +111,15 @@ impl Trellis2Grid {
                 size,
                 offset: FREE_CELLS,
             },
-            _ => Self {
-                size: resolution,
-                offset: 0,
-            },
+            _ => Self::whole(resolution),
+        }
+    }
+
+    /// The job's own grid of `resolution`, as it is (`--frame normalized`).
+    pub fn whole(resolution: u32) -> Self {
+        Self {
+            size: resolution,
+            offset: 0,
         }
     }
 
@@ -130,38 +143,71 @@ pub fn span_for(size: u32) -> f64 {
     (OBJECT_SPAN * size as f64 - 2.0 * ROOM_CELLS) / (size + 2 * FREE_CELLS) as f64
 }
 
-/// Nothing to say for a job converted in TRELLIS.2's frame; otherwise a warning that the
-/// dataset's rescaled mesh and the grid differ by `0.99999 / span`, with the settings that
-/// make them one.
-pub fn check(params: &Params) -> JobCheck {
+/// The `(resolution, object_span)` of a job whose export is TRELLIS.2's grid of `size`
+/// exactly: `size + 6` and [`span_for`] (what `--for trellis2@size` sets).
+pub fn job_for_grid(size: u32) -> (u32, f64) {
+    (size + 2 * FREE_CELLS, span_for(size))
+}
+
+/// In TRELLIS.2's frame (`Frame::Consumer`, the default): nothing for a job made for it
+/// (`--for trellis2@G`), else the settings it lacks, naming the preset (refused, as
+/// Direct3D-S2 refuses a job without its span). In the job's own frame (`Frame::Normalized`):
+/// a warning that the dataset's rescaled mesh and the grid differ by `0.99999 / span`.
+pub fn check(params: &Params, frame: Frame) -> JobCheck {
     let span = params.span();
     let n = params.resolution;
-    if Trellis2Grid::of(n, span).is_exact() {
-        return JobCheck::default();
-    }
-    let factor = OBJECT_SPAN / span;
-    let cells = (OBJECT_SPAN - span) * n as f64 / 2.0;
-    JobCheck {
-        required: Vec::new(),
-        warnings: vec![format!(
+    let exact = Trellis2Grid::of(n, span).is_exact();
+    let (resolution, exact_span) = job_for_grid(n);
+    let rescaled = |size: u32| {
+        let cells = (OBJECT_SPAN - span) * size as f64 / 2.0;
+        format!(
             "TRELLIS.2's dataset rescales each mesh dump to span {OBJECT_SPAN} of the grid \
-             (flexi_dual_grid.py read_mesh) while this job's objects span {span:.5} of it: the \
-             mesh it reads is {:.2} % larger than the grid's surface ({cells:.2} voxels at each \
-             side of the longest axis); the files as written overlay exactly. For TRELLIS.2's \
-             grid of {n} exactly, convert with --resolution {} and [params] object_span = {} \
-             (docs/FORMAT.md)",
-            (factor - 1.0) * 100.0,
-            n + 2 * FREE_CELLS,
-            span_for(n)
-        )],
+             (flexi_dual_grid.py read_mesh) while this job's objects span {span:.5} of its \
+             grid of {n}: the mesh it reads is {:.2} % larger than the grid's surface \
+             ({cells:.2} voxels at each side of the longest axis)",
+            (OBJECT_SPAN / span - 1.0) * 100.0
+        )
+    };
+    match frame {
+        Frame::Consumer if exact => JobCheck::default(),
+        Frame::Consumer => JobCheck {
+            required: vec![format!(
+                "params.resolution = {resolution} and params.object_span = {exact_span}, \
+                 TRELLIS.2's grid of {n} exactly: make the job with --for trellis2@{n} \
+                 (docs/FORMAT.md); {}; or export with --frame normalized to write the job's \
+                 own grid as it is",
+                rescaled(n)
+            )],
+            warnings: Vec::new(),
+        },
+        _ => JobCheck {
+            required: Vec::new(),
+            warnings: vec![format!(
+                "--frame normalized writes the job's own grid of {n}: {}; the files as written \
+                 overlay exactly (for TRELLIS.2's frame: --for trellis2@{n} and --frame \
+                 consumer)",
+                rescaled(n)
+            )],
+        },
     }
 }
 
 /// The item's `.vxz` and mesh dump, and its columns for the listings.
 pub fn files(item: &Item) -> Result<ItemExport> {
-    let grid = Trellis2Grid::of(item.cubes.resolution, item.object_span);
+    let resolution = item.cubes.resolution;
+    let grid = match item.frame {
+        Frame::Normalized => Trellis2Grid::whole(resolution),
+        _ => Trellis2Grid::of(resolution, item.object_span),
+    };
+    if item.frame == Frame::Consumer && !grid.is_exact() {
+        return Err(Error::Invalid(format!(
+            "the job's grid of {resolution} is not in TRELLIS.2's frame (see `check`)"
+        )));
+    }
     let n = grid.size;
-    let key = item.source_sha256.unwrap_or(item.stem);
+    let key = item.source_sha256.ok_or_else(|| {
+        Error::Missing("no sha256 of its source recorded (TRELLIS.2 names files by it)".into())
+    })?;
     let g = dual_grid(item.cubes);
     let coords = voxels_in(&g.voxels, grid)?;
     let vertices: Vec<u8> = g.quantized.iter().flatten().copied().collect();
@@ -198,6 +244,7 @@ pub fn files(item: &Item) -> Result<ItemExport> {
             },
         ],
         listing,
+        note: None,
     })
 }
 
@@ -447,10 +494,18 @@ mod tests {
             ..Params::default()
         };
         assert!(params.validate().is_ok());
-        assert!(check(&params).warnings.is_empty());
+        assert_eq!(check(&params, Frame::Consumer), JobCheck::default());
         params.object_span = None;
-        let warned = check(&params).warnings.join(" ");
-        assert!(warned.contains("--resolution 524"), "{warned}");
+        // Not in its frame: refused in TRELLIS.2's, naming the preset; written with a warning
+        // in the job's own.
+        let refused = check(&params, Frame::Consumer).required.join(" ");
+        assert!(refused.contains("--for trellis2@518"), "{refused}");
+        assert!(refused.contains("params.resolution = 524"), "{refused}");
+        let own = check(&params, Frame::Normalized);
+        assert!(
+            own.required.is_empty() && own.warnings[0].contains("1.17 %"),
+            "{own:?}"
+        );
     }
 
     #[test]

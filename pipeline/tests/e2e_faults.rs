@@ -468,9 +468,19 @@ fn export_hashes_each_shard_it_reads_even_under_an_unchanged_stamp() {
     // The quick check (size and stamp) of `status` still trusts it.
     assert_eq!(status(&job)["shards_damaged"], 0);
 
-    for format in ["trellis2", "cubvh"] {
+    // TRELLIS.2 in the job's own frame (its own needs a job made with --for trellis2@G).
+    for (format, frame) in [("trellis2", "normalized"), ("cubvh", "consumer")] {
         let out_dir = tmp.path().join(format!("export-{format}"));
-        let out = sparc3d(&["export", j, "--format", format, "--out", s(&out_dir)]);
+        let out = sparc3d(&[
+            "export",
+            j,
+            "--format",
+            format,
+            "--frame",
+            frame,
+            "--out",
+            s(&out_dir),
+        ]);
         let err = stderr(&out);
         assert!(!out.status.success(), "{format}: exported a damaged shard");
         assert!(err.contains("shard 1") && err.contains("sha256"), "{err}");
@@ -483,6 +493,8 @@ fn export_hashes_each_shard_it_reads_even_under_an_unchanged_stamp() {
         j,
         "--format",
         "trellis2",
+        "--frame",
+        "normalized",
         "--ids",
         &sound,
         "--out",

@@ -52,6 +52,12 @@ pub struct JobConfig {
     /// the canonical config while disabled, so jobs without samples keep their fingerprint.
     #[serde(default, skip_serializing_if = "SampleConfig::is_disabled")]
     pub samples: SampleConfig,
+    /// The preset that chose some of these values (`init --for trellis2@512`, docs/FORMAT.md,
+    /// "Presets"), as the job's record of what it was made for. Not fingerprinted and not
+    /// compared (it names how the values were chosen; the values themselves are above), and
+    /// left out while unset, so a job without it keeps its JSON and its fingerprint.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub preset: Option<String>,
     /// Appearance sampled at each item's active cells (`[attributes]`). Left out of the
     /// canonical config while disabled, so jobs without it keep their fingerprint.
     #[serde(default, skip_serializing_if = "AttributeConfig::is_disabled")]
@@ -105,13 +111,14 @@ impl Default for JobConfig {
             validation_sample_rate: 0.01,
             limits: Limits::default(),
             samples: SampleConfig::default(),
+            preset: None,
             attributes: AttributeConfig::default(),
         }
     }
 }
 
 /// Keys of the config that are excluded from the fingerprint.
-pub const UNFINGERPRINTED: [&str; 1] = ["limits"];
+pub const UNFINGERPRINTED: [&str; 2] = ["limits", "preset"];
 
 /// Sorts object keys recursively so the JSON text is canonical.
 fn canonical(v: &Value) -> Value {
@@ -284,10 +291,13 @@ impl JobConfig {
         Ok(())
     }
 
-    /// Dotted keys whose values differ between two configs (e.g. `params.resolution`).
+    /// Dotted keys whose values differ between two configs (e.g. `params.resolution`); the
+    /// [`JobConfig::preset`] is not compared (a job made by hand with a preset's values is
+    /// the same job).
     pub fn diff_keys(&self, other: &JobConfig) -> Result<Vec<String>> {
         let mut out = Vec::new();
         diff(&to_value(self)?, &to_value(other)?, "", &mut out);
+        out.retain(|k| k != "preset");
         out.sort();
         Ok(out)
     }
@@ -302,12 +312,19 @@ fn refine_base(overrides: &Value) -> Result<Value> {
     {
         return Ok(Value::Null);
     }
-    serde_json::to_value(sparcubes::refine::RefineParams::default()).map_err(|source| {
-        SchemaError::Json {
-            context: "serializing the refine settings".into(),
-            source,
-        }
-    })
+    let mut base =
+        serde_json::to_value(sparcubes::refine::RefineParams::default()).map_err(|source| {
+            SchemaError::Json {
+                context: "serializing the refine settings".into(),
+                source,
+            }
+        })?;
+    // `image` is left out while automatic (`RefineParams::image`); offer it, so that
+    // `[params.refine] image = 512` is a setting, not an unknown key.
+    if let Value::Object(m) = &mut base {
+        m.entry("image").or_insert(Value::Null);
+    }
+    Ok(base)
 }
 
 fn merge(base: &mut Value, over: &Value, path: &str) -> Result<()> {
@@ -620,6 +637,10 @@ mod tests {
                 }
             })?;
         assert_eq!(back, table);
+        // The picture size is a setting too, though the default table leaves it out.
+        let sized =
+            JobConfig::from_overrides(&serde_json::json!({"params": {"refine": {"image": 512}}}))?;
+        assert_eq!(sized.params.refine.and_then(|r| r.image), Some(512));
         // Out of range or misspelt: refused by name.
         for (bad, key) in [
             (serde_json::json!({"views": 0}), "refine.views"),
@@ -698,6 +719,72 @@ mod tests {
             source,
         })?;
         assert_eq!(back, JobConfig::default());
+        Ok(())
+    }
+
+    /// Doubles with all 17 significant digits, each in `[lo, hi)`, from a fixed seed
+    /// (splitmix64): values a parser that is not correctly rounded reads 1 ulp off.
+    fn doubles(seed: u64, lo: f64, hi: f64) -> impl Iterator<Item = f64> {
+        let mut state = seed;
+        std::iter::repeat_with(move || {
+            state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = state;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            lo + (hi - lo) * ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+        })
+    }
+
+    #[test]
+    fn every_float_of_a_config_reads_back_from_its_job_file_exactly() -> Result<()> {
+        // issue 47: `object_span = 0.9402889552238807` initialised, then every `run` found the
+        // config edited, since job.json read it back 1 ulp off.
+        let json = |e| SchemaError::Json {
+            context: "test".into(),
+            source: e,
+        };
+        let mut spans = doubles(47, 0.5, 0.9);
+        let mut rates = doubles(48, 0.0, 1.0);
+        let mut sigmas = doubles(49, 1e-4, 0.1);
+        for _ in 0..200 {
+            let mut config =
+                JobConfig::from_overrides(&serde_json::json!({"samples": {"enabled": true}}))?;
+            config.params.object_span = spans.next();
+            config.validation_sample_rate = rates.next().unwrap_or(0.5);
+            config.limits.item_timeout_s = 600.0 * rates.next().unwrap_or(0.5) + 1.0;
+            config.samples.params.near_sigmas = sigmas.by_ref().take(3).collect();
+            config.samples.params.near_bound = 0.25 + sigmas.next().unwrap_or(0.0);
+            config.validate()?;
+            let file = JobFile {
+                schema_version: crate::SCHEMA_VERSION,
+                tool_version: "test".into(),
+                fingerprint: config.fingerprint()?,
+                config,
+                items: 1,
+                shards: 1,
+                manifest_sha256: String::new(),
+            };
+            let text = serde_json::to_vec_pretty(&file).map_err(json)?;
+            let back: JobFile = serde_json::from_slice(&text).map_err(json)?;
+            assert_eq!(back.config, file.config);
+            assert_eq!(back.config.fingerprint()?, file.fingerprint);
+        }
+        Ok(())
+    }
+
+    #[test]
+    fn the_preset_is_kept_but_neither_fingerprinted_nor_compared() -> Result<()> {
+        let plain = JobConfig::from_overrides(&serde_json::json!({"samples": {"enabled": true}}))?;
+        let made_for = JobConfig {
+            preset: Some("dora".into()),
+            ..plain.clone()
+        };
+        assert_eq!(made_for.fingerprint()?, plain.fingerprint()?);
+        assert!(made_for.diff_keys(&plain)?.is_empty());
+        assert!(made_for
+            .to_canonical_json()?
+            .contains("\"preset\":\"dora\""));
+        assert!(!plain.to_canonical_json()?.contains("preset"));
         Ok(())
     }
 

@@ -668,7 +668,11 @@ fn attributes_do_not_depend_on_the_thread_count() -> TestResult {
 /// The base colour an independent reference gives cell `i`: the source surface's closest point
 /// to the cell's centre, its texture coordinates, the nearest texel of the full-size image,
 /// times the factor (as sRGB bytes).
-fn reference_color(s: &Sampled, index: &sparcubes::queries::closest::TriangleIndex, i: usize) -> [u8; 3] {
+fn reference_color(
+    s: &Sampled,
+    index: &sparcubes::queries::closest::TriangleIndex,
+    i: usize,
+) -> [u8; 3] {
     let app = &s.appearance;
     let c = s.cubes.cells[i].map(|x| x as f64 + 0.5);
     let Some(hit) = index.closest(c) else {

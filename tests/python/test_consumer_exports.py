@@ -6,7 +6,12 @@ Meaning: the surface points lie on the item's watertight mesh placed in the cons
 (the source mesh's bounding box centred, its longest side on the consumer's ±extent, computed
 here from the source file, not from our code), and the signed distances agree with the winding
 number of that mesh under the consumer's sign rule (positive inside for all four) on at least
-99.9 % of the points farther than 1e-3 from the surface."""
+99.9 % of the points farther than 1e-3 from the surface.
+
+The job also holds a torus, a mesh without sharp edges: Dora and Hunyuan3D-2.1, whose own
+samplers write nothing for it, leave it out (counted apart, exit 0); Step1X-3D writes it without
+`sharp_surface`, which its autoencoder config (`with_sharp_data: False`) never reads; TripoSG
+reads it as any other item."""
 
 import glob
 import json
@@ -26,6 +31,7 @@ except ImportError:  # not installed: use the checkout's copy
     import sparc3d_reader as reader
 
 MESHES = ["cube.off", "wuson.stl"]
+TORUS = "torus.ply"  # generated: no edge sharper than 15 degrees once converted at 64
 RESOLUTION = 64
 # Half extent of each consumer's cube (docs/FORMAT.md: Hunyuan3D-2.1's normalize_mesh scale
 # 0.9999; Dora's remesh and those that follow it, ±1).
@@ -39,14 +45,30 @@ def job(tmp_path_factory):
     meshes.mkdir()
     for name in MESHES:
         (meshes / name).write_bytes((ROOT / "examples" / name).read_bytes())
+    trimesh.creation.torus(major_radius=1.0, minor_radius=0.35, major_sections=96,
+                           minor_sections=48).export(meshes / TORUS)
     manifest = tmp / "m.jsonl"
     run("manifest", "build", meshes, "-o", manifest)
     config = tmp / "job.toml"
-    config.write_text("[samples]\nenabled = true\nseed = 3\n")  # the defaults serve everyone
+    config.write_text("[samples]\nseed = 3\n")
     path = tmp / "job"
-    run("init", path, "--manifest", manifest, "--resolution", RESOLUTION, "--config", config)
+    # --for: samples on, with the defaults that serve every vector-set consumer.
+    run("init", path, "--manifest", manifest, "--resolution", RESOLUTION, "--config", config,
+        "--for", "dora")
     run("run", path, "--workers", "1")
     return path
+
+
+def ids_of(job, name):
+    """The ids of the job's items whose source file is `name`."""
+    records = [json.loads(line) for line in (job / "manifest.jsonl").read_text().splitlines()]
+    return [r["id"] for r in records if r["uri"].endswith("/" + name)]
+
+
+def export(job, fmt, out, *flags):
+    """`sparc3d export` (exit 0 required); its stderr and its record."""
+    r = run("export", job, "--format", fmt, "--out", out, *flags)
+    return r.stderr, json.loads((out / ".sparc3d-export.json").read_text())
 
 
 @pytest.fixture(scope="module")
@@ -132,12 +154,16 @@ def read_hunyuan(item_dir, pc_size=30720, pc_sharp=30720, rng=None):
 
 
 def test_hunyuan3d_reads_every_item_in_its_frame_and_sign(job, items, tmp_path):
-    out = reader.run_export(job, "hunyuan3d-2.1", tmp_path / "hy", binary=sparc3d_bin())
+    out = tmp_path / "hy"
+    said, record = export(job, "hunyuan3d-2.1", out)
     rng = np.random.default_rng(0)
+    # The torus is left out, as Hunyuan3D-2.1's own sampler leaves it, and fails nothing.
+    assert "1 left out: no sharp edges, as Hunyuan3D-2.1's own sampler" in said, said
+    assert [x["id"] for x in record["left_out"]] == ids_of(job, TORUS) and not record["failed"]
     # The loader's glob(data_list + '/*') (dit_asl.py L149-155): every entry is an item.
     dirs = [pathlib.Path(p) for p in sorted(glob.glob(str(out) + "/*"))]
     assert len(dirs) == len(MESHES) and all(p.is_dir() for p in dirs), dirs
-    by_stem = json.loads((out / ".sparc3d-export.json").read_text())["items"]
+    by_stem = record["items"]
     for item_dir, rec in zip(dirs, by_stem):
         x, surf = read_hunyuan(item_dir, rng=rng)
         assert x.shape == (61440, 7)
@@ -167,10 +193,13 @@ def read_dora(npz_path, n_sup=(21384, 10000, 10000), rng=None):
 
 
 def test_dora_reads_every_listed_item_in_its_frame_and_sign(job, items, tmp_path):
-    out = reader.run_export(job, "dora", tmp_path / "dora", binary=sparc3d_bin())
+    out = tmp_path / "dora"
+    said, record = export(job, "dora", out)  # exit 0: an item left out is no failure
     rng = np.random.default_rng(1)
+    assert "1 left out: no sharp edges, as Dora's own sampler" in said, said
+    assert [x["id"] for x in record["left_out"]] == ids_of(job, TORUS) and not record["failed"]
     listed = json.load(open(out / "train.json"))  # paths opened as they are (L123)
-    records = json.loads((out / ".sparc3d-export.json").read_text())["items"]
+    records = record["items"]
     assert len(listed) == len(MESHES)
     # Its data module also opens val.json, its launch script test.json (both drawn from the
     # items, at most 16).
@@ -191,32 +220,58 @@ def test_dora_reads_every_listed_item_in_its_frame_and_sign(job, items, tmp_path
         check_meaning(rec["id"], "dora", items, coarse[:, :3], sup, rng)
 
 
+def read_step1x3d(root, uid, with_sharp_data, rng, n_samples=32768, n_supervision=10000):
+    """step1x3d_geometry/data/base.py, BaseDataset._load_shape_from_occupancy_or_sdf (L104-159,
+    sampling_strategy "random") and _load_shape_supervision_occupancy_or_sdf (L161-202,
+    supervision_type "occupancy"): `sharp_surface` read only with `with_sharp_data`."""
+    data = np.load(f"{root}/surfaces/{uid}.npz")
+    surface = data["surface"]
+    if with_sharp_data:
+        sharp_surface = data["sharp_surface"]
+    ind = rng.choice(surface.shape[0], n_samples, replace=True)
+    ret = {"surface": surface[ind].astype(np.float32)}
+    if with_sharp_data:
+        ret["sharp_surface"] = sharp_surface[ind].astype(np.float32)
+    v = np.concatenate([data["volume_rand_points"], data["near_surface_points"]], axis=0)
+    j = rng.choice(v.shape[0], n_supervision, replace=False)
+    ret["rand_points"] = v[j, :3].astype(np.float32)
+    ret["occupancies"] = np.where(v[j, 3:].flatten() < 1e-3, 0, 1).astype(np.float32)
+    return ret, v
+
+
 def test_step1x3d_reads_every_listed_uid_in_its_frame_and_sign(job, items, tmp_path):
-    out = reader.run_export(job, "step1x-3d", tmp_path / "s1x", binary=sparc3d_bin())
+    out = tmp_path / "s1x"
+    said, record = export(job, "step1x-3d", out)
     rng = np.random.default_rng(2)
     uids = json.load(open(out / "train.json"))
-    records = json.loads((out / ".sparc3d-export.json").read_text())["items"]
-    assert len(uids) == len(MESHES)
+    records = record["items"]
+    # Every item, the torus too: its autoencoder config reads no sharp data.
+    assert len(uids) == len(MESHES) + 1 and not record["left_out"] and not record["failed"]
+    torus = ids_of(job, TORUS)
+    assert "1 of them without sharp_surface (no sharp edges)" in said, said
+    assert [x["id"] for x in record["noted"]] == torus
     checks = json.load(open(out / "val.json"))  # Objaverse.py L40-43 builds a val split
     assert checks == json.load(open(out / "test.json")) and set(checks) <= set(uids)
     for uid, rec in zip(uids, records):
-        # step1x3d_geometry/data/base.py, BaseDataset (L104-202).
-        d = np.load(out / "surfaces" / f"{uid}.npz")
-        s = d["surface"]
-        assert len(d["sharp_surface"]) >= len(s)  # it indexes sharp rows by the surface's
-        ind = rng.choice(len(s), 32768, replace=True)
-        surface, sharp = s[ind].astype(np.float32), d["sharp_surface"][ind]
-        v = np.concatenate([d["volume_rand_points"], d["near_surface_points"]])
-        j = rng.choice(len(v), 10000, replace=False)
-        occupancy = (v[j, 3] >= 1e-3).astype(np.float32)
-        assert surface.shape == sharp.shape == (32768, 6) and occupancy.any()
-        check_meaning(rec["id"], "step1x-3d", items, surface[:, :3], v, rng)
+        # michelangelo.yaml: with_sharp_data False.
+        got, v = read_step1x3d(out, uid, False, rng)
+        assert got["surface"].shape == (32768, 6) and got["occupancies"].any()
+        check_meaning(rec["id"], "step1x-3d", items, got["surface"][:, :3], v, rng)
+        # The diffusion configs' with_sharp_data True: every item with sharp edges reads; the
+        # torus stops at the key it lacks, never at made-up rows.
+        if rec["id"] in torus:
+            with pytest.raises(KeyError, match="sharp_surface"):
+                read_step1x3d(out, uid, True, rng)
+        else:
+            sharp = read_step1x3d(out, uid, True, rng)[0]["sharp_surface"]
+            assert sharp.shape == (32768, 6)
 
 
 def test_triposg_reads_every_item_in_its_frame(job, items, tmp_path):
     out = reader.run_export(job, "triposg", tmp_path / "tsg", binary=sparc3d_bin())
     rng = np.random.default_rng(3)
     records = json.loads((out / ".sparc3d-export.json").read_text())["items"]
+    assert len(records) == len(MESHES) + 1  # it reads surface points alone: the torus too
     for rec in records:
         # scripts/inference_vae.py, load_surface (L12-23).
         d = np.load(out / rec["files"][0], allow_pickle=True).tolist()
@@ -246,4 +301,51 @@ def test_a_job_without_what_a_consumer_needs_is_refused_before_anything_is_writt
                      ("hunyuan3d-2.1", "samples.surface")]:
         r = run("export", path, "--format", fmt, "--out", tmp_path / fmt, check=False)
         assert r.returncode == 2 and key in r.stderr, (fmt, r.stderr)
+        assert f"--for {fmt}" in r.stderr, r.stderr  # the preset that makes such a job
         assert not (tmp_path / fmt).exists()
+
+
+def written_surface(fmt, out, rec):
+    """The surface points `fmt` wrote for item `rec` of the export record, [k, 3]."""
+    path = out / rec["files"][0]
+    if fmt == "triposg":
+        return np.load(path, allow_pickle=True).tolist()["surface_points"]
+    d = np.load(path)
+    key = {"hunyuan3d-2.1": "random_surface", "step1x-3d": "surface"}.get(fmt)
+    return d["fps_coarse_surface"][:, 0, :3] if fmt == "dora" else d[key][:, :3]
+
+
+@pytest.mark.parametrize("fmt", ["hunyuan3d-2.1", "dora", "step1x-3d", "triposg"])
+def test_every_frame_a_format_offers_is_the_frame_it_writes(job, items, tmp_path, fmt):
+    """`--frame` means one thing for every format (docs/FORMAT.md, "Frames"): `normalized`
+    writes the points on the watertight mesh in the job's normalized frame (2·(x − center)·scale,
+    center and scale as the item's npz files carry them), `source` on it in the source frame."""
+    vecset = reader.run_export(job, "vecset-npz", tmp_path / "v", binary=sparc3d_bin())
+    norm = {it["id"]: (np.asarray(it["center"]), float(it["scale"]))
+            for it in reader.iter_export(vecset)}
+    rng = np.random.default_rng(4)
+    for frame in ("normalized", "source"):
+        out = tmp_path / frame
+        said, record = export(job, fmt, out, "--frame", frame)
+        assert record["frame"] == frame and f"frame {frame})" in said, said
+        assert record["items"]
+        for rec in record["items"]:
+            _, mesh = items[rec["id"]]
+            center, scale = norm[rec["id"]]
+            v = np.asarray(mesh.vertices, np.float64)
+            if frame == "normalized":
+                v = 2 * (v - center) * scale
+            points = written_surface(fmt, out, rec).astype(np.float64)
+            pick = rng.choice(len(points), 2000, replace=False)
+            d = distance_to(v, np.asarray(mesh.faces), points[pick])
+            extent = (v.max(0) - v.min(0)).max()
+            assert np.quantile(d, 0.99) < 2e-3 * extent, (fmt, frame, d.max() / extent)
+
+
+def test_a_frame_a_format_does_not_have_is_refused(job, tmp_path):
+    for fmt, frame in [("vecset-npz", "consumer"), ("cubvh", "normalized"),
+                       ("trellis2", "source"), ("direct3d-s2", "source")]:
+        out = tmp_path / fmt
+        r = run("export", job, "--format", fmt, "--frame", frame, "--out", out, check=False)
+        assert r.returncode == 2 and f"not {frame}" in r.stderr, (fmt, r.stderr)
+        assert not out.exists()

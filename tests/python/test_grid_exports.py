@@ -53,7 +53,7 @@ OPEN_BOX = """OFF
 """
 
 
-def make_job(tmp, resolution, config="", extra=()):
+def make_job(tmp, resolution=None, config="", extra=(), preset=None):
     meshes = tmp / "meshes"
     meshes.mkdir()
     for name in MESHES:
@@ -65,7 +65,9 @@ def make_job(tmp, resolution, config="", extra=()):
     toml = tmp / "job.toml"
     toml.write_text(config)
     path = tmp / "job"
-    run("init", path, "--manifest", manifest, "--resolution", resolution, "--config", toml)
+    flags = (["--resolution", resolution] if resolution else []) + (
+        ["--for", preset] if preset else [])
+    run("init", path, "--manifest", manifest, "--config", toml, *flags)
     run("run", path, "--workers", "1")
     records = [json.loads(line) for line in manifest.read_text().splitlines()]
     return path, records
@@ -201,7 +203,12 @@ def trellis2(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("trellis2")
     job, records = make_job(tmp, T2_RES)
     out = tmp / "out"
-    r = run("export", job, "--format", "trellis2", "--out", out)
+    # Not made for TRELLIS.2: refused in its frame, naming the preset; written on the job's
+    # own grid with --frame normalized, the rescaling named.
+    r = run("export", job, "--format", "trellis2", "--out", out, check=False)
+    assert r.returncode == 2 and "--for trellis2@%d" % T2_RES in r.stderr, r.stderr
+    assert not out.exists()
+    r = run("export", job, "--format", "trellis2", "--frame", "normalized", "--out", out)
     assert "warning" in r.stderr and "0.99999" in r.stderr, r.stderr  # the frame is named
     return out, records
 
@@ -268,6 +275,53 @@ def trellis2_exact(tmp_path_factory):
     return out, records
 
 
+def test_trellis2_preset_gives_its_grid_exactly_with_its_span_to_the_last_digit(tmp_path):
+    """issue 47: a job with the span the export advised, written with all its digits, was
+    refused by every `run` (job.json read it back 1 ulp off); `--for trellis2@G` sets it."""
+    span = trellis2_span(T2_RES)
+    job, records = make_job(tmp_path, T2_RES + 6, "[params]\nobject_span = %r\n" % span)
+    assert json.loads((job / "job.json").read_text())["config"]["params"]["object_span"] == span
+    by_preset = tmp_path / "preset"
+    by_preset.mkdir()
+    job2, _ = make_job(by_preset, preset="trellis2@%d" % T2_RES)
+    file2 = json.loads((job2 / "job.json").read_text())
+    assert file2["config"]["preset"] == "trellis2@%d" % T2_RES
+    assert file2["fingerprint"] == json.loads((job / "job.json").read_text())["fingerprint"]
+    out = tmp_path / "out"
+    r = run("export", job2, "--format", "trellis2", "--out", out)
+    assert "warning" not in r.stderr, r.stderr
+    (root,) = json.loads((out / "data_dir.json").read_text()).values()
+    assert root["dual_grid"].endswith("dual_grid_%d" % T2_RES)
+    assert sorted(filter_metadata(root)) == sorted(r["sha256"] for r in records)
+
+
+def test_trellis2_names_items_of_a_manifest_of_ids_by_their_sha256(tmp_path):
+    """issue 41, defect 7: a job with its own ids (no sha256 column) had its files named by the
+    export stem, which was also written into metadata.csv's `sha256` column."""
+    import hashlib
+
+    manifest = tmp_path / "ids.csv"
+    names = {"chair/1": "cube.off", "椅子": "wuson.stl"}
+    manifest.write_text("id,uri\n" + "".join(
+        "%s,%s\n" % (i, ROOT / "examples" / n) for i, n in names.items()), encoding="utf-8")
+    job = tmp_path / "job"
+    run("init", job, "--manifest", manifest, "--resolution", 32)
+    run("run", job, "--workers", "1")
+    out = tmp_path / "out"
+    run("export", job, "--format", "trellis2", "--frame", "normalized", "--out", out)
+    shas = {hashlib.sha256((ROOT / "examples" / n).read_bytes()).hexdigest(): i
+            for i, n in names.items()}
+    (root,) = json.loads((out / "data_dir.json").read_text()).values()
+    assert sorted(filter_metadata(root)) == sorted(shas)
+    for sha in shas:
+        assert (pathlib_join(root["dual_grid"], sha + ".vxz")).is_file()
+        assert (pathlib_join(root["mesh_dump"], sha + ".pickle")).is_file()
+    import csv
+    with open(out / "metadata.csv", newline="", encoding="utf-8") as f:
+        rows = {r["sha256"]: r["id"] for r in csv.DictReader(f)}
+    assert rows == shas
+
+
 def test_trellis2_job_in_its_frame_exports_its_grid_exactly(trellis2_exact):
     out, records = trellis2_exact
     (root,) = json.loads((out / "data_dir.json").read_text()).values()
@@ -290,6 +344,69 @@ def test_trellis2_job_in_its_frame_exports_its_grid_exactly(trellis2_exact):
         dual = (coords + attrs["vertices"] / 255.0) / T2_RES - 0.5
         d, _ = cKDTree(rescaled).query(dual)
         assert d.max() * T2_RES < np.sqrt(3) + moved, (rec["uri"], d.max() * T2_RES)
+
+
+def crossed_flags(v, f, size):
+    """TRELLIS.2's `intersected` of the mesh `v`, `f` (in its aabb frame [-0.5, 0.5]^3 at grid
+    `size`), as `o-voxel/src/convert/flexible_dual_grid.cpp` `intersect_qef` sets it: for each
+    axis a, the voxel (i, j, int(z)) whose a-edge at its upper corner in the other two axes
+    (the grid line at i + 1, j + 1 of those axes; lines 1..size) a triangle crosses at z.
+    Returns {(x, y, z, axis)}; triangles seen edge-on along a are skipped (they cross no line
+    but at their border, where a neighbour crosses it)."""
+    tri = ((np.asarray(v, np.float64) + 0.5) * size)[np.asarray(f)]
+    out = set()
+    for a2 in range(3):
+        a0, a1 = (a2 + 1) % 3, (a2 + 2) % 3
+        p, z = tri[:, :, [a0, a1]], tri[:, :, a2]
+        lo = np.ceil(p.min(1) - 1e-9).astype(np.int64)
+        hi = np.floor(p.max(1) + 1e-9).astype(np.int64)
+        k = int((hi - lo).max()) + 1
+        for dx, dy in np.ndindex(k, k):
+            line = lo + [dx, dy]
+            cand = np.flatnonzero((line <= hi).all(1))
+            q, t, zz = line[cand].astype(np.float64), p[cand], z[cand]
+            e1, e2, d = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0], q - t[:, 0]
+            det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+            ok = np.abs(det) > 1e-12
+            det = np.where(ok, det, 1.0)
+            b1 = (d[:, 0] * e2[:, 1] - d[:, 1] * e2[:, 0]) / det
+            b2 = (e1[:, 0] * d[:, 1] - e1[:, 1] * d[:, 0]) / det
+            eps = 1e-6
+            hit = ok & (b1 >= -eps) & (b2 >= -eps) & (b1 + b2 <= 1 + eps)
+            zc = (1 - b1 - b2) * zz[:, 0] + b1 * zz[:, 1] + b2 * zz[:, 2]
+            for (x, y), zv in zip(line[cand][hit], zc[hit]):
+                c = [0, 0, 0]
+                c[a0], c[a1], c[a2] = int(x) - 1, int(y) - 1, int(np.floor(zv))
+                if 1 <= x <= size and 1 <= y <= size and 0 <= c[a2] < size:
+                    out.add((*c, a2))
+    return out
+
+
+def written_flags(coords, intersected):
+    """Our `intersected` bits as {(x, y, z, axis)}."""
+    bits = intersected.reshape(-1)
+    return {(*map(int, c), a) for c, b in zip(coords, bits) for a in range(3) if b >> a & 1}
+
+
+def flag_disagreement(ours, theirs):
+    """(share of our flags no triangle crosses, share of crossed edges we do not flag)."""
+    return len(ours - theirs) / max(len(ours), 1), len(theirs - ours) / max(len(theirs), 1)
+
+
+def test_trellis2_intersected_is_what_its_own_conversion_sets_on_the_mesh_dump(trellis2_exact):
+    """Our bits (phi changes sign along the edge) against TRELLIS.2's rule (a triangle crosses
+    the edge) applied to the surface the dual vertices describe: the mesh dump, in the grid's
+    frame. On our watertight output each edge with a sign change is crossed once and no other
+    edge is crossed, so the two meanings coincide (docs/FORMAT.md, "What does not match")."""
+    out, records = trellis2_exact
+    (root,) = json.loads((out / "data_dir.json").read_text()).values()
+    for rec in records:
+        v, f, coords, attrs, _ = load_item(root, rec["sha256"])
+        ours = written_flags(coords, attrs["intersected"])
+        theirs = crossed_flags(v, f, T2_RES)
+        flagged_not_crossed, crossed_not_flagged = flag_disagreement(ours, theirs)
+        assert flagged_not_crossed < 1e-3 and crossed_not_flagged < 1e-3, (
+            rec["uri"], flagged_not_crossed, crossed_not_flagged)
 
 
 def test_trellis2_filter_drops_items_over_the_limits(trellis2):
@@ -321,7 +438,7 @@ def winding_number(points, v, f, chunk=64):
 @pytest.fixture(scope="module")
 def direct3d(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("direct3d")
-    job, _ = make_job(tmp, D3_RES, "[params]\nobject_span = 0.95\n")
+    job, _ = make_job(tmp, D3_RES, preset="direct3d-s2")  # object_span = 0.95
     out = tmp / "out"
     run("export", job, "--format", "direct3d-s2", "--out", out)
     return job, out
@@ -331,6 +448,7 @@ def test_direct3d_s2_needs_the_span_of_its_cube(tmp_path):
     job, _ = make_job(tmp_path, 32)
     r = run("export", job, "--format", "direct3d-s2", "--out", tmp_path / "o", check=False)
     assert r.returncode == 2 and "params.object_span = 0.95" in r.stderr, r.stderr
+    assert "--for direct3d-s2" in r.stderr, r.stderr
     assert not (tmp_path / "o").exists()
     run("export", job, "--format", "direct3d-s2", "--frame", "normalized", "--out", tmp_path / "o")
 

@@ -91,9 +91,11 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
     let missing = consumer.missing(samples.enabled.then_some(&samples.params));
     if !missing.is_empty() {
         eprintln!(
-            "error: {}: --format {} needs samples this job does not draw; initialise a job with \
-             these [samples] keys (nothing was written):\n  {}",
+            "error: {}: --format {} needs samples this job does not draw (nothing was \
+             written); make a job with --for {} (samples on, whose defaults serve every \
+             consumer), or with these [samples] keys:\n  {}",
             named.display(),
+            consumer.name(),
             consumer.name(),
             missing.join("\n  ")
         );
@@ -138,23 +140,19 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
         }
     };
     staging.move_to(&args.out)?;
-    let failed = outcome.failed.len();
     eprintln!(
         "{} items written to {} ({}, frame {}){}",
         outcome.listed.len(),
         args.out.display(),
         consumer.name(),
         frame.name(),
-        if failed > 0 {
-            format!(", {failed} failed")
-        } else {
-            String::new()
-        }
+        outcome.counts()
     );
-    Ok(if failed > 0 {
-        ExitCode::FAILURE
-    } else {
+    // Items left out as the consumer's own pipeline leaves them do not fail the export.
+    Ok(if outcome.failed.is_empty() {
         ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
     })
 }
 
@@ -163,8 +161,43 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
 struct Written {
     /// The items written, in manifest order.
     listed: Vec<Listed>,
+    /// The items written with a note of what they lack (Step1X-3D's `sharp_surface`).
+    noted: Vec<(String, &'static str)>,
+    /// The items the consumer's own pipeline would leave out, with why (not failures).
+    left_out: Vec<(String, String)>,
     /// The items that failed, with why.
     failed: Vec<(String, String)>,
+}
+
+impl Written {
+    /// The summary's counts after the items written: each note and each reason for leaving
+    /// items out with its count ("2 left out: no sharp edges, as Dora's own sampler"), then
+    /// the failures; empty when there is none.
+    fn counts(&self) -> String {
+        let mut out = String::new();
+        for (note, n) in tally(self.noted.iter().map(|(_, note)| *note)) {
+            out.push_str(&format!(", {n} of them {note}"));
+        }
+        for (why, n) in tally(self.left_out.iter().map(|(_, why)| why.as_str())) {
+            out.push_str(&format!(", {n} left out: {why}"));
+        }
+        if !self.failed.is_empty() {
+            out.push_str(&format!(", {} failed", self.failed.len()));
+        }
+        if !(self.noted.is_empty() && self.left_out.is_empty()) {
+            out.push_str(&format!(" (ids in {EXPORT_RECORD})"));
+        }
+        out
+    }
+}
+
+/// Each distinct text with how many times it comes, in order of the text.
+fn tally<'a>(texts: impl Iterator<Item = &'a str>) -> BTreeMap<&'a str, usize> {
+    let mut out = BTreeMap::new();
+    for t in texts {
+        *out.entry(t).or_insert(0) += 1;
+    }
+    out
 }
 
 /// One item's export, on its way to the writer.
@@ -309,12 +342,15 @@ fn export_item(
     }
 }
 
-/// Writes one item's files and lists it, or names it as failed.
+/// Writes one item's files and lists it, or counts it as left out, or names it as failed.
 fn record_item(dir: &Path, item: Exported, out: &mut Written) -> Result<()> {
     match item.export {
         Ok(export) => {
             for f in &export.files {
                 write_file(dir, f)?;
+            }
+            if let Some(note) = export.note {
+                out.noted.push((item.id.clone(), note));
             }
             out.listed.push(Listed {
                 id: item.id,
@@ -324,10 +360,15 @@ fn record_item(dir: &Path, item: Exported, out: &mut Written) -> Result<()> {
                 provenance: item.provenance,
             });
         }
-        Err(e) => {
-            eprintln!("error: item {:?}: {e:#}", item.id);
-            out.failed.push((item.id, format!("{e:#}")));
-        }
+        Err(e) => match e.downcast_ref::<sparc3d_formats::Error>() {
+            Some(sparc3d_formats::Error::LeftOut(why)) => {
+                out.left_out.push((item.id, why.clone()));
+            }
+            _ => {
+                eprintln!("error: item {:?}: {e:#}", item.id);
+                out.failed.push((item.id, format!("{e:#}")));
+            }
+        },
     }
     Ok(())
 }
@@ -347,10 +388,12 @@ fn export_row(
         None => None,
     };
     let config = &job.file.config;
+    // The manifest's sha256, else the one the row recorded of the bytes it converted.
     let source_sha256 = job
         .items
         .get(row.item_index as usize)
-        .and_then(|i| i.record.sha256.as_deref());
+        .and_then(|i| i.record.sha256.as_deref())
+        .or(row.source_sha256.as_deref());
     let item = Item {
         id: &row.id,
         item_index: row.item_index,
@@ -398,10 +441,15 @@ fn write_record(
             item
         })
         .collect();
-    let failed: Vec<serde_json::Value> = written
-        .failed
+    let listed = |rows: &[(String, String)], key: &str| -> Vec<serde_json::Value> {
+        rows.iter()
+            .map(|(id, why)| serde_json::json!({"id": id, key: why}))
+            .collect()
+    };
+    let noted: Vec<(String, String)> = written
+        .noted
         .iter()
-        .map(|(id, why)| serde_json::json!({"id": id, "error": why}))
+        .map(|(id, note)| (id.clone(), note.to_string()))
         .collect();
     let record = serde_json::json!({
         "job": job.layout.root.to_string_lossy(),
@@ -409,7 +457,9 @@ fn write_record(
         "format": consumer.name(),
         "frame": frame.name(),
         "items": items,
-        "failed": failed,
+        "noted": listed(&noted, "note"),
+        "left_out": listed(&written.left_out, "why"),
+        "failed": listed(&written.failed, "error"),
     });
     let bytes = serde_json::to_vec_pretty(&record)?;
     write_file(

@@ -1,10 +1,11 @@
-//! `sparc3d init JOB --manifest M [--resolution N] [--shard-size S] [--config job.toml]
-//! [--path-column NAME] [--where FILTER]`: freezes the manifest into the job folder (`sparc3d_manifests::freeze`), gives every
+//! `sparc3d init JOB --manifest M [--for CONSUMER] [--resolution N] [--shard-size S]
+//! [--config job.toml] [--path-column NAME] [--where FILTER]`: freezes the manifest into the job folder (`sparc3d_manifests::freeze`), gives every
 //! item its shard once, and writes the config with its fingerprint. Re-running with another
 //! config is refused, naming the keys; a job whose files were edited since is refused too.
 
 use crate::units::with_default;
 use anyhow::{bail, Context, Result};
+use sparc3d_formats::preset::Preset;
 use sparc3d_manifests::filter::Filter;
 use sparc3d_manifests::table as manifest_io;
 use sparc3d_manifests::RawRecord;
@@ -55,25 +56,41 @@ pub struct ConfigArgs {
     /// Config file (TOML) with any of the job config's keys.
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// Make the job for a consumer (docs/FORMAT.md, "Presets"): `trellis2@G` (TRELLIS.2's
+    /// grid of G exactly), `direct3d-s2[@N]` (its span; N its resolution), `hunyuan3d-2.1`,
+    /// `dora`, `step1x-3d`, `triposg`, `vecset-npz` (samples on). The config file's keys and
+    /// the other flags win over it; job.json records it as `preset`.
+    #[arg(long = "for", value_name = "CONSUMER")]
+    pub preset: Option<String>,
 }
 
 impl ConfigArgs {
     /// Whether any flag was given.
     pub fn any(&self) -> bool {
-        self.resolution.given.is_some() || self.shard_size.is_some() || self.config.is_some()
+        self.resolution.given.is_some()
+            || self.shard_size.is_some()
+            || self.config.is_some()
+            || self.preset.is_some()
     }
 }
 
-/// The job config from defaults, the config file and the flags (typed, set over the file's).
+/// The job config from defaults, the preset (`--for`, else the config file's `preset` key),
+/// the config file's keys over it, and the flags (typed, set over the file's). Warns when the
+/// result does not fit the preset's consumer (a flag or key that overrode what it needs).
 pub fn build_config(args: &ConfigArgs) -> Result<JobConfig> {
-    let mut overrides = serde_json::json!({});
-    if let Some(path) = &args.config {
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("reading config {}", path.display()))?;
-        let t: toml::Value =
-            toml::from_str(&text).with_context(|| format!("parsing config {}", path.display()))?;
-        overrides = serde_json::to_value(t)?;
-    }
+    let mut file = match &args.config {
+        Some(path) => config_file(path)?,
+        None => serde_json::json!({}),
+    };
+    let in_file = take_preset(&mut file, args.config.as_deref())?;
+    let preset = args
+        .preset
+        .as_deref()
+        .or(in_file.as_deref())
+        .map(Preset::parse)
+        .transpose()?;
+    let mut overrides = preset.map_or(serde_json::json!({}), |p| p.settings().overrides());
+    merge_json(&mut overrides, file);
     let mut config = JobConfig::overlaid(&overrides).context("invalid job config")?;
     if let Some(r) = args.resolution.given {
         config.params.resolution = r;
@@ -81,8 +98,68 @@ pub fn build_config(args: &ConfigArgs) -> Result<JobConfig> {
     if let Some(s) = args.shard_size {
         config.shard_size = s;
     }
+    config.preset = preset.map(|p| p.name());
     config.validate().context("invalid job config")?;
+    if let Some(p) = preset {
+        warn_misfit(p, &config);
+    }
     Ok(config)
+}
+
+/// A config file's keys as a JSON object.
+fn config_file(path: &Path) -> Result<serde_json::Value> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("reading config {}", path.display()))?;
+    let t: toml::Value =
+        toml::from_str(&text).with_context(|| format!("parsing config {}", path.display()))?;
+    Ok(serde_json::to_value(t)?)
+}
+
+/// Takes the `preset` key out of a config file's keys (`preset = "trellis2@512"`, what
+/// `--for` gives); refuses one that is not a string.
+fn take_preset(file: &mut serde_json::Value, path: Option<&Path>) -> Result<Option<String>> {
+    let Some(value) = file.as_object_mut().and_then(|m| m.remove("preset")) else {
+        return Ok(None);
+    };
+    match value {
+        serde_json::Value::String(text) => Ok(Some(text)),
+        other => bail!(
+            "{}: preset = {other}: a preset is a string such as \"trellis2@512\" ({})",
+            path.map_or("config".into(), |p| p.display().to_string()),
+            Preset::forms()
+        ),
+    }
+}
+
+/// `over` merged into `base`: tables key by key, any other value replaced.
+fn merge_json(base: &mut serde_json::Value, over: serde_json::Value) {
+    match (base, over) {
+        (serde_json::Value::Object(b), serde_json::Value::Object(o)) => {
+            for (k, v) in o {
+                match b.get_mut(&k) {
+                    Some(slot) => merge_json(slot, v),
+                    None => {
+                        b.insert(k, v);
+                    }
+                }
+            }
+        }
+        (slot, v) => *slot = v,
+    }
+}
+
+/// Says what a job made with `preset` lacks for its consumer, as the export would: a setting
+/// the config file or a flag changed from the preset's (they win), or samples too few.
+fn warn_misfit(preset: Preset, config: &JobConfig) {
+    let consumer = preset.consumer;
+    let samples = &config.samples;
+    let mut lines = consumer.missing(samples.enabled.then_some(&samples.params));
+    let check = consumer.check(&config.params, sparc3d_formats::Frame::Consumer);
+    lines.extend(check.required);
+    lines.extend(check.warnings);
+    for line in lines {
+        eprintln!("warning: --for {}: {line}", preset.name());
+    }
 }
 
 /// When the job's frozen copy is not what `init` froze (its sha256 is not the one `job.json`
@@ -332,11 +409,16 @@ pub fn create_named(
     // job.json last: its presence is what makes the folder a job.
     sparc3d_workers::job::write_job_file(&layout, &file)?;
     eprintln!(
-        "initialised {}: {} items in {} shards, fingerprint {}",
+        "initialised {}: {} items in {} shards, fingerprint {}{}",
         shown.display(),
         file.items,
         shards,
-        &file.fingerprint[..12]
+        &file.fingerprint[..12],
+        file.config
+            .preset
+            .as_ref()
+            .map(|p| format!(", made for {p}"))
+            .unwrap_or_default()
     );
     Ok(())
 }

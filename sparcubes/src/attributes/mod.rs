@@ -19,10 +19,10 @@ pub mod clip;
 pub mod mips;
 pub mod shade;
 
-use crate::queries::closest::TriangleIndex;
 use crate::cubes::SparseCubes;
 use crate::materials::Appearance;
 use crate::mesh::TriMesh;
+use crate::queries::closest::TriangleIndex;
 use mips::{linear_to_srgb, to_byte};
 use rayon::prelude::*;
 use shade::{Shader, Values};
