@@ -1,5 +1,5 @@
 //! Appearance sampled at the active cells: base colour, metallic, roughness and alpha for
-//! every row of [`SparseCubes::cells`] (docs/ALGORITHM.md, "Attributes").
+//! every row of [`SparseCubes::cells`] (docs/ALGORITHM.md, "After the conversion: attributes").
 //!
 //! Each source triangle is cut into the cells it crosses ([`clip`]); a piece inside an active
 //! cell adds its values, taken at its centroid with the textures filtered over its own
