@@ -20,7 +20,7 @@
 //! edge gets no file, as its producer writes none (L257-258): the export counts it as left
 //! out, not failed.
 //! `train.json` lists the files by absolute path (its loader opens each entry as it is, L123),
-//! `val.json` and `test.json` a few of them ([`split_lists`]).
+//! `val.json` and `test.json` a few of them (`split_lists`).
 
 use crate::arrays::{floats, point_distance_rows, point_normal_rows, Width};
 use crate::select::{
@@ -135,7 +135,7 @@ pub fn files(item: &Item) -> Result<ItemExport> {
     })
 }
 
-/// `train.json`, `val.json` and `test.json` ([`split_lists`]): the absolute paths of the
+/// `train.json`, `val.json` and `test.json` (`split_lists`): the absolute paths of the
 /// items' files.
 pub fn listing(items: &[Listed], root: &Path) -> Result<Vec<ExportFile>> {
     split_lists(items, |l| {

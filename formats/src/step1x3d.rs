@@ -2,7 +2,7 @@
 //! by stem in `train.json`, what `step1x3d_geometry/data/base.py` (`BaseDataset`,
 //! `_load_shape_from_occupancy_or_sdf` L104-159, `_load_shape_supervision_occupancy_or_sdf`
 //! L161-202) reads: `surface` and `sharp_surface` `[N, 6]` (xyz + normal; it picks sharp rows
-//! by the surface's indices, L126, so both hold [`SURFACE_ROWS`]), `near_surface_points` and
+//! by the surface's indices, L126, so both hold `SURFACE_ROWS`), `near_surface_points` and
 //! `volume_rand_points` `[·, 4]` (xyz + sdf) and `bounds`. Its repository has no producer and
 //! points to Dora's (README L75), so the samples follow Dora's recipe ([`crate::dora`]): near
 //! points at σ 0.001 and 0.005, volume points in ±1.05, `float32`, the distance **positive
@@ -88,7 +88,7 @@ pub fn files(item: &Item) -> Result<ItemExport> {
     })
 }
 
-/// `train.json`, `val.json` and `test.json` (as Dora's, [`dora::split_lists`]): the items'
+/// `train.json`, `val.json` and `test.json` (as Dora's, `dora::split_lists`): the items'
 /// stems (its uids).
 pub fn listing(items: &[Listed]) -> Result<Vec<ExportFile>> {
     dora::split_lists(items, |l| vec![l.stem.clone()])

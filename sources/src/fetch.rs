@@ -4,7 +4,7 @@
 //! allocated once, at the announced size (up to 256 MiB before any byte arrived): the mesh
 //! readers need the whole file in memory anyway, so a temporary file would add a copy and no
 //! saving. Bucket objects (`s3://`, `gs://`, `az://`) come through `object_store`;
-//! `http(s)://` objects through [`crate::http`], which also reads bodies of no announced
+//! `http(s)://` objects through `http`, which also reads bodies of no announced
 //! length and decodes gzip.
 
 use crate::error::{FetchError, FetchErrorKind};

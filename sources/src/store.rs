@@ -15,7 +15,7 @@
 //!   Azurite.
 //!
 //! Every client has the [`FetchLimits`]' time-outs and retries. `http(s)://` objects (no
-//! credentials) are fetched by [`crate::http`] with a client of its own, not through these.
+//! credentials) are fetched by `http` with a client of its own, not through these.
 
 use crate::error::{FetchError, FetchErrorKind};
 use crate::limits::FetchLimits;

@@ -41,7 +41,7 @@ pub struct ConvertStats {
     /// Band vertices whose distance was computed (corners of the wall cells, plus the corners
     /// of the ring cells a thin shell reaches; a vertex in both counts twice).
     pub band_vertices: u64,
-    /// Surface-free cells next to the walls that got a band of their own ([`crate::stages::ring`]).
+    /// Surface-free cells next to the walls that got a band of their own (`crate::stages::ring`).
     pub ring_cells: u64,
     /// Active vertices stored.
     pub active_vertices: u64,
@@ -50,26 +50,26 @@ pub struct ConvertStats {
     /// Stored vertices that belong to a thin shell around an open part.
     pub shell_vertices: u64,
     /// Enclosed regions: connected sets of surface-free cells the outside flood cannot reach
-    /// ([`crate::stages::inside`]).
+    /// (`crate::stages::inside`).
     pub enclosed_regions: u64,
     /// Enclosed regions the winding number found to be air (treated as outside).
     pub air_regions: u64,
     /// Enclosed regions whose winding number was ambiguous (kept solid).
     pub ambiguous_regions: u64,
     /// Closed parts thinner than about two cells, found inside by the winding number (groups
-    /// of sealed vertices joined with their 26 neighbours, [`crate::stages::inside::sealed::decide_sealed`]).
+    /// of sealed vertices joined with their 26 neighbours, `crate::stages::inside::sealed::decide_sealed`).
     pub thin_parts: u64,
     /// Sealed parts left to the thin shell: found inside by the winding number but too thin
     /// somewhere for the grid (under a cell), or nowhere 0.3 voxel deep (these are shelled
     /// without asking the winding number, so the count includes any such pocket).
     pub shelled_thin_parts: u64,
     /// Regions sealed behind small openings and kept solid: nearly closed parts whose
-    /// openings the walls grown at the sealing scale close ([`crate::stages::seal`]), read as solid by
+    /// openings the walls grown at the sealing scale close (`crate::stages::seal`), read as solid by
     /// the winding number on the coarse grid and again as enclosed regions (§6).
     pub sealed_pockets: u64,
     /// Groups of sealed vertices inside two closed surfaces or more: closed parts overlapping
     /// by less than the grid resolves, left outside so both keep their surfaces
-    /// ([`crate::stages::inside::sealed::OVERLAP_FROM`]).
+    /// (`crate::stages::inside::sealed::OVERLAP_FROM`).
     pub overlap_groups: u64,
     /// What the rendering-based refinement did (`None`: it was off), [`crate::stages::refine`].
     pub refine: Option<RefineStats>,

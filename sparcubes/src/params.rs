@@ -44,7 +44,7 @@ pub struct Params {
     #[serde(default, skip_serializing_if = "is_false")]
     pub inside_test: bool,
     /// Whether openings small for their part are sealed, so that a nearly closed solid stays
-    /// solid instead of becoming a thin shell (docs/ALGORITHM.md §4, [`crate::stages::seal`]): a
+    /// solid instead of becoming a thin shell (docs/ALGORITHM.md §4, `crate::stages::seal`): a
     /// pocket that the walls grown by about 1/32 of the grid close off (openings up to about
     /// 1/15 of the grid across, the same share of the object at every resolution) and that the
     /// source's winding number reads as solid is taken back from the outside. Needs the

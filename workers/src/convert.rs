@@ -296,7 +296,7 @@ fn encode(
 /// Converts one item into its shard row (timings `total_s` and `attempts` are filled in by
 /// the supervisor); every error becomes a `failed` row. The bytes converted are the bytes
 /// hashed: a file whose sha256 is not the one frozen at `init` is a `source_changed` row,
-/// never converted under the item's id ([`check_source`]); an ok row's `source_sha256` is
+/// never converted under the item's id (`check_source`); an ok row's `source_sha256` is
 /// the hash of the bytes it was converted from.
 pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
     let params = &config.params;

@@ -2,7 +2,7 @@
 //! one, or a remote object fetched whole (`sparc3d-sources`) with the process's one
 //! [`Fetcher`], made on first use with the limits of the environment
 //! (`SPARC3D_FETCH_*`). A glTF file fetched from a URL reads its external buffers from the
-//! same prefix ([`SourceBytes::buffers`]).
+//! same prefix ([`RemoteBuffers`]).
 
 use sparc3d_schema::{ErrorClass, FrozenItem};
 use sparc3d_sources::{FetchError, FetchErrorKind, Fetcher, Location, RemoteUrl};

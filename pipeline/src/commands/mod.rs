@@ -1,4 +1,4 @@
-//! One module per subcommand; [`run`] dispatches. Each module has an `Args` struct (clap) and
+//! One module per subcommand; [`run()`] dispatches. Each module has an `Args` struct (clap) and
 //! a `run(args) -> anyhow::Result<ExitCode>`.
 
 pub mod add;

@@ -12,7 +12,7 @@
 //!
 //! Determinism: triangles are processed in fixed batches, each batch's pieces computed in
 //! parallel and collected in triangle order, then added to the cells one after another in that
-//! order; the closest-point queries are thread-independent ([`crate::closest`]). The bytes do
+//! order; the closest-point queries are thread-independent ([`crate::queries::closest`]). The bytes do
 //! not depend on the thread count.
 
 pub mod clip;

@@ -1,5 +1,5 @@
 //! The output of a conversion: the sparse cube grid with SDF and deformation per active
-//! vertex. This is what shard rows store; [`crate::extract`] turns it into a mesh.
+//! vertex. This is what shard rows store; [`crate::extract()`] turns it into a mesh.
 
 use crate::grid::normalization::Normalization;
 

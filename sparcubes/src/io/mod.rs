@@ -248,7 +248,7 @@ pub fn open_regular(path: &Path) -> std::io::Result<(std::fs::File, u64)> {
 const HEAD_BYTES: u64 = 1024;
 
 /// Reads a mesh file's bytes as [`load`] does, for a caller that needs the bytes themselves
-/// (the job's worker hashes what it converts) before [`load_read`] parses them: [`read_file`],
+/// (the job's worker hashes what it converts) before [`load_read`] parses them: `read_file`,
 /// except that a `.stl` whose binary header claims no triangle is refused as an empty mesh
 /// after its first kilobyte, however long the file is.
 pub fn read_source(path: &Path) -> Result<Vec<u8>> {

@@ -1,7 +1,7 @@
 //! Inside or outside of the watertight output, read from the sparse grid alone: no dense
 //! grid, no winding number, no ray cast against the whole mesh.
 //!
-//! The surface that [`crate::extract`] emits lies in the active cells (each cell's triangles
+//! The surface that [`crate::extract()`] emits lies in the active cells (each cell's triangles
 //! inside the cell; with deformation, within 0.45 voxel of it). So for a point in grid
 //! coordinates:
 //!

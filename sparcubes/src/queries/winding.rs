@@ -32,7 +32,7 @@ use std::f64::consts::PI;
 /// `BETA` times its radius from its centre. Barill et al. use 2; 1.5 opens about half as many
 /// nodes for queries near the surface, and the largest error measured against β = 4 at points
 /// a voxel from the surface of three large dev-corpus meshes was 0.01 (0.003 with β = 2),
-/// far below the margin the verdicts need ([`crate::stages::inside`] decides at 0.25 and 0.75).
+/// far below the margin the verdicts need (`crate::stages::inside` decides at 0.25 and 0.75).
 pub const BETA: f64 = 1.5;
 
 /// Most triangles per leaf.

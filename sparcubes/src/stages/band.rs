@@ -3,7 +3,7 @@
 //! The distances are computed for the corners of a set of cells in two calls: first the
 //! corners of the wall cells (the core band, every vertex within √3 of the surface), then,
 //! once signs are known, the corners of the few cells next to the walls that a thin shell
-//! reaches ([`crate::stages::ring`]). Only triangles within the reach of a brick are binned to it, and
+//! reaches (`crate::stages::ring`). Only triangles within the reach of a brick are binned to it, and
 //! each brick scans its own triangles — no per-vertex tree query.
 
 use crate::grid::{for_each_bit, BrickMask, BrickSet, Numbered, BRICK};

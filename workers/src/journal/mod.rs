@@ -12,7 +12,7 @@
 //! A result is written to the file before the next item starts (a killed worker process
 //! loses nothing the kernel has); its fsync runs in a background thread while the next item
 //! converts (group commit: appends made during a flush are covered by the next one,
-//! [`syncer`]), so the disk flush is off the per-item path. A failed background fsync is
+//! `syncer`), so the disk flush is off the per-item path. A failed background fsync is
 //! reported at the next append, and [`Journal::sync`] waits for every flush.
 
 pub mod set;

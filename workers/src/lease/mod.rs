@@ -9,7 +9,7 @@
 //!
 //! A lease keeps workers apart; it does not by itself keep a stopped holder from writing once
 //! it is continued. That is fencing: the holder checks its lease before each write
-//! ([`held`]), and every write that could still happen between a check and the write lands
+//! (`held`), and every write that could still happen between a check and the write lands
 //! in a file of that holder's own or is a create that fails when the target exists
 //! (docs/RELIABILITY.md, "Fencing a holder that lost its lease").
 

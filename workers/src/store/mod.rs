@@ -1,5 +1,5 @@
 //! The shard store: a job's finished shards on disk and their completion records, in one
-//! place. [`write`] writes a shard (Parquet under a temporary name → fsync → [`commit`]:
+//! place. [`write`](mod@write) writes a shard (Parquet under a temporary name → fsync → [`commit`]:
 //! linked to the shard's name, never over another writer's, completion record last);
 //! [`state`] checks a shard against its record (done, damaged, running, pending), moves a
 //! damaged one aside and verifies; [`read`] reads rows and footers back, and the rows of a

@@ -72,8 +72,8 @@ const CHUNK: usize = 1 << 12;
 /// so the vertices are checked in parallel with no global edge list to sort. One pass over
 /// the triangles counts the degenerate and zero-area faces, joins the components and notes
 /// which vertices each chunk of triangles uses; the links are then filled and read tile by
-/// tile of vertices ([`tiles`]) where the triangles come in an order close to their
-/// vertices', as in every output of [`crate::extract`], and all at once ([`links`])
+/// tile of vertices (`tiles`) where the triangles come in an order close to their
+/// vertices', as in every output of [`crate::extract()`], and all at once (`links`)
 /// otherwise. All results are counts, the same whatever the thread count, the path or the
 /// order the links are filled in.
 pub fn check(mesh: &TriMesh) -> TopologyReport {
@@ -172,7 +172,7 @@ fn zero_area([a, b, c]: [[f64; 3]; 3]) -> bool {
 
 /// Number of connected components of triangles (through shared vertices), as
 /// [`components`] numbers them: a triangle with an out-of-range index is a component of its
-/// own. Union-find in parallel ([`ComponentForest`]), so the count does not depend on the
+/// own. Union-find in parallel (`ComponentForest`), so the count does not depend on the
 /// thread count.
 pub fn component_count(mesh: &TriMesh) -> u64 {
     let nv = mesh.positions.len();

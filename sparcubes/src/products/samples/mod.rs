@@ -332,7 +332,7 @@ fn store(p: [f64; 3]) -> [f32; 3] {
     p.map(|c| c as f32)
 }
 
-/// Draws the samples of `params` from `mesh`, the mesh that [`crate::extract`] made of
+/// Draws the samples of `params` from `mesh`, the mesh that [`crate::extract()`] made of
 /// `cubes` (grid coordinates). Fails on invalid parameters and on an empty mesh when any
 /// sample is asked for.
 pub fn sample(cubes: &SparseCubes, mesh: &TriMesh, params: &SampleParams) -> Result<Samples> {

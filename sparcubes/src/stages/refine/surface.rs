@@ -1,7 +1,7 @@
 //! The extracted mesh as a linear function of the displacements.
 //!
 //! With φ fixed, a marching-cubes vertex on a cell edge is `(1 − w)·pa + w·pb` with the edge's
-//! weight `w = φa/(φa − φb)` ([`crate::extract`]'s `edge_point`) and `p = coord + δ` at either
+//! weight `w = φa/(φa − φb)` ([`crate::extract()`]'s `edge_point`) and `p = coord + δ` at either
 //! corner, and a centre vertex is the mean of some edge vertices: every output position is a
 //! fixed weighted sum of corner positions. [`Surface`] keeps those weights (its stencils), so
 //! positions follow δ exactly and a gradient on positions goes back to δ through the same
