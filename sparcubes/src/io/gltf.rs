@@ -102,22 +102,35 @@ pub(crate) fn read(
             reason: "glTF without a scene".to_string(),
         })?;
 
-    check_expansion(&scene, path)?;
     let mut mesh = TriMesh::default();
+    for_each_primitive(&scene, path, |prim, mesh_index, world| {
+        read_primitive(prim, mesh_index, world, &buffers, path, stats, &mut mesh)
+    })?;
+    Ok(mesh)
+}
+
+/// Calls `each` with every primitive of `scene`'s nodes, the index of its mesh and its node's
+/// world transform, depth first from the last root (the one order in which the shape and its
+/// appearance, `crate::materials`, are both read), once instancing is checked not to expand
+/// past the limit.
+pub(crate) fn for_each_primitive(
+    scene: &gltf::Scene,
+    path: &Path,
+    mut each: impl FnMut(&gltf::Primitive, usize, &[[f64; 4]; 4]) -> Result<()>,
+) -> Result<()> {
+    check_expansion(scene, path)?;
     let mut stack: Vec<(gltf::Node, [[f64; 4]; 4])> =
         scene.nodes().map(|n| (n, IDENTITY)).collect();
     while let Some((node, parent)) = stack.pop() {
         let world = mul(&parent, &to_f64(node.transform().matrix()));
         if let Some(m) = node.mesh() {
             for prim in m.primitives() {
-                read_primitive(&prim, m.index(), &world, &buffers, path, stats, &mut mesh)?;
+                each(&prim, m.index(), &world)?;
             }
         }
-        for child in node.children() {
-            stack.push((child, world));
-        }
+        stack.extend(node.children().map(|c| (c, world)));
     }
-    Ok(mesh)
+    Ok(())
 }
 
 /// Parses and validates the document. Missing POSITION `min`/`max` (common in exported files,

@@ -14,7 +14,7 @@
 use super::image::{self, Image};
 use super::{sibling, AlphaMode, Appearance, Material, ScalarMap, TextureRef, Wrap};
 use crate::error::Result;
-use crate::io::gltf::{check_expansion, load_buffers, mul, open, to_f64, transform, IDENTITY};
+use crate::io::gltf::{for_each_primitive, load_buffers, open, transform};
 use crate::io::{parse_err, Buffers};
 use base64::Engine as _;
 use gltf::texture::WrappingMode;
@@ -37,18 +37,9 @@ pub(crate) fn read(bytes: &[u8], path: &Path, external: Buffers) -> Result<Appea
     let Some(scene) = doc.default_scene().or_else(|| doc.scenes().next()) else {
         return Ok(out);
     };
-    check_expansion(&scene, path)?;
-    let mut stack: Vec<(gltf::Node, [[f64; 4]; 4])> =
-        scene.nodes().map(|n| (n, IDENTITY)).collect();
-    while let Some((node, parent)) = stack.pop() {
-        let world = mul(&parent, &to_f64(node.transform().matrix()));
-        if let Some(m) = node.mesh() {
-            for prim in m.primitives() {
-                primitive(&prim, &world, &buffers, path, &mut out)?;
-            }
-        }
-        stack.extend(node.children().map(|c| (c, world)));
-    }
+    for_each_primitive(&scene, path, |prim, _, world| {
+        primitive(prim, world, &buffers, path, &mut out)
+    })?;
     Ok(out)
 }
 
