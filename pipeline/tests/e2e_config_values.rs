@@ -11,12 +11,6 @@ use serde_json::Value;
 use sparc3d_schema::JobConfig;
 use std::path::{Path, PathBuf};
 
-fn example(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../examples")
-        .join(name)
-}
-
 /// A manifest of the bundled cube.
 fn manifest(dir: &Path) -> PathBuf {
     let meshes = dir.join("meshes");

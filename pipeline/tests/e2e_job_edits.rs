@@ -17,12 +17,6 @@ fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
-fn example(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../examples")
-        .join(name)
-}
-
 /// A manifest of the five bundled examples (ids are their sha256).
 fn manifest(dir: &Path) -> PathBuf {
     let meshes = dir.join("meshes");

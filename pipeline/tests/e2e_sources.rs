@@ -23,12 +23,6 @@ fn write(path: &Path, text: &[u8]) {
     std::fs::write(path, text).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
 }
 
-fn example(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../examples")
-        .join(name)
-}
-
 /// Copies bundled examples into `dir/meshes`; returns the folder.
 fn meshes(dir: &Path, names: &[&str]) -> PathBuf {
     let root = dir.join("meshes");
