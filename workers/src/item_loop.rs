@@ -10,6 +10,7 @@ use crate::frame::Record;
 use crate::journal::Journal;
 use crate::lease::Lease;
 use crate::shard::WorkOptions;
+use crate::store::write::ShardStream;
 use crate::supervisor::{ItemOutcome, ItemRunner};
 use sparc3d_schema::{ErrorClass, FrozenItem, ItemStatus, JobConfig, ShardRow};
 use std::collections::VecDeque;
@@ -38,6 +39,8 @@ pub(crate) struct ShardWork<'a> {
     pub config: &'a JobConfig,
     /// Options of this run (events, limits, stop flag, budget).
     pub opts: &'a mut WorkOptions,
+    /// The shard file, written as the items finish in order.
+    pub stream: &'a mut ShardStream,
 }
 
 /// An item handed to a lane.
@@ -362,6 +365,7 @@ fn finish(work: &mut ShardWork<'_>, journal: &mut Journal, row: ShardRow) -> Res
         at: crate::now(),
     };
     append(journal, work.held, work.shard, &done)?;
+    work.stream.catch_up(journal)?;
     (work.opts.events)(event);
     if let Some(checkpoint) = work.opts.after_item.as_mut() {
         checkpoint(journal)?;

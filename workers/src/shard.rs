@@ -1,6 +1,7 @@
 //! The loop over one shard: claim its lease, resume from its journals, run each unfinished
-//! item in the supervised item worker, journal the outcome in this holder's own journal, and
-//! write the shard when every item is finished. Every journal append and the shard's commit
+//! item in the supervised item worker, journal the outcome in this holder's own journal, write
+//! each row into the shard file once the items before it are finished, and commit the shard
+//! when every item is. Every journal append and the shard's commit
 //! are preceded by a check that the lease is still held; a worker that lost it (stopped past
 //! it, or taken over) stops with [`ShardOutcome::LeaseLost`].
 
@@ -13,6 +14,7 @@ use crate::lanes::LaneBudget;
 use crate::lease::{self, Acquired, Lease};
 use crate::store::commit::Committed;
 use crate::store::state::{self, Check, Completion};
+use crate::store::write::ShardStream;
 use crate::supervisor::ChildCommand;
 use sparc3d_schema::{CompletionRecord, Limits};
 use std::sync::atomic::AtomicBool;
@@ -164,22 +166,27 @@ fn run_leased(
         items: items.len() as u64,
         done: journal.state.done.len() as u64,
     });
+    // Rows go into the shard file as their items finish in order ([`ShardStream`]): the
+    // earlier holders' now, this holder's as the loop journals them.
+    let mut stream = ShardStream::create(job, shard, &writer)?;
+    stream.catch_up(&journal)?;
     let mut work = ShardWork {
         shard,
         held,
         config: &job.file.config,
         opts,
+        stream: &mut stream,
     };
     if let LoopEnd::Stopped = run_items(&mut work, &mut journal, items)? {
         return Ok(ShardOutcome::Stopped);
     }
     (opts.events)(Event::ShardWriting { shard });
-    // Every result on disk (and any failed background flush reported) before the shard.
-    journal.sync()?;
+    // A failed background flush of the journal is reported before the shard is put in place;
+    // the flush still running is not waited for: once the shard is committed, the journals go.
+    journal.check()?;
     let fenced = || fence(held, shard);
-    let committed =
-        crate::store::write::write_shard(job, shard, &journal, &writer, started_at, &fenced)?;
-    drop(journal);
+    let committed = stream.finish(job, shard, started_at, &fenced)?;
+    journal.abandon();
     // The shard holds every row now: the journals (this holder's and the earlier ones') go.
     let _ = journal::set::remove_all(layout, shard);
     Ok(match committed {

@@ -325,3 +325,86 @@ fn a_shard_file_without_its_record_is_replaced_by_the_next_writer() -> TestResul
     assert_eq!(rows(&job)?.len(), 2);
     Ok(())
 }
+
+/// A failed row of item `index` of `job`, as holder `holder` would journal it.
+fn done_record(job: &Job, index: usize, holder: &str) -> Record {
+    let row = ShardRow::failed_item(&job.items[index], 64, ErrorClass::ParseError, holder.into());
+    Record::Done {
+        row: Box::new(row),
+        at: 1.0,
+    }
+}
+
+/// Issue 46: rows go into the shard file as their items finish, in item order whatever order
+/// they finish in, so a shard streamed from items finishing out of order is the very file
+/// written from a finished journal at the end; a stream dropped before its commit (a stop, a
+/// lost lease) leaves no temporary file.
+#[test]
+fn a_shard_streamed_as_items_finish_out_of_order_is_the_file_written_at_the_end() -> TestResult {
+    let dir = tempfile::tempdir()?;
+    let job = job(dir.path(), 5)?;
+    std::fs::create_dir_all(job.layout.shards_dir())?;
+    let no_fence = || Ok(());
+    let in_order = full_journal(&job, "w")?;
+    let at_the_end = store::write::write_shard(&job, 0, &in_order, "a", 0.0, &no_fence)?;
+    let expected = std::fs::read(job.layout.shard_file(0))?;
+    drop(in_order);
+    journal::set::remove_all(&job.layout, 0)?;
+    std::fs::remove_file(job.layout.shard_file(0))?;
+    std::fs::remove_file(job.layout.completion(0))?;
+
+    let mut streamed = Journal::create(
+        &job.layout.holder_journal(0, "w"),
+        0,
+        job.fingerprint(),
+        JournalState::default(),
+    )?;
+    let mut stream = store::write::ShardStream::create(&job, 0, "b")?;
+    for index in [3, 1, 4, 0, 2] {
+        streamed.append(&done_record(&job, index, "w"))?;
+        stream.catch_up(&streamed)?;
+    }
+    let committed = stream.finish(&job, 0, 0.0, &no_fence)?;
+    assert_eq!(std::fs::read(job.layout.shard_file(0))?, expected);
+    let (store::commit::Committed::Done(a), store::commit::Committed::Done(b)) =
+        (at_the_end, committed)
+    else {
+        panic!("both commits should have put their shard in place");
+    };
+    assert_eq!((a.sha256, a.content_digest), (b.sha256, b.content_digest));
+
+    let mut unfinished = store::write::ShardStream::create(&job, 0, "c")?;
+    unfinished.catch_up(&streamed)?;
+    let tmp = job.layout.shard_tmp(0, "c");
+    assert!(tmp.exists());
+    drop(unfinished);
+    assert!(!tmp.exists(), "{} left behind", tmp.display());
+    Ok(())
+}
+
+/// A stream cannot commit a shard with an item not finished: it says which.
+#[test]
+fn a_stream_refuses_to_commit_a_shard_with_an_unfinished_item() -> TestResult {
+    let dir = tempfile::tempdir()?;
+    let job = job(dir.path(), 3)?;
+    std::fs::create_dir_all(job.layout.shards_dir())?;
+    let mut partial = Journal::create(
+        &job.layout.holder_journal(0, "w"),
+        0,
+        job.fingerprint(),
+        JournalState::default(),
+    )?;
+    partial.append(&done_record(&job, 0, "w"))?;
+    partial.append(&done_record(&job, 2, "w"))?;
+    let mut stream = store::write::ShardStream::create(&job, 0, "w")?;
+    stream.catch_up(&partial)?;
+    let no_fence = || Ok(());
+    let err = match stream.finish(&job, 0, 0.0, &no_fence) {
+        Ok(c) => panic!("committed with item 1 missing: {c:?}"),
+        Err(e) => e.to_string(),
+    };
+    assert!(err.contains("item 1 of shard 0 is not finished"), "{err}");
+    assert!(!job.layout.shard_file(0).exists());
+    assert!(!job.layout.shard_tmp(0, "w").exists());
+    Ok(())
+}

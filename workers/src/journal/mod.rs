@@ -134,6 +134,20 @@ impl Journal {
             .map_err(|e| WorkerError::io("syncing journal", &self.path, e))
     }
 
+    /// Reports a background flush that failed so far, without waiting for the one running.
+    pub fn check(&self) -> Result<()> {
+        match self.syncer.take_error() {
+            Some(e) => Err(WorkerError::io("syncing journal", &self.path, e)),
+            None => Ok(()),
+        }
+    }
+
+    /// Closes the journal without waiting for its flushes, for a journal whose rows are in a
+    /// committed shard now (about to be removed): the flush running finishes in the background.
+    pub fn abandon(self) {
+        self.syncer.abandon();
+    }
+
     /// Reads back the row of a finished item (from whichever journal holds it).
     pub fn read_row(&self, item: &DoneItem) -> Result<ShardRow> {
         read_row_at(&item.journal, item.offset)

@@ -33,13 +33,13 @@ impl Syncer {
             let (lock, cvar) = &*worker;
             let Ok(mut st) = lock.lock() else { return };
             loop {
-                while st.synced == st.requested && !st.closing {
+                while st.synced >= st.requested && !st.closing {
                     st = match cvar.wait(st) {
                         Ok(st) => st,
                         Err(_) => return,
                     };
                 }
-                if st.synced == st.requested {
+                if st.synced >= st.requested {
                     return;
                 }
                 let target = st.requested;
@@ -92,6 +92,21 @@ impl Syncer {
             st = cvar.wait(st).map_err(|_| poisoned())?;
         }
         st.error.take().map_or(Ok(()), Err)
+    }
+}
+
+impl Syncer {
+    /// Stops without flushing what is still asked for and without waiting for the flush
+    /// running (it finishes in the background).
+    pub(super) fn abandon(mut self) {
+        let (lock, cvar) = &*self.shared;
+        if let Ok(mut st) = lock.lock() {
+            st.requested = st.synced;
+            st.closing = true;
+            cvar.notify_all();
+        }
+        // Dropping the handle detaches the thread instead of joining it.
+        self.thread = None;
     }
 }
 

@@ -1,6 +1,9 @@
-//! Writes a finished shard: rows from the journals in item order into a Parquet file under a
-//! temporary name of the writer's own, fsync, then the commit ([`super::commit`]): the file
-//! linked to the shard's name, fsync of the folder, and the completion record last.
+//! Writes a shard while its items convert: each finished row goes into a Parquet file under a
+//! temporary name of the writer's own as soon as every item before it is finished (rows stay in
+//! item order, row groups close at the same rows, so the file depends on the rows alone, never
+//! on the order items finished in); when the last item is finished, the footer, fsync, then the
+//! commit ([`super::commit`]): the file linked to the shard's name, fsync of the folder, and
+//! the completion record last.
 
 use super::commit::{commit, Committed};
 use crate::error::{Result, WorkerError};
@@ -13,11 +16,11 @@ use parquet::file::properties::{EnabledStatistics, WriterProperties};
 use parquet::schema::types::ColumnPath;
 use sha2::{Digest, Sha256};
 use sparc3d_schema::{columns, meta_keys, CompletionRecord, ItemStatus, ShardRow};
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, VecDeque};
 use std::fs::File;
-use std::path::Path;
+use std::path::PathBuf;
 
-/// Bytes of tensor blobs per row group (row groups stay well under 256 MB).
+/// Bytes of tensor blobs after which a row group closes (row groups stay well under 256 MB).
 const ROW_GROUP_BYTES: usize = 64 << 20;
 
 /// Parquet writer properties of a shard: blobs uncompressed with no dictionary or statistics
@@ -89,9 +92,9 @@ impl std::io::Write for HashingFile {
 }
 
 /// Writes shard `shard` from its journals (every item must be finished) and commits it,
-/// its completion record last. `writer` names the temporary files (unique per writer);
-/// `fence` is called once the file is written, before anything is put in place, and stops
-/// a writer that lost its lease.
+/// its completion record last: [`ShardStream`] in one go. `writer` names the temporary files
+/// (unique per writer); `fence` is called once the file is written, before anything is put in
+/// place, and stops a writer that lost its lease.
 pub fn write_shard(
     job: &Job,
     shard: u64,
@@ -100,28 +103,219 @@ pub fn write_shard(
     started_at: f64,
     fence: &dyn Fn() -> Result<()>,
 ) -> Result<Committed> {
-    let layout = &job.layout;
-    let tmp = layout.shard_tmp(shard, writer);
-    let written = File::create(&tmp)
-        .map_err(|e| WorkerError::io("creating shard", &tmp, e))
-        .and_then(|file| write_parquet(job, shard, journal, file, &tmp, started_at))
-        .and_then(|written| fence().map(|()| written));
-    let (file, record) = match written {
-        Ok(w) => w,
-        Err(e) => {
-            let _ = std::fs::remove_file(&tmp);
-            return Err(e);
+    let mut stream = ShardStream::create(job, shard, writer)?;
+    stream.catch_up(journal)?;
+    stream.finish(job, shard, started_at, fence)
+}
+
+/// What the completion record says of the rows written so far.
+#[derive(Default)]
+struct Tally {
+    digest: Sha256,
+    ok: u64,
+    failed: u64,
+    classes: BTreeMap<String, u64>,
+    item_seconds: f64,
+}
+
+impl Tally {
+    fn count(&mut self, row: &ShardRow) {
+        sparc3d_schema::digest::update_row(&mut self.digest, row);
+        match row.status {
+            ItemStatus::Ok => self.ok += 1,
+            _ => self.failed += 1,
         }
-    };
-    commit(
-        layout,
-        shard,
-        &job.file.fingerprint,
-        &tmp,
-        &file,
-        record,
-        writer,
-    )
+        if let Some(c) = row.error_class {
+            *self.classes.entry(c.as_str().to_string()).or_default() += 1;
+        }
+        self.item_seconds += row.timings.total_s;
+    }
+}
+
+/// A shard's Parquet file being written as its items finish, in item order: rows whose
+/// earlier items are all finished are written at once ([`ShardStream::catch_up`]), the others
+/// wait in the journal. Dropped unfinished (a stop, a lost lease, an error), it removes its
+/// temporary file; the journals keep every row.
+pub struct ShardStream {
+    /// Names this writer's temporary files.
+    writer_name: String,
+    tmp: PathBuf,
+    /// `None` once closed.
+    writer: Option<ArrowWriter<HashingFile>>,
+    provenance: Vec<String>,
+    attributes: bool,
+    /// The shard's items not written yet, in row order, with their provenance values.
+    waiting: VecDeque<(u64, BTreeMap<String, String>)>,
+    /// Blob bytes of the row group being written.
+    group_bytes: usize,
+    tally: Tally,
+}
+
+impl ShardStream {
+    /// Opens the temporary file of `writer` (a name unique per writer) for shard `shard`.
+    pub fn create(job: &Job, shard: u64, writer: &str) -> Result<Self> {
+        let tmp = job.layout.shard_tmp(shard, writer);
+        let provenance = provenance_names(job, shard);
+        let attributes = job.file.config.attributes.enabled;
+        let mut items: Vec<u64> = job.shard_items(shard).iter().map(|i| i.index).collect();
+        items.sort_unstable();
+        let waiting = items
+            .into_iter()
+            .map(|index| (index, item_provenance(job, index)))
+            .collect();
+        let file = File::create(&tmp).map_err(|e| WorkerError::io("creating shard", &tmp, e))?;
+        let mut stream = Self {
+            writer_name: writer.to_string(),
+            tmp,
+            writer: None,
+            provenance,
+            attributes,
+            waiting,
+            group_bytes: 0,
+            tally: Tally::default(),
+        };
+        let sink = HashingFile {
+            file,
+            hash: Sha256::new(),
+        };
+        let schema = sparc3d_schema::arrow::schema_for(&stream.provenance, attributes);
+        let properties = writer_properties(job, shard)?;
+        let writer = ArrowWriter::try_new(sink, schema, Some(properties))
+            .map_err(|e| stream.parquet_error(e))?;
+        stream.writer = Some(writer);
+        Ok(stream)
+    }
+
+    /// Writes every row of `journal` whose earlier items are all finished and that is not
+    /// written yet.
+    pub fn catch_up(&mut self, journal: &Journal) -> Result<()> {
+        while let Some((index, _)) = self.waiting.front() {
+            let Some(done) = journal.state.done.get(index) else {
+                return Ok(());
+            };
+            let mut row = journal.read_row(done)?;
+            if let Some((_, provenance)) = self.waiting.pop_front() {
+                row.provenance = provenance;
+            }
+            self.push(row)?;
+        }
+        Ok(())
+    }
+
+    /// Writes one row, closing the row group once its blobs reach [`ROW_GROUP_BYTES`].
+    fn push(&mut self, row: ShardRow) -> Result<()> {
+        self.tally.count(&row);
+        self.group_bytes += blob_bytes(&row);
+        let batch = sparc3d_schema::arrow::rows_to_batch_for(
+            std::slice::from_ref(&row),
+            &self.provenance,
+            self.attributes,
+        )?;
+        let writer = self.open_writer()?;
+        let written = writer.write(&batch);
+        written.map_err(|e| self.parquet_error(e))?;
+        if self.group_bytes >= ROW_GROUP_BYTES {
+            self.group_bytes = 0;
+            let flushed = self.open_writer()?.flush();
+            flushed.map_err(|e| self.parquet_error(e))?;
+        }
+        Ok(())
+    }
+
+    /// Closes the file once every item is written (its footer, fsync), calls `fence`, and
+    /// commits it with its completion record.
+    pub fn finish(
+        mut self,
+        job: &Job,
+        shard: u64,
+        started_at: f64,
+        fence: &dyn Fn() -> Result<()>,
+    ) -> Result<Committed> {
+        if let Some((index, _)) = self.waiting.front() {
+            return Err(WorkerError::BadFile {
+                path: self.tmp.clone(),
+                reason: format!("item {index} of shard {shard} is not finished"),
+            });
+        }
+        let (file, record) = self.close(job, shard, started_at)?;
+        fence()?;
+        commit(
+            &job.layout,
+            shard,
+            &job.file.fingerprint,
+            &self.tmp,
+            &file,
+            record,
+            &self.writer_name,
+        )
+    }
+
+    /// The footer written and the file fsynced; the file and its completion record (its size
+    /// and stamp are filled in once it is in place).
+    fn close(
+        &mut self,
+        job: &Job,
+        shard: u64,
+        started_at: f64,
+    ) -> Result<(File, CompletionRecord)> {
+        let Some(writer) = self.writer.take() else {
+            return Err(self.closed());
+        };
+        let closed = writer.into_inner();
+        let HashingFile { file, hash } = closed.map_err(|e| self.parquet_error(e))?;
+        file.sync_all()
+            .map_err(|e| WorkerError::io("syncing shard", &self.tmp, e))?;
+        let tally = std::mem::take(&mut self.tally);
+        let record = CompletionRecord {
+            shard,
+            schema_version: sparc3d_schema::SCHEMA_VERSION,
+            fingerprint: job.file.fingerprint.clone(),
+            rows: tally.ok + tally.failed,
+            ok: tally.ok,
+            failed: tally.failed,
+            error_classes: tally.classes,
+            bytes: 0,
+            sha256: sparc3d_schema::config::hex(&hash.finalize()),
+            stamp: None,
+            object: None,
+            object_etag: None,
+            content_digest: sparc3d_schema::config::hex(&tally.digest.finalize()),
+            item_seconds: tally.item_seconds,
+            started_at,
+            finished_at: 0.0,
+        };
+        Ok((file, record))
+    }
+
+    /// The Parquet writer, while the file is open.
+    fn open_writer(&mut self) -> Result<&mut ArrowWriter<HashingFile>> {
+        let closed = self.closed();
+        self.writer.as_mut().ok_or(closed)
+    }
+
+    /// The error of a use after the file was closed (or failed to open).
+    fn closed(&self) -> WorkerError {
+        WorkerError::BadFile {
+            path: self.tmp.clone(),
+            reason: "the shard file is closed already".into(),
+        }
+    }
+
+    fn parquet_error(&self, source: parquet::errors::ParquetError) -> WorkerError {
+        WorkerError::Parquet {
+            path: self.tmp.clone(),
+            source,
+        }
+    }
+}
+
+impl Drop for ShardStream {
+    /// A stream dropped before its commit leaves no temporary file (a committed one's is gone
+    /// already: [`commit`] removes it).
+    fn drop(&mut self) {
+        self.writer = None;
+        let _ = std::fs::remove_file(&self.tmp);
+    }
 }
 
 /// The provenance columns of a shard: those of its items' manifest lines (every item of one
@@ -146,90 +340,4 @@ fn item_provenance(job: &Job, index: u64) -> BTreeMap<String, String> {
         .filter(|(_, value)| !value.is_empty())
         .map(|(name, value)| (name.clone(), value.clone()))
         .collect()
-}
-
-/// The rows of the journals into Parquet at `tmp` (through `file`), fsynced; the file and the
-/// completion record that will describe it (its size and stamp are filled in once it is in
-/// place).
-fn write_parquet(
-    job: &Job,
-    shard: u64,
-    journal: &Journal,
-    file: File,
-    tmp: &Path,
-    started_at: f64,
-) -> Result<(File, CompletionRecord)> {
-    let pq_err = |source| WorkerError::Parquet {
-        path: tmp.to_path_buf(),
-        source,
-    };
-    let provenance = provenance_names(job, shard);
-    let attributes = job.file.config.attributes.enabled;
-    let mut writer = ArrowWriter::try_new(
-        HashingFile {
-            file,
-            hash: Sha256::new(),
-        },
-        sparc3d_schema::arrow::schema_for(&provenance, attributes),
-        Some(writer_properties(job, shard)?),
-    )
-    .map_err(pq_err)?;
-    let mut digest = Sha256::new();
-    let (mut ok, mut failed, mut item_seconds) = (0u64, 0u64, 0.0f64);
-    let mut classes: BTreeMap<String, u64> = BTreeMap::new();
-    let mut pending: Vec<ShardRow> = Vec::new();
-    let mut pending_bytes = 0usize;
-    let flush = |writer: &mut ArrowWriter<HashingFile>, rows: &mut Vec<ShardRow>| -> Result<()> {
-        if rows.is_empty() {
-            return Ok(());
-        }
-        let batch = sparc3d_schema::arrow::rows_to_batch_for(rows, &provenance, attributes)?;
-        writer.write(&batch).map_err(pq_err)?;
-        writer.flush().map_err(pq_err)?;
-        rows.clear();
-        Ok(())
-    };
-    for done in journal.state.done.values() {
-        let mut row = journal.read_row(done)?;
-        row.provenance = item_provenance(job, row.item_index);
-        sparc3d_schema::digest::update_row(&mut digest, &row);
-        match row.status {
-            ItemStatus::Ok => ok += 1,
-            _ => failed += 1,
-        }
-        if let Some(c) = row.error_class {
-            *classes.entry(c.as_str().to_string()).or_default() += 1;
-        }
-        item_seconds += row.timings.total_s;
-        pending_bytes += blob_bytes(&row);
-        pending.push(row);
-        if pending_bytes >= ROW_GROUP_BYTES {
-            flush(&mut writer, &mut pending)?;
-            pending_bytes = 0;
-        }
-    }
-    flush(&mut writer, &mut pending)?;
-    let HashingFile { file, hash } = writer.into_inner().map_err(pq_err)?;
-    let file_sha256 = sparc3d_schema::config::hex(&hash.finalize());
-    file.sync_all()
-        .map_err(|e| WorkerError::io("syncing shard", tmp, e))?;
-    let record = CompletionRecord {
-        shard,
-        schema_version: sparc3d_schema::SCHEMA_VERSION,
-        fingerprint: job.file.fingerprint.clone(),
-        rows: ok + failed,
-        ok,
-        failed,
-        error_classes: classes,
-        bytes: 0,
-        sha256: file_sha256,
-        stamp: None,
-        object: None,
-        object_etag: None,
-        content_digest: sparc3d_schema::config::hex(&digest.finalize()),
-        item_seconds,
-        started_at,
-        finished_at: 0.0,
-    };
-    Ok((file, record))
 }
