@@ -9,7 +9,7 @@ use crate::grid::{
 use crate::queries::winding::{LazyWindingTree, WindingTree};
 use crate::stages::band::Band;
 use crate::stages::flood::{grow_within, Flood, FULL};
-use crate::union_find::Sets;
+use crate::union_find::SharedSets;
 use rayon::prelude::*;
 
 /// Splits the enclosed cells of every wall brick into connected parts (within the brick).
@@ -245,6 +245,7 @@ impl<'a> Parts<'a> {
         let index = &walls.index;
         let (starts, masks) = wall_parts(walls, flood);
         let empty_keys: Vec<u32> = (0..index.slots.len() as u32)
+            .into_par_iter()
             .filter(|&k| index.slots[k as usize] == NO_BRICK && !flood.empty_outside[k as usize])
             .collect();
         Self {
@@ -294,32 +295,36 @@ impl<'a> Parts<'a> {
     }
 
     /// Each part's region, numbered by its smallest part, and the number of regions: parts
-    /// joined across the +x, +y, +z face of their brick (each face pair once).
+    /// joined across the +x, +y, +z face of their brick (each face pair once), the parts
+    /// shared out among the threads (the numbering does not depend on their order).
     fn regions(&self) -> (Vec<u32>, usize) {
         let index = &self.walls.index;
-        let mut sets = Sets::new(self.total());
-        for p in 0..self.total() as u32 {
-            let b = index.coord(self.key_of(p) as usize);
-            let mask = self.mask_of(p);
-            for axis in 0..3 {
-                if b[axis] + 1 >= index.dims[axis] {
-                    continue;
+        let sets = SharedSets::new(self.total());
+        (0..self.total() as u32)
+            .into_par_iter()
+            .with_min_len(4096)
+            .for_each(|p| {
+                let b = index.coord(self.key_of(p) as usize);
+                let mask = self.mask_of(p);
+                for axis in 0..3 {
+                    if b[axis] + 1 >= index.dims[axis] {
+                        continue;
+                    }
+                    let carry = face_carry(&mask, axis, true);
+                    if is_empty(&carry) {
+                        continue;
+                    }
+                    let mut nb = b;
+                    nb[axis] += 1;
+                    self.join_across(&sets, p, index.key(nb) as u32, &carry);
                 }
-                let carry = face_carry(&mask, axis, true);
-                if is_empty(&carry) {
-                    continue;
-                }
-                let mut nb = b;
-                nb[axis] += 1;
-                self.join_across(&mut sets, p, index.key(nb) as u32, &carry);
-            }
-        }
-        sets.labels(|_| true)
+            });
+        sets.into_sets().labels(|_| true)
     }
 
     /// Joins part `p` with the parts of the brick with key `key` that its face cells `carry`
     /// (moved into that brick) touch.
-    fn join_across(&self, sets: &mut Sets, p: u32, key: u32, carry: &BrickMask) {
+    fn join_across(&self, sets: &SharedSets, p: u32, key: u32, carry: &BrickMask) {
         match self.walls.index.slots[key as usize] {
             NO_BRICK => {
                 if let Some(q) = self.part_of_empty(key) {
