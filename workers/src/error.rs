@@ -1,7 +1,7 @@
 //! Errors of processing a shard. An item's failure is never an error here (it becomes a
 //! `failed` row); these are failures of the job's own machinery: files, leases, config drift.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// What stopped a shard from being processed.
 #[derive(Debug, thiserror::Error)]
@@ -180,6 +180,15 @@ impl WorkerError {
             stage,
             path: path.into(),
             source,
+        }
+    }
+
+    /// An error reading the shard file at `path`; `stage` says what was being done.
+    pub(crate) fn read_shard(stage: &'static str, path: &Path, e: impl std::fmt::Display) -> Self {
+        WorkerError::ReadShard {
+            stage,
+            path: path.to_path_buf(),
+            reason: e.to_string(),
         }
     }
 }

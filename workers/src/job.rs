@@ -67,12 +67,12 @@ impl Job {
                 reason: format!("{} items, job.json says {}", items.len(), file.items),
             });
         }
+        let problems = crate::job_files::problems(&layout, &file, &items, &bytes);
         let job = Self {
             layout,
             file,
             items,
         };
-        let problems = crate::job_files::problems(&job, &bytes);
         Ok((job, problems))
     }
 

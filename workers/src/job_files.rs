@@ -5,15 +5,18 @@
 //! file and what differs; [`crate::Job::open`] refuses a job with any, and read-only commands
 //! open it with [`crate::Job::open_read_only`] and say what was found.
 
-use crate::job::Job;
-use crate::store::read::read_meta;
-use sparc3d_schema::{meta_keys, JobConfig, SCHEMA_VERSION};
+use crate::store::footer::read_meta;
+use sparc3d_schema::{meta_keys, FrozenItem, JobConfig, JobFile, JobLayout, SCHEMA_VERSION};
 
 /// What differs between the job's files and what `init` recorded, one line each naming the
-/// file; empty when the job is as `init` wrote it. `manifest_bytes` are the bytes of the
-/// frozen manifest the job was read from.
-pub fn problems(job: &Job, manifest_bytes: &[u8]) -> Vec<String> {
-    let file = &job.file;
+/// file; empty when the job is as `init` wrote it. The job at `layout` was read as `file` (its
+/// `job.json`) and `items`, from `manifest_bytes`, the bytes of its frozen manifest.
+pub fn problems(
+    layout: &JobLayout,
+    file: &JobFile,
+    items: &[FrozenItem],
+    manifest_bytes: &[u8],
+) -> Vec<String> {
     let mut out = Vec::new();
     if file.schema_version != SCHEMA_VERSION {
         out.push(format!(
@@ -25,11 +28,11 @@ pub fn problems(job: &Job, manifest_bytes: &[u8]) -> Vec<String> {
     if let Err(e) = file.config.validate() {
         out.push(format!("job.json: {e}"));
     }
-    if let Some(p) = fingerprint_problem(job) {
+    if let Some(p) = fingerprint_problem(layout, file) {
         out.push(p);
     }
     let size = u64::from(file.config.shard_size.max(1));
-    let shards = job.items.last().map_or(0, |i| i.shard + 1);
+    let shards = items.last().map_or(0, |i| i.shard + 1);
     if file.shards != shards {
         out.push(format!(
             "job.json: shards is {}, but the frozen manifest's items are in {shards}",
@@ -45,7 +48,7 @@ pub fn problems(job: &Job, manifest_bytes: &[u8]) -> Vec<String> {
             file.manifest_sha256
         ));
     }
-    if let Some(p) = shard_layout_problem(job, size) {
+    if let Some(p) = shard_layout_problem(items, size) {
         out.push(p);
     }
     out
@@ -54,10 +57,10 @@ pub fn problems(job: &Job, manifest_bytes: &[u8]) -> Vec<String> {
 /// Whether the items' shards are a layout `init` and `add` make: shard 0 first, each item in
 /// its predecessor's shard or the next, at most `size` items a shard (a job made at once has
 /// `index / size`; each `add` starts a new shard).
-fn shard_layout_problem(job: &Job, size: u64) -> Option<String> {
+fn shard_layout_problem(items: &[FrozenItem], size: u64) -> Option<String> {
     let mut count = 0u64;
     let mut previous: Option<u64> = None;
-    for item in &job.items {
+    for item in items {
         let expected_next = previous.map_or(0, |p| p + 1);
         let ok = match previous {
             Some(p) if item.shard == p => {
@@ -83,20 +86,21 @@ fn shard_layout_problem(job: &Job, size: u64) -> Option<String> {
 
 /// The finding when the stored config no longer gives the fingerprint recorded with it, with
 /// the keys that differ from the config a finished shard was written with, when there is one.
-fn fingerprint_problem(job: &Job) -> Option<String> {
-    let now = match job.file.config.fingerprint() {
-        Ok(f) if f == job.file.fingerprint => return None,
+fn fingerprint_problem(layout: &JobLayout, file: &JobFile) -> Option<String> {
+    let now = match file.config.fingerprint() {
+        Ok(f) if f == file.fingerprint => return None,
         Ok(f) => f,
         Err(e) => return Some(format!("job.json: the config cannot be fingerprinted: {e}")),
     };
     let short = |f: &str| f.chars().take(12).collect::<String>();
-    let what = match shard_config(job).map(|written| changed_keys(&written, &job.file.config)) {
+    let written = shard_config(layout, file.shards);
+    let what = match written.map(|written| changed_keys(&written, &file.config)) {
         Some(keys) if !keys.is_empty() => keys,
         _ => format!(
             "it gives fingerprint {}…, init recorded {}… (no finished shard says which key \
              changed)",
             short(&now),
-            short(&job.file.fingerprint)
+            short(&file.fingerprint)
         ),
     };
     Some(format!(
@@ -105,11 +109,11 @@ fn fingerprint_problem(job: &Job) -> Option<String> {
     ))
 }
 
-/// The config stored in the first shard file of the job that has one (Parquet key-value
-/// metadata), if any.
-fn shard_config(job: &Job) -> Option<JobConfig> {
-    (0..job.file.shards).find_map(|shard| {
-        let path = job.layout.shard_file(shard);
+/// The config stored in the first of the job's `shards` shard files that has one (Parquet
+/// key-value metadata), if any.
+fn shard_config(layout: &JobLayout, shards: u64) -> Option<JobConfig> {
+    (0..shards).find_map(|shard| {
+        let path = layout.shard_file(shard);
         if !path.exists() {
             return None;
         }

@@ -8,7 +8,7 @@
 //! process that runs it), [`process`] (the one child-process supervisor: stderr tail,
 //! parent-death signal, time limit, resource use), [`supervisor`] (runs items in a child, with
 //! a watchdog, and classifies its deaths), [`shard`] (a shard: lease, resume, write; its items converted a few at once by
-//! `item_loop`, as many as [`lanes`] says), [`store`]
+//! `item_loop`, as many as [`lanes`] says; how, [`work_options`] holds), [`store`]
 //! (shards on disk: write, check against their completion records, read back), [`events`]
 //! (progress reports).
 #![deny(missing_docs)]
@@ -32,10 +32,12 @@ pub mod shard;
 pub mod source;
 pub mod store;
 pub mod supervisor;
+pub mod work_options;
 
 pub use error::{Result, WorkerError};
 pub use job::Job;
-pub use shard::{process_shard, ShardOutcome, WorkOptions};
+pub use shard::{process_shard, ShardOutcome};
+pub use work_options::WorkOptions;
 
 /// Seconds since the Unix epoch.
 pub fn now() -> f64 {

@@ -10,38 +10,12 @@ use crate::events::Event;
 use crate::item_loop::{fence, run_items, LoopEnd, ShardWork};
 use crate::job::Job;
 use crate::journal::{self, Journal};
-use crate::lanes::LaneBudget;
 use crate::lease::{self, Acquired, Lease};
 use crate::store::commit::Committed;
 use crate::store::state::{self, Check, Completion};
 use crate::store::write::ShardStream;
-use crate::supervisor::ChildCommand;
-use sparc3d_schema::{CompletionRecord, Limits};
-use std::sync::atomic::AtomicBool;
-use std::sync::Arc;
-
-/// What [`WorkOptions::after_item`] calls after each item.
-pub type AfterItem = Box<dyn FnMut(&Journal) -> Result<()> + Send>;
-
-/// How to process shards.
-pub struct WorkOptions {
-    /// How to start the item worker process.
-    pub child: ChildCommand,
-    /// Per-item limits for this run.
-    pub limits: Limits,
-    /// Seconds a lease stays valid without a heartbeat.
-    pub lease_ttl_s: f64,
-    /// Set to stop cleanly (Ctrl-C): the item in flight is abandoned, not counted.
-    pub stop: Arc<AtomicBool>,
-    /// Receives progress events.
-    pub events: Box<dyn FnMut(Event) + Send>,
-    /// Called after each item's final result is journalled (an item boundary: its journal
-    /// holds whole item histories), with this holder's journal; an error stops the shard.
-    /// A job whose home is a bucket uploads checkpoints here.
-    pub after_item: Option<AfterItem>,
-    /// Items converted at once and threads each ([`LaneBudget::single`]: one at a time).
-    pub budget: Arc<LaneBudget>,
-}
+use crate::work_options::WorkOptions;
+use sparc3d_schema::CompletionRecord;
 
 /// What happened to a shard.
 #[derive(Debug, Clone, PartialEq)]

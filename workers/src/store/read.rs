@@ -1,6 +1,6 @@
 //! Reading shards back: record batches and rows of a finished shard or a tensor file (its
-//! schema version checked), the facts of its footer, and the rows of a shard whether
-//! finished or still in its journals.
+//! schema version checked), and the rows of a shard whether finished or still in its
+//! journals. The facts of a shard file's footer are [`super::footer`]'s.
 
 use super::state::{completion, Check, Completion};
 use crate::error::{Result, WorkerError};
@@ -8,19 +8,8 @@ use crate::job::Job;
 use arrow_array::RecordBatch;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use parquet::arrow::ProjectionMask;
-use parquet::file::reader::{FileReader, SerializedFileReader};
 use sparc3d_schema::ShardRow;
-use std::collections::BTreeMap;
 use std::path::Path;
-
-/// An error reading the shard file at `path`; `stage` says what was being done.
-fn unreadable(stage: &'static str, path: &Path, e: impl std::fmt::Display) -> WorkerError {
-    WorkerError::ReadShard {
-        stage,
-        path: path.to_path_buf(),
-        reason: e.to_string(),
-    }
-}
 
 /// Calls `f` on every record batch of a shard file or a tensor file (docs/FORMAT.md), after
 /// checking its schema version: a file of another version is an error that says so.
@@ -61,9 +50,10 @@ pub fn for_each_batch_of<E: From<WorkerError>>(
     columns: Columns,
     mut f: impl FnMut(RecordBatch) -> std::result::Result<(), E>,
 ) -> std::result::Result<(), E> {
-    let file = std::fs::File::open(path).map_err(|e| unreadable("opening", path, e))?;
+    let file =
+        std::fs::File::open(path).map_err(|e| WorkerError::read_shard("opening", path, e))?;
     let builder = ParquetRecordBatchReaderBuilder::try_new(file)
-        .map_err(|e| unreadable("reading", path, e))?;
+        .map_err(|e| WorkerError::read_shard("reading", path, e))?;
     let version = builder
         .metadata()
         .file_metadata()
@@ -98,9 +88,9 @@ pub fn for_each_batch_of<E: From<WorkerError>>(
         .with_projection(projection)
         .with_batch_size(64)
         .build()
-        .map_err(|e| unreadable("reading", path, e))?;
+        .map_err(|e| WorkerError::read_shard("reading", path, e))?;
     for batch in reader {
-        f(batch.map_err(|e| unreadable("reading", path, e))?)?;
+        f(batch.map_err(|e| WorkerError::read_shard("reading", path, e))?)?;
     }
     Ok(())
 }
@@ -121,7 +111,7 @@ pub fn for_each_row_of<E: From<WorkerError>>(
 ) -> std::result::Result<(), E> {
     for_each_batch_of(path, columns, |batch| {
         let rows = sparc3d_schema::arrow::batch_to_rows(&batch)
-            .map_err(|e| unreadable("decoding", path, e))?;
+            .map_err(|e| WorkerError::read_shard("decoding", path, e))?;
         for row in rows {
             f(row)?;
         }
@@ -137,56 +127,6 @@ pub fn read_rows(path: &Path) -> Result<Vec<ShardRow>> {
         Ok::<(), WorkerError>(())
     })?;
     Ok(rows)
-}
-
-/// Facts from a shard file's footer.
-#[derive(Debug, Clone, Default)]
-pub struct ShardMeta {
-    /// Key-value metadata.
-    pub kv: BTreeMap<String, String>,
-    /// Rows.
-    pub rows: u64,
-    /// Row groups.
-    pub row_groups: usize,
-    /// Stored (compressed) bytes per column, in schema order.
-    pub column_bytes: Vec<(String, u64)>,
-    /// File size.
-    pub file_bytes: u64,
-}
-
-/// Reads a shard file's footer.
-pub fn read_meta(path: &Path) -> Result<ShardMeta> {
-    let file = std::fs::File::open(path).map_err(|e| unreadable("opening", path, e))?;
-    let file_bytes = file.metadata().map(|m| m.len()).unwrap_or(0);
-    let reader = SerializedFileReader::new(file).map_err(|e| unreadable("reading", path, e))?;
-    let md = reader.metadata();
-    let fmd = md.file_metadata();
-    let kv = fmd
-        .key_value_metadata()
-        .map(|kvs| {
-            kvs.iter()
-                .map(|k| (k.key.clone(), k.value.clone().unwrap_or_default()))
-                .collect()
-        })
-        .unwrap_or_default();
-    let mut column_bytes: Vec<(String, u64)> = Vec::new();
-    for rg in md.row_groups() {
-        for (i, c) in rg.columns().iter().enumerate() {
-            let name = c.column_path().string();
-            let bytes = c.compressed_size().max(0) as u64;
-            match column_bytes.get_mut(i) {
-                Some(slot) => slot.1 += bytes,
-                None => column_bytes.push((name, bytes)),
-            }
-        }
-    }
-    Ok(ShardMeta {
-        kv,
-        rows: fmd.num_rows().max(0) as u64,
-        row_groups: md.num_row_groups(),
-        column_bytes,
-        file_bytes,
-    })
 }
 
 /// The error for a finished shard that no longer matches its completion record, saying how
