@@ -4,7 +4,8 @@
 //! the journal's bytes written since then go up as one object of their own
 //! (`state/part-NNNNN.journals/<writer>.<seq>.journal`, a journal file by itself: a header,
 //! then whole item histories), created only if absent, after a renewal of the lease. The next
-//! holder reads every checkpoint of the shard as a journal of an earlier holder.
+//! holder reads every checkpoint of the shard as a journal of an earlier holder, brought into
+//! its copy of the job by [`pull_checkpoints`] (as `status` brings them into its view).
 //!
 //! Why by time, not by count: the cost of a checkpoint is one PUT of the rows finished since
 //! the last, so a time bound caps both what a kill loses (the items of the last interval and
@@ -14,9 +15,11 @@
 
 use crate::keys;
 use crate::lease::BucketLease;
+use anyhow::Context;
 use sparc3d_sources::objects::{Prefix, WriteMode, Written};
 use sparc3d_workers::frame::{self, ReadFrame, Record};
-use sparc3d_workers::journal::Journal;
+use sparc3d_workers::journal::{self, Journal};
+use sparc3d_workers::Job;
 use sparc3d_workers::WorkerError;
 use std::io::{BufReader, Read, Seek, SeekFrom};
 use std::path::PathBuf;
@@ -137,4 +140,49 @@ impl Checkpoints {
         file.read_exact(&mut out[start..]).map_err(io)?;
         Ok(out)
     }
+}
+
+/// Makes the scratch copy's journals of `shard` the shard's checkpoints in the bucket: what
+/// the earlier holders finished, as journals of earlier holders. A checkpoint is written once
+/// under a name of its own and never changed, so one already here with its size is kept
+/// (`status` fetches only the new ones); any other journal here goes.
+pub(crate) fn pull_checkpoints(prefix: &Prefix<'_>, job: &Job, shard: u64) -> anyhow::Result<()> {
+    let layout = &job.layout;
+    let found = prefix
+        .list(&keys::journals(shard))
+        .with_context(|| format!("listing the checkpoints of shard {shard}"))?;
+    let wanted: Vec<(String, String, u64)> = found
+        .iter()
+        .map(|l| {
+            let key = prefix.relative_key(l);
+            let name = key.rsplit('/').next().unwrap_or_default().to_string();
+            (key, name, l.size)
+        })
+        .filter(|(_, name, _)| name.ends_with(".journal"))
+        .collect();
+    let dir = layout.journals_dir(shard);
+    for path in journal::set::paths(layout, shard)? {
+        let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
+        let size = std::fs::metadata(&path).map(|m| m.len()).ok();
+        let keep = wanted
+            .iter()
+            .any(|(_, n, s)| Some(n) == name.as_ref() && Some(*s) == size);
+        if !keep {
+            std::fs::remove_file(&path).with_context(|| format!("removing {}", path.display()))?;
+        }
+    }
+    if wanted.is_empty() {
+        return Ok(());
+    }
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    for (key, name, _) in wanted {
+        let local = dir.join(&name);
+        if local.exists() {
+            continue;
+        }
+        prefix
+            .download(&key, &local)
+            .with_context(|| format!("fetching checkpoint {key}"))?;
+    }
+    Ok(())
 }

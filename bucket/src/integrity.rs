@@ -9,8 +9,7 @@
 //!   the record's; `verify` uses it, always.
 
 use crate::commit::read_record;
-use crate::keys;
-use crate::view::object_name;
+use crate::keys::{self, object_name};
 use anyhow::{Context, Result};
 use sparc3d_schema::CompletionRecord;
 use sparc3d_sources::list::Listed;

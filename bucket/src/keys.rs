@@ -11,7 +11,7 @@
 //! P/state/part-NNNNN.journals/<writer>.<seq>.journal   checkpoints: the items a holder finished
 //! ```
 
-use sparc3d_schema::JobLayout;
+use sparc3d_schema::{CompletionRecord, JobLayout};
 
 /// `job.json`.
 pub const JOB_FILE: &str = "job.json";
@@ -60,6 +60,14 @@ pub fn shard_of(name: &str) -> Option<u64> {
         .find(|c: char| !c.is_ascii_digit())
         .unwrap_or(digits.len());
     digits[..end].parse().ok()
+}
+
+/// The name of the object a record's shard is in.
+pub fn object_name(shard: u64, record: &CompletionRecord) -> String {
+    record
+        .object
+        .clone()
+        .unwrap_or_else(|| format!("{}.parquet", sparc3d_schema::JobLayout::shard_name(shard)))
 }
 
 #[cfg(test)]

@@ -6,8 +6,7 @@
 //! the worker about to convert the shard again).
 
 use crate::commit::read_record;
-use crate::keys;
-use crate::view::object_name;
+use crate::keys::{self, object_name};
 use anyhow::{Context, Result};
 use sparc3d_schema::JobLayout;
 use sparc3d_sources::objects::{Prefix, WriteMode};

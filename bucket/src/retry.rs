@@ -6,8 +6,7 @@
 //! record is deleted last but one) or unfinished with its kept rows: `retry` can run again.
 
 use crate::commit::read_record;
-use crate::keys;
-use crate::view::object_name;
+use crate::keys::{self, object_name};
 use anyhow::{Context, Result};
 use sparc3d_schema::ShardRow;
 use sparc3d_sources::objects::{Prefix, WriteMode, Written};

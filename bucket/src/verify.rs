@@ -173,7 +173,7 @@ fn changed_since(prefix: &Prefix<'_>, seen: &Seen) -> Result<Option<String>> {
     let Hashed::Good { etag } = &seen.found else {
         return Ok(None);
     };
-    let name = crate::view::object_name(seen.shard, &seen.record);
+    let name = keys::object_name(seen.shard, &seen.record);
     let key = keys::data(&name);
     let found = prefix
         .head(&key)

@@ -15,7 +15,7 @@
 
 use crate::commit::read_record;
 use crate::integrity::object_mismatch;
-use crate::keys;
+use crate::keys::{self, object_name};
 use anyhow::{Context, Result};
 use sparc3d_schema::CompletionRecord;
 use sparc3d_sources::list::Listed;
@@ -37,14 +37,6 @@ fn shard_objects(prefix: &Prefix<'_>) -> Result<BTreeMap<String, Listed>> {
             (key.trim_start_matches(keys::SHARDS).to_string(), l)
         })
         .collect())
-}
-
-/// The name of the object a record's shard is in.
-pub fn object_name(shard: u64, record: &CompletionRecord) -> String {
-    record
-        .object
-        .clone()
-        .unwrap_or_else(|| format!("{}.parquet", sparc3d_schema::JobLayout::shard_name(shard)))
 }
 
 /// Every shard's state, and the checkpoints of the unfinished ones brought into `job`'s
@@ -78,7 +70,7 @@ fn finished_state(
 }
 
 fn unfinished_state(prefix: &Prefix<'_>, job: &Job, shard: u64) -> Result<ShardState> {
-    crate::work::pull_checkpoints(prefix, job, shard)?;
+    crate::checkpoint::pull_checkpoints(prefix, job, shard)?;
     let now = sparc3d_workers::now();
     Ok(match crate::lease::read(prefix, shard)? {
         Some(lease) if now <= lease.expires_at => ShardState::Running(lease),

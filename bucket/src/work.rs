@@ -4,7 +4,7 @@
 //! the supervised item worker, each journalled locally) while checkpoints go up, then upload
 //! the shard and create its record ([`crate::commit`]).
 
-use crate::checkpoint::Checkpoints;
+use crate::checkpoint::{pull_checkpoints, Checkpoints};
 use crate::commit::{push, Pushed};
 use crate::integrity::{finished, Finished};
 use crate::keys;
@@ -13,7 +13,6 @@ use anyhow::{Context, Result};
 use sparc3d_schema::CompletionRecord;
 use sparc3d_sources::objects::Prefix;
 use sparc3d_workers::events::Event;
-use sparc3d_workers::journal;
 use sparc3d_workers::lease::{file_token, owner_name};
 use sparc3d_workers::{process_shard, Job, ShardOutcome, WorkOptions};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -222,49 +221,4 @@ fn forward_stop(user: Arc<AtomicBool>, shard: Arc<AtomicBool>) -> std::thread::J
             std::thread::sleep(Duration::from_millis(50));
         }
     })
-}
-
-/// Makes the scratch copy's journals of `shard` the shard's checkpoints in the bucket: what
-/// the earlier holders finished, as journals of earlier holders. A checkpoint is written once
-/// under a name of its own and never changed, so one already here with its size is kept
-/// (`status` fetches only the new ones); any other journal here goes.
-pub(crate) fn pull_checkpoints(prefix: &Prefix<'_>, job: &Job, shard: u64) -> Result<()> {
-    let layout = &job.layout;
-    let found = prefix
-        .list(&keys::journals(shard))
-        .with_context(|| format!("listing the checkpoints of shard {shard}"))?;
-    let wanted: Vec<(String, String, u64)> = found
-        .iter()
-        .map(|l| {
-            let key = prefix.relative_key(l);
-            let name = key.rsplit('/').next().unwrap_or_default().to_string();
-            (key, name, l.size)
-        })
-        .filter(|(_, name, _)| name.ends_with(".journal"))
-        .collect();
-    let dir = layout.journals_dir(shard);
-    for path in journal::set::paths(layout, shard)? {
-        let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
-        let size = std::fs::metadata(&path).map(|m| m.len()).ok();
-        let keep = wanted
-            .iter()
-            .any(|(_, n, s)| Some(n) == name.as_ref() && Some(*s) == size);
-        if !keep {
-            std::fs::remove_file(&path).with_context(|| format!("removing {}", path.display()))?;
-        }
-    }
-    if wanted.is_empty() {
-        return Ok(());
-    }
-    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-    for (key, name, _) in wanted {
-        let local = dir.join(&name);
-        if local.exists() {
-            continue;
-        }
-        prefix
-            .download(&key, &local)
-            .with_context(|| format!("fetching checkpoint {key}"))?;
-    }
-    Ok(())
 }
