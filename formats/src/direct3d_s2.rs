@@ -33,6 +33,16 @@ pub const TRUNCATION: f64 = 4.0;
 /// The resolutions of Direct3D-S2's two sparse VAEs (`pipeline.py` L26-29, L126-137).
 pub const RESOLUTIONS: [u32; 2] = [512, 1024];
 
+/// The preset `--for` takes to make a job for Direct3D-S2 at `resolution`: `direct3d-s2@N`
+/// at one of its [`RESOLUTIONS`], else `direct3d-s2` (its span alone).
+fn preset_name(resolution: u32) -> String {
+    let name = crate::Consumer::Direct3dS2.name();
+    match RESOLUTIONS.contains(&resolution) {
+        true => format!("{name}@{resolution}"),
+        false => name.to_string(),
+    }
+}
+
 /// In the consumer frame, a job must have been converted with `params.object_span = 0.95`
 /// (refused otherwise); a resolution other than 512 or 1024 is written with a warning.
 pub fn check(params: &Params, frame: Frame) -> JobCheck {
@@ -43,9 +53,7 @@ pub fn check(params: &Params, frame: Frame) -> JobCheck {
              this job's span {:.6} of the grid): make the job with --for {}; or export with \
              --frame normalized to write the job's own frame",
             params.span(),
-            crate::preset::Preset::advice(crate::Consumer::Direct3dS2, params.resolution)
-                .map(|p| p.name())
-                .unwrap_or_default()
+            preset_name(params.resolution)
         ));
     }
     if !RESOLUTIONS.contains(&params.resolution) {
@@ -102,5 +110,14 @@ mod tests {
         assert_eq!(check(&p, Frame::Consumer), JobCheck::default());
         p.resolution = 128;
         assert_eq!(check(&p, Frame::Consumer).warnings.len(), 1);
+    }
+
+    #[test]
+    fn the_preset_named_is_one_that_parses_and_fits_the_grid() {
+        for (resolution, name) in [(512, "direct3d-s2@512"), (128, "direct3d-s2")] {
+            assert_eq!(preset_name(resolution), name);
+            let parsed = crate::preset::Preset::parse(name).map(|p| p.name());
+            assert_eq!(parsed.ok().as_deref(), Some(name));
+        }
     }
 }

@@ -1,8 +1,8 @@
 //! Presets: the job settings a consumer needs, as `sparc3d init --for CONSUMER` (and
 //! `run DIR --job OUT --for CONSUMER`) sets them, so a job is made for a consumer in one flag.
 //! The values come from the consumer's own module, the one place its frame is described
-//! ([`trellis2::job_for_grid`], [`direct3d_s2::OBJECT_SPAN`]); the export's checks name the
-//! preset that fits a job that does not ([`Preset::advice`]).
+//! ([`trellis2::job_for_grid`], [`direct3d_s2::OBJECT_SPAN`]), which also names, in its
+//! export's checks, the preset that fits a job that does not.
 //!
 //! - `trellis2@G`: TRELLIS.2's dual grid of G exactly: `resolution = G + 6` and
 //!   `object_span = (0.99999·G − 2)/(G + 6)` (docs/FORMAT.md, "TRELLIS.2's dual grid dataset");
@@ -116,20 +116,6 @@ impl Preset {
             },
         }
     }
-
-    /// The preset that makes a job for `consumer` (for a grid consumer, at `resolution`'s
-    /// grid), as the export names it: `--for trellis2@N` for a job exported on a grid of N.
-    pub fn advice(consumer: Consumer, resolution: u32) -> Option<Preset> {
-        let grid = match consumer {
-            Consumer::Cubvh => return None,
-            Consumer::Trellis2 => Some(resolution),
-            Consumer::Direct3dS2 => direct3d_s2::RESOLUTIONS
-                .contains(&resolution)
-                .then_some(resolution),
-            _ => None,
-        };
-        Some(Preset { consumer, grid })
-    }
 }
 
 impl Settings {
@@ -229,12 +215,7 @@ mod tests {
     }
 
     #[test]
-    fn the_advice_for_a_job_names_the_preset_of_its_grid() {
-        let t = Preset::advice(Consumer::Trellis2, 256).map(|p| p.name());
-        assert_eq!(t.as_deref(), Some("trellis2@256"));
-        let d = Preset::advice(Consumer::Direct3dS2, 128).map(|p| p.name());
-        assert_eq!(d.as_deref(), Some("direct3d-s2"));
-        assert!(Preset::advice(Consumer::Cubvh, 64).is_none());
+    fn a_grid_preset_overrides_its_grid_alone() {
         let s = Preset::parse("trellis2@64").map(|p| p.settings().overrides());
         let v = s.unwrap_or_default();
         assert_eq!(v["params"]["resolution"], 70);
