@@ -17,7 +17,7 @@ pub fn fields() -> Vec<Field> {
     use DataType::*;
     let mut f = Vec::new();
     for t in c::ATTRIBUTE_TENSORS {
-        f.extend(crate::arrow::tensor_fields(t));
+        f.extend(crate::tensor_columns::tensor_fields(t));
     }
     f.extend([
         Field::new(c::MATERIALS, UInt32, true),
@@ -42,7 +42,7 @@ pub fn columns(rows: &[ShardRow]) -> Vec<ArrayRef> {
     let mut cols = Vec::new();
     for stem in c::ATTRIBUTE_TENSORS {
         let ts: Vec<Option<&EncodedTensor>> = rows.iter().map(|r| tensor_of(r, stem)).collect();
-        cols.extend(crate::arrow::tensor_arrays(&ts));
+        cols.extend(crate::tensor_columns::tensor_arrays(&ts));
     }
     let facts: Vec<Option<&AppearanceFacts>> = rows.iter().map(|r| r.appearance.as_ref()).collect();
     let u32s = |f: &dyn Fn(&AppearanceFacts) -> u32| -> ArrayRef {
@@ -88,7 +88,7 @@ pub fn tensors_at(batch: &RecordBatch, i: usize) -> Result<Option<AttributeTenso
     if batch.column_by_name(c::BASE_COLOR).is_none() {
         return Ok(None);
     }
-    AttributeTensors::from_lookup(|stem| crate::arrow::read_tensor(batch, stem, i))
+    AttributeTensors::from_lookup(|stem| crate::tensor_columns::read_tensor(batch, stem, i))
 }
 
 /// The appearance facts of row `i`, `None` when the batch has no such columns or the row none.

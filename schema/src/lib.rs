@@ -19,6 +19,7 @@ pub mod layout;
 pub mod manifest;
 pub mod row;
 pub mod tensor;
+mod tensor_columns;
 
 pub use class::{ErrorClass, ItemStatus};
 pub use completion::{CompletionRecord, FileStamp};
