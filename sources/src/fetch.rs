@@ -8,6 +8,7 @@
 //! length and decodes gzip.
 
 use crate::error::{FetchError, FetchErrorKind};
+use crate::fetched::{too_large, Fetched, PREALLOCATE_AT_MOST};
 use crate::limits::FetchLimits;
 use crate::location::RemoteUrl;
 use crate::store::Stores;
@@ -15,15 +16,6 @@ use futures_util::StreamExt;
 use object_store::path::Path as ObjectPath;
 use object_store::{GetOptions, ObjectStore};
 use sha2::{Digest, Sha256};
-
-/// The bytes of a fetched object and their sha256 (lower-case hex).
-#[derive(Debug, Clone)]
-pub struct Fetched {
-    /// The object's bytes.
-    pub bytes: Vec<u8>,
-    /// Their sha256.
-    pub sha256: String,
-}
 
 /// Fetches remote objects: a small async runtime of its own and the clients made so far.
 /// Its methods block; any thread may call them.
@@ -127,17 +119,6 @@ pub fn shared() -> Result<&'static Fetcher, FetchError> {
 /// The object store path of `url`'s key.
 pub(crate) fn object_path(url: &RemoteUrl) -> ObjectPath {
     ObjectPath::from_iter(url.key().split('/').filter(|p| !p.is_empty()))
-}
-
-/// The most bytes reserved from an announced size before any arrived.
-pub(crate) const PREALLOCATE_AT_MOST: u64 = 256 << 20;
-
-pub(crate) fn too_large(url: &RemoteUrl, size: String, cap: u64) -> FetchError {
-    FetchError::new(
-        url.to_string(),
-        FetchErrorKind::TooLarge,
-        format!("the object is {size} bytes, over the cap of {cap} (SPARC3D_FETCH_MAX_BYTES)"),
-    )
 }
 
 async fn get(store: &dyn ObjectStore, url: &RemoteUrl, cap: u64) -> Result<Fetched, FetchError> {

@@ -14,7 +14,7 @@
 //!   allows (the whole object again).
 
 use crate::error::{FetchError, FetchErrorKind};
-use crate::fetch::{too_large, Fetched, PREALLOCATE_AT_MOST};
+use crate::fetched::{too_large, Fetched, PREALLOCATE_AT_MOST};
 use crate::limits::{Backoff, FetchLimits};
 use crate::location::RemoteUrl;
 use reqwest::header::{HeaderMap, ACCEPT_ENCODING, CONTENT_ENCODING, CONTENT_LENGTH};

@@ -18,6 +18,7 @@
 mod aws_profile;
 pub mod error;
 pub mod fetch;
+mod fetched;
 mod http;
 pub mod limits;
 pub mod list;
@@ -27,6 +28,7 @@ pub mod store;
 mod tls;
 
 pub use error::{FetchError, FetchErrorKind};
-pub use fetch::{shared, Fetched, Fetcher};
+pub use fetch::{shared, Fetcher};
+pub use fetched::Fetched;
 pub use limits::FetchLimits;
 pub use location::{Location, RemoteUrl, Scheme};
