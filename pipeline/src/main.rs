@@ -1,14 +1,13 @@
 //! The `sparc3d` command line: parses arguments and hands each subcommand to `commands/`.
 
-mod bucket_home;
 mod cluster;
 mod commands;
 mod export_name;
-mod grow;
+mod flags;
 mod hints;
 mod huge_pages;
 mod item_lookup;
-mod job_setup;
+mod job;
 mod lane_plan;
 mod local_workers;
 mod machine;
@@ -16,7 +15,6 @@ mod memory;
 mod pictures;
 mod pool;
 mod progress;
-mod resolution_arg;
 mod sample;
 mod signals;
 mod stats;

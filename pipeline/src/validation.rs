@@ -196,7 +196,7 @@ fn prepare(row: &ShardRow, work: &Path) -> Prepared {
 /// Validates a sample of the job at `job_dir`; writes the report files and returns the outcome.
 /// Progress goes to stderr.
 pub fn validate_job(job_dir: &Path, options: &Options) -> Result<Outcome> {
-    let job = crate::job_setup::open_read_only(job_dir)?;
+    let job = crate::job::setup::open_read_only(job_dir)?;
     let python = find_python(job_dir)?;
     let size = options.sample.unwrap_or(SampleSize::FractionAtLeast(
         job.file.config.validation_sample_rate,

@@ -1,10 +1,11 @@
 //! `sparc3d add JOB (DIR | MANIFEST) [--path-column NAME] [--where FILTER]`: grows a job with
 //! the items of a folder or manifest it does not have yet (by id), as new shards after its
-//! last one (`grow.rs`); `sparc3d run JOB` then converts them. Refused at once, with nothing
+//! last one (`job/grow.rs`); `sparc3d run JOB` then converts them. Refused at once, with nothing
 //! changed, while a `run` or `work` holds the job or another `add` runs.
 
-use crate::commands::init::SourceArgs;
-use crate::grow;
+use crate::flags::source::SourceArgs;
+use crate::job::grow;
+use crate::job::rows::input_records;
 use anyhow::Result;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -23,9 +24,9 @@ pub struct Args {
 
 /// Runs `sparc3d add`.
 pub fn run(args: Args) -> Result<ExitCode> {
-    crate::bucket_home::refuse(&args.job, "`add` (growing a job) is not available")?;
+    crate::job::bucket_home::refuse(&args.job, "`add` (growing a job) is not available")?;
     let _lock = grow::lock_for_add(&args.job)?;
-    let records = grow::input_records(&args.input, &args.source)?;
+    let records = input_records(&args.input, &args.source)?;
     let grown = grow::add(&args.job, records)?;
     eprintln!("{}", grow::describe(&args.job, &grown));
     if grown.added > 0 {

@@ -24,7 +24,7 @@ pub struct Args {
     pub input: PathBuf,
     /// Grid resolutions, comma-separated.
     #[arg(long, value_delimiter = ',',
-          default_values_t = [crate::resolution_arg::default_resolution()])]
+          default_values_t = [crate::flags::resolution::default_resolution()])]
     pub resolution: Vec<u32>,
     /// Print every row and the summary as one JSON document instead of tables.
     #[arg(long)]
@@ -45,9 +45,9 @@ pub struct Args {
     #[arg(long)]
     pub no_warmup: bool,
     #[command(flatten)]
-    pub deform: super::deform_args::DeformArgs,
+    pub deform: crate::flags::deform::DeformArgs,
     #[command(flatten)]
-    pub inside_test: super::inside_test_args::InsideTestArgs,
+    pub inside_test: crate::flags::inside_test::InsideTestArgs,
     /// zstd level of the encoded tensors.
     #[arg(long, default_value_t = 3)]
     pub zstd_level: i32,

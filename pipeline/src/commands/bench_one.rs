@@ -17,11 +17,11 @@ pub struct Args {
     /// Input mesh (OBJ, PLY, STL, OFF, glTF, GLB).
     pub input: PathBuf,
     #[command(flatten)]
-    pub resolution: crate::resolution_arg::ResolutionArg,
+    pub resolution: crate::flags::resolution::ResolutionArg,
     #[command(flatten)]
-    pub deform: super::deform_args::DeformArgs,
+    pub deform: crate::flags::deform::DeformArgs,
     #[command(flatten)]
-    pub inside_test: super::inside_test_args::InsideTestArgs,
+    pub inside_test: crate::flags::inside_test::InsideTestArgs,
     /// zstd level of the encoded tensors (the job default is 3).
     #[arg(long, default_value_t = 3)]
     pub zstd_level: i32,

@@ -19,13 +19,13 @@ pub struct Args {
     #[arg(short, long)]
     pub output: PathBuf,
     #[command(flatten)]
-    pub resolution: crate::resolution_arg::ResolutionArg,
+    pub resolution: crate::flags::resolution::ResolutionArg,
     #[command(flatten)]
-    pub deform: super::deform_args::DeformArgs,
+    pub deform: crate::flags::deform::DeformArgs,
     #[command(flatten)]
-    pub inside_test: super::inside_test_args::InsideTestArgs,
+    pub inside_test: crate::flags::inside_test::InsideTestArgs,
     #[command(flatten)]
-    pub refine: super::refine_args::RefineArgs,
+    pub refine: crate::flags::refine::RefineArgs,
     /// Write the output in grid coordinates (voxels) instead of the source frame.
     #[arg(long)]
     pub grid_frame: bool,

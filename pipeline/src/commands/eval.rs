@@ -29,7 +29,7 @@ pub struct Args {
     /// Grid resolution N that voxel units refer to (a voxel is 1/N of the source's longest
     /// side); for a job, each item's unless given.
     #[command(flatten)]
-    pub resolution: crate::resolution_arg::ResolutionArg,
+    pub resolution: crate::flags::resolution::ResolutionArg,
     /// For a job: how many `ok` items to measure, a count (`20`) or a percentage (`2%`);
     /// default 10.
     #[arg(long)]
@@ -50,7 +50,7 @@ pub struct Args {
 
 /// Runs `sparc3d eval`.
 pub fn run(mut args: Args) -> anyhow::Result<ExitCode> {
-    args.source = crate::bucket_home::local_view(&args.source)?;
+    args.source = crate::job::bucket_home::local_view(&args.source)?;
     if args.source.join("job.json").is_file() {
         if let Some(out) = &args.output {
             bail!(
@@ -116,7 +116,7 @@ fn eval_row(row: &ShardRow, args: &Args) -> anyhow::Result<QualityReport> {
 
 /// `sparc3d eval JOB --sample N`.
 fn run_job(args: &Args) -> anyhow::Result<ExitCode> {
-    let job = crate::job_setup::open_read_only(&args.source)?;
+    let job = crate::job::setup::open_read_only(&args.source)?;
     let size = args.sample.unwrap_or(DEFAULT_JOB_SAMPLE);
     let drawn = sample::draw(&job, size, args.sample_seed)?;
     eprintln!(

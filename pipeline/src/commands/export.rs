@@ -68,7 +68,7 @@ fn frame_parser() -> impl clap::builder::TypedValueParser<Value = Frame> {
 pub fn run(mut args: Args) -> Result<ExitCode> {
     // Messages name the job as given (a URL), not its local view.
     let named = args.job.clone();
-    args.job = crate::bucket_home::local_view(&args.job)?;
+    args.job = crate::job::bucket_home::local_view(&args.job)?;
     let job = Job::open(&args.job)?;
     let consumer = args.format;
     let frame = args.frame.unwrap_or(consumer.frames()[0]);

@@ -41,8 +41,8 @@ struct Failure {
 
 /// Runs `sparc3d failures`.
 pub fn run(mut args: Args) -> Result<ExitCode> {
-    args.job = crate::bucket_home::local_view(&args.job)?;
-    let job = crate::job_setup::open_read_only(&args.job)?;
+    args.job = crate::job::bucket_home::local_view(&args.job)?;
+    let job = crate::job::setup::open_read_only(&args.job)?;
     let mut n = 0;
     let mut out = std::io::stdout().lock();
     for shard in 0..job.file.shards {

@@ -96,7 +96,7 @@ fn shard_files(target: &Path) -> Result<Vec<PathBuf>> {
         check_alone(target)?;
         return Ok(vec![target.to_path_buf()]);
     }
-    let job = crate::job_setup::open_read_only(target)?;
+    let job = crate::job::setup::open_read_only(target)?;
     let mut files = Vec::new();
     let mut damaged = Vec::new();
     for (shard, state) in (0..).zip(shard_states(&job, Check::Full)?) {
@@ -123,7 +123,7 @@ fn shard_files(target: &Path) -> Result<Vec<PathBuf>> {
 
 /// Runs `sparc3d inspect`.
 pub fn run(mut args: Args) -> Result<ExitCode> {
-    args.target = crate::bucket_home::local_view(&args.target)?;
+    args.target = crate::job::bucket_home::local_view(&args.target)?;
     let files = shard_files(&args.target)?;
     let report = build_report(&files, args.target.is_file())?;
     if args.json {

@@ -67,8 +67,8 @@ fn shard_statuses(
 pub fn run(mut args: Args) -> Result<ExitCode> {
     // Messages name the job as given (a URL), not its local view.
     let named = args.job.clone();
-    args.job = crate::bucket_home::local_view(&args.job)?;
-    let job = crate::job_setup::open_read_only(&args.job)?;
+    args.job = crate::job::bucket_home::local_view(&args.job)?;
+    let job = crate::job::setup::open_read_only(&args.job)?;
     let mut out = std::io::stdout().lock();
     let mut statuses = None;
     let mut loaded = None;

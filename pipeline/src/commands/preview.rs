@@ -35,16 +35,16 @@ pub struct Args {
     #[arg(long, default_value_t = 30.0, allow_negative_numbers = true)]
     pub elevation: f32,
     #[command(flatten)]
-    pub resolution: crate::resolution_arg::ResolutionArg,
+    pub resolution: crate::flags::resolution::ResolutionArg,
     /// A mesh is converted with the inside test on unless `--no-inside-test` (as `convert`;
     /// docs/ALGORITHM.md §6). Neither flag applies to a job's item, drawn as the job made it.
     #[command(flatten)]
-    pub inside_test: super::inside_test_args::InsideTestArgs,
+    pub inside_test: crate::flags::inside_test::InsideTestArgs,
     /// A mesh is refined against renderings of its source when `--refine` (as `convert`;
     /// docs/ALGORITHM.md §12), so a before/after pair is two calls. A job's item is drawn as
     /// the job stored it (refined when its job refines).
     #[command(flatten)]
-    pub refine: super::refine_args::RefineArgs,
+    pub refine: crate::flags::refine::RefineArgs,
 }
 
 /// The conversion parameters of a mesh drawn by `preview`: its resolution and rules.
@@ -70,7 +70,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
             )
         }
         Some(id) => {
-            let job = crate::job_setup::open_read_only(&args.input)?;
+            let job = crate::job::setup::open_read_only(&args.input)?;
             let row = item_lookup::row(&job, item_lookup::find(&job, id)?)?;
             (
                 preview_row(&row, &options)?,

@@ -70,8 +70,8 @@ struct Columns {
 pub fn run(mut args: Args) -> Result<ExitCode> {
     // Messages name the job as given (a URL), not its local view.
     let named = args.job.clone();
-    args.job = crate::bucket_home::local_view(&args.job)?;
-    let job = crate::job_setup::open_read_only(&args.job)?;
+    args.job = crate::job::bucket_home::local_view(&args.job)?;
+    let job = crate::job::setup::open_read_only(&args.job)?;
     let summary = summarize(&job)?;
     let columns = read_columns(&job, args.max_failures)?;
     let options = CompareOptions {

@@ -27,8 +27,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let (dir, bucket) = match sparc3d_bucket::JobHome::parse(&args.job)? {
         sparc3d_bucket::JobHome::Folder(dir) => (dir, None),
         sparc3d_bucket::JobHome::Bucket(url) => (
-            crate::bucket_home::retry_view(&url)?,
-            Some(crate::bucket_home::prefix(&url)?),
+            crate::job::bucket_home::retry_view(&url)?,
+            Some(crate::job::bucket_home::prefix(&url)?),
         ),
     };
     let job = Job::open(&dir)?;

@@ -14,7 +14,7 @@
 //! others; and `run` exits 0 only when every shard is done and some item converted, otherwise
 //! it names what is left (or that every item failed) and exits non-zero.
 
-use super::work::LimitArgs;
+use crate::flags::limits::LimitArgs;
 use crate::local_workers::LocalWorkers;
 use crate::pool::{self, Pool};
 use crate::progress::Progress;
@@ -39,10 +39,10 @@ pub struct Args {
     #[arg(long, value_name = "OUT")]
     pub job: Option<PathBuf>,
     #[command(flatten)]
-    pub config: super::init::ConfigArgs,
+    pub config: crate::flags::config::ConfigArgs,
     /// With --job and a manifest: `--path-column` and `--where`, as for `init`.
     #[command(flatten)]
-    pub source: super::init::SourceArgs,
+    pub source: crate::flags::source::SourceArgs,
     /// Items converted at once (`auto`, the default: one per core, as far as memory holds
     /// items at their memory limit). A shard's items are spread over several workers' lanes
     /// when there are fewer shards than workers; the shards written are the same for any N.
@@ -65,15 +65,15 @@ pub fn run(args: Args) -> Result<ExitCode> {
     if let (sparc3d_bucket::JobHome::Bucket(url), None) =
         (sparc3d_bucket::JobHome::parse(&args.input)?, &args.job)
     {
-        return crate::bucket_home::run(&url, &args.input, requested, &args.limits.to_args());
+        return crate::job::bucket_home::run(&url, &args.input, requested, &args.limits.to_args());
     }
-    let job_dir = crate::job_setup::job_for_run(
+    let job_dir = crate::job::setup::job_for_run(
         &args.input,
         args.job.as_deref(),
         &args.config,
         &args.source,
     )?;
-    let _lock = crate::job_setup::hold_shared(&job_dir)?;
+    let _lock = crate::job::setup::hold_shared(&job_dir)?;
     let job = Job::open(&job_dir)?;
     let stop = install_signals()?;
     let plan = crate::machine::plan(

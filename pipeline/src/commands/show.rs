@@ -28,8 +28,8 @@ pub struct Args {
 
 /// Runs `sparc3d show`.
 pub fn run(mut args: Args) -> Result<ExitCode> {
-    args.job = crate::bucket_home::local_view(&args.job)?;
-    let job = crate::job_setup::open_read_only(&args.job)?;
+    args.job = crate::job::bucket_home::local_view(&args.job)?;
+    let job = crate::job::setup::open_read_only(&args.job)?;
     let item = item_lookup::find(&job, &args.id)?;
     // The shard is hashed against its completion record before its row is trusted.
     let row = item_lookup::row(&job, item)?;

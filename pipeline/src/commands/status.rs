@@ -21,9 +21,9 @@ pub struct Args {
 pub fn run(args: Args) -> Result<ExitCode> {
     let s = match sparc3d_bucket::JobHome::parse(&args.job)? {
         sparc3d_bucket::JobHome::Folder(dir) => {
-            summarize(&crate::job_setup::open_read_only(&dir)?)?
+            summarize(&crate::job::setup::open_read_only(&dir)?)?
         }
-        sparc3d_bucket::JobHome::Bucket(url) => crate::bucket_home::summarize(&url)?,
+        sparc3d_bucket::JobHome::Bucket(url) => crate::job::bucket_home::summarize(&url)?,
     };
     if args.json {
         println!("{}", serde_json::to_string_pretty(&s)?);

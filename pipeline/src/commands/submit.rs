@@ -5,7 +5,7 @@
 
 use crate::cluster::slurm::{self, ScriptOptions};
 use crate::cluster::slurm_submit::{self as submit, SubmitPlan};
-use crate::commands::work::LimitArgs;
+use crate::flags::limits::LimitArgs;
 use anyhow::{bail, Context, Result};
 use sparc3d_workers::Job;
 use std::path::{Path, PathBuf};

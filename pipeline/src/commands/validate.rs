@@ -44,7 +44,7 @@ pub struct Args {
 
 /// Runs `sparc3d validate`.
 pub fn run(mut args: Args) -> Result<ExitCode> {
-    args.job = crate::bucket_home::local_view(&args.job)?;
+    args.job = crate::job::bucket_home::local_view(&args.job)?;
     let options = Options {
         sample: args.sample,
         seed: args.seed,

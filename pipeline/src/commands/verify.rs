@@ -158,8 +158,8 @@ fn verify_job(job: &Job, move_damaged: bool) -> Result<Report> {
 /// the bucket and hashed (never the local copy), damaged ones moved aside in the bucket.
 fn verify_bucket(url: &sparc3d_sources::RemoteUrl, move_damaged: bool) -> Result<Report> {
     let start = Instant::now();
-    let prefix = crate::bucket_home::prefix(url)?;
-    let (job, _) = crate::bucket_home::view_job(url, &prefix)?;
+    let prefix = crate::job::bucket_home::prefix(url)?;
+    let (job, _) = crate::job::bucket_home::view_job(url, &prefix)?;
     let results: Vec<(u64, Found)> = (0..job.file.shards)
         .into_par_iter()
         .map(|shard| {

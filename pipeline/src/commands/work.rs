@@ -3,10 +3,10 @@
 //! is skipped after checking its completion record. For Slurm arrays and Kubernetes indexed
 //! jobs, `--array` reads `SLURM_ARRAY_TASK_ID` or `JOB_COMPLETION_INDEX`.
 
+use crate::flags::limits::LimitArgs;
 use crate::signals::install_signals;
-use crate::units::{format_seconds, format_size, parse_duration, parse_size, with_default};
+use crate::units::parse_duration;
 use anyhow::{bail, Context, Result};
-use sparc3d_schema::Limits;
 use sparc3d_workers::events::Event;
 use sparc3d_workers::lanes::{LaneBudget, Share};
 use sparc3d_workers::supervisor::ChildCommand;
@@ -14,68 +14,6 @@ use sparc3d_workers::{process_shard, Job, ShardOutcome, WorkOptions};
 use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
-
-/// Per-item limits given on the command line (override the job's for this run).
-#[derive(Debug, Clone, Default, clap::Args)]
-pub struct LimitArgs {
-    /// Time limit per item (e.g. 90, 30s, 10m); default: the job's `limits.item_timeout_s`.
-    #[arg(long, value_parser = parse_duration, help = with_default(
-        "Time limit per item (e.g. 90, 30s, 10m)",
-        format!("the job's limits.item_timeout_s, {} unless its config sets another",
-            format_seconds(Limits::default().item_timeout_s)),
-    ))]
-    pub item_timeout: Option<f64>,
-    /// Memory (address-space) limit per item (e.g. 8G; 0 for none); default: the job's
-    /// `limits.item_memory_bytes`.
-    #[arg(long, value_parser = parse_size, help = with_default(
-        "Memory (address-space) limit per item (e.g. 8G; 0 for none)",
-        format!("the job's limits.item_memory_bytes, {} unless its config sets another",
-            format_size(Limits::default().item_memory_bytes)),
-    ))]
-    pub item_memory: Option<u64>,
-    /// Retries of an item whose process crashed; default: the job's `limits.max_crash_retries`.
-    #[arg(long, help = with_default(
-        "Retries of an item whose process crashed",
-        format!("the job's limits.max_crash_retries, {} unless its config sets another",
-            Limits::default().max_crash_retries),
-    ))]
-    pub max_crash_retries: Option<u32>,
-    /// Seconds a shard lease lives without a heartbeat.
-    #[arg(long, default_value_t = 60.0, hide = true)]
-    pub lease_ttl: f64,
-}
-
-impl LimitArgs {
-    /// The job's limits overridden by the flags.
-    pub fn apply(&self, mut l: Limits) -> Limits {
-        if let Some(t) = self.item_timeout {
-            l.item_timeout_s = t;
-        }
-        if let Some(m) = self.item_memory {
-            l.item_memory_bytes = m;
-        }
-        if let Some(r) = self.max_crash_retries {
-            l.max_crash_retries = r;
-        }
-        l
-    }
-
-    /// The flags as command-line arguments, to pass on to `work`.
-    pub fn to_args(&self) -> Vec<String> {
-        let mut a = Vec::new();
-        if let Some(t) = self.item_timeout {
-            a.extend(["--item-timeout".into(), t.to_string()]);
-        }
-        if let Some(m) = self.item_memory {
-            a.extend(["--item-memory".into(), m.to_string()]);
-        }
-        if let Some(r) = self.max_crash_retries {
-            a.extend(["--max-crash-retries".into(), r.to_string()]);
-        }
-        a.extend(["--lease-ttl".into(), self.lease_ttl.to_string()]);
-        a
-    }
-}
 
 /// Arguments of `sparc3d work`.
 #[derive(Debug, clap::Args)]
@@ -155,7 +93,7 @@ pub fn child_command(env: Vec<(String, String)>) -> Result<ChildCommand> {
 pub fn run(args: Args) -> Result<ExitCode> {
     match sparc3d_bucket::JobHome::parse(&args.job)? {
         sparc3d_bucket::JobHome::Folder(dir) => {
-            let _lock = crate::job_setup::hold_shared(&dir)?;
+            let _lock = crate::job::setup::hold_shared(&dir)?;
             let job = Job::open(&dir)?;
             work_shards(&args, &job, &mut |job, shard, opts| {
                 process_shard(job, shard, opts)
@@ -163,8 +101,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
             })
         }
         sparc3d_bucket::JobHome::Bucket(url) => {
-            let job = crate::bucket_home::work_copy(&url, args.scratch.as_deref())?;
-            let prefix = crate::bucket_home::prefix(&url)?;
+            let job = crate::job::bucket_home::work_copy(&url, args.scratch.as_deref())?;
+            let prefix = crate::job::bucket_home::prefix(&url)?;
             let every = std::time::Duration::from_secs_f64(args.checkpoint_every.max(0.0));
             work_shards(&args, &job, &mut |job, shard, opts| {
                 sparc3d_bucket::work::work_shard(&prefix, job, shard, opts, every)

@@ -1,19 +1,19 @@
 //! The job folder `sparc3d run` works on: an existing job, or (with `--job OUT`) one made from
 //! a folder of meshes or a manifest when OUT is not a job yet, with `init`'s config flags, or
-//! grown with what the folder or manifest has that it does not (`grow.rs`) when it is; and the
+//! grown with what the folder or manifest has that it does not ([`grow`]) when it is; and the
 //! job a read-only command opens ([`open_read_only`]).
 
-use crate::commands::init::{build_config, check_same_config, create, ConfigArgs, SourceArgs};
+use super::config::{build_config, check_same_config};
+use super::create::{create, is_job};
+use super::grow;
+use super::rows::input_records;
+use crate::flags::config::ConfigArgs;
+use crate::flags::source::SourceArgs;
 use anyhow::{bail, Result};
 use sparc3d_manifests::RawRecord;
 use sparc3d_schema::JobLayout;
 use sparc3d_workers::Job;
 use std::path::{Path, PathBuf};
-
-/// Whether `dir` is a job folder (it has its job file).
-pub(crate) fn is_job(dir: &Path) -> bool {
-    JobLayout::new(dir).job_file().exists()
-}
 
 /// The job to run: `input` itself when `out` is `None` (it must be a job), else `out`,
 /// grown with the new items of `input` and resumed when it is a job already, and otherwise
@@ -50,7 +50,7 @@ pub fn job_for_run(
         );
     }
     let config = build_config(flags)?;
-    let records: Vec<RawRecord> = crate::grow::input_records(input, source)?;
+    let records: Vec<RawRecord> = input_records(input, source)?;
     if records.is_empty() {
         bail!("{}: no meshes to convert", input.display());
     }
@@ -61,16 +61,16 @@ pub fn job_for_run(
 /// Adds what `input` has that the job `out` does not, saying what is new, before `out` is
 /// resumed; when another run holds the job, says that nothing is added now and resumes.
 fn grow_before_run(input: &Path, out: &Path, source: &SourceArgs) -> Result<()> {
-    let _lock = match crate::grow::lock_for_add(out) {
+    let _lock = match grow::lock_for_add(out) {
         Ok(lock) => lock,
         Err(e) => {
             eprintln!("note: {e:#}; resuming it as it is");
             return Ok(());
         }
     };
-    let records = crate::grow::input_records(input, source)?;
-    let grown = crate::grow::add(out, records)?;
-    eprintln!("{}; resuming the job", crate::grow::describe(out, &grown));
+    let records = input_records(input, source)?;
+    let grown = grow::add(out, records)?;
+    eprintln!("{}; resuming the job", grow::describe(out, &grown));
     Ok(())
 }
 

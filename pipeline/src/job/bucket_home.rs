@@ -96,7 +96,7 @@ pub fn init(
         scratch::pull_job(&prefix, &staging, true)?;
     }
     let shown = PathBuf::from(url.to_string());
-    crate::commands::init::create_named(&staging, &shown, records, config)?;
+    super::create::create_named(&staging, &shown, records, config)?;
     sparc3d_bucket::publish::publish(&prefix, &staging)?;
     Ok(())
 }

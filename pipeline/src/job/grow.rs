@@ -7,9 +7,7 @@
 //! lines are the recorded ones: the next `add` (or `run DIR --job JOB`) finishes it
 //! ([`finish_interrupted`]).
 
-use crate::commands::init::{read_manifest, select, SourceArgs};
 use anyhow::{bail, Context, Result};
-use sparc3d_manifests::folder_scan::collect;
 use sparc3d_manifests::freeze::append;
 use sparc3d_manifests::RawRecord;
 use sparc3d_schema::{JobFile, JobLayout};
@@ -31,30 +29,11 @@ pub struct Grown {
     pub shards: Range<u64>,
 }
 
-/// The rows of `input`: a folder scanned as `manifest build` does, or a manifest read as
-/// `init` reads it (with `--path-column` and `--where`).
-pub fn input_records(input: &Path, source: &SourceArgs) -> Result<Vec<RawRecord>> {
-    if !input.is_dir() {
-        return read_manifest(input, source);
-    }
-    let c = collect(input)?;
-    eprintln!(
-        "{}: {} meshes ({} identical duplicates left out, {} unreadable, {} skipped)",
-        input.display(),
-        c.records.len(),
-        c.duplicates,
-        c.unreadable,
-        c.skipped
-    );
-    let records = c.records.into_iter().map(RawRecord::from).collect();
-    select(records, source, input)
-}
-
 /// The job lock of `root` held exclusively, or an error saying who may hold it. `None` when
 /// the file system refuses locks (some network file systems): said on stderr, and the add
 /// goes on unlocked, as the lock is advisory.
 pub fn lock_for_add(root: &Path) -> Result<Option<JobLock>> {
-    if !crate::job_setup::is_job(root) {
+    if !super::create::is_job(root) {
         bail!(
             "{} is not a job folder (it has no job.json); make one with `sparc3d init` or \
              `sparc3d run DIR --job {}`",
