@@ -18,13 +18,13 @@ use crate::flags::limits::LimitArgs;
 use crate::local_workers::LocalWorkers;
 use crate::pool::{self, Pool};
 use crate::progress::Progress;
-use crate::signals::install_signals;
+use crate::signals::{install_signals, Stop};
 use crate::summary::{shard_states, summarize, summarize_states, JobSummary};
 use crate::units::{format_seconds, parse_duration};
 use anyhow::Result;
 use sparc3d_workers::store::state::{Check, ShardState};
 use sparc3d_workers::Job;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
@@ -76,6 +76,27 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let _lock = crate::job::setup::hold_shared(&job_dir)?;
     let job = Job::open(&job_dir)?;
     let stop = install_signals()?;
+    let ran = run_shards(&args, &job, &job_dir, requested, &stop)?;
+    conclude(&args, &job, &job_dir, &stop, &ran)
+}
+
+/// What a run of the pool left: the job's progress after it, how many shards failed and
+/// whether the pool itself failed.
+struct Ran {
+    after: JobSummary,
+    failed_shards: usize,
+    pool_failed: bool,
+}
+
+/// Runs the job's unfinished shards on `requested` local workers (or as many as the machine
+/// holds) until they are finished or `stop` is requested, then says what was converted.
+fn run_shards(
+    args: &Args,
+    job: &Job,
+    job_dir: &Path,
+    requested: Option<usize>,
+    stop: &Stop,
+) -> Result<Ran> {
     let plan = crate::machine::plan(
         requested,
         crate::machine::cores(),
@@ -85,8 +106,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
     );
     let workers = plan.workers;
     let start = Instant::now();
-    let states = shard_states(&job, Check::Quick)?;
-    let before = summarize_states(&job, &states);
+    let states = shard_states(job, Check::Quick)?;
+    let before = summarize_states(job, &states);
     let mut progress = Progress::new(
         job.file.items,
         before.ok,
@@ -103,8 +124,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
         plan.why
     ));
     let launcher = LocalWorkers {
-        job: &job,
-        job_dir: job_dir.clone(),
+        job,
+        job_dir: job_dir.to_path_buf(),
         limit_args: args.limits.to_args(),
         threads: plan.threads.max(1),
     };
@@ -121,7 +142,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         eprintln!("error: {}{}", crate::describe(e), os_hint(e));
     }
     let elapsed = start.elapsed().as_secs_f64();
-    let after = summarize(&job)?;
+    let after = summarize(job)?;
     let converted = (after.ok + after.failed).saturating_sub(before.ok + before.failed);
     eprintln!(
         "{converted} items in {} ({} ok, {} failed in total, {} crash retries); {} of {} shards \
@@ -136,9 +157,21 @@ pub fn run(args: Args) -> Result<ExitCode> {
         elapsed,
         counts.most_at_once,
     );
+    Ok(Ran {
+        after,
+        failed_shards: errors.len(),
+        pool_failed: pool_error.is_some(),
+    })
+}
+
+/// After the pool: says how the run ended (stopped, shards left, no item converted, or done
+/// with the next commands), clears what workers killed after their commit left behind, runs
+/// `--validate-sample`, and gives the exit code.
+fn conclude(args: &Args, job: &Job, job_dir: &Path, stop: &Stop, ran: &Ran) -> Result<ExitCode> {
+    let after = &ran.after;
     // The last line points to the failures, whatever the outcome.
     let failures_hint = || {
-        if let Some(hint) = crate::hints::failures(&job_dir, after.failed) {
+        if let Some(hint) = crate::hints::failures(job_dir, after.failed) {
             eprintln!("{hint}");
         }
     };
@@ -148,9 +181,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
         return Ok(stop.exit_code());
     }
     let unfinished = after.shards_done < after.shards || after.pending > 0;
-    if unfinished || pool_error.is_some() {
+    if unfinished || ran.pool_failed {
         if unfinished {
-            print_unfinished(&job, &after, errors.len())?;
+            print_unfinished(job, after, ran.failed_shards)?;
         }
         failures_hint();
         return Ok(ExitCode::FAILURE);
@@ -158,16 +191,16 @@ pub fn run(args: Args) -> Result<ExitCode> {
     // A worker killed between a shard's completion record and its cleanup left the shard's
     // journal and lease behind; every shard is done now, so they go.
     for shard in 0..after.shards {
-        sparc3d_workers::shard::clear_leftovers(&job, shard, args.limits.lease_ttl)?;
+        sparc3d_workers::shard::clear_leftovers(job, shard, args.limits.lease_ttl)?;
     }
     if after.ok == 0 && after.failed > 0 {
-        print_all_failed(&job_dir, &after);
+        print_all_failed(job_dir, after);
         return Ok(ExitCode::FAILURE);
     }
-    eprintln!("{}", crate::hints::next_steps(&job_dir, after.shards));
+    eprintln!("{}", crate::hints::next_steps(job_dir, after.shards));
     failures_hint();
     if let Some(sample) = args.validate_sample {
-        return super::validate::after_run(&job_dir, sample);
+        return super::validate::after_run(job_dir, sample);
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -231,7 +264,7 @@ fn print_unfinished(job: &Job, after: &JobSummary, failed_shards: usize) -> Resu
 
 /// Says that no item of a finished job converted: a cause shared by every item (a wrong path
 /// column, an unreadable folder, a config every mesh fails with) is not a success.
-fn print_all_failed(job_dir: &std::path::Path, after: &JobSummary) {
+fn print_all_failed(job_dir: &Path, after: &JobSummary) {
     let mut classes: Vec<_> = after.error_classes.iter().collect();
     classes.sort_by(|a, b| b.1.cmp(a.1).then(a.0.cmp(b.0)));
     let classes: Vec<String> = classes.iter().map(|(c, n)| format!("{n} {c}")).collect();
