@@ -59,6 +59,13 @@ impl StageSeconds {
     fn add(&mut self, name: &str, seconds: f64) {
         self.in_order.push((name.to_string(), seconds));
     }
+
+    /// A stage after the conversion's own (`samples`, `attributes`): among the row's stages
+    /// and in order.
+    fn add_stage(&mut self, name: &str, seconds: f64) {
+        self.timings.stages.push((name.to_string(), seconds));
+        self.add(name, seconds);
+    }
 }
 
 /// A mesh file through the steps asked for.
@@ -191,23 +198,9 @@ pub fn convert_bytes(
         .as_ref()
         .filter(|_| steps.extract)
         .map(|m| m.triangles.len() as u64);
-    let samples = match (steps.samples, &mesh) {
-        (Some(params), Some(m)) => {
-            let t = Instant::now();
-            match sparcubes::samples::sample(&conversion.cubes, m, params) {
-                Ok(s) => {
-                    let s_seconds = t.elapsed().as_secs_f64();
-                    seconds
-                        .timings
-                        .stages
-                        .push(("samples".to_string(), s_seconds));
-                    seconds.add("samples", s_seconds);
-                    Some(s)
-                }
-                Err(e) => return Err(fail(StageError::Samples(e), seconds)),
-            }
-        }
-        _ => None,
+    let samples = match samples_of(steps.samples, &conversion, mesh.as_ref(), &mut seconds) {
+        Ok(s) => s,
+        Err(e) => return Err(fail(StageError::Samples(e), seconds)),
     };
     let attributes = match kept {
         Some(bytes) => match attributes_of(&bytes, path, buffers, &conversion, &mut seconds) {
@@ -251,6 +244,23 @@ pub fn convert_bytes(
     })
 }
 
+/// Draws the samples (`params`, a job with `[samples]`) from the extracted `mesh` and the
+/// converted cubes, timed as the stage `samples`; none when either is missing.
+fn samples_of(
+    params: Option<&SampleParams>,
+    conversion: &Conversion,
+    mesh: Option<&TriMesh>,
+    seconds: &mut StageSeconds,
+) -> Result<Option<Samples>, sparcubes::Error> {
+    let (Some(params), Some(m)) = (params, mesh) else {
+        return Ok(None);
+    };
+    let t = Instant::now();
+    let samples = sparcubes::samples::sample(&conversion.cubes, m, params)?;
+    seconds.add_stage("samples", t.elapsed().as_secs_f64());
+    Ok(Some(samples))
+}
+
 /// Reads the appearance from the source's `bytes` and samples it at the converted cells,
 /// timed as the stage `attributes`.
 fn attributes_of(
@@ -264,9 +274,7 @@ fn attributes_of(
     let appearance = sparcubes::materials::read(bytes, path, buffers)?;
     let cells = sparcubes::attributes::sample(&conversion.cubes, &appearance);
     let facts = AppearanceFacts::new(&appearance.facts, &cells);
-    let s = t.elapsed().as_secs_f64();
-    seconds.timings.stages.push(("attributes".to_string(), s));
-    seconds.add("attributes", s);
+    seconds.add_stage("attributes", t.elapsed().as_secs_f64());
     Ok((cells, facts))
 }
 
