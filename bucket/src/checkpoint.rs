@@ -5,7 +5,7 @@
 //! (`state/part-NNNNN.journals/<writer>.<seq>.journal`, a journal file by itself: a header,
 //! then whole item histories), created only if absent, after a renewal of the lease. The next
 //! holder reads every checkpoint of the shard as a journal of an earlier holder, brought into
-//! its copy of the job by [`pull_checkpoints`] (as `status` brings them into its view).
+//! its copy of the job by `pull_checkpoints` (as `status` brings them into its view).
 //!
 //! Why by time, not by count: the cost of a checkpoint is one PUT of the rows finished since
 //! the last, so a time bound caps both what a kill loses (the items of the last interval and
