@@ -33,6 +33,7 @@ pub mod vxz;
 pub use error::{Error, Result};
 pub use frame::{Frame, Placement};
 
+use sparcubes::attributes::CellAttributes;
 use sparcubes::cubes::SparseCubes;
 use sparcubes::samples::{SampleParams, Samples};
 use sparcubes::Params;
@@ -127,6 +128,12 @@ impl Consumer {
         )
     }
 
+    /// Whether this consumer writes the stored appearance (the `[attributes]` columns) beside
+    /// the shape: TRELLIS.2's PBR voxels; the export decodes those columns only for it.
+    pub fn reads_attributes(self) -> bool {
+        matches!(self, Consumer::Trellis2)
+    }
+
     /// The `[samples]` keys a job with `samples` (None: samples off) lacks for this consumer,
     /// each with what it needs (empty when nothing is missing).
     pub fn missing(self, samples: Option<&SampleParams>) -> Vec<String> {
@@ -202,6 +209,9 @@ pub struct Item<'a> {
     pub cubes: &'a SparseCubes,
     /// Its samples, when the job draws them.
     pub samples: Option<StoredSamples<'a>>,
+    /// Its appearance on `cubes.cells` (one row per cell), when the job samples it
+    /// (`[attributes]`) and the consumer reads it ([`Consumer::reads_attributes`]).
+    pub attributes: Option<&'a CellAttributes>,
     /// The fraction of the grid's side the object's longest side spans
     /// (`sparcubes::Params::span`: `params.object_span`, else what `params.margin_cells`
     /// leaves).

@@ -25,6 +25,8 @@
 //! - `mesh_dumps/<key>.pickle`: `{'objects': [{'vertices': f32 (V, 3), 'faces': i32 (F, 3)}]}`
 //!   (the layout of `data_toolkit/blender_script/dump_mesh.py` L192-230), the watertight mesh
 //!   extracted from the item's cubes, which `read_mesh` (L106-126) loads;
+//! - `pbr_voxels_<N>/<key>.vxz`: the item's appearance on the same voxels, for TRELLIS.2's
+//!   texture VAE ([`pbr`]), when the job samples it (`[attributes]`);
 //! - the `metadata.csv` of each folder of `data_dir.json` (`components.py`
 //!   `StandardDatasetBase.__init__` L21-56 reads one per listed folder), with the columns
 //!   `filter_metadata` (L92-104) asks for, and `data_dir.json` itself ([`listing`]).
@@ -59,6 +61,8 @@
 //! (`--for trellis2@G`, [`check`] refuses any other); `normalized` writes the job's own grid
 //! as it is.
 
+pub mod pbr;
+
 use crate::pickle::{self, Value};
 use crate::vxz::{self, Attr};
 use crate::{Error, ExportFile, Frame, Item, ItemExport, JobCheck, Listed, Result};
@@ -69,7 +73,7 @@ use std::path::{Path, PathBuf};
 
 /// `--help` line.
 pub const ABOUT: &str =
-    "TRELLIS.2's dual grid dataset: dual_grid_<G>/<sha256>.vxz, mesh_dumps/, metadata.csv, data_dir.json (exact for a job at G + 6, docs/FORMAT.md); checked against trellis2/datasets/flexi_dual_grid.py FlexiDualGridDataset";
+    "TRELLIS.2's dual grid dataset: dual_grid_<G>/<sha256>.vxz, mesh_dumps/, metadata.csv, data_dir.json (exact for a job at G + 6, docs/FORMAT.md), and with [attributes] pbr_voxels_<G>/<sha256>.vxz on the same voxels; checked against trellis2/datasets/flexi_dual_grid.py FlexiDualGridDataset and sparse_voxel_pbr.py SparseVoxelPbrDataset";
 
 /// The share of the grid TRELLIS.2 scales a mesh's longest side to (`dual_grid.py` L36-56,
 /// `flexi_dual_grid.py` `read_mesh`).
@@ -226,25 +230,35 @@ pub fn files(item: &Item) -> Result<ItemExport> {
     let dual = vxz::vxz_bytes(&coords, &attrs, vxz::CHUNK_SIZE)?;
     let mesh = sparcubes::extract(item.cubes);
     let dump = mesh_dump(&mesh, grid);
-    let listing = BTreeMap::from([
+    let mut listing = BTreeMap::from([
         ("sha256".to_string(), key.to_string()),
         ("dual_grid_size".to_string(), coords.len().to_string()),
         ("num_vertices".to_string(), mesh.positions.len().to_string()),
         ("num_faces".to_string(), mesh.triangles.len().to_string()),
     ]);
+    // The dual grid file stays first: `listing` finds its folder there.
+    let mut files = vec![
+        ExportFile {
+            path: PathBuf::from(format!("dual_grid_{n}")).join(format!("{key}.vxz")),
+            bytes: dual,
+        },
+        ExportFile {
+            path: PathBuf::from("mesh_dumps").join(format!("{key}.pickle")),
+            bytes: dump,
+        },
+    ];
+    let note = match item.attributes {
+        Some(a) => {
+            files.push(pbr::file(&item.cubes.cells, a, &g.voxels, &coords, n, key)?);
+            listing.insert(pbr::COUNT_COLUMN.to_string(), coords.len().to_string());
+            None
+        }
+        None => Some(pbr::NO_ATTRIBUTES),
+    };
     Ok(ItemExport {
-        files: vec![
-            ExportFile {
-                path: PathBuf::from(format!("dual_grid_{n}")).join(format!("{key}.vxz")),
-                bytes: dual,
-            },
-            ExportFile {
-                path: PathBuf::from("mesh_dumps").join(format!("{key}.pickle")),
-                bytes: dump,
-            },
-        ],
+        files,
         listing,
-        note: None,
+        note,
     })
 }
 
@@ -338,8 +352,9 @@ fn mesh_dump(mesh: &sparcubes::TriMesh, grid: Trellis2Grid) -> Vec<u8> {
     )]))
 }
 
-/// The folders' `metadata.csv` (base, `mesh_dumps`, `dual_grid_<N>`, `asset_stats`) and
-/// `data_dir.json` naming them under `root`, the JSON object `--data_dir` takes (README.md
+/// The folders' `metadata.csv` (base, `mesh_dumps`, `dual_grid_<N>`, `asset_stats`, and
+/// `pbr_voxels_<N>` when any item has PBR voxels, [`pbr::listing`]) and `data_dir.json` naming
+/// them under `root`, the JSON object `--data_dir` takes (README.md
 /// L228-238). `aesthetic_score` is not known here: add the column to `metadata.csv` or pass
 /// `min_aesthetic_score: null` to the dataset. Refuses two items with the same key.
 pub fn listing(items: &[Listed], root: &Path) -> Result<Vec<ExportFile>> {
@@ -357,15 +372,19 @@ pub fn listing(items: &[Listed], root: &Path) -> Result<Vec<ExportFile>> {
         path: dir.join("metadata.csv"),
         bytes: csv(header, items.iter().map(row)).into_bytes(),
     };
-    let data_dir = serde_json::json!({ DATASET: {
+    let mut folders = serde_json::json!({
         "base": root,
         "mesh_dump": root.join("mesh_dumps"),
         "dual_grid": root.join(&grid_dir),
         "asset_stats": root.join("asset_stats"),
-    }});
-    let data_dir = serde_json::to_vec_pretty(&data_dir)
+    });
+    let pbr = pbr::listing(items);
+    if let Some((dir, _)) = &pbr {
+        folders[pbr::DATA_DIR_KEY] = serde_json::json!(root.join(dir));
+    }
+    let data_dir = serde_json::to_vec_pretty(&serde_json::json!({ DATASET: folders }))
         .map_err(|e| Error::Invalid(format!("writing data_dir.json: {e}")))?;
-    Ok(vec![
+    let mut files = vec![
         provenance_table(items, &col),
         table(Path::new("mesh_dumps"), "sha256,mesh_dumped", &|i| {
             vec![col(i, "sha256"), "True".into()]
@@ -386,11 +405,13 @@ pub fn listing(items: &[Listed], root: &Path) -> Result<Vec<ExportFile>> {
                 ]
             },
         ),
-        ExportFile {
-            path: "data_dir.json".into(),
-            bytes: data_dir,
-        },
-    ])
+    ];
+    files.extend(pbr.map(|(_, table)| table));
+    files.push(ExportFile {
+        path: "data_dir.json".into(),
+        bytes: data_dir,
+    });
+    Ok(files)
 }
 
 /// Two items of one source (the same sha256) would share their files.

@@ -387,6 +387,11 @@ fn export_row(
         Some(t) => Some(t.to_samples()?),
         None => None,
     };
+    let stored = row.tensors.as_ref().and_then(|t| t.attributes.as_ref());
+    let attributes = match stored.filter(|_| consumer.reads_attributes()) {
+        Some(t) => Some(t.to_attributes()?),
+        None => None,
+    };
     let config = &job.file.config;
     // The manifest's sha256, else the one the row recorded of the bytes it converted.
     let source_sha256 = job
@@ -404,6 +409,7 @@ fn export_row(
             samples: s,
             params: &config.samples.params,
         }),
+        attributes: attributes.as_ref(),
         object_span: config.params.span(),
         frame,
     };
