@@ -1,6 +1,7 @@
 //! The `sparc3d` command line: parses arguments and hands each subcommand to `commands/`.
 
 mod cluster;
+mod colours;
 mod commands;
 mod export_name;
 mod flags;

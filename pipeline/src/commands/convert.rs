@@ -33,7 +33,8 @@ pub struct Args {
     #[arg(long)]
     pub json: bool,
     /// Also sample the source's appearance (base colour, metallic, roughness, alpha) at the
-    /// active cells, as a job with `[attributes] enabled = true` does, and summarise it.
+    /// active cells, as a job with `[attributes] enabled = true` does, summarise it, and write
+    /// the output in colour (each vertex its cell's base colour and alpha; .ply, .obj, .glb).
     #[arg(long)]
     pub attributes: bool,
 }
@@ -77,10 +78,15 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let (Some(mut mesh), Some(input_components)) = (done.mesh, done.input_components) else {
         anyhow::bail!("the conversion path returned no mesh or component count");
     };
+    let colours = done
+        .attributes
+        .as_ref()
+        .map(|(cells, _)| crate::colours::of_vertices(cubes, cells, &mesh, &args.output));
     if !args.grid_frame {
         sparcubes::extract::to_source(&mut mesh, &cubes.normalization, cubes.resolution);
     }
-    let (topo, check_seconds, save_seconds) = save_while_checking(&mesh, &args.output)?;
+    let (topo, check_seconds, save_seconds) =
+        save_while_checking(&mesh, colours.as_deref(), &args.output)?;
 
     let s = &done.conversion.stats;
     let mut stages = done.seconds.in_order;
@@ -143,11 +149,12 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
 /// summary prints, so the frame the positions are in does not change its answers.
 fn save_while_checking(
     mesh: &sparcubes::TriMesh,
+    colours: Option<&[[u8; 4]]>,
     output: &std::path::Path,
 ) -> anyhow::Result<(sparcubes::topology::TopologyReport, f64, f64)> {
     let writing = || format!("writing {}", output.display());
     let t = Instant::now();
-    let pending = sparcubes::io::save_pending(mesh, output).with_context(writing)?;
+    let pending = sparcubes::io::save_pending(mesh, colours, output).with_context(writing)?;
     let write_seconds = t.elapsed().as_secs_f64();
     std::thread::scope(|scope| {
         let sync = scope.spawn(|| pending.commit());

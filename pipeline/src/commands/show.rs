@@ -1,5 +1,6 @@
 //! `sparc3d show JOB --id X -o mesh.ply`: decodes one item's row and writes its extracted
-//! mesh, exactly as `sparc3d convert` would with the job's parameters.
+//! mesh, exactly as `sparc3d convert` would with the job's parameters (in colour when the job
+//! stores attributes, as `convert --attributes` writes it).
 
 use crate::item_lookup;
 use anyhow::{Context, Result};
@@ -49,11 +50,24 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
             .with_context(|| format!("writing {}", path.display()))?;
     }
     let mut mesh = sparcubes::extract(&cubes);
+    let attributes = match row.tensors.as_ref().and_then(|t| t.attributes.as_ref()) {
+        Some(a) => Some(
+            a.to_attributes()
+                .with_context(|| format!("decoding the attributes of {}", row.id))?,
+        ),
+        None => None,
+    };
+    let colours = attributes
+        .as_ref()
+        .map(|cells| crate::colours::of_vertices(&cubes, cells, &mesh, &args.output));
     if !args.grid_frame {
         sparcubes::extract::to_source(&mut mesh, &cubes.normalization, cubes.resolution);
     }
-    sparcubes::io::save(&mesh, &args.output)
-        .with_context(|| format!("writing {}", args.output.display()))?;
+    let saved = match &colours {
+        Some(colours) => sparcubes::io::save_coloured(&mesh, colours, &args.output),
+        None => sparcubes::io::save(&mesh, &args.output),
+    };
+    saved.with_context(|| format!("writing {}", args.output.display()))?;
     eprintln!(
         "{} ({}): {} faces written to {}",
         row.id,

@@ -18,6 +18,7 @@
 pub mod clip;
 pub mod mips;
 pub mod shade;
+pub mod vertex_colours;
 
 use crate::cubes::SparseCubes;
 use crate::materials::Appearance;

@@ -455,12 +455,33 @@ pub fn load_bytes_with(
 /// The file is written to a temporary name in the same folder and renamed, so a failed write
 /// never leaves a partial file behind.
 pub fn save(mesh: &TriMesh, path: &Path) -> Result<()> {
-    write::save_pending(mesh, path)?.commit()
+    write::save_pending(mesh, None, path)?.commit()
 }
 
-/// Writes a mesh as [`save`] does but stops before the sync and the rename: the returned
+/// Saves a mesh as [`save`] does, with one colour per vertex (sRGB and alpha bytes) where the
+/// format holds vertex colours: PLY (`red`, `green`, `blue`, `alpha`), OBJ (`v x y z r g b`)
+/// and GLB (`COLOR_0`, linear); an STL is written without them ([`holds_colours`] says).
+pub fn save_coloured(mesh: &TriMesh, colours: &[[u8; 4]], path: &Path) -> Result<()> {
+    write::save_pending(mesh, Some(colours), path)?.commit()
+}
+
+/// Whether the format of `path` (by its extension) holds vertex colours.
+pub fn holds_colours(path: &Path) -> bool {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    matches!(ext.as_deref(), Some("ply" | "obj" | "glb"))
+}
+
+/// Writes a mesh as [`save`] does (with `colours` as [`save_coloured`] writes them) but stops
+/// before the sync and the rename: the returned
 /// [`PendingSave`] puts the file in place when committed, and removes it when dropped
 /// uncommitted. For callers with work to do while the disk catches up.
-pub fn save_pending(mesh: &TriMesh, path: &Path) -> Result<PendingSave> {
-    write::save_pending(mesh, path)
+pub fn save_pending(
+    mesh: &TriMesh,
+    colours: Option<&[[u8; 4]]>,
+    path: &Path,
+) -> Result<PendingSave> {
+    write::save_pending(mesh, colours, path)
 }

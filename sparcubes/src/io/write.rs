@@ -1,7 +1,9 @@
 //! Writers: binary little-endian PLY, OBJ, binary STL and GLB, each written to a temporary
 //! file beside the target, synced, then renamed over it.
 
+use crate::attributes::mips::to_byte;
 use crate::error::{Error, Result};
+use crate::materials::srgb_to_linear;
 use crate::mesh::TriMesh;
 use rayon::prelude::*;
 use std::io::Write;
@@ -18,8 +20,14 @@ enum OutFormat {
 }
 
 /// Writes `mesh` in full to a temporary file beside `path` (the format follows its
-/// extension), leaving the sync and the rename to [`PendingSave::commit`].
-pub(crate) fn save_pending(mesh: &TriMesh, path: &Path) -> Result<PendingSave> {
+/// extension), with `colours` (sRGB and alpha bytes, one per vertex) where the format holds
+/// vertex colours (PLY, OBJ, GLB; not STL), leaving the sync and the rename to
+/// [`PendingSave::commit`].
+pub(crate) fn save_pending(
+    mesh: &TriMesh,
+    colours: Option<&[[u8; 4]]>,
+    path: &Path,
+) -> Result<PendingSave> {
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
@@ -48,6 +56,13 @@ pub(crate) fn save_pending(mesh: &TriMesh, path: &Path) -> Result<PendingSave> {
             path.display()
         )));
     }
+    if let Some(c) = colours.filter(|c| c.len() != n) {
+        return Err(Error::InvalidParams(format!(
+            "cannot save {}: {} vertex colours for {n} vertices",
+            path.display(),
+            c.len()
+        )));
+    }
     if format == OutFormat::Glb && (mesh.triangles.is_empty() || n == 0) {
         return Err(Error::EmptyMesh {
             context: path.display().to_string(),
@@ -55,10 +70,10 @@ pub(crate) fn save_pending(mesh: &TriMesh, path: &Path) -> Result<PendingSave> {
         });
     }
     PendingSave::write(path, |w| match format {
-        OutFormat::Ply => write_ply(mesh, w),
-        OutFormat::Obj => write_obj(mesh, w),
+        OutFormat::Ply => write_ply(mesh, colours, w),
+        OutFormat::Obj => write_obj(mesh, colours, w),
         OutFormat::Stl => write_stl(mesh, w),
-        OutFormat::Glb => write_glb(mesh, w),
+        OutFormat::Glb => write_glb(mesh, colours, w),
     })
 }
 
@@ -140,20 +155,46 @@ impl Drop for PendingSave {
     }
 }
 
-fn write_ply(mesh: &TriMesh, w: &mut impl Write) -> std::io::Result<()> {
+fn write_ply(
+    mesh: &TriMesh,
+    colours: Option<&[[u8; 4]]>,
+    w: &mut impl Write,
+) -> std::io::Result<()> {
+    let colour_properties = match colours {
+        Some(_) => {
+            "property uchar red\nproperty uchar green\nproperty uchar blue\nproperty uchar alpha\n"
+        }
+        None => "",
+    };
     write!(
         w,
         "ply\nformat binary_little_endian 1.0\ncomment written by sparcubes\n\
-         element vertex {}\nproperty float x\nproperty float y\nproperty float z\n\
+         element vertex {}\nproperty float x\nproperty float y\nproperty float z\n{colour_properties}\
          element face {}\nproperty list uchar uint vertex_indices\nend_header\n",
         mesh.positions.len(),
         mesh.triangles.len()
     )?;
-    write_in_chunks(w, &mesh.positions, 12, |p, out| {
-        for c in p {
-            out.extend_from_slice(&c.to_le_bytes());
+    match colours {
+        Some(colours) => {
+            let vertices: Vec<([f32; 3], [u8; 4])> = mesh
+                .positions
+                .iter()
+                .copied()
+                .zip(colours.iter().copied())
+                .collect();
+            write_in_chunks(w, &vertices, 16, |(p, c), out| {
+                for x in p {
+                    out.extend_from_slice(&x.to_le_bytes());
+                }
+                out.extend_from_slice(c);
+            })?;
         }
-    })?;
+        None => write_in_chunks(w, &mesh.positions, 12, |p, out| {
+            for c in p {
+                out.extend_from_slice(&c.to_le_bytes());
+            }
+        })?,
+    }
     write_in_chunks(w, &mesh.triangles, 13, |t, out| {
         out.push(3u8);
         for i in t {
@@ -194,11 +235,23 @@ fn write_in_chunks<T: Sync>(
     Ok(())
 }
 
-fn write_obj(mesh: &TriMesh, w: &mut impl Write) -> std::io::Result<()> {
+/// OBJ vertex colours are the common extension `v x y z r g b` (r, g, b in [0, 1], sRGB as
+/// stored; alpha has no place), which MeshLab, Blender and trimesh read.
+fn write_obj(
+    mesh: &TriMesh,
+    colours: Option<&[[u8; 4]]>,
+    w: &mut impl Write,
+) -> std::io::Result<()> {
     writeln!(w, "# written by sparcubes")?;
     // `{}` of an f32 prints the shortest text that reads back as the same f32.
-    for p in &mesh.positions {
-        writeln!(w, "v {} {} {}", p[0], p[1], p[2])?;
+    for (i, p) in mesh.positions.iter().enumerate() {
+        match colours.and_then(|c| c.get(i)) {
+            Some(c) => {
+                let [r, g, b] = [c[0], c[1], c[2]].map(|x| f32::from(x) / 255.0);
+                writeln!(w, "v {} {} {} {r} {g} {b}", p[0], p[1], p[2])?
+            }
+            None => writeln!(w, "v {} {} {}", p[0], p[1], p[2])?,
+        }
     }
     for t in &mesh.triangles {
         writeln!(w, "f {} {} {}", t[0] + 1, t[1] + 1, t[2] + 1)?;
@@ -237,7 +290,13 @@ fn write_stl(mesh: &TriMesh, w: &mut impl Write) -> std::io::Result<()> {
     Ok(())
 }
 
-fn write_glb(mesh: &TriMesh, w: &mut impl Write) -> std::io::Result<()> {
+/// glTF's `COLOR_0` is linear (glTF 2.0 spec, "Meshes", attribute semantics): the sRGB bytes
+/// are turned to linear bytes, alpha kept, as normalised unsigned bytes.
+fn write_glb(
+    mesh: &TriMesh,
+    colours: Option<&[[u8; 4]]>,
+    w: &mut impl Write,
+) -> std::io::Result<()> {
     let n = mesh.positions.len();
     let m = mesh.triangles.len();
     let mut lo = [f32::INFINITY; 3];
@@ -250,24 +309,10 @@ fn write_glb(mesh: &TriMesh, w: &mut impl Write) -> std::io::Result<()> {
     }
     let pos_bytes = 12 * n;
     let idx_bytes = 12 * m;
-    let bin_len = pos_bytes + idx_bytes;
-    let json = serde_json::json!({
-        "asset": { "version": "2.0", "generator": "sparcubes" },
-        "scene": 0,
-        "scenes": [ { "nodes": [0] } ],
-        "nodes": [ { "mesh": 0 } ],
-        "meshes": [ { "primitives": [ { "attributes": { "POSITION": 0 }, "indices": 1, "mode": 4 } ] } ],
-        "accessors": [
-            { "bufferView": 0, "componentType": 5126, "count": n, "type": "VEC3",
-              "min": lo, "max": hi },
-            { "bufferView": 1, "componentType": 5125, "count": 3 * m, "type": "SCALAR" }
-        ],
-        "bufferViews": [
-            { "buffer": 0, "byteOffset": 0, "byteLength": pos_bytes, "target": 34962 },
-            { "buffer": 0, "byteOffset": pos_bytes, "byteLength": idx_bytes, "target": 34963 }
-        ],
-        "buffers": [ { "byteLength": bin_len } ]
-    });
+    let colour_bytes = if colours.is_some() { 4 * n } else { 0 };
+    let bin_len = pos_bytes + idx_bytes + colour_bytes;
+    let mut json = glb_json(n, m, lo, hi, colours.is_some());
+    json["buffers"] = serde_json::json!([{ "byteLength": bin_len }]);
     let mut json = serde_json::to_vec(&json).map_err(std::io::Error::other)?;
     while json.len() % 4 != 0 {
         json.push(b' ');
@@ -294,8 +339,48 @@ fn write_glb(mesh: &TriMesh, w: &mut impl Write) -> std::io::Result<()> {
             w.write_all(&i.to_le_bytes())?;
         }
     }
+    for c in colours.unwrap_or_default() {
+        let linear = |x: u8| to_byte(srgb_to_linear(f32::from(x) / 255.0));
+        w.write_all(&[linear(c[0]), linear(c[1]), linear(c[2]), c[3]])?;
+    }
     w.write_all(&[0u8; 3][..bin_padded - bin_len])?;
     Ok(())
+}
+
+/// The GLB's JSON chunk (without its buffer's length): one primitive of `n` positions and `m`
+/// triangles, with a `COLOR_0` of `n` linear RGBA bytes after them when `coloured`.
+fn glb_json(n: usize, m: usize, lo: [f32; 3], hi: [f32; 3], coloured: bool) -> serde_json::Value {
+    let (pos_bytes, idx_bytes) = (12 * n, 12 * m);
+    let mut json = serde_json::json!({
+        "asset": { "version": "2.0", "generator": "sparcubes" },
+        "scene": 0,
+        "scenes": [ { "nodes": [0] } ],
+        "nodes": [ { "mesh": 0 } ],
+        "meshes": [ { "primitives": [ { "attributes": { "POSITION": 0 }, "indices": 1, "mode": 4 } ] } ],
+        "accessors": [
+            { "bufferView": 0, "componentType": 5126, "count": n, "type": "VEC3",
+              "min": lo, "max": hi },
+            { "bufferView": 1, "componentType": 5125, "count": 3 * m, "type": "SCALAR" }
+        ],
+        "bufferViews": [
+            { "buffer": 0, "byteOffset": 0, "byteLength": pos_bytes, "target": 34962 },
+            { "buffer": 0, "byteOffset": pos_bytes, "byteLength": idx_bytes, "target": 34963 }
+        ]
+    });
+    if coloured {
+        json["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"] = serde_json::json!(2);
+        if let Some(accessors) = json["accessors"].as_array_mut() {
+            accessors.push(serde_json::json!({ "bufferView": 2, "componentType": 5121,
+                "normalized": true, "count": n, "type": "VEC4" }));
+        }
+        if let Some(views) = json["bufferViews"].as_array_mut() {
+            views.push(
+                serde_json::json!({ "buffer": 0, "byteOffset": pos_bytes + idx_bytes,
+                "byteLength": 4 * n, "target": 34962 }),
+            );
+        }
+    }
+    json
 }
 
 #[cfg(test)]
@@ -336,10 +421,10 @@ mod tests {
         std::fs::write(&target, b"old").unwrap();
         let mesh = crate::shapes::cuboid([0.0; 3], [1.0; 3], &[]);
         let mut plain = Vec::new();
-        write_ply(&mesh, &mut plain).unwrap();
+        write_ply(&mesh, None, &mut plain).unwrap();
 
         // Written but dropped uncommitted: the temporary file goes, the target is untouched.
-        let pending = save_pending(&mesh, &target).unwrap();
+        let pending = save_pending(&mesh, None, &target).unwrap();
         assert_eq!(
             names(dir.path()).len(),
             2,
@@ -350,14 +435,17 @@ mod tests {
         assert_eq!(std::fs::read(&target).unwrap(), b"old");
 
         // Committed: the target holds the mesh's bytes, nothing else is left.
-        save_pending(&mesh, &target).unwrap().commit().unwrap();
+        save_pending(&mesh, None, &target)
+            .unwrap()
+            .commit()
+            .unwrap();
         assert_eq!(names(dir.path()), ["out.ply"]);
         assert_eq!(std::fs::read(&target).unwrap(), plain);
 
         // A commit that cannot rename (the target's folder is gone) fails and leaves nothing.
         let gone = dir.path().join("gone");
         std::fs::create_dir(&gone).unwrap();
-        let pending = save_pending(&mesh, &gone.join("out.ply")).unwrap();
+        let pending = save_pending(&mesh, None, &gone.join("out.ply")).unwrap();
         std::fs::remove_dir_all(&gone).unwrap();
         assert!(pending.commit().is_err());
     }
@@ -374,7 +462,7 @@ mod tests {
             .collect();
         let mesh = TriMesh::new(positions, triangles);
         let mut written = Vec::new();
-        write_ply(&mesh, &mut written).unwrap();
+        write_ply(&mesh, None, &mut written).unwrap();
         let body = plain_ply_body(&mesh);
         assert!(written.ends_with(&body));
         let header = &written[..written.len() - body.len()];

@@ -1,0 +1,204 @@
+//! Issue 43 item 4, "a person can look": `convert --attributes` and `show` of a job with
+//! `[attributes]` write the output mesh in colour where the format holds colours (PLY, OBJ,
+//! GLB), and say so where it does not (STL).
+
+mod common;
+use common::{ok, s, sparc3d};
+use std::path::Path;
+
+/// A cube whose eight vertices all carry one sRGB colour (an ASCII PLY with vertex colours).
+fn coloured_cube(path: &Path, rgb: [u8; 3]) {
+    let mut text = String::from(
+        "ply\nformat ascii 1.0\nelement vertex 8\nproperty float x\nproperty float y\n\
+         property float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n\
+         element face 12\nproperty list uchar int vertex_indices\nend_header\n",
+    );
+    for i in 0..8 {
+        let [x, y, z] = [i & 1, (i >> 1) & 1, (i >> 2) & 1];
+        text += &format!("{x} {y} {z} {} {} {}\n", rgb[0], rgb[1], rgb[2]);
+    }
+    for [a, b, c] in [
+        [0, 2, 1],
+        [1, 2, 3],
+        [4, 5, 6],
+        [5, 7, 6],
+        [0, 1, 4],
+        [1, 5, 4],
+        [2, 6, 3],
+        [3, 6, 7],
+        [0, 4, 2],
+        [2, 4, 6],
+        [1, 3, 5],
+        [3, 7, 5],
+    ] {
+        text += &format!("3 {a} {b} {c}\n");
+    }
+    std::fs::write(path, text).unwrap_or_else(|e| panic!("{e}"));
+}
+
+/// The vertex colours of a binary PLY this project wrote: (red, green, blue, alpha) each.
+fn ply_colours(path: &Path) -> Vec<[u8; 4]> {
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{e}"));
+    let end = b"end_header\n";
+    let at = bytes
+        .windows(end.len())
+        .position(|w| w == end)
+        .unwrap_or_else(|| panic!("no PLY header in {}", path.display()));
+    let header = String::from_utf8_lossy(&bytes[..at]);
+    assert!(
+        header.contains(
+            "property uchar red\nproperty uchar green\nproperty uchar blue\nproperty uchar alpha\n"
+        ),
+        "{header}"
+    );
+    let n: usize = header
+        .lines()
+        .find_map(|l| l.strip_prefix("element vertex "))
+        .and_then(|n| n.trim().parse().ok())
+        .unwrap_or_else(|| panic!("{header}"));
+    let body = &bytes[at + end.len()..];
+    (0..n)
+        .map(|i| {
+            let v = &body[16 * i + 12..16 * i + 16];
+            [v[0], v[1], v[2], v[3]]
+        })
+        .collect()
+}
+
+#[test]
+fn a_one_colour_cube_comes_out_in_that_colour_in_every_format_that_holds_colours() {
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let cube = dir.path().join("cube.ply");
+    coloured_cube(&cube, [200, 30, 90]);
+    let ply = dir.path().join("out.ply");
+    ok(&[
+        "convert",
+        s(&cube),
+        "-o",
+        s(&ply),
+        "--resolution",
+        "32",
+        "--attributes",
+    ]);
+    let colours = ply_colours(&ply);
+    assert!(!colours.is_empty());
+    // One colour averaged in linear light and back to sRGB bytes: within one step of it.
+    for c in &colours {
+        let off = (0..3)
+            .map(|k| (i32::from(c[k]) - [200, 30, 90][k]).abs())
+            .max();
+        assert!(off <= Some(1) && c[3] == 255, "{c:?}");
+    }
+
+    let obj = dir.path().join("out.obj");
+    ok(&[
+        "convert",
+        s(&cube),
+        "-o",
+        s(&obj),
+        "--resolution",
+        "32",
+        "--attributes",
+    ]);
+    let text = std::fs::read_to_string(&obj).unwrap_or_else(|e| panic!("{e}"));
+    let first = text
+        .lines()
+        .find(|l| l.starts_with("v "))
+        .unwrap_or_default();
+    let rgb: Vec<f32> = first
+        .split(' ')
+        .skip(4)
+        .filter_map(|x| x.parse().ok())
+        .collect();
+    assert_eq!(rgb.len(), 3, "{first}");
+    assert!((rgb[0] * 255.0 - 200.0).abs() <= 1.5, "{first}");
+
+    let glb = dir.path().join("out.glb");
+    ok(&[
+        "convert",
+        s(&cube),
+        "-o",
+        s(&glb),
+        "--resolution",
+        "32",
+        "--attributes",
+    ]);
+    let bytes = std::fs::read(&glb).unwrap_or_else(|e| panic!("{e}"));
+    let json_len = u32::from_le_bytes([bytes[12], bytes[13], bytes[14], bytes[15]]) as usize;
+    let json: serde_json::Value =
+        serde_json::from_slice(&bytes[20..20 + json_len]).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(
+        json["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"],
+        2
+    );
+    let view = &json["bufferViews"][2];
+    let offset = 20 + json_len + 8 + view["byteOffset"].as_u64().unwrap_or(0) as usize;
+    // glTF's COLOR_0 is linear: sRGB 200 is linear 0.578 (147 of 255).
+    let first_colour = &bytes[offset..offset + 4];
+    assert!(
+        (i32::from(first_colour[0]) - 147).abs() <= 1,
+        "{first_colour:?}"
+    );
+
+    let stl = dir.path().join("out.stl");
+    let out = sparc3d(&[
+        "convert",
+        s(&cube),
+        "-o",
+        s(&stl),
+        "--resolution",
+        "32",
+        "--attributes",
+    ]);
+    assert!(out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("holds no vertex colours"), "{err}");
+}
+
+#[test]
+fn show_writes_an_item_of_a_job_with_attributes_in_the_colours_convert_writes() {
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let meshes = dir.path().join("meshes");
+    std::fs::create_dir(&meshes).unwrap_or_else(|e| panic!("{e}"));
+    std::fs::copy(
+        common::example("box_textured.glb"),
+        meshes.join("box_textured.glb"),
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    let config = dir.path().join("config.toml");
+    std::fs::write(&config, "[attributes]\nenabled = true\n").unwrap_or_else(|e| panic!("{e}"));
+    let job = dir.path().join("job");
+    let res = "48";
+    ok(&[
+        "run",
+        s(&meshes),
+        "--job",
+        s(&job),
+        "--config",
+        s(&config),
+        "--resolution",
+        res,
+        "--workers",
+        "1",
+    ]);
+    let shown = dir.path().join("shown.ply");
+    ok(&["show", s(&job), "--id", "box_textured.glb", "-o", s(&shown)]);
+    let converted = dir.path().join("converted.ply");
+    let source = meshes.join("box_textured.glb");
+    ok(&[
+        "convert",
+        s(&source),
+        "-o",
+        s(&converted),
+        "--resolution",
+        res,
+        "--attributes",
+    ]);
+    let colours = ply_colours(&shown);
+    assert_eq!(colours, ply_colours(&converted));
+    let distinct: std::collections::BTreeSet<[u8; 4]> = colours.iter().copied().collect();
+    assert!(
+        distinct.len() > 1,
+        "a textured box in one colour: {distinct:?}"
+    );
+}
