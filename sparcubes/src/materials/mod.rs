@@ -184,8 +184,9 @@ pub struct Material {
 }
 
 /// Base colour of a surface without any material or colour: 0.8 linear grey, the base colour
-/// of Blender's default Principled BSDF (so an uncoloured item looks as it does in the tool
-/// TRELLIS.2's data toolkit renders with), rather than glTF's white.
+/// of Blender's default Principled BSDF (so an uncoloured item looks as it does in Blender, in
+/// which the data toolkits of the generators we export for render their assets: docs/FORMAT.md,
+/// "Attributes"), rather than glTF's white.
 pub const DEFAULT_BASE_COLOR: f32 = 0.8;
 /// Roughness of the default material: 0.5, Blender's Principled BSDF default.
 pub const DEFAULT_ROUGHNESS: f32 = 0.5;
