@@ -24,9 +24,10 @@
 
 use crate::arrays::{floats, point_distance_rows, point_normal_rows, Width};
 use crate::select::{
-    block_needs, block_rows, require_sharp, rows_in_cube, samples_off, unmet, Need,
+    block_needs, block_rows, missing_needs, require_sharp, rows_in_cube, sharp_near_needs,
+    sharp_near_rows, surface_and_sharp_needs, Need,
 };
-use crate::{npz_file, Error, ExportFile, Item, ItemExport, Listed, Placement, Result};
+use crate::{npz::Array, npz_file, Error, ExportFile, Item, ItemExport, Listed, Placement, Result};
 use sparcubes::samples::{farthest_points, SampleParams, Samples};
 use std::path::Path;
 
@@ -57,21 +58,12 @@ pub const HALF_EXTENT: f64 = 1.0;
 
 /// The `[samples]` counts it needs.
 pub fn missing(samples: Option<&SampleParams>) -> Vec<String> {
-    let Some(p) = samples else {
-        return samples_off();
-    };
-    let mut needs = vec![
-        Need::rows("surface", p.surface, FPS_ROWS),
-        Need::rows("sharp", p.sharp, FPS_ROWS),
-    ];
-    needs.extend(near_and_volume_needs(p));
-    needs.extend(block_needs(
-        "sharp_near",
-        p.sharp_near,
-        &p.sharp_near_sigmas,
-        &SHARP_NEAR_BLOCKS,
-    ));
-    unmet(&needs)
+    missing_needs(samples, |p| {
+        let mut needs = surface_and_sharp_needs(p, FPS_ROWS);
+        needs.extend(near_and_volume_needs(p));
+        needs.extend(sharp_near_needs(p, &SHARP_NEAR_BLOCKS));
+        needs
+    })
 }
 
 /// What Dora's near and volume blocks need (Step1X-3D follows the same recipe).
@@ -98,12 +90,7 @@ pub fn files(item: &Item) -> Result<ItemExport> {
             Width::F32,
         )
     };
-    let sharp_near = block_rows(
-        s.sharp_near_points.len(),
-        &p.sharp_near_sigmas,
-        &SHARP_NEAR_BLOCKS,
-        "sharp_near",
-    )?;
+    let sharp_near = sharp_near_rows(s, p, &SHARP_NEAR_BLOCKS)?;
     let (near, volume) = near_and_volume(s, p, &item.consumer_cube(HALF_EXTENT))?;
     let mut rand = signed_rows(&s.near_points, &s.near_sdf, &near, &place);
     rand.extend(signed_rows(
@@ -116,11 +103,11 @@ pub fn files(item: &Item) -> Result<ItemExport> {
     arrays.extend([
         fps(&s.surface_points, &s.surface_normals, "fps_coarse_surface"),
         fps(&s.sharp_points, &s.sharp_normals, "fps_sharp_surface"),
-        floats(
+        signed_array(
             "sharp_near_surface",
-            vec![sharp_near.len(), 4],
-            &signed_rows(&s.sharp_near_points, &s.sharp_near_sdf, &sharp_near, &place),
-            Width::F32,
+            (&s.sharp_near_points, &s.sharp_near_sdf),
+            &sharp_near,
+            &place,
         ),
         floats(
             "rand_points",
@@ -200,6 +187,21 @@ pub(crate) fn near_and_volume(
         )));
     }
     Ok((near, volume))
+}
+
+/// The `[n, 4]` f32 array `name` of [`signed_rows`]: the chosen rows of `(points, sdf)`.
+pub(crate) fn signed_array(
+    name: &str,
+    (points, sdf): (&[[f32; 3]], &[f32]),
+    rows: &[usize],
+    place: &Placement,
+) -> Array {
+    floats(
+        name,
+        vec![rows.len(), 4],
+        &signed_rows(points, sdf, rows, place),
+        Width::F32,
+    )
 }
 
 /// Rows `[x, y, z, sdf]` of the chosen points, the distance positive inside.

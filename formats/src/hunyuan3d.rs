@@ -23,7 +23,8 @@
 
 use crate::arrays::{floats, placed, point_normal_rows, Width};
 use crate::select::{
-    block_needs, block_rows, require_sharp, rows_in_cube, samples_off, unmet, Need,
+    block_needs, block_rows, missing_needs, require_sharp, rows_in_cube, sharp_near_needs,
+    sharp_near_rows, surface_and_sharp_needs, Need,
 };
 use crate::{npz::Array, npz_file, Item, ItemExport, Placement, Result};
 use sparcubes::samples::SampleParams;
@@ -56,22 +57,13 @@ pub const HALF_EXTENT: f64 = 0.9999;
 
 /// The `[samples]` counts it needs.
 pub fn missing(samples: Option<&SampleParams>) -> Vec<String> {
-    let Some(p) = samples else {
-        return samples_off();
-    };
-    let mut needs = vec![
-        Need::rows("surface", p.surface, SURFACE_ROWS),
-        Need::rows("sharp", p.sharp, SURFACE_ROWS),
-        Need::rows("volume", p.volume, VOLUME_ROWS),
-    ];
-    needs.extend(block_needs("near", p.near, &p.near_sigmas, &NEAR_BLOCKS));
-    needs.extend(block_needs(
-        "sharp_near",
-        p.sharp_near,
-        &p.sharp_near_sigmas,
-        &SHARP_NEAR_BLOCKS,
-    ));
-    unmet(&needs)
+    missing_needs(samples, |p| {
+        let mut needs = surface_and_sharp_needs(p, SURFACE_ROWS);
+        needs.push(Need::rows("volume", p.volume, VOLUME_ROWS));
+        needs.extend(block_needs("near", p.near, &p.near_sigmas, &NEAR_BLOCKS));
+        needs.extend(sharp_near_needs(p, &SHARP_NEAR_BLOCKS));
+        needs
+    })
 }
 
 /// The item's two files under `<stem>/geo_data/`.
@@ -97,12 +89,7 @@ pub fn files(item: &Item) -> Result<ItemExport> {
         ),
     ]);
     let near = block_rows(s.near_points.len(), &p.near_sigmas, &NEAR_BLOCKS, "near")?;
-    let sharp_near = block_rows(
-        s.sharp_near_points.len(),
-        &p.sharp_near_sigmas,
-        &SHARP_NEAR_BLOCKS,
-        "sharp_near",
-    )?;
+    let sharp_near = sharp_near_rows(s, p, &SHARP_NEAR_BLOCKS)?;
     let cube = item.consumer_cube(HALF_EXTENT);
     let volume = rows_in_cube(&s.volume_points, &cube, VOLUME_BOUND, VOLUME_ROWS);
     let labelled = |points: &str, label: &str, pts: &[[f32; 3]], sdf: &[f32], rows: &[usize]| {

@@ -4,7 +4,7 @@
 //! a job's `[samples]` must reach for a consumer (its `missing` list).
 
 use crate::{Error, Placement, Result};
-use sparcubes::samples::{sigma_rows, Samples};
+use sparcubes::samples::{sigma_rows, SampleParams, Samples};
 
 /// How many of `count` rows a kind with `sigmas` draws at `sigma`.
 pub(crate) fn count_at(count: usize, sigmas: &[f64], sigma: f64) -> usize {
@@ -58,6 +58,20 @@ pub(crate) fn block_needs(
         .iter()
         .map(|&(sigma, want)| Need::at_sigma(key, count, sigmas, sigma, want))
         .collect()
+}
+
+/// The rows of the sharp-near `blocks`, or an error naming the kind's keys.
+pub(crate) fn sharp_near_rows(
+    s: &Samples,
+    p: &SampleParams,
+    blocks: &Blocks,
+) -> Result<Vec<usize>> {
+    block_rows(
+        s.sharp_near_points.len(),
+        &p.sharp_near_sigmas,
+        blocks,
+        "sharp_near",
+    )
 }
 
 /// The first `take` rows (fewer when fewer lie there) whose point, moved by `place`, lies in
@@ -118,8 +132,33 @@ impl Need {
     }
 }
 
+/// A consumer's `missing` list: the one line of a job without samples, else the unmet needs
+/// `needs` finds in the job's `[samples]`.
+pub(crate) fn missing_needs(
+    samples: Option<&SampleParams>,
+    needs: impl FnOnce(&SampleParams) -> Vec<Need>,
+) -> Vec<String> {
+    match samples {
+        None => samples_off(),
+        Some(p) => unmet(&needs(p)),
+    }
+}
+
+/// What a consumer reading `rows` surface points and `rows` sharp-edge points needs.
+pub(crate) fn surface_and_sharp_needs(p: &SampleParams, rows: usize) -> Vec<Need> {
+    vec![
+        Need::rows("surface", p.surface, rows),
+        Need::rows("sharp", p.sharp, rows),
+    ]
+}
+
+/// What the sharp-near `blocks` need of `[samples]`.
+pub(crate) fn sharp_near_needs(p: &SampleParams, blocks: &Blocks) -> Vec<Need> {
+    block_needs("sharp_near", p.sharp_near, &p.sharp_near_sigmas, blocks)
+}
+
 /// The unmet needs, each as one line naming the key.
-pub(crate) fn unmet(needs: &[Need]) -> Vec<String> {
+fn unmet(needs: &[Need]) -> Vec<String> {
     needs
         .iter()
         .filter(|n| n.have < n.want)
@@ -138,7 +177,7 @@ pub(crate) fn unmet(needs: &[Need]) -> Vec<String> {
 }
 
 /// The one line for a job without samples.
-pub(crate) fn samples_off() -> Vec<String> {
+fn samples_off() -> Vec<String> {
     vec!["samples.enabled = true (the job draws no samples)".into()]
 }
 

@@ -16,8 +16,8 @@
 //! key, never reads made-up rows; the export counts those items.
 
 use crate::arrays::{floats, point_normal_rows, Width};
-use crate::dora::{self, near_and_volume, near_and_volume_needs, signed_rows};
-use crate::select::{has_sharp, samples_off, unmet, Need};
+use crate::dora::{self, near_and_volume, near_and_volume_needs, signed_array};
+use crate::select::{has_sharp, missing_needs, surface_and_sharp_needs};
 use crate::{npz::Array, npz_file, ExportFile, Item, ItemExport, Listed, Result};
 use sparcubes::samples::SampleParams;
 
@@ -34,15 +34,11 @@ pub const NO_SHARP: &str = "without sharp_surface (no sharp edges): read by Step
 
 /// The `[samples]` counts it needs.
 pub fn missing(samples: Option<&SampleParams>) -> Vec<String> {
-    let Some(p) = samples else {
-        return samples_off();
-    };
-    let mut needs = vec![
-        Need::rows("surface", p.surface, SURFACE_ROWS),
-        Need::rows("sharp", p.sharp, SURFACE_ROWS),
-    ];
-    needs.extend(near_and_volume_needs(p));
-    unmet(&needs)
+    missing_needs(samples, |p| {
+        let mut needs = surface_and_sharp_needs(p, SURFACE_ROWS);
+        needs.extend(near_and_volume_needs(p));
+        needs
+    })
 }
 
 /// The item's `surfaces/<stem>.npz`.
@@ -67,17 +63,17 @@ pub fn files(item: &Item) -> Result<ItemExport> {
         arrays.push(rows("sharp_surface", &s.sharp_points, &s.sharp_normals));
     }
     arrays.extend([
-        floats(
+        signed_array(
             "near_surface_points",
-            vec![near.len(), 4],
-            &signed_rows(&s.near_points, &s.near_sdf, &near, &place),
-            Width::F32,
+            (&s.near_points, &s.near_sdf),
+            &near,
+            &place,
         ),
-        floats(
+        signed_array(
             "volume_rand_points",
-            vec![volume.len(), 4],
-            &signed_rows(&s.volume_points, &s.volume_sdf, &volume, &place),
-            Width::F32,
+            (&s.volume_points, &s.volume_sdf),
+            &volume,
+            &place,
         ),
         Array::numbers("bounds", "<f4", vec![], &[dora::VOLUME_BOUND as f32]),
     ]);

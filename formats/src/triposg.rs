@@ -7,7 +7,7 @@
 
 use crate::arrays::placed;
 use crate::pickle::{f32_rows, npy_of_object, Value};
-use crate::select::{samples_off, unmet, Need};
+use crate::select::{missing_needs, Need};
 use crate::{Error, ExportFile, Item, ItemExport, Result};
 use sparcubes::samples::SampleParams;
 
@@ -21,10 +21,9 @@ const HALF_EXTENT: f64 = 1.0;
 
 /// The `[samples]` counts it needs.
 pub fn missing(samples: Option<&SampleParams>) -> Vec<String> {
-    match samples {
-        None => samples_off(),
-        Some(p) => unmet(&[Need::rows("surface", p.surface, SURFACE_ROWS)]),
-    }
+    missing_needs(samples, |p| {
+        vec![Need::rows("surface", p.surface, SURFACE_ROWS)]
+    })
 }
 
 /// The item's `<stem>.npy`.

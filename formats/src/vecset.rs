@@ -5,6 +5,7 @@
 
 use crate::arrays::{floats, placed, Width};
 use crate::npz::Array;
+use crate::select::missing_needs;
 use crate::{identity_arrays, npz_file, Frame, Item, ItemExport, Placement, Result};
 use sparcubes::samples::{Precision, SampleParams};
 
@@ -14,10 +15,7 @@ pub const ABOUT: &str =
 
 /// `samples.enabled` when the job draws no samples.
 pub fn missing(samples: Option<&SampleParams>) -> Vec<String> {
-    match samples {
-        None => vec!["samples.enabled = true (the job draws no samples)".into()],
-        Some(_) => Vec::new(),
-    }
+    missing_needs(samples, |_| Vec::new())
 }
 
 /// One `<stem>.npz` with the item's samples in `item.frame`.
