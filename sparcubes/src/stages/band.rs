@@ -106,19 +106,25 @@ impl BrickScratch {
     }
 }
 
+/// One brick's scan: the mesh with its [`triangle_planes`], the brick's triangles (ascending)
+/// and its lowest vertex.
+struct BrickScan<'a> {
+    mesh: &'a GridMesh,
+    planes: &'a [[f64; 4]],
+    tris: &'a [u32],
+    base: [i64; 3],
+}
+
 /// Updates the best distance of the vertices in `mask` that lie within `reach` of each
 /// triangle's bounding box. Triangles come in ascending order and only a strictly smaller
 /// distance replaces the best, so ties go to the lowest triangle index.
-#[allow(clippy::too_many_arguments)]
-fn scan_pass(
-    mesh: &GridMesh,
-    planes: &[[f64; 4]],
-    tris: &[u32],
-    mask: &BrickMask,
-    base: [i64; 3],
-    reach: f64,
-    scratch: &mut BrickScratch,
-) {
+fn scan_pass(brick: &BrickScan<'_>, mask: &BrickMask, reach: f64, scratch: &mut BrickScratch) {
+    let BrickScan {
+        mesh,
+        planes,
+        tris,
+        base,
+    } = *brick;
     for &t in tris {
         let tri = mesh.tri(t as usize);
         let pl = planes[t as usize];
@@ -176,20 +182,17 @@ fn scan_pass(
 /// Distances and closest points of one brick's vertices, in local order: a pass with
 /// [`CORE_REACH`] settles every vertex within it (all corners of wall cells); if `reach` is
 /// larger, the rest are rescanned with it.
-#[allow(clippy::too_many_arguments)]
 fn scan_brick(
-    mesh: &GridMesh,
-    planes: &[[f64; 4]],
-    tris: &[u32],
+    brick: &BrickScan<'_>,
     mask: &BrickMask,
-    base: [i64; 3],
     reach: f64,
     scratch: &mut BrickScratch,
     out: &mut [Nearest],
 ) {
+    let base = brick.base;
     scratch.best.fill(f64::INFINITY);
     let near = CORE_REACH.min(reach);
-    scan_pass(mesh, planes, tris, mask, base, near, scratch);
+    scan_pass(brick, mask, near, scratch);
     if reach > near {
         let mut far = [0u64; 8];
         for_each_bit(mask, |x, y, z| {
@@ -200,7 +203,7 @@ fn scan_brick(
             }
         });
         if !crate::grid::is_empty(&far) {
-            scan_pass(mesh, planes, tris, &far, base, reach, scratch);
+            scan_pass(brick, &far, reach, scratch);
         }
     }
     let mut i = 0;
@@ -238,9 +241,13 @@ pub fn compute_band(mesh: &GridMesh, planes: &[[f64; 4]], verts: BrickSet, reach
         &mut nearest,
         BrickScratch::new,
         |scratch, s, b, mask, out| {
-            let base = [b[0] as i64 * 8, b[1] as i64 * 8, b[2] as i64 * 8];
-            let tris = &bins[starts[s] as usize..starts[s + 1] as usize];
-            scan_brick(mesh, planes, tris, mask, base, reach, scratch, out);
+            let brick = BrickScan {
+                mesh,
+                planes,
+                tris: &bins[starts[s] as usize..starts[s + 1] as usize],
+                base: [b[0] as i64 * 8, b[1] as i64 * 8, b[2] as i64 * 8],
+            };
+            scan_brick(&brick, mask, reach, scratch, out);
         },
     );
     Band { verts, nearest }
