@@ -1,6 +1,7 @@
 //! Small generated meshes with known geometry, for tests, examples and benchmarks.
 
 use crate::mesh::TriMesh;
+use crate::stages::extract::mc_table::FACE_CORNERS;
 use std::f64::consts::PI;
 
 fn push(m: &mut TriMesh, p: [f64; 3]) -> u32 {
@@ -37,16 +38,23 @@ pub fn sphere(c: [f64; 3], r: f64, segments: u32) -> TriMesh {
     for j in 0..s {
         let k = (j + 1) % s;
         m.triangles.push([top, grid[0][j], grid[0][k]]);
-        for i in 0..grid.len() - 1 {
-            let (a, b) = (grid[i][j], grid[i][k]);
-            let (cc, d) = (grid[i + 1][j], grid[i + 1][k]);
-            m.triangles.push([a, cc, d]);
-            m.triangles.push([a, d, b]);
-        }
-        let last = grid.len() - 1;
-        m.triangles.push([bottom, grid[last][k], grid[last][j]]);
+        close_column(&mut m, &grid, bottom, j, k);
     }
     m
+}
+
+/// The triangles of a UV sphere's column between the points `j` and `k` of every row of
+/// `grid` (rows from the top down, each around the axis): two between each row and the next,
+/// then one down to the pole `bottom`, all outward oriented.
+fn close_column(m: &mut TriMesh, grid: &[Vec<u32>], bottom: u32, j: usize, k: usize) {
+    for i in 0..grid.len() - 1 {
+        let (a, b) = (grid[i][j], grid[i][k]);
+        let (cc, d) = (grid[i + 1][j], grid[i + 1][k]);
+        m.triangles.push([a, cc, d]);
+        m.triangles.push([a, d, b]);
+    }
+    let last = grid.len() - 1;
+    m.triangles.push([bottom, grid[last][k], grid[last][j]]);
 }
 
 /// An axis-aligned box from `lo` to `hi`, outward oriented; `skip` removes the faces whose
@@ -63,19 +71,18 @@ pub fn cuboid(lo: [f64; 3], hi: [f64; 3], skip: &[usize]) -> TriMesh {
     for i in 0..8 {
         push(&mut m, corner(i));
     }
-    // Quads as corner indices, counter-clockwise seen from outside.
-    let faces = [
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-    ];
-    for (f, q) in faces.iter().enumerate() {
+    // The cube's faces in the one numbering of the crate, counter-clockwise seen from the
+    // positive side of their axis: a face on the negative side is turned to face outwards.
+    for (f, &c) in FACE_CORNERS.iter().enumerate() {
         if skip.contains(&f) {
             continue;
         }
+        let q = if f % 2 == 0 {
+            [c[0], c[3], c[2], c[1]]
+        } else {
+            c
+        }
+        .map(u32::from);
         m.triangles.push([q[0], q[1], q[2]]);
         m.triangles.push([q[0], q[2], q[3]]);
     }
@@ -222,15 +229,7 @@ pub fn sphere_with_hole(c: [f64; 3], r: f64, hole: f64, segments: u32) -> TriMes
     }
     let bottom = push(&mut m, [c[0], c[1], c[2] - r]);
     for j in 0..segs {
-        let k = (j + 1) % segs;
-        for i in 0..grid.len() - 1 {
-            let (a, b) = (grid[i][j], grid[i][k]);
-            let (cc, d) = (grid[i + 1][j], grid[i + 1][k]);
-            m.triangles.push([a, cc, d]);
-            m.triangles.push([a, d, b]);
-        }
-        let last = grid.len() - 1;
-        m.triangles.push([bottom, grid[last][k], grid[last][j]]);
+        close_column(&mut m, &grid, bottom, j, (j + 1) % segs);
     }
     m
 }

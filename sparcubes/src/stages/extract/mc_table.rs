@@ -42,7 +42,8 @@ pub const EDGES: [(u8, u8, u8); 12] = [
     (3, 7, 2),
 ];
 
-/// The corners of face `f` (axis `f / 2`, side `f % 2`) in cyclic order.
+/// The corners of face `f` (axis `f / 2`, side `f % 2`) in cyclic order, counter-clockwise
+/// seen from the positive side of the axis.
 pub const FACE_CORNERS: [[u8; 4]; 6] = [
     [0, 2, 6, 4],
     [1, 3, 7, 5],
