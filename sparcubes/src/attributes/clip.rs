@@ -7,8 +7,15 @@
 //! polygon vertex carries its barycentric coordinates, which are affine in position, so the
 //! area-weighted centroid of a piece comes with its own.
 
+use crate::vec3::{cross, norm, sub, Vec3};
+
 /// A polygon vertex: position (grid coordinates) and barycentric coordinates.
 type Vertex = [f64; 6];
+
+/// A vertex's position.
+fn position(v: Vertex) -> Vec3 {
+    [v[0], v[1], v[2]]
+}
 
 /// A convex polygon of at most [`MAX`] vertices (a triangle cut by six planes has at most 9).
 #[derive(Clone, Copy)]
@@ -75,14 +82,8 @@ impl Poly {
         let p = &self.v[..self.n];
         for i in 1..self.n - 1 {
             let (a, b, d) = (p[0], p[i], p[i + 1]);
-            let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-            let w = [d[0] - a[0], d[1] - a[1], d[2] - a[2]];
-            let x = [
-                u[1] * w[2] - u[2] * w[1],
-                u[2] * w[0] - u[0] * w[2],
-                u[0] * w[1] - u[1] * w[0],
-            ];
-            let s = 0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
+            let (pa, pb, pd) = (position(a), position(b), position(d));
+            let s = 0.5 * norm(cross(sub(pb, pa), sub(pd, pa)));
             area += s;
             for k in 0..3 {
                 c[k] += s * (a[3 + k] + b[3 + k] + d[3 + k]) / 3.0;

@@ -5,6 +5,7 @@ use crate::error::{Error, Result};
 use crate::grid::normalization::Normalization;
 use crate::mesh::{GridMesh, TriMesh};
 use crate::params::Params;
+use crate::vec3::{cross, sub};
 
 /// The mesh in grid coordinates without zero-area triangles, the normalization that put it
 /// there, and how many triangles had zero area. A mesh must be sanitised ([`checked_bounds`]);
@@ -65,14 +66,7 @@ fn to_grid(mesh: &TriMesh, norm: &Normalization, n: u32) -> (GridMesh, u64) {
     for &t in &mesh.triangles {
         grid.tris.push(t);
         let [a, b, c] = grid.tri(grid.tris.len() - 1);
-        let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-        let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-        let nrm = [
-            u[1] * v[2] - u[2] * v[1],
-            u[2] * v[0] - u[0] * v[2],
-            u[0] * v[1] - u[1] * v[0],
-        ];
-        if nrm == [0.0; 3] {
+        if cross(sub(b, a), sub(c, a)) == [0.0; 3] {
             grid.tris.pop();
             degenerate += 1;
         }
