@@ -20,15 +20,7 @@ use crate::lease::BucketLease;
 use anyhow::{bail, Context, Result};
 use sparc3d_schema::{CompletionRecord, JobLayout};
 use sparc3d_sources::objects::{Prefix, Version, WriteMode, Written};
-
-/// How a commit to the bucket ended.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Pushed {
-    /// This writer's shard is the one the record names.
-    Done(CompletionRecord),
-    /// Another writer's record was there first.
-    FinishedElsewhere(CompletionRecord),
-}
+use sparc3d_workers::store::commit::Committed;
 
 /// Uploads shard `shard`, committed in the scratch job at `local` with `record`, and creates
 /// its record in the bucket.
@@ -39,7 +31,7 @@ pub fn push(
     record: &CompletionRecord,
     writer: &str,
     lease: &BucketLease,
-) -> Result<Pushed> {
+) -> Result<Committed> {
     let name = keys::data_name(shard, writer);
     let fence = |step: &str| {
         lease
@@ -67,12 +59,12 @@ pub fn push(
     {
         Written::Done(_) => {
             clean_up(prefix, shard, &name);
-            Ok(Pushed::Done(in_bucket))
+            Ok(Committed::Done(in_bucket))
         }
         Written::Refused => {
             let _ = prefix.delete(&keys::data(&name));
             match read_record(prefix, shard)? {
-                Some(theirs) => Ok(Pushed::FinishedElsewhere(theirs)),
+                Some(theirs) => Ok(Committed::FinishedElsewhere(theirs)),
                 None => bail!(
                     "shard {shard}: its record was refused as existing, then could not be read"
                 ),
@@ -188,7 +180,7 @@ mod tests {
             &a,
         )?;
         a.release();
-        let Pushed::Done(done) = first else {
+        let Committed::Done(done) = first else {
             panic!("the first writer commits")
         };
         assert_eq!(done.object.as_deref(), Some("part-00000.a.parquet"));
@@ -196,7 +188,7 @@ mod tests {
         let b = lease("b");
         let second = push(&prefix, &local, 0, &record(b"writer b"), "b", &b)?;
         b.release();
-        assert!(matches!(second, Pushed::FinishedElsewhere(r) if r.object == done.object));
+        assert!(matches!(second, Committed::FinishedElsewhere(r) if r.object == done.object));
         let uploads: Vec<String> = prefix
             .list(keys::SHARDS)?
             .iter()

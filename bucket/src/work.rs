@@ -5,7 +5,7 @@
 //! the shard and create its record ([`crate::commit`]).
 
 use crate::checkpoint::{pull_checkpoints, Checkpoints};
-use crate::commit::{push, Pushed};
+use crate::commit::push;
 use crate::integrity::{finished, Finished};
 use crate::keys;
 use crate::lease::{acquire, Acquired, BucketLease};
@@ -14,6 +14,7 @@ use sparc3d_schema::CompletionRecord;
 use sparc3d_sources::objects::Prefix;
 use sparc3d_workers::events::Event;
 use sparc3d_workers::lease::{file_token, owner_name};
+use sparc3d_workers::shard::{committed_outcome, skipped};
 use sparc3d_workers::{process_shard, Job, ShardOutcome, WorkOptions};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -67,13 +68,6 @@ pub fn work_shard(
         lease.release();
     }
     result
-}
-
-fn skipped(opts: &mut WorkOptions, shard: u64, reason: &str) {
-    (opts.events)(Event::ShardSkipped {
-        shard,
-        reason: reason.into(),
-    });
 }
 
 /// A shard whose bucket lease this worker holds.
@@ -191,22 +185,7 @@ impl Leased<'_> {
         // The bucket has it now: the scratch copy goes.
         let _ = std::fs::remove_file(layout.shard_file(shard));
         let _ = std::fs::remove_file(layout.completion(shard));
-        Ok(match pushed {
-            Pushed::Done(r) => {
-                (opts.events)(Event::ShardFinished {
-                    shard,
-                    rows: r.rows,
-                    ok: r.ok,
-                    failed: r.failed,
-                });
-                ShardOutcome::Done(r)
-            }
-            Pushed::FinishedElsewhere(r) => {
-                let why = "finished by another worker meanwhile; its shard is kept";
-                skipped(opts, shard, why);
-                ShardOutcome::AlreadyDone(r)
-            }
-        })
+        Ok(committed_outcome(opts, shard, pushed))
     }
 }
 

@@ -43,10 +43,7 @@ pub fn process_shard(job: &Job, shard: u64, opts: &mut WorkOptions) -> Result<Sh
     let fp = job.fingerprint().to_string();
     if let Completion::Done(r) = state::completion(layout, shard, &fp, Check::Quick)? {
         clear_leftovers(job, shard, opts.lease_ttl_s)?;
-        (opts.events)(Event::ShardSkipped {
-            shard,
-            reason: "already done".into(),
-        });
+        skipped(opts, shard, "already done");
         return Ok(ShardOutcome::AlreadyDone(*r));
     }
     crate::fsutil::create_dir(&layout.state_dir())?;
@@ -55,18 +52,12 @@ pub fn process_shard(job: &Job, shard: u64, opts: &mut WorkOptions) -> Result<Sh
     let held = match lease::acquire(&layout.lease(shard), &owner, opts.lease_ttl_s)? {
         Acquired::Held(l) => l,
         Acquired::Busy(holder) => {
-            (opts.events)(Event::ShardSkipped {
-                shard,
-                reason: format!("leased by {}", holder.owner),
-            });
+            skipped(opts, shard, &format!("leased by {}", holder.owner));
             return Ok(ShardOutcome::Busy(holder.owner));
         }
         Acquired::Contended => {
             let who = "several workers taking its lease at once".to_string();
-            (opts.events)(Event::ShardSkipped {
-                shard,
-                reason: format!("leased by {who}"),
-            });
+            skipped(opts, shard, &format!("leased by {who}"));
             return Ok(ShardOutcome::Busy(who));
         }
     };
@@ -163,7 +154,14 @@ fn run_leased(
     journal.abandon();
     // The shard holds every row now: the journals (this holder's and the earlier ones') go.
     let _ = journal::set::remove_all(layout, shard);
-    Ok(match committed {
+    Ok(committed_outcome(opts, shard, committed))
+}
+
+/// What the commit of shard `shard` (on disk, or to a bucket) comes to, told to
+/// `opts.events`: this worker's shard finished ([`Event::ShardFinished`]), or another
+/// worker's finished first and is kept ([`Event::ShardSkipped`]).
+pub fn committed_outcome(opts: &mut WorkOptions, shard: u64, committed: Committed) -> ShardOutcome {
+    match committed {
         Committed::Done(record) => {
             (opts.events)(Event::ShardFinished {
                 shard,
@@ -174,11 +172,17 @@ fn run_leased(
             ShardOutcome::Done(record)
         }
         Committed::FinishedElsewhere(record) => {
-            (opts.events)(Event::ShardSkipped {
-                shard,
-                reason: "finished by another worker meanwhile; its shard is kept".into(),
-            });
+            let why = "finished by another worker meanwhile; its shard is kept";
+            skipped(opts, shard, why);
             ShardOutcome::AlreadyDone(record)
         }
-    })
+    }
+}
+
+/// Tells `opts.events` that shard `shard` is not processed, and why ([`Event::ShardSkipped`]).
+pub fn skipped(opts: &mut WorkOptions, shard: u64, reason: &str) {
+    (opts.events)(Event::ShardSkipped {
+        shard,
+        reason: reason.into(),
+    });
 }

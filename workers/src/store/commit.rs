@@ -26,10 +26,10 @@ use std::path::Path;
 /// Times a shard's name is tried before giving up when files keep appearing there.
 const PLACE_TRIES: usize = 4;
 
-/// How a commit ended.
+/// How a commit ended, on disk or in a bucket.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Committed {
-    /// This writer's shard is in place with its record.
+    /// This writer's shard is the one its record names (in place on disk, or uploaded).
     Done(CompletionRecord),
     /// Another worker's finished shard was there already (its record); this one was
     /// discarded.
