@@ -45,9 +45,7 @@ pub struct Args {
     #[arg(long)]
     pub no_warmup: bool,
     #[command(flatten)]
-    pub deform: crate::flags::deform::DeformArgs,
-    #[command(flatten)]
-    pub inside_test: crate::flags::inside_test::InsideTestArgs,
+    pub conversion: crate::flags::conversion::ConversionArgs,
     /// zstd level of the encoded tensors.
     #[arg(long, default_value_t = 3)]
     pub zstd_level: i32,
@@ -198,10 +196,7 @@ fn bench_mesh(exe: &Path, path: &Path, resolution: u32, args: &Args) -> BenchRow
         .arg(args.zstd_level.to_string())
         .stdin(Stdio::null())
         .stdout(Stdio::piped());
-    cmd.args(args.inside_test.as_flags());
-    if args.deform.enabled() {
-        cmd.arg("--deform");
-    }
+    cmd.args(args.conversion.as_flags());
     if let Some(t) = args.threads {
         cmd.env("RAYON_NUM_THREADS", t.to_string());
     }

@@ -19,9 +19,7 @@ pub struct Args {
     #[command(flatten)]
     pub resolution: crate::flags::resolution::ResolutionArg,
     #[command(flatten)]
-    pub deform: crate::flags::deform::DeformArgs,
-    #[command(flatten)]
-    pub inside_test: crate::flags::inside_test::InsideTestArgs,
+    pub conversion: crate::flags::conversion::ConversionArgs,
     /// zstd level of the encoded tensors (the job default is 3).
     #[arg(long, default_value_t = 3)]
     pub zstd_level: i32,
@@ -128,9 +126,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
 
 fn measure(args: &Args, row: &mut BenchRow) -> anyhow::Result<()> {
     let name = args.input.display();
-    let mut params = sparcubes::Params::with_resolution(args.resolution.get());
-    params.deform = args.deform.enabled();
-    args.inside_test.apply_to(&mut params);
+    let params = args.conversion.params(args.resolution.get());
     let steps = Steps {
         params: &params,
         input_components: false,

@@ -21,9 +21,7 @@ pub struct Args {
     #[command(flatten)]
     pub resolution: crate::flags::resolution::ResolutionArg,
     #[command(flatten)]
-    pub deform: crate::flags::deform::DeformArgs,
-    #[command(flatten)]
-    pub inside_test: crate::flags::inside_test::InsideTestArgs,
+    pub conversion: crate::flags::conversion::ConversionArgs,
     #[command(flatten)]
     pub refine: crate::flags::refine::RefineArgs,
     /// Write the output in grid coordinates (voxels) instead of the source frame.
@@ -52,9 +50,7 @@ pub fn components_note(input: u64, output: u64) -> Option<&'static str> {
 /// Runs `sparc3d convert`.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let start = Instant::now();
-    let mut params = sparcubes::Params::with_resolution(args.resolution.get());
-    params.deform = args.deform.enabled();
-    args.inside_test.apply_to(&mut params);
+    let mut params = args.conversion.params(args.resolution.get());
     params.refine = args.refine.settings();
     super::check_params(&params)?;
     let steps = Steps {
