@@ -64,7 +64,9 @@ fn write_obj(path: &Path, v: &[[f64; 3]], f: &[[usize; 3]]) {
     std::fs::write(path, s).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
 }
 
-fn boxed(d: [f64; 3], o: [f64; 3]) -> (Vec<[f64; 3]>, Vec<[usize; 3]>) {
+/// A box of size `d` at corner `o`: its eight corners (corner i at bit 0, 1, 2 of i along x,
+/// y, z) and twelve outward triangles.
+pub fn boxed(d: [f64; 3], o: [f64; 3]) -> (Vec<[f64; 3]>, Vec<[usize; 3]>) {
     let mut v = Vec::new();
     for i in 0..8 {
         v.push([

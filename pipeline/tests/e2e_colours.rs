@@ -13,24 +13,11 @@ fn coloured_cube(path: &Path, rgb: [u8; 3]) {
          property float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n\
          element face 12\nproperty list uchar int vertex_indices\nend_header\n",
     );
-    for i in 0..8 {
-        let [x, y, z] = [i & 1, (i >> 1) & 1, (i >> 2) & 1];
+    let (corners, faces) = common::boxed([1.0; 3], [0.0; 3]);
+    for [x, y, z] in corners {
         text += &format!("{x} {y} {z} {} {} {}\n", rgb[0], rgb[1], rgb[2]);
     }
-    for [a, b, c] in [
-        [0, 2, 1],
-        [1, 2, 3],
-        [4, 5, 6],
-        [5, 7, 6],
-        [0, 1, 4],
-        [1, 5, 4],
-        [2, 6, 3],
-        [3, 6, 7],
-        [0, 4, 2],
-        [2, 4, 6],
-        [1, 3, 5],
-        [3, 7, 5],
-    ] {
+    for [a, b, c] in faces {
         text += &format!("3 {a} {b} {c}\n");
     }
     std::fs::write(path, text).unwrap_or_else(|e| panic!("{e}"));
