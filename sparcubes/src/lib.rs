@@ -39,6 +39,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod attributes;
+pub mod colour;
 pub mod convert;
 pub mod error;
 pub mod grid;

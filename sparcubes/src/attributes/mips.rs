@@ -7,27 +7,14 @@
 //! bilinear in the two levels around the requested one, blended by its fraction; at level 0
 //! with a NEAREST magnification filter it is the nearest texel.
 
+pub use crate::colour::{linear_to_srgb, to_byte};
+
 use crate::materials::{Image, Wrap};
 use std::borrow::Cow;
 
 /// sRGB byte → linear value, for every byte.
 fn decode_table() -> [f32; 256] {
     std::array::from_fn(|i| crate::materials::srgb_to_linear(i as f32 / 255.0))
-}
-
-/// Linear value in [0, 1] → sRGB in [0, 1] (IEC 61966-2-1).
-pub fn linear_to_srgb(c: f32) -> f32 {
-    let c = c.clamp(0.0, 1.0);
-    if c <= 0.003_130_8 {
-        c * 12.92
-    } else {
-        1.055 * c.powf(1.0 / 2.4) - 0.055
-    }
-}
-
-/// Rounds a value in [0, 1] to a byte.
-pub fn to_byte(x: f32) -> u8 {
-    (x.clamp(0.0, 1.0) * 255.0).round() as u8
 }
 
 /// One level: its size and texels, rows from the top.

@@ -1,9 +1,8 @@
 //! Writers: binary little-endian PLY, OBJ, binary STL and GLB, each written to a temporary
 //! file beside the target, synced, then renamed over it.
 
-use crate::attributes::mips::to_byte;
+use crate::colour::{srgb_to_linear, to_byte};
 use crate::error::{Error, Result};
-use crate::materials::srgb_to_linear;
 use crate::mesh::TriMesh;
 use rayon::prelude::*;
 use std::io::Write;

@@ -8,6 +8,8 @@
 //! for display without colour management. Named as not read: bump, normal, displacement,
 //! specular, emissive and reflection maps, and a non-black emissive colour `Ke`.
 
+pub use crate::colour::srgb_to_linear;
+
 use super::{AlphaMode, Facts, Material, ScalarMap, TextureRef, Wrap, IDENTITY_UV};
 
 /// A map statement's options and file.
@@ -41,15 +43,6 @@ pub struct MtlMaterial {
     pub material: Material,
     /// Its maps.
     pub maps: Vec<(Slot, MapSpec)>,
-}
-
-/// sRGB value in [0, 1] to linear (IEC 61966-2-1).
-pub fn srgb_to_linear(c: f32) -> f32 {
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
 }
 
 /// Parses the numbers after a keyword; missing or bad ones are `None`.
