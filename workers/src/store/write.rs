@@ -18,7 +18,7 @@ use sha2::{Digest, Sha256};
 use sparc3d_schema::{columns, meta_keys, CompletionRecord, ItemStatus, ShardRow};
 use std::collections::{BTreeMap, VecDeque};
 use std::fs::File;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Bytes of tensor blobs after which a row group closes (row groups stay well under 256 MB).
 const ROW_GROUP_BYTES: usize = 64 << 20;
@@ -259,7 +259,7 @@ impl ShardStream {
         started_at: f64,
     ) -> Result<(File, CompletionRecord)> {
         let Some(writer) = self.writer.take() else {
-            return Err(self.closed());
+            return Err(closed_error(&self.tmp));
         };
         let closed = writer.into_inner();
         let HashingFile { file, hash } = closed.map_err(|e| self.parquet_error(e))?;
@@ -289,16 +289,8 @@ impl ShardStream {
 
     /// The Parquet writer, while the file is open.
     fn open_writer(&mut self) -> Result<&mut ArrowWriter<HashingFile>> {
-        let closed = self.closed();
-        self.writer.as_mut().ok_or(closed)
-    }
-
-    /// The error of a use after the file was closed (or failed to open).
-    fn closed(&self) -> WorkerError {
-        WorkerError::BadFile {
-            path: self.tmp.clone(),
-            reason: "the shard file is closed already".into(),
-        }
+        let tmp = &self.tmp;
+        self.writer.as_mut().ok_or_else(|| closed_error(tmp))
     }
 
     fn parquet_error(&self, source: parquet::errors::ParquetError) -> WorkerError {
@@ -306,6 +298,14 @@ impl ShardStream {
             path: self.tmp.clone(),
             source,
         }
+    }
+}
+
+/// The error of a use of a shard file after it was closed (or failed to open).
+fn closed_error(tmp: &Path) -> WorkerError {
+    WorkerError::BadFile {
+        path: tmp.to_path_buf(),
+        reason: "the shard file is closed already".into(),
     }
 }
 
