@@ -139,14 +139,21 @@ impl<'f> Prefix<'f> {
         FetchError::from_store(&self.url(key).to_string(), e)
     }
 
+    /// The store's answer to a read of the object at `key` (its body not read yet); `None`
+    /// when there is no object.
+    async fn open(&self, key: &str) -> Result<Option<object_store::GetResult>, FetchError> {
+        match self.store.get(&self.path(key)).await {
+            Ok(r) => Ok(Some(r)),
+            Err(object_store::Error::NotFound { .. }) => Ok(None),
+            Err(e) => Err(self.error(key, &e)),
+        }
+    }
+
     /// The object at `key` read whole with its ETag; `None` when there is none.
     pub fn get(&self, key: &str) -> Result<Option<Object>, FetchError> {
-        let path = self.path(key);
         self.fetcher.block_on(async {
-            let result = match self.store.get(&path).await {
-                Ok(r) => r,
-                Err(object_store::Error::NotFound { .. }) => return Ok(None),
-                Err(e) => return Err(self.error(key, &e)),
+            let Some(result) = self.open(key).await? else {
+                return Ok(None);
             };
             let version = Version {
                 etag: result.meta.e_tag.clone(),
@@ -292,12 +299,9 @@ impl<'f> Prefix<'f> {
     /// Streams the object at `key` into `out`, hashing it on the way; `None` when there is
     /// no object. A body that breaks off or is shorter than announced is an error.
     fn stream(&self, key: &str, out: &mut dyn Write) -> Result<Option<Downloaded>, FetchError> {
-        let path = self.path(key);
         self.fetcher.block_on(async {
-            let result = match self.store.get(&path).await {
-                Ok(r) => r,
-                Err(object_store::Error::NotFound { .. }) => return Ok(None),
-                Err(e) => return Err(self.error(key, &e)),
+            let Some(result) = self.open(key).await? else {
+                return Ok(None);
             };
             let size = result.meta.size;
             let etag = result.meta.e_tag.as_deref().map(bare_etag);
