@@ -154,44 +154,42 @@ fn le_bytes<T: bytemuck::Pod>(v: &[T], width: usize) -> std::borrow::Cow<'_, [u8
 }
 
 impl EncodedTensor {
-    /// Encodes `n × 3` unsigned 16-bit integers.
-    pub fn from_u16x3(v: &[[u16; 3]], level: i32) -> Result<Self> {
-        let raw = to_planes(&le_bytes(v, 2), 3, 2);
+    /// Encodes the numbers `flat` (row-major scalars of `dtype`) as a tensor of `shape`
+    /// (`[n]` or `[n, k]`), in byte planes.
+    fn encode<T: bytemuck::Pod>(
+        flat: &[T],
+        dtype: DType,
+        shape: Vec<u64>,
+        level: i32,
+    ) -> Result<Self> {
+        let cols = shape.get(1).copied().unwrap_or(1) as usize;
+        let width = dtype.size();
+        let raw = to_planes(&le_bytes(flat, width), cols, width);
         Ok(Self {
-            dtype: DType::U16,
-            shape: vec![v.len() as u64, 3],
+            dtype,
+            shape,
             blob: compress(&raw, level)?,
         })
+    }
+
+    /// Encodes `n × 3` unsigned 16-bit integers.
+    pub fn from_u16x3(v: &[[u16; 3]], level: i32) -> Result<Self> {
+        Self::encode(v.as_flattened(), DType::U16, vec![v.len() as u64, 3], level)
     }
 
     /// Encodes `n × 3` unsigned 32-bit integers.
     pub fn from_u32x3(v: &[[u32; 3]], level: i32) -> Result<Self> {
-        let raw = to_planes(&le_bytes(v, 4), 3, 4);
-        Ok(Self {
-            dtype: DType::U32,
-            shape: vec![v.len() as u64, 3],
-            blob: compress(&raw, level)?,
-        })
+        Self::encode(v.as_flattened(), DType::U32, vec![v.len() as u64, 3], level)
     }
 
     /// Encodes `n × 3` floats.
     pub fn from_f32x3(v: &[[f32; 3]], level: i32) -> Result<Self> {
-        let raw = to_planes(&le_bytes(v, 4), 3, 4);
-        Ok(Self {
-            dtype: DType::F32,
-            shape: vec![v.len() as u64, 3],
-            blob: compress(&raw, level)?,
-        })
+        Self::encode(v.as_flattened(), DType::F32, vec![v.len() as u64, 3], level)
     }
 
     /// Encodes `n` floats.
     pub fn from_f32(v: &[f32], level: i32) -> Result<Self> {
-        let raw = to_planes(&le_bytes(v, 4), 1, 4);
-        Ok(Self {
-            dtype: DType::F32,
-            shape: vec![v.len() as u64],
-            blob: compress(&raw, level)?,
-        })
+        Self::encode(v, DType::F32, vec![v.len() as u64], level)
     }
 
     /// Encodes floats as `dtype` (`F32` or `F16`, rounded to nearest) with `shape` (`[n]` or
@@ -204,27 +202,20 @@ impl EncodedTensor {
                 reason: format!("{} values do not fill shape {shape:?}", values.len()),
             });
         }
-        let raw = match dtype {
-            DType::F32 => to_planes(&le_bytes(values, 4), cols, 4),
+        match dtype {
+            DType::F32 => Self::encode(values, dtype, shape, level),
             DType::F16 => {
                 let halves: Vec<u16> = values
                     .iter()
                     .map(|&v| half::f16::from_f32(v).to_bits())
                     .collect();
-                to_planes(&le_bytes(&halves, 2), cols, 2)
+                Self::encode(&halves, dtype, shape, level)
             }
-            other => {
-                return Err(SchemaError::Invalid {
-                    what: "float dtype",
-                    value: other.as_str().into(),
-                })
-            }
-        };
-        Ok(Self {
-            dtype,
-            shape,
-            blob: compress(&raw, level)?,
-        })
+            other => Err(SchemaError::Invalid {
+                what: "float dtype",
+                value: other.as_str().into(),
+            }),
+        }
     }
 
     /// Encodes `n` bytes (`<u1`).
@@ -240,14 +231,10 @@ impl EncodedTensor {
     pub fn to_floats(&self, name: &str) -> Result<Vec<f32>> {
         let raw = self.raw_bytes(name)?;
         match self.dtype {
-            DType::F32 => Ok(raw
-                .chunks_exact(4)
-                .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-                .collect()),
-            DType::F16 => Ok(raw
-                .chunks_exact(2)
-                .map(|c| half::f16::from_bits(u16::from_le_bytes([c[0], c[1]])).to_f32())
-                .collect()),
+            DType::F32 => Ok(scalars(&raw, f32::from_le_bytes)),
+            DType::F16 => Ok(scalars(&raw, |c: [u8; 2]| {
+                half::f16::from_bits(u16::from_le_bytes(c)).to_f32()
+            })),
             other => Err(SchemaError::Tensor {
                 name: name.to_string(),
                 reason: format!("expected <f2 or <f4, found {}", other.as_str()),
@@ -257,18 +244,12 @@ impl EncodedTensor {
 
     /// Encodes `n × 3` bytes (in three byte planes, as the wider tensors).
     pub fn from_u8x3(v: &[[u8; 3]], level: i32) -> Result<Self> {
-        Ok(Self {
-            dtype: DType::U8,
-            shape: vec![v.len() as u64, 3],
-            blob: compress(&to_planes(v.as_flattened(), 3, 1), level)?,
-        })
+        Self::encode(v.as_flattened(), DType::U8, vec![v.len() as u64, 3], level)
     }
 
     /// Decodes an `n × 3` `<u1` tensor.
     pub fn to_u8x3(&self, name: &str) -> Result<Vec<[u8; 3]>> {
-        self.check(name, DType::U8, Some(3))?;
-        let raw = self.raw_bytes(name)?;
-        Ok(raw.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
+        self.to_rows3(name, DType::U8, u8::from_le_bytes)
     }
 
     /// Decodes an `n` `<u1` tensor.
@@ -335,63 +316,50 @@ impl EncodedTensor {
         Ok(())
     }
 
-    /// Decodes an `n × 3` `<u2` tensor.
-    pub fn to_u16x3(&self, name: &str) -> Result<Vec<[u16; 3]>> {
-        self.check(name, DType::U16, Some(3))?;
+    /// Decodes an `n × 3` tensor of `dtype`, each scalar read from its `W` little-endian
+    /// bytes by `from_le`.
+    fn to_rows3<T, const W: usize>(
+        &self,
+        name: &str,
+        dtype: DType,
+        from_le: fn([u8; W]) -> T,
+    ) -> Result<Vec<[T; 3]>> {
+        self.check(name, dtype, Some(3))?;
         let raw = self.raw_bytes(name)?;
         Ok(raw
-            .chunks_exact(6)
-            .map(|c| {
-                [
-                    u16::from_le_bytes([c[0], c[1]]),
-                    u16::from_le_bytes([c[2], c[3]]),
-                    u16::from_le_bytes([c[4], c[5]]),
-                ]
-            })
+            .chunks_exact(3 * W)
+            .map(|row| std::array::from_fn(|j| from_le(std::array::from_fn(|b| row[j * W + b]))))
             .collect())
+    }
+
+    /// Decodes an `n × 3` `<u2` tensor.
+    pub fn to_u16x3(&self, name: &str) -> Result<Vec<[u16; 3]>> {
+        self.to_rows3(name, DType::U16, u16::from_le_bytes)
     }
 
     /// Decodes an `n × 3` `<u4` tensor.
     pub fn to_u32x3(&self, name: &str) -> Result<Vec<[u32; 3]>> {
-        self.check(name, DType::U32, Some(3))?;
-        let raw = self.raw_bytes(name)?;
-        Ok(raw
-            .chunks_exact(12)
-            .map(|c| {
-                [
-                    u32::from_le_bytes([c[0], c[1], c[2], c[3]]),
-                    u32::from_le_bytes([c[4], c[5], c[6], c[7]]),
-                    u32::from_le_bytes([c[8], c[9], c[10], c[11]]),
-                ]
-            })
-            .collect())
+        self.to_rows3(name, DType::U32, u32::from_le_bytes)
     }
 
     /// Decodes an `n × 3` `<f4` tensor.
     pub fn to_f32x3(&self, name: &str) -> Result<Vec<[f32; 3]>> {
-        self.check(name, DType::F32, Some(3))?;
-        let raw = self.raw_bytes(name)?;
-        Ok(raw
-            .chunks_exact(12)
-            .map(|c| {
-                [
-                    f32::from_le_bytes([c[0], c[1], c[2], c[3]]),
-                    f32::from_le_bytes([c[4], c[5], c[6], c[7]]),
-                    f32::from_le_bytes([c[8], c[9], c[10], c[11]]),
-                ]
-            })
-            .collect())
+        self.to_rows3(name, DType::F32, f32::from_le_bytes)
     }
 
     /// Decodes an `n` `<f4` tensor.
     pub fn to_f32(&self, name: &str) -> Result<Vec<f32>> {
         self.check(name, DType::F32, None)?;
         let raw = self.raw_bytes(name)?;
-        Ok(raw
-            .chunks_exact(4)
-            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-            .collect())
+        Ok(scalars(&raw, f32::from_le_bytes))
     }
+}
+
+/// The scalars of the little-endian bytes `raw`, each read from its `W` bytes by `from_le`.
+fn scalars<T, const W: usize>(raw: &[u8], from_le: fn([u8; W]) -> T) -> Vec<T> {
+    raw.chunks_exact(W)
+        .map(|c| from_le(std::array::from_fn(|b| c[b])))
+        .collect()
 }
 
 #[cfg(test)]
