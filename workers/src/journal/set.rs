@@ -121,10 +121,7 @@ pub fn replace_with_rows(
     fingerprint: &str,
     rows: &[ShardRow],
 ) -> Result<()> {
-    let stamp = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| d.as_nanos())
-        .unwrap_or(0);
+    let stamp = crate::since_epoch().as_nanos();
     let name = format!("retry-{stamp}-{}", std::process::id());
     let path = layout.holder_journal(shard, &name);
     let bytes = with_rows(&path, shard, fingerprint, rows)?;

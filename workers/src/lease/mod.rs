@@ -217,10 +217,7 @@ pub fn file_token(owner: &str) -> String {
 
 /// A unique owner name for this process.
 pub fn owner_name() -> String {
-    let nonce = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| d.subsec_nanos())
-        .unwrap_or(0);
+    let nonce = crate::since_epoch().subsec_nanos();
     format!("{}:{}:{nonce:08x}", hostname(), std::process::id())
 }
 

@@ -158,10 +158,7 @@ pub fn shard_state(
 /// file still in `shards/` (a folder without one was interrupted while moving). The caller
 /// holds the shard's lease. Returns the folder.
 pub fn quarantine(layout: &JobLayout, shard: u64, reason: &str) -> Result<PathBuf> {
-    let stamp = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| d.as_millis())
-        .unwrap_or(0);
+    let stamp = crate::since_epoch().as_millis();
     let dir = layout
         .quarantine_dir()
         .join(format!("{}-{stamp}", JobLayout::shard_name(shard)));
