@@ -14,7 +14,7 @@ use sparc3d_schema::CompletionRecord;
 use sparc3d_sources::objects::Prefix;
 use sparc3d_workers::events::Event;
 use sparc3d_workers::lease::{file_token, owner_name};
-use sparc3d_workers::shard::{committed_outcome, skipped};
+use sparc3d_workers::shard::{busy, committed_outcome, skipped, CONTENDERS};
 use sparc3d_workers::{process_shard, Job, ShardOutcome, WorkOptions};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -44,15 +44,8 @@ pub fn work_shard(
         Arc::clone(&shard_stop),
     )? {
         Acquired::Held(l) => Arc::new(l),
-        Acquired::Busy(h) => {
-            skipped(opts, shard, &format!("leased by {}", h.owner));
-            return Ok(ShardOutcome::Busy(h.owner));
-        }
-        Acquired::Contended => {
-            let who = "several workers taking its lease at once".to_string();
-            skipped(opts, shard, &format!("leased by {who}"));
-            return Ok(ShardOutcome::Busy(who));
-        }
+        Acquired::Busy(h) => return Ok(busy(opts, shard, h.owner)),
+        Acquired::Contended => return Ok(busy(opts, shard, CONTENDERS.into())),
     };
     let leased = Leased {
         prefix,

@@ -51,15 +51,8 @@ pub fn process_shard(job: &Job, shard: u64, opts: &mut WorkOptions) -> Result<Sh
     let owner = lease::owner_name();
     let held = match lease::acquire(&layout.lease(shard), &owner, opts.lease_ttl_s)? {
         Acquired::Held(l) => l,
-        Acquired::Busy(holder) => {
-            skipped(opts, shard, &format!("leased by {}", holder.owner));
-            return Ok(ShardOutcome::Busy(holder.owner));
-        }
-        Acquired::Contended => {
-            let who = "several workers taking its lease at once".to_string();
-            skipped(opts, shard, &format!("leased by {who}"));
-            return Ok(ShardOutcome::Busy(who));
-        }
+        Acquired::Busy(holder) => return Ok(busy(opts, shard, holder.owner)),
+        Acquired::Contended => return Ok(busy(opts, shard, CONTENDERS.into())),
     };
     let result = run_leased(job, shard, opts, &held, &owner);
     held.release();
@@ -177,6 +170,16 @@ pub fn committed_outcome(opts: &mut WorkOptions, shard: u64, committed: Committe
             ShardOutcome::AlreadyDone(record)
         }
     }
+}
+
+/// Who holds a shard's lease when several workers take it at once (none of them got it).
+pub const CONTENDERS: &str = "several workers taking its lease at once";
+
+/// Shard `shard` left to `holder`, who holds its lease (or [`CONTENDERS`]): told to
+/// `opts.events`, and the outcome that says so.
+pub fn busy(opts: &mut WorkOptions, shard: u64, holder: String) -> ShardOutcome {
+    skipped(opts, shard, &format!("leased by {holder}"));
+    ShardOutcome::Busy(holder)
 }
 
 /// Tells `opts.events` that shard `shard` is not processed, and why ([`Event::ShardSkipped`]).
