@@ -3,42 +3,39 @@
 
 /// Parses a duration in seconds: a number with an optional `s`, `m` or `h` suffix.
 pub fn parse_duration(s: &str) -> Result<f64, String> {
-    let t = s.trim();
-    let (num, mult) = match t.chars().last() {
-        Some('s') => (&t[..t.len() - 1], 1.0),
-        Some('m') => (&t[..t.len() - 1], 60.0),
-        Some('h') => (&t[..t.len() - 1], 3600.0),
-        _ => (t, 1.0),
-    };
-    let v: f64 = num
-        .trim()
-        .parse()
-        .map_err(|_| format!("not a duration: {s:?} (examples: 90, 30s, 10m, 2h)"))?;
+    let units = [('s', 1.0), ('m', 60.0), ('h', 3600.0)];
+    let (v, factor) = number_and_unit(s.trim(), &units, |c| c)
+        .ok_or_else(|| format!("not a duration: {s:?} (examples: 90, 30s, 10m, 2h)"))?;
     if v.is_nan() || v <= 0.0 || !v.is_finite() {
         return Err(format!("duration must be positive: {s:?}"));
     }
-    Ok(v * mult)
+    Ok(v * factor)
 }
 
 /// Parses a size in bytes: a number with an optional `K`, `M`, `G` or `T` suffix (powers of
 /// 1024); `0` means no limit.
 pub fn parse_size(s: &str) -> Result<u64, String> {
     let t = s.trim().trim_end_matches(['B', 'b']).trim_end_matches('i');
-    let (num, shift) = match t.chars().last().map(|c| c.to_ascii_uppercase()) {
-        Some('K') => (&t[..t.len() - 1], 10),
-        Some('M') => (&t[..t.len() - 1], 20),
-        Some('G') => (&t[..t.len() - 1], 30),
-        Some('T') => (&t[..t.len() - 1], 40),
-        _ => (t, 0),
-    };
-    let v: f64 = num
-        .trim()
-        .parse()
-        .map_err(|_| format!("not a size: {s:?} (examples: 512M, 8G, 0 for none)"))?;
+    let units =
+        [('K', 10), ('M', 20), ('G', 30), ('T', 40)].map(|(c, shift)| (c, (1u64 << shift) as f64));
+    let (v, factor) = number_and_unit(t, &units, |c| c.to_ascii_uppercase())
+        .ok_or_else(|| format!("not a size: {s:?} (examples: 512M, 8G, 0 for none)"))?;
     if v < 0.0 || !v.is_finite() {
         return Err(format!("size must not be negative: {s:?}"));
     }
-    Ok((v * (1u64 << shift) as f64) as u64)
+    Ok((v * factor) as u64)
+}
+
+/// The number in `t` before an optional unit suffix, and the factor of that unit (1 without
+/// one): `units` lists each suffix with its factor, matched against `t`'s last character as
+/// `fold` turns it. `None` when the number does not parse.
+fn number_and_unit(t: &str, units: &[(char, f64)], fold: fn(char) -> char) -> Option<(f64, f64)> {
+    let unit = t.chars().last().map(fold);
+    let (num, factor) = match units.iter().find(|u| Some(u.0) == unit) {
+        Some(&(_, factor)) => (&t[..t.len() - 1], factor),
+        None => (t, 1.0),
+    };
+    Some((num.trim().parse().ok()?, factor))
 }
 
 /// Formats seconds as `1h02m`, `3m05s` or `4.2s`.
