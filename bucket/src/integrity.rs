@@ -131,22 +131,15 @@ pub(crate) mod tests {
     /// ETag `etag`.
     pub(crate) fn record(bytes: &[u8], etag: Option<&str>) -> CompletionRecord {
         CompletionRecord {
-            shard: 0,
             schema_version: sparc3d_schema::SCHEMA_VERSION,
             fingerprint: "fp".into(),
             rows: 1,
             ok: 1,
-            failed: 0,
-            error_classes: Default::default(),
             bytes: bytes.len() as u64,
             sha256: sparc3d_schema::config::hex(&Sha256::digest(bytes)),
-            stamp: None,
             object: Some("part-00000.w.parquet".into()),
             object_etag: etag.map(str::to_string),
-            content_digest: String::new(),
-            item_seconds: 0.0,
-            started_at: 0.0,
-            finished_at: 0.0,
+            ..Default::default()
         }
     }
 

@@ -552,20 +552,9 @@ mod tests {
         ShardState::Done(CompletionRecord {
             shard,
             schema_version: 2,
-            fingerprint: String::new(),
             rows: 1,
             ok: 1,
-            failed: 0,
-            error_classes: Default::default(),
-            bytes: 0,
-            sha256: String::new(),
-            stamp: None,
-            object: None,
-            object_etag: None,
-            content_digest: String::new(),
-            item_seconds: 0.0,
-            started_at: 0.0,
-            finished_at: 0.0,
+            ..Default::default()
         })
     }
 

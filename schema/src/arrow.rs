@@ -444,8 +444,14 @@ pub(crate) mod tests {
             provenance: Default::default(),
             appearance: None,
         };
-        let mut failed =
-            ShardRow::failed(1, "b", "/x/b.obj", 64, ErrorClass::ParseError, "bad".into());
+        let mut failed = ShardRow::failed(
+            1,
+            "b",
+            "/x/b.obj",
+            64,
+            ErrorClass::Geometry(sparcubes::ErrorClass::ParseError),
+            "bad".into(),
+        );
         failed.stderr_tail = Some("boom".into());
         vec![ok, failed]
     }

@@ -39,23 +39,16 @@ impl ItemStatus {
     }
 }
 
-/// Stable class of a failed item. Geometry classes come from `sparcubes::ErrorClass`; the
-/// others describe how the isolated worker died.
+/// Stable class of a failed item: the class the geometry crate gave the error
+/// (`sparcubes::ErrorClass`), or one that describes how the isolated worker died or what
+/// failed around the conversion. Stored by its name ([`ErrorClass::as_str`]), in serde too
+/// (`"parse_error"` in JSON, as a derived unit-only enum writes it).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
+#[serde(into = "&'static str", try_from = "String")]
 pub enum ErrorClass {
-    /// The file could not be parsed.
-    ParseError,
-    /// The file's format is not supported.
-    UnsupportedFormat,
-    /// Nothing usable was left after sanitising.
-    EmptyMesh,
-    /// Reading the input failed (missing file, permissions).
-    IoError,
-    /// The conversion parameters are out of range.
-    InvalidParams,
-    /// The input exceeds a configured size limit.
-    TooLarge,
+    /// Loading or converting the mesh failed: parse error, unsupported format, empty mesh,
+    /// I/O error, invalid parameters, input too large.
+    Geometry(sparcubes::ErrorClass),
     /// The conversion panicked (a bug; the message says where).
     Panic,
     /// The conversion overflowed its stack.
@@ -78,33 +71,31 @@ pub enum ErrorClass {
 }
 
 impl ErrorClass {
-    /// Every class, in a stable order.
-    pub const ALL: [ErrorClass; 14] = [
-        ErrorClass::ParseError,
-        ErrorClass::UnsupportedFormat,
-        ErrorClass::EmptyMesh,
-        ErrorClass::IoError,
-        ErrorClass::InvalidParams,
-        ErrorClass::TooLarge,
-        ErrorClass::Panic,
-        ErrorClass::StackOverflow,
-        ErrorClass::Timeout,
-        ErrorClass::OutOfMemory,
-        ErrorClass::Crashed,
-        ErrorClass::EncodeError,
-        ErrorClass::SourceChanged,
-        ErrorClass::Fetch,
-    ];
+    /// Every class, in a stable order (the order they sort in).
+    pub const ALL: [ErrorClass; 14] = {
+        use sparcubes::ErrorClass as G;
+        [
+            ErrorClass::Geometry(G::ParseError),
+            ErrorClass::Geometry(G::UnsupportedFormat),
+            ErrorClass::Geometry(G::EmptyMesh),
+            ErrorClass::Geometry(G::IoError),
+            ErrorClass::Geometry(G::InvalidParams),
+            ErrorClass::Geometry(G::TooLarge),
+            ErrorClass::Panic,
+            ErrorClass::StackOverflow,
+            ErrorClass::Timeout,
+            ErrorClass::OutOfMemory,
+            ErrorClass::Crashed,
+            ErrorClass::EncodeError,
+            ErrorClass::SourceChanged,
+            ErrorClass::Fetch,
+        ]
+    };
 
     /// The snake_case name stored in the `error_class` column.
-    pub fn as_str(self) -> &'static str {
+    pub const fn as_str(self) -> &'static str {
         match self {
-            ErrorClass::ParseError => "parse_error",
-            ErrorClass::UnsupportedFormat => "unsupported_format",
-            ErrorClass::EmptyMesh => "empty_mesh",
-            ErrorClass::IoError => "io_error",
-            ErrorClass::InvalidParams => "invalid_params",
-            ErrorClass::TooLarge => "too_large",
+            ErrorClass::Geometry(g) => g.as_str(),
             ErrorClass::Panic => "panic",
             ErrorClass::StackOverflow => "stack_overflow",
             ErrorClass::Timeout => "timeout",
@@ -134,16 +125,25 @@ impl ErrorClass {
     }
 }
 
+/// Serde writes a class as its name.
+impl From<ErrorClass> for &'static str {
+    fn from(c: ErrorClass) -> Self {
+        c.as_str()
+    }
+}
+
+/// Serde reads a class from its name.
+impl TryFrom<String> for ErrorClass {
+    type Error = SchemaError;
+
+    fn try_from(name: String) -> Result<Self> {
+        Self::parse(&name)
+    }
+}
+
 impl From<sparcubes::ErrorClass> for ErrorClass {
     fn from(c: sparcubes::ErrorClass) -> Self {
-        match c {
-            sparcubes::ErrorClass::ParseError => ErrorClass::ParseError,
-            sparcubes::ErrorClass::UnsupportedFormat => ErrorClass::UnsupportedFormat,
-            sparcubes::ErrorClass::EmptyMesh => ErrorClass::EmptyMesh,
-            sparcubes::ErrorClass::IoError => ErrorClass::IoError,
-            sparcubes::ErrorClass::InvalidParams => ErrorClass::InvalidParams,
-            sparcubes::ErrorClass::TooLarge => ErrorClass::TooLarge,
-        }
+        ErrorClass::Geometry(c)
     }
 }
 
@@ -159,6 +159,19 @@ mod tests {
             assert_eq!(json, format!("\"{}\"", c.as_str()));
         }
         assert!(ErrorClass::parse("nope").is_err());
+        let unknown = serde_json::from_str::<ErrorClass>("\"nope\"").err();
+        assert_eq!(
+            unknown.map(|e| e.to_string()),
+            Some("invalid error class: nope".to_string())
+        );
+        let counts = std::collections::BTreeMap::from([(ErrorClass::Timeout, 2u64)]);
+        let json = serde_json::to_string(&counts).unwrap_or_default();
+        assert_eq!(json, r#"{"timeout":2}"#, "a class is a map key by its name");
+        let back: std::collections::BTreeMap<ErrorClass, u64> =
+            serde_json::from_str(&json).unwrap_or_default();
+        assert_eq!(back, counts);
+        let ordered = ErrorClass::ALL.windows(2).all(|w| w[0] < w[1]);
+        assert!(ordered, "ALL is in the order classes sort in");
         assert_eq!(ItemStatus::parse("failed").ok(), Some(ItemStatus::Failed));
     }
 }

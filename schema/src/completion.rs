@@ -17,8 +17,9 @@ pub struct FileStamp {
     pub inode: u64,
 }
 
-/// Written last (`part-NNNNN.complete.json`): a shard without it is not finished.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+/// Written last (`part-NNNNN.complete.json`): a shard without it is not finished. Its default
+/// (zeros and empty names) serves tests that fill in the fields they mean.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct CompletionRecord {
     /// Shard index.
     pub shard: u64,

@@ -94,7 +94,7 @@ fn samples_and_digest_of_a_job_from_before_are_unchanged() {
             "a",
             "a.obj",
             resolution,
-            ErrorClass::ParseError,
+            ErrorClass::Geometry(sparcubes::ErrorClass::ParseError),
             "x".into(),
         );
         row.tensors = Some(tensors);

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 /// Stable, machine-readable class of an [`Error`], stored in shard rows.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum ErrorClass {
     /// The file could not be parsed (malformed, truncated, garbage).
     ParseError,
@@ -22,7 +22,7 @@ pub enum ErrorClass {
 
 impl ErrorClass {
     /// The snake_case name stored in shard rows and shown to users.
-    pub fn as_str(self) -> &'static str {
+    pub const fn as_str(self) -> &'static str {
         match self {
             ErrorClass::ParseError => "parse_error",
             ErrorClass::UnsupportedFormat => "unsupported_format",

@@ -532,7 +532,10 @@ mod tests {
             panic!("a missing file converted")
         };
         assert!(matches!(failed.error, StageError::Load(_)));
-        assert_eq!(failed.error.class(), ErrorClass::IoError);
+        assert_eq!(
+            failed.error.class(),
+            ErrorClass::Geometry(sparcubes::ErrorClass::IoError)
+        );
         assert!(failed.seconds.in_order.is_empty());
     }
 }

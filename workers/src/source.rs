@@ -35,7 +35,7 @@ pub struct SourceError {
 impl From<FetchError> for SourceError {
     fn from(e: FetchError) -> Self {
         let class = match e.kind {
-            FetchErrorKind::TooLarge => ErrorClass::TooLarge,
+            FetchErrorKind::TooLarge => ErrorClass::Geometry(sparcubes::ErrorClass::TooLarge),
             _ => ErrorClass::Fetch,
         };
         Self {

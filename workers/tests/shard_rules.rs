@@ -149,7 +149,7 @@ fn resume_keeps_finished_items_and_gives_up_on_items_that_kill_their_worker() ->
     let first = ShardRow::failed_item(
         &job.items[0],
         64,
-        ErrorClass::ParseError,
+        ErrorClass::Geometry(sparcubes::ErrorClass::ParseError),
         "from the journal".into(),
     );
     let start = |index, attempt| Record::Start {
@@ -266,7 +266,12 @@ fn full_journal(job: &Job, holder: &str) -> Result<Journal, Box<dyn std::error::
         JournalState::default(),
     )?;
     for item in &job.items {
-        let row = ShardRow::failed_item(item, 64, ErrorClass::ParseError, holder.into());
+        let row = ShardRow::failed_item(
+            item,
+            64,
+            ErrorClass::Geometry(sparcubes::ErrorClass::ParseError),
+            holder.into(),
+        );
         j.append(&Record::Done {
             row: Box::new(row),
             at: 1.0,
@@ -328,7 +333,12 @@ fn a_shard_file_without_its_record_is_replaced_by_the_next_writer() -> TestResul
 
 /// A failed row of item `index` of `job`, as holder `holder` would journal it.
 fn done_record(job: &Job, index: usize, holder: &str) -> Record {
-    let row = ShardRow::failed_item(&job.items[index], 64, ErrorClass::ParseError, holder.into());
+    let row = ShardRow::failed_item(
+        &job.items[index],
+        64,
+        ErrorClass::Geometry(sparcubes::ErrorClass::ParseError),
+        holder.into(),
+    );
     Record::Done {
         row: Box::new(row),
         at: 1.0,

@@ -229,7 +229,14 @@ mod tests {
         j.append(&Record::Abort { index: 0, at: 3.0 })?;
         j.append(&start(0, 3))?; // the worker itself was killed here
         j.append(&start(1, 1))?;
-        let row = ShardRow::failed(1, "b", "/b", 8, ErrorClass::EmptyMesh, "empty".into());
+        let row = ShardRow::failed(
+            1,
+            "b",
+            "/b",
+            8,
+            ErrorClass::Geometry(sparcubes::ErrorClass::EmptyMesh),
+            "empty".into(),
+        );
         j.append(&Record::Done {
             row: Box::new(row),
             at: 4.0,
@@ -245,7 +252,10 @@ mod tests {
             Some((ErrorClass::Crashed, "killed by signal 9".to_string()))
         );
         assert!(!state.attempts.contains_key(&1), "a result clears the item");
-        assert_eq!(state.done[&1].class, Some(ErrorClass::EmptyMesh));
+        assert_eq!(
+            state.done[&1].class,
+            Some(ErrorClass::Geometry(sparcubes::ErrorClass::EmptyMesh))
+        );
         assert_eq!(
             state.in_flight.keys().collect::<Vec<_>>(),
             vec![&0],

@@ -176,7 +176,7 @@ mod tests {
             &format!("i{index}"),
             "/m",
             8,
-            ErrorClass::ParseError,
+            ErrorClass::Geometry(sparcubes::ErrorClass::ParseError),
             message.into(),
         )
     }

@@ -312,22 +312,13 @@ mod tests {
     fn record(bytes: &[u8]) -> CompletionRecord {
         use sha2::{Digest, Sha256};
         CompletionRecord {
-            shard: 0,
             schema_version: sparc3d_schema::SCHEMA_VERSION,
             fingerprint: "fp".into(),
             rows: 1,
             ok: 1,
-            failed: 0,
-            error_classes: Default::default(),
             bytes: bytes.len() as u64,
             sha256: sparc3d_schema::config::hex(&Sha256::digest(bytes)),
-            stamp: None,
-            object: None,
-            object_etag: None,
-            content_digest: String::new(),
-            item_seconds: 0.0,
-            started_at: 0.0,
-            finished_at: 0.0,
+            ..Default::default()
         }
     }
 
