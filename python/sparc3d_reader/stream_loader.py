@@ -66,10 +66,13 @@ class _LoaderMixin:
             yield batch
 
     def __len__(self) -> int:
-        """Batches per epoch: each worker's items in batches of their own."""
-        sizes = self.dataset.worker_sizes(max(self.num_workers, 1))
+        """Batches of the epoch from its start or a loaded position: each worker's items in
+        batches of their own."""
+        workers = max(self.num_workers, 1)
+        start = self.dataset.start_position(workers)
+        left = [n - s for n, s in zip(self.dataset.worker_sizes(workers), start)]
         if self.batch_size is None:
-            return sum(sizes)
+            return sum(left)
         per = (lambda n: n // self.batch_size) if self.drop_last else (
             lambda n: -(-n // self.batch_size))
-        return sum(per(n) for n in sizes)
+        return sum(per(n) for n in left)

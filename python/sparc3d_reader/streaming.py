@@ -74,6 +74,7 @@ class StreamingDatasetBase:
         self._consumed: List[int] = [0]  # items received this epoch, per worker
         self._pending: Optional[List[int]] = None  # a loaded position, until iterated
         self._iter_skip: Optional[List[int]] = None  # the position this iteration starts at
+        self._started: List[int] = [0]  # and kept, for `start_position`
         self._tracked = False  # iterated through `loader()`, which counts per worker
         self._file: Tuple[Optional[int], Optional[pq.ParquetFile]] = (None, None)
         #: The most rows held read and not yet yielded at once, in this process.
@@ -169,7 +170,7 @@ class StreamingDatasetBase:
                 held[p] = row
                 self.peak_held = max(self.peak_held, len(held))
                 while nxt < len(order) and order[nxt] in held:
-                    yield self._decode(*held.pop(order[nxt]))
+                    yield self._decode(*held.pop(int(order[nxt])))
                     nxt += 1
 
     def _read_run(self, positions: np.ndarray, start: int, end: int,
@@ -199,7 +200,9 @@ class StreamingDatasetBase:
         return self._file[1]
 
     def _decode(self, s: int, row: Dict[str, Any]) -> Dict[str, Any]:
-        item = shard_item(self.paths[s], row)
+        """The row as an item, checked as `iter_items` checks it (errors name the shard)."""
+        with naming(self.paths[s]):
+            item = shard_item(self.paths[s], row)
         return self.transform(item) if self.transform else item
 
     # --- position ----------------------------------------------------------------------------
@@ -208,6 +211,14 @@ class StreamingDatasetBase:
         """Starts an iteration with `workers` workers: at a loaded position, else at the start."""
         start = self._pending_for(workers) or [0] * workers
         self._pending, self._iter_skip, self._consumed = None, list(start), list(start)
+        self._started = list(start)
+
+    def start_position(self, workers: int) -> List[int]:
+        """The items of each worker's share skipped at the start of the next iteration (a
+        loaded position), or of the iteration under way."""
+        if self._pending is not None:
+            return list(self._pending_for(workers) or [])
+        return list(self._started) if len(self._started) == workers else [0] * workers
 
     def _pending_for(self, workers: int) -> Optional[List[int]]:
         if self._pending is not None and len(self._pending) != workers:
