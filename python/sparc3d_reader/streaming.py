@@ -12,6 +12,7 @@ group), never the job.
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
 import hashlib
 from typing import Any, Dict, Iterable, Iterator, List, Optional, Sequence, Tuple, Union
@@ -179,17 +180,21 @@ class StreamingDatasetBase:
         as (position, (shard, row)), read `_READ_BATCH` rows at a time."""
         s, g = self._blocks[self._item_block[positions[start]]]
         need = {int(self._item_row[positions[p]]): p for p in range(start, end) if wanted[p]}
-        path, last, offset = self.paths[s], max(need), 0
+        rows, path, i, offset = sorted(need), self.paths[s], 0, 0
         jobs.check_unchanged(self._shards[s])
         with naming(path):
             f = self._open(s)
             columns = item_columns(path, f, self.samples)
             for batch in f.iter_batches(batch_size=_READ_BATCH, row_groups=[g], columns=columns):
-                local = [r - offset for r in sorted(need) if offset <= r < offset + batch.num_rows]
-                for r, row in zip(local, batch.take(local).to_pylist() if local else []):
-                    yield need[r + offset], (s, row)
-                offset += batch.num_rows
-                if offset > last:
+                j = bisect.bisect_left(rows, offset + batch.num_rows, i)
+                if j - i == batch.num_rows:  # every row of the batch: no copy
+                    picked = batch
+                else:
+                    picked = batch.take([r - offset for r in rows[i:j]])
+                for r, row in zip(rows[i:j], picked.to_pylist() if j > i else []):
+                    yield need[r], (s, row)
+                i, offset = j, offset + batch.num_rows
+                if i == len(rows):
                     return
         check_row_count(path, offset, f.metadata.row_group(g).num_rows)
 
