@@ -226,6 +226,9 @@ class StreamingDatasetBase:
         return list(self._started) if len(self._started) == workers else [0] * workers
 
     def _pending_for(self, workers: int) -> Optional[List[int]]:
+        """The loaded position for `workers` workers (an epoch's start suits any number)."""
+        if self._pending is not None and not any(self._pending):
+            return [0] * workers
         if self._pending is not None and len(self._pending) != workers:
             raise ValueError(f"the state loaded was saved reading with {len(self._pending)} "
                              f"DataLoader workers per rank, this iteration has {workers}: "

@@ -183,6 +183,8 @@ class Where:
         `manifest.license` where only that exists), checked against the shards' schemas: a
         column no shard has, a column that is not scalar, or a non-numeric column (or value)
         where numbers are needed is a ValueError naming it."""
+        if not schemas:  # no shard to read: nothing to check against, nothing kept
+            return BoundWhere(self, {c.column: c.column for c in self.conditions})
         columns = {}
         for c in self.conditions:
             name = _resolve(c.column, schemas)
@@ -207,7 +209,8 @@ def _resolve(column: str, schemas: Sequence[pa.Schema]) -> Optional[str]:
 def scalar_columns(schema: pa.Schema) -> List[str]:
     """The columns a filter can use: text, numbers and booleans, without the `_dtype` of a
     tensor (a binary column beside it)."""
-    binary = {f.name for f in schema if pa.types.is_binary(f.type) or pa.types.is_large_binary(f.type)}
+    binary = {f.name for f in schema
+              if pa.types.is_binary(f.type) or pa.types.is_large_binary(f.type)}
     return [f.name for f in schema if _scalar(f.type) and not (
         f.name.endswith("_dtype") and f.name[: -len("_dtype")] in binary)]
 

@@ -84,7 +84,8 @@ def test_two_ranks_two_workers_receive_each_item_once_per_epoch(job):
             ds = dataset(job, rank, epoch=epoch)
             got = read(ds)
             sizes = ds.worker_sizes(2)
-            assert [len(by_worker(got, w)) for w in (0, 1)] == sizes and max(sizes) - min(sizes) <= 1
+            assert [len(by_worker(got, w)) for w in (0, 1)] == sizes
+            assert max(sizes) - min(sizes) <= 1
             assert ds.state_dict()["consumed"] == sizes  # the loader counted every batch
             assert len(got) == len(ds)
             ranks.append(ids(got))
@@ -175,6 +176,9 @@ def test_resume_without_workers_and_refusals(job):
                         (dict(seed=5, where="license != by-nc", buffer_size=9), "buffer_size")]:
         with pytest.raises(ValueError, match=f"the state has {said}"):
             reader.StreamingDataset(job, **other).load_state_dict(state)
+    fresh = dataset(job, 0, epoch=4).state_dict()  # nothing received: suits any workers
+    assert fresh["consumed"] == [0]
+    assert read(resumed(fresh, job, 0)) == read(dataset(job, 0, epoch=4))
     two = dataset(job, 0)
     read(two, stop=3)  # with two workers
     with pytest.raises(ValueError, match="2 DataLoader workers per rank, this iteration has 1"):
