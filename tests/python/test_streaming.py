@@ -254,3 +254,15 @@ def test_a_damaged_shard_is_reported_as_the_plain_reader_reports_it(job, tmp_pat
         list(reader.StreamingDataset(copy, verify=False, shuffle=False))
     assert str(stream_error.value) == str(plain_error.value)
     assert str(path) in str(plain_error.value)
+
+
+def test_a_shard_replaced_after_opening_is_refused(job, tmp_path):
+    copy = tmp_path / "job"
+    shutil.copytree(job, copy)
+    ds = reader.StreamingDataset(copy, shuffle=False)
+    shutil.copy(copy / "shards" / "part-00002.parquet", copy / "shards" / "part-00001.parquet")
+    got = []
+    with pytest.raises(ValueError, match="part-00001.parquet changed since it was checked"):
+        for it in ds:
+            got.append(it["id"])
+    assert got == IDS[:4]  # shard 0's items, then nothing of another shard under these rows
