@@ -8,12 +8,14 @@ Conditions are joined by the word `and` (any case). A condition is `column OP va
 of `=`, `!=`, `<`, `<=`, `>`, `>=`, or `column in (v, ...)` / `column not in (v, ...)`. Values
 are bare words (no spaces, commas, parentheses, quotes, `=`, `!`, `<`, `>`) or quoted with `'`
 or `"`. A column name that is not a shard column but whose provenance column
-`manifest.<name>` is (`license` for `manifest.license`) refers to that one.
+`manifest.<name>` is (`license` for `manifest.license`) refers to that one. The messages are
+the binary's (manifests/src/filter/), in Python's quoting.
 
 `=`, `!=` and `in` compare as text, except on a column that is numeric in the shard (integers
 or floats), where both sides compare as numbers (`resolution = 256` matches 256.0) and a value
 that is not a number is refused, naming it. `<`, `<=`, `>`, `>=` need a number on the right
-and a numeric column; either missing is a ValueError naming the value or the column. A null
+and a numeric column; either missing is a ValueError naming the value or the column. Numbers
+are read as the binary reads them (`1000000`, `0.5`, `-3`, `1e6`, `inf`; never NaN). A null
 (no value in the row, or a column this row's shard lacks) satisfies no comparison but does
 satisfy `!=` and `not in`. A column no shard has is refused, naming the columns there are.
 """
@@ -21,6 +23,7 @@ satisfy `!=` and `not in`. A column no shard has is refused, naming the columns 
 from __future__ import annotations
 
 import dataclasses
+import math
 import re
 from typing import Any, Dict, Iterable, List, Optional, Sequence, Tuple, Union
 
@@ -28,12 +31,10 @@ import pyarrow as pa
 
 #: The comparison marks, longest first so that `<=` is not read as `<` then `=`.
 _MARKS = ("!=", "<=", ">=", "=", "<", ">", "(", ")", ",")
-#: The marks that compare a column with one value.
-_COMPARISONS = ("=", "!=", "<", "<=", ">", ">=")
+#: The marks that order numbers.
+_ORDERINGS = ("<", "<=", ">", ">=")
 #: Characters that end a bare word.
 _WORD_END = re.compile(r"[\s(),=!<>'\"]")
-#: A number as a value: digits with an optional fraction and exponent (no `inf`, `nan` or `_`).
-_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
 
 Number = Union[int, float]
 
@@ -80,10 +81,19 @@ def _tokens(text: str) -> List[_Token]:
 
 
 def number(text: str) -> Optional[Number]:
-    """`text` as an int (digits only) or a float, or None when it is not a number."""
-    if not _NUMBER.fullmatch(text):
+    """`text` as a number, as the binary reads one (Rust's `f64` parse of the trimmed text:
+    `1000000`, `0.5`, `-3`, `1e6`, `inf`), an int when it is digits only; None when it is not a
+    number, and for NaN, which orders with nothing."""
+    t = text.strip()
+    if re.fullmatch(r"[+-]?\d+", t):
+        return int(t)
+    if "_" in t:  # Python's float reads `1_000`, Rust's does not
         return None
-    return int(text) if re.fullmatch(r"[+-]?\d+", text) else float(text)
+    try:
+        x = float(t)
+    except ValueError:
+        return None
+    return None if math.isnan(x) else x
 
 
 @dataclasses.dataclass(frozen=True)
@@ -121,6 +131,14 @@ class _Parser:
             raise self.fail(what, t)
         return t.text
 
+    def ordered(self, column: str, op: str) -> str:
+        """The number after an ordering operator; a ValueError names a value that is not one."""
+        value = self.word("a number")
+        if number(value) is None:
+            raise ValueError(f"--where {self.text!r}: `{column} {op} {value}`: {value!r} is not "
+                             f"a number ({op} compares numbers)")
+        return value
+
     def values(self) -> Tuple[str, ...]:
         """`( v, v, ... )`."""
         t = self.next()
@@ -138,8 +156,10 @@ class _Parser:
     def condition(self) -> Condition:
         column = self.word("a column name").lower()
         t = self.next()
-        if t is not None and t.kind == "mark" and t.text in _COMPARISONS:
+        if t is not None and t.kind == "mark" and t.text in ("=", "!="):
             return Condition(column, t.text, (self.word("a value"),))
+        if t is not None and t.kind == "mark" and t.text in _ORDERINGS:
+            return Condition(column, t.text, (self.ordered(column, t.text),))
         if _keyword(t, "in"):
             return Condition(column, "in", self.values())
         if _keyword(t, "not"):
@@ -170,12 +190,9 @@ class Where:
         while p.at < len(p.tokens):
             joint = p.next()
             if not _keyword(joint, "and"):
-                raise p.fail("`and` between conditions", joint)
+                said = joint.said() if joint else "the end of the filter"
+                raise ValueError(f"--where {text!r}: conditions are joined by `and`, found {said}")
             conditions.append(p.condition())
-        for c in conditions:
-            if c.op in ("<", "<=", ">", ">=") and number(c.values[0]) is None:
-                raise ValueError(f"--where {text!r}: {c.column} {c.op} needs a number, "
-                                 f"{c.values[0]!r} is not one")
         return Where(text, tuple(conditions))
 
     def bind(self, schemas: Sequence[pa.Schema]) -> "BoundWhere":
@@ -189,7 +206,7 @@ class Where:
         for c in self.conditions:
             name = _resolve(c.column, schemas)
             if name is None:
-                names = sorted({n for s in schemas for n in scalar_columns(s)})
+                names = dict.fromkeys(_named(n, s) for s in schemas for n in scalar_columns(s))
                 raise ValueError(f"--where: the shards have no column {c.column!r} (their "
                                  f"columns: {', '.join(names)})")
             types = [s.field(name).type for s in schemas if name in s.names]
@@ -204,6 +221,13 @@ def _resolve(column: str, schemas: Sequence[pa.Schema]) -> Optional[str]:
         if any(name in s.names for s in schemas):
             return name
     return None
+
+
+def _named(column: str, schema: pa.Schema) -> str:
+    """How a filter names a shard column: a provenance column by its bare name, unless the
+    shard has a column of that name itself."""
+    bare = column[len("manifest."):] if column.startswith("manifest.") else None
+    return bare if bare and bare not in schema.names else column
 
 
 def scalar_columns(schema: pa.Schema) -> List[str]:
@@ -231,12 +255,13 @@ def _check_types(c: Condition, name: str, types: List[pa.DataType]) -> None:
         raise ValueError(f"--where: column {name!r} is not a scalar column (a tensor or a list); "
                          "a filter compares text, numbers and booleans")
     numeric = [_numeric(t) for t in types]
-    if c.op in ("<", "<=", ">", ">=") and not all(numeric):
-        raise ValueError(f"--where: {c.column} {c.op} {c.values[0]} needs a numeric column, "
-                         f"{name!r} is {types[numeric.index(False)]}")
+    if c.op in _ORDERINGS and not all(numeric):
+        raise ValueError(f"--where: `{c.column} {c.op} {c.values[0]}`: the column {name} holds "
+                         f"{types[numeric.index(False)]}, and `{c.op}` compares numbers")
     bad = [v for v in c.values if number(v) is None]
     if any(numeric) and bad:
-        raise ValueError(f"--where: column {name!r} is numeric, {bad[0]!r} is not a number")
+        raise ValueError(f"--where: the column {name} holds numbers, and {bad[0]!r} is not a "
+                         "number")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -271,7 +296,7 @@ class BoundWhere:
 def _test(c: Condition, numeric: bool):
     """A function of one cell's value: whether it passes condition `c`."""
     wanted = [number(v) if numeric else v for v in c.values]
-    if c.op in ("<", "<=", ">", ">="):
+    if c.op in _ORDERINGS:
         bound = wanted[0] if numeric else number(c.values[0])
         compare = {"<": lambda v: v < bound, "<=": lambda v: v <= bound,
                    ">": lambda v: v > bound, ">=": lambda v: v >= bound}[c.op]
