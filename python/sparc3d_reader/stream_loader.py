@@ -53,6 +53,7 @@ class _LoaderMixin:
     """A DataLoader over a StreamingDataset that reports each batch's worker to it."""
 
     def __iter__(self):
+        """The batches, each counted for its worker as the loop takes it."""
         ds, workers = self.dataset, max(self.num_workers, 1)
         ds._begin(workers)
         ds._tracked = True

@@ -139,6 +139,8 @@ class StreamingDatasetBase:
     # --- iteration ---------------------------------------------------------------------------
 
     def __iter__(self) -> Iterator[Dict[str, Any]]:
+        """This rank's items of the epoch (in a DataLoader worker, that worker's share), from
+        a loaded position when there is one."""
         worker, workers = _worker()
         if worker is None:  # the main process: it counts what it yields
             if self._iter_skip is None:

@@ -1,5 +1,5 @@
 """`where="..."` filters on the shards' scalar columns, the language of the binary's `--where`
-(`sparc3d init --where`, manifests/src/filter.rs, and `export`, `ls`, `inspect`):
+(manifests/src/filter: `sparc3d init`, `export`, `ls`, `inspect`):
 
     license in (cc-by, cc0)        input_faces <= 1000000 and license in (cc0, cc-by)
     resolution = 256               source != sketchfab and license not in ('by-nc', "by-nc-sa")
