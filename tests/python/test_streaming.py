@@ -16,7 +16,7 @@ import pyarrow.parquet as pq
 import pytest
 from torch.utils.data import get_worker_info
 
-from remote_servers import MotoS3
+from remote_servers import s3_environment
 from sparc3d_cli import ROOT
 from stream_jobs import IDS, make_job
 
@@ -208,14 +208,8 @@ def test_the_buffer_bounds_what_is_held_and_decoding_waits_for_the_yield(job, mo
 @pytest.fixture(scope="module")
 def s3():
     """moto's S3 server, with this process's environment set to reach it."""
-    server = MotoS3()
-    with pytest.MonkeyPatch.context() as mp:
-        for k in [k for k in os.environ if k.startswith(("AWS_", "GOOGLE_", "AZURE_"))]:
-            mp.delenv(k)
-        for k, v in server.env.items():
-            mp.setenv(k, v)
+    with s3_environment() as server:
         yield server
-    server.close()
 
 
 def test_a_job_in_a_bucket_streams_as_its_folder(job, s3):
