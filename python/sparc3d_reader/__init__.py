@@ -31,12 +31,16 @@ through `pyarrow.fs` with the credentials and endpoint of the environment, `loca
 
 Only numpy and pyarrow are needed; `SparseCubesDataset` is a `torch.utils.data.Dataset` when
 torch is installed (imported only when the class is first used) and a plain indexable class
-otherwise.
+otherwise. `StreamingDataset` streams a job into training (a torch `IterableDataset`): shuffled
+per epoch, split exactly across ranks and DataLoader workers, resumable mid-epoch. Both take
+`where="..."`, a filter on the scalar columns in the language of the binary's `--where`.
 
 The package in modules, each with one job: `schema.py` what is shared with the Rust binary (the
 schema version, column names, tensor names, export formats), `tensors.py` the tensor encoding
 and tensor files, `shards.py` which files are read and the checks on each, `items.py` rows as
-items, `dataset.py` the indexable dataset, `collate.py` batches, `exports.py` other codebases'
+items, `dataset.py` the indexable dataset, `streaming.py` the streaming one (its order in
+`stream_order.py`, its DataLoader in `stream_loader.py`), `where.py` filters and
+`selection.py` the rows they select, `collate.py` batches, `exports.py` other codebases'
 layouts, `jobs.py` and `location.py` as above. Everything is imported from the package itself.
 """
 
@@ -54,8 +58,10 @@ from .schema import (APPEARANCE_COLUMNS, ATTRIBUTE_TENSORS, CONSUMER_FORMATS, EX
                      META_COLUMNS, OPTIONAL_SAMPLE_TENSORS,
                      PROVENANCE_PREFIX, SAMPLE_TENSORS, SCHEMA_VERSION, TENSORS)
 from .shards import PathLike, check_schema_version, read_job_config, shard_config, shard_paths
+from .streaming import streaming_class as _streaming_class
 from .tensors import (decode_tensor, encode_tensor, iter_tensor_rows, write_completion_record,
                       write_tensor_file)
+from .where import Where
 
 __all__ = [
     "TENSORS",
@@ -86,6 +92,8 @@ __all__ = [
     "shard_config",
     "check_schema_version",
     "SparseCubesDataset",
+    "StreamingDataset",
+    "Where",
     "ObjectPath",
 ]
 
@@ -93,7 +101,9 @@ __version__ = "0.1.0"
 
 
 def __getattr__(name: str):
-    # `SparseCubesDataset` is built on first use, so importing this package never imports torch.
+    # The datasets are built on first use, so importing this package never imports torch.
     if name == "SparseCubesDataset":
         return _dataset_class(__name__)
+    if name == "StreamingDataset":
+        return _streaming_class(__name__)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

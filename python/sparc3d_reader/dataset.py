@@ -11,6 +11,7 @@ import pyarrow as pa
 from . import jobs, location
 from .items import item_columns, shard_item
 from .jobs import Verify
+from .selection import bind_where, open_files, selected_rows
 from .shards import PathLike, check_row_count, naming, usable_shards
 
 
@@ -21,35 +22,30 @@ class SparseCubesDatasetBase:
     fails is left out with a `ShardWarning`) and indexes the `ok` rows once (metadata columns
     only); `ds[i]` reads the row group holding item i (the last one read is cached, so reading
     in order is cheap), after checking that its shard file was not changed since. `transform`,
-    when given, is applied to each item."""
+    when given, is applied to each item. `where` keeps only the items that pass a filter on
+    the scalar columns, in the language of the binary's `--where` (`where.py`)."""
 
     def __init__(self, paths: Union[PathLike, Iterable[PathLike]], complete_only: bool = True,
-                 transform=None, verify: Verify = True):
+                 transform=None, verify: Verify = True, where: Optional[str] = None):
         shards = usable_shards(paths, complete_only, verify)
         self.paths = [s.path for s in shards]
         # Each shard with its record and stamp when checked, to notice a later change; without
         # its job (what DataLoader workers are sent stays small).
         self._shards = [dataclasses.replace(s, job=None) for s in shards]
         self.transform = transform
-        # (shard number, row group, row within the group) of every ok row.
+        #: The filter the items passed (`where.py`), as given.
+        self.where = where
+        # (shard number, row group, row within the group) of every ok row that passes.
         self.index: List[Tuple[int, int, int]] = []
         self.ids: List[str] = []
-        for s, path in enumerate(self.paths):
-            with naming(path):
-                self._index_shard(s, path)
+        files = open_files(self.paths)
+        bound = bind_where(where, files)
+        for s, (path, f) in enumerate(zip(self.paths, files)):
+            for g in range(f.metadata.num_row_groups):
+                rows, ids = selected_rows(path, f, g, bound)
+                self.index += [(s, g, int(r)) for r in rows]
+                self.ids += ids
         self._cache: Tuple[Optional[Tuple[int, int]], Optional[pa.Table]] = (None, None)
-
-    def _index_shard(self, s: int, path: location.Location) -> None:
-        """Appends the ok rows of shard file `s` to the index."""
-        f = location.parquet_file(path)
-        jobs.require_columns(path, f.schema_arrow.names, ["id", "status"])
-        for g in range(f.metadata.num_row_groups):
-            t = f.read_row_group(g, columns=["id", "status"]).to_pydict()
-            check_row_count(path, len(t["id"]), f.metadata.row_group(g).num_rows)
-            for r, (id_, status) in enumerate(zip(t["id"], t["status"])):
-                if status == "ok":
-                    self.index.append((s, g, r))
-                    self.ids.append(id_)
 
     def _row_group(self, s: int, g: int) -> pa.Table:
         """Row group `g` of shard file `s` (cached), once its file is known to be unchanged."""

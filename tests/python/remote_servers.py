@@ -2,6 +2,7 @@
 faults injected per path (slowness, 5xx, truncated bodies, redirects, a changed body), and
 moto's S3 server holding a bucket. No test reaches beyond 127.0.0.1."""
 
+import contextlib
 import gzip
 import http.server
 import os
@@ -217,6 +218,25 @@ class MotoS3:
             self.proc.wait(timeout=10)
         except subprocess.TimeoutExpired:
             self.proc.kill()
+
+
+@contextlib.contextmanager
+def s3_environment():
+    """moto's S3 server, with this process's environment set to reach it (the reader reads
+    AWS_ENDPOINT_URL and the credentials from the environment) and the machine's own cloud
+    settings removed; all restored at the end."""
+    server = MotoS3()
+    saved = {k: v for k, v in os.environ.items() if k.startswith(("AWS_", "GOOGLE_", "AZURE_"))}
+    try:
+        for k in saved:
+            del os.environ[k]
+        os.environ.update(server.env)
+        yield server
+    finally:
+        for k in server.env:
+            os.environ.pop(k, None)
+        os.environ.update(saved)
+        server.close()
 
 
 def clean_env(extra):

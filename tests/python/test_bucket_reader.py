@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 import torch.utils.data
 
-from remote_servers import MotoS3
+from remote_servers import s3_environment
 from sparc3d_cli import ROOT, run
 
 try:
@@ -55,14 +55,8 @@ def local_job(tmp_path_factory):
 def s3():
     """moto's S3 server, with this process's environment set to reach it (the reader reads
     AWS_ENDPOINT_URL and the credentials from the environment)."""
-    server = MotoS3()
-    with pytest.MonkeyPatch.context() as mp:
-        for k in [k for k in os.environ if k.startswith(("AWS_", "GOOGLE_", "AZURE_"))]:
-            mp.delenv(k)
-        for k, v in server.env.items():
-            mp.setenv(k, v)
+    with s3_environment() as server:
         yield server
-    server.close()
 
 
 def token(shard):
