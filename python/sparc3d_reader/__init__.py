@@ -40,7 +40,7 @@ schema version, column names, tensor names, export formats), `tensors.py` the te
 and tensor files, `shards.py` which files are read and the checks on each, `items.py` rows as
 items, `dataset.py` the indexable dataset, `streaming.py` the streaming one (its order in
 `stream_order.py`, its DataLoader in `stream_loader.py`), `where.py` filters and
-`selection.py` the rows they select, `collate.py` batches, `exports.py` other codebases'
+`selection.py` the rows they select, `torch_classes.py` the two datasets as torch classes, `collate.py` batches, `exports.py` other codebases'
 layouts, `jobs.py` and `location.py` as above. Everything is imported from the package itself.
 """
 
@@ -48,7 +48,6 @@ from __future__ import annotations
 
 from . import jobs, location
 from .collate import CORNER_OFFSETS, collate_sparse, collate_vecset, corner_index
-from .dataset import dataset_class as _dataset_class
 from .exports import (ExportDataset, collate_cubvh, collate_direct3d_s2, cubvh_cells,
                       cubvh_corner_values, iter_export, run_export)
 from .items import iter_items, row_to_item, samples_to_source
@@ -58,9 +57,11 @@ from .schema import (APPEARANCE_COLUMNS, ATTRIBUTE_TENSORS, CONSUMER_FORMATS, EX
                      META_COLUMNS, OPTIONAL_SAMPLE_TENSORS,
                      PROVENANCE_PREFIX, SAMPLE_TENSORS, SCHEMA_VERSION, TENSORS)
 from .shards import PathLike, check_schema_version, read_job_config, shard_config, shard_paths
-from .streaming import streaming_class as _streaming_class
 from .tensors import (decode_tensor, encode_tensor, iter_tensor_rows, write_completion_record,
                       write_tensor_file)
+from .dataset import SparseCubesDatasetBase
+from .streaming import StreamingDatasetBase
+from .torch_classes import torch_class as _torch_class
 from .where import Where
 
 __all__ = [
@@ -103,7 +104,7 @@ __version__ = "0.1.0"
 def __getattr__(name: str):
     # The datasets are built on first use, so importing this package never imports torch.
     if name == "SparseCubesDataset":
-        return _dataset_class(__name__)
+        return _torch_class(name, SparseCubesDatasetBase, "Dataset", __name__)
     if name == "StreamingDataset":
-        return _streaming_class(__name__)
+        return _torch_class(name, StreamingDatasetBase, "IterableDataset", __name__)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

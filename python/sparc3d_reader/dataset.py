@@ -83,25 +83,3 @@ class SparseCubesDatasetBase:
         state = self.__dict__.copy()
         state["_cache"] = (None, None)
         return state
-
-
-_dataset_class = None
-
-
-def dataset_class(module: str) -> type:
-    """`SparseCubesDataset`, made on first use with `torch.utils.data.Dataset` as a second base
-    when torch imports; `module` is where pickle finds it (the package, which makes it on
-    first access too)."""
-    global _dataset_class
-    if _dataset_class is None:
-        try:
-            import torch.utils.data as tud
-
-            bases = (SparseCubesDatasetBase, tud.Dataset)
-        except ImportError:
-            bases = (SparseCubesDatasetBase,)
-        _dataset_class = type("SparseCubesDataset", bases, {
-            "__doc__": SparseCubesDatasetBase.__doc__,
-            "__module__": module,
-        })
-    return _dataset_class

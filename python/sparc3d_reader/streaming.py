@@ -330,24 +330,3 @@ def _warn_untracked() -> None:
     warnings.warn("StreamingDataset read by DataLoader workers outside `ds.loader(...)`: the "
                   "split and order are exact, but state_dict() cannot see what the training "
                   "loop received; use ds.loader(...) to resume mid-epoch", UserWarning)
-
-
-_streaming_class = None
-
-
-def streaming_class(module: str) -> type:
-    """`StreamingDataset`, made on first use with `torch.utils.data.IterableDataset` as a
-    second base when torch imports; `module` is where pickle finds it."""
-    global _streaming_class
-    if _streaming_class is None:
-        try:
-            import torch.utils.data as tud
-
-            bases: Tuple[type, ...] = (StreamingDatasetBase, tud.IterableDataset)
-        except ImportError:
-            bases = (StreamingDatasetBase,)
-        _streaming_class = type("StreamingDataset", bases, {
-            "__doc__": StreamingDatasetBase.__doc__,
-            "__module__": module,
-        })
-    return _streaming_class
