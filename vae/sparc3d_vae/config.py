@@ -125,7 +125,8 @@ class Config:
         return copy.deepcopy(self)
 
     @staticmethod
-    def from_dict(d: Dict[str, Any], source: str = "config", base: Optional["Config"] = None) -> "Config":
+    def from_dict(d: Dict[str, Any], source: str = "config",
+                  base: Optional["Config"] = None) -> "Config":
         """Builds a config from a nested dict on top of `base` (the defaults when None; `base`
         itself is not changed), refusing unknown sections and keys and values of the wrong
         type, naming `source` and the key."""

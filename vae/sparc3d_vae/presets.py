@@ -41,7 +41,8 @@ def measured() -> Dict[int, Path]:
     found = {int(f.stem): f for f in CONFIG_DIR.glob("*.toml") if f.stem.isdigit()}
     if not found:
         raise ConfigError(f"{CONFIG_DIR}: no measured settings (<N>.toml) there; sparc3d-vae "
-                          "was installed without its package data: reinstall it (pip install ./vae)")
+                          "was installed without its package data: reinstall it "
+                          "(pip install ./vae)")
     return dict(sorted(found.items()))
 
 
@@ -105,7 +106,8 @@ class Settings:
         """The line `train` prints: which settings it took and how to change them."""
         text = self.base()
         if resumed:
-            text = f"resuming with the run's settings: {text}"
+            text = (f"resuming with the run's settings: {text}" if self.recorded
+                    else "resuming with the checkpoint's settings")
         if self.configs:
             return f"{text}, then {', '.join(self.configs)} on top"
         return f"{text}; --config FILE to override"

@@ -1,8 +1,11 @@
 """`sparc3d-vae train`: AdamW on the VAE loss over the items of one or more jobs.
 
-The run folder holds `config.json` (the settings in force), `loss.csv` (one row per logged
-step), `tensorboard/` (when TensorBoard is installed) and `checkpoint.pt` (model, optimizer,
-step, RNG state), written every `train.checkpoint_every` steps and at the end. `--resume`
+A new run's settings are the ones measured for the jobs' resolution, with `--config`'s keys on
+top (`presets` says how they are chosen); a line on stderr says which it took. The run folder
+holds `config.json` (the settings in force, and under `settings` where they came from),
+`loss.csv` (one row per logged step), `tensorboard/` (when TensorBoard is installed) and
+`checkpoint.pt` (model, optimizer, step, RNG state, settings), written every
+`train.checkpoint_every` steps and at the end. `--resume`
 continues from the checkpoint: the batches and the latent noise are pure functions of (seed,
 step, rank), so on CPU a resumed run ends with the same weights as one never stopped.
 
@@ -254,38 +257,46 @@ def _new_config(resolutions: List[int], config: Optional[Path],
     return asked, settings
 
 
-def train(data: List[str], out: Path, config: Optional[Path], steps: Optional[int],
-          device_name: str, resume: bool, seed: Optional[int] = None,
-          hold_out: Optional[int] = None, hold_out_seed: Optional[int] = None,
-          init_from: Optional[Path] = None) -> Dict[str, Any]:
-    """Trains (or resumes) a run; returns a summary (steps, final loss terms, seconds). Under
-    torchrun every process calls it (see `distributed`); rank 0 writes the run folder.
-    `seed`, `hold_out`, `hold_out_seed` override the config's train keys of those names;
-    `init_from` (a checkpoint or run folder) gives a new run its starting weights."""
-    out = Path(out)
-    try:
-        world = distributed.world_from_env()
-    except ValueError as e:
-        raise UsageError(str(e)) from None
-    ckpt_path = out / CHECKPOINT_NAME
-    state = None
-    init = None
+def _start(data: List[str], ckpt_path: Path, config: Optional[Path], resume: bool,
+           init_from: Optional[Path], world: distributed.World):
+    """What a run starts from: (the checkpoint's state when resuming, the `--init-from`
+    weights, the jobs, the config, where the config came from)."""
     if resume and init_from is not None:
         raise UsageError("--init-from starts a new run from another's weights, --resume "
                          "continues this one: pass one of them")
     if resume:
         state = load_checkpoint(ckpt_path)
         cfg, settings = _resume_config(state, ckpt_path, config, world)
-        info = job_info(data)
-    else:
-        if ckpt_path.exists():
-            raise UsageError(f"{out} already holds a checkpoint: pass --resume to continue it, "
-                             "or choose another --out")
-        if init_from is not None:
-            init_path = checkpoint_path(init_from)
-            init = InitWeights(init_path, load_checkpoint(init_path))
-        info = job_info(data)
-        cfg, settings = _new_config(info.resolutions, config, init)
+        return state, None, job_info(data), cfg, settings
+    if ckpt_path.exists():
+        raise UsageError(f"{ckpt_path.parent} already holds a checkpoint: pass --resume to "
+                         "continue it, or choose another --out")
+    init = None
+    if init_from is not None:
+        init_path = checkpoint_path(init_from)
+        init = InitWeights(init_path, load_checkpoint(init_path))
+    info = job_info(data)
+    cfg, settings = _new_config(info.resolutions, config, init)
+    return None, init, info, cfg, settings
+
+
+def train(data: List[str], out: Path, config: Optional[Path], steps: Optional[int],
+          device_name: str, resume: bool, seed: Optional[int] = None,
+          hold_out: Optional[int] = None, hold_out_seed: Optional[int] = None,
+          init_from: Optional[Path] = None) -> Dict[str, Any]:
+    """Trains (or resumes) a run; returns a summary (steps, final loss terms, seconds). Under
+    torchrun every process calls it (see `distributed`); rank 0 writes the run folder.
+    `config`: a TOML file whose keys go on top of the jobs' measured settings (`presets`), or
+    of the checkpoint's when resuming. `seed`, `hold_out`, `hold_out_seed` override the
+    config's train keys of those names; `init_from` (a checkpoint or run folder) gives a new
+    run its starting weights."""
+    out = Path(out)
+    try:
+        world = distributed.world_from_env()
+    except ValueError as e:
+        raise UsageError(str(e)) from None
+    ckpt_path = out / CHECKPOINT_NAME
+    state, init, info, cfg, settings = _start(data, ckpt_path, config, resume, init_from, world)
     if steps is not None:
         cfg.train.steps = steps
     for flag, key, value in (("--seed", "seed", seed), ("--hold-out", "hold_out", hold_out),
@@ -338,8 +349,7 @@ def train(data: List[str], out: Path, config: Optional[Path], steps: Optional[in
 
 
 def _loop(cfg: Config, settings: presets.Settings, state: Optional[Dict[str, Any]],
-          init: Optional[InitWeights],
-          samples: Samples, pool: List[int], info, ids_digest: str,
+          init: Optional[InitWeights], samples: Samples, pool: List[int], info, ids_digest: str,
           out: Path, ckpt_path: Path, device: torch.device,
           world: distributed.World) -> Dict[str, Any]:
     """The optimisation steps of `train` (in the process group when there is one)."""
@@ -427,7 +437,8 @@ class _RunLog:
     """What rank 0 writes as it goes: `config.json`, `loss.csv` (rewound to the checkpoint's
     step when resuming) and TensorBoard's scalars when it is installed."""
 
-    def __init__(self, out: Path, cfg: Config, settings: presets.Settings, resumed: bool, start: int):
+    def __init__(self, out: Path, cfg: Config, settings: presets.Settings, resumed: bool,
+                 start: int):
         out.mkdir(parents=True, exist_ok=True)
         written = {**cfg.to_dict(), "settings": settings.record()}
         (out / "config.json").write_text(json.dumps(written, indent=2) + "\n")

@@ -79,7 +79,8 @@ def run64(job64, tmp_path_factory):
 
 
 def test_the_rule_for_resolutions_without_measured_settings():
-    assert [presets.measured_for(n, [64, 128, 256]) for n in (32, 48, 64, 96, 127, 128, 200, 256, 1024)] \
+    jobs = (32, 48, 64, 96, 127, 128, 200, 256, 1024)
+    assert [presets.measured_for(n, [64, 128, 256]) for n in jobs] \
         == [64, 64, 64, 64, 64, 128, 128, 256, 256]
     assert sorted(presets.measured()) == [64, 128, 256]
     _, s = presets.for_jobs([96])
