@@ -4,6 +4,7 @@
     from sparc3d_vae.ops import SubmConv3d, DownConv3d, SubdivideConv3d
     from sparc3d_vae.model import SparconvVAE
     from sparc3d_vae.config import Config, load_config
+    from sparc3d_vae.presets import for_jobs             # the settings `train` takes for a job
 
 Commands: `sparc3d-vae train | encode | decode | reconstruct | evaluate` (or
 `python -m sparc3d_vae ...`); docs/VAE.md describes the model, the loss and the measurements.

@@ -52,7 +52,11 @@ def parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("train", help="train a VAE on the items of one or more jobs",
                        description="Train (or with --resume continue) a VAE on the ok items of "
-                       "jobs. Writes RUN/config.json, RUN/loss.csv, RUN/tensorboard/ (when "
+                       "jobs, with the settings measured for the jobs' resolution "
+                       "(sparc3d_vae/configs/N.toml; a resolution without its own takes the "
+                       "largest measured one below it, jobs of several resolutions the finest's; "
+                       "a line on stderr says which) and --config's keys on top. "
+                       "Writes RUN/config.json, RUN/loss.csv, RUN/tensorboard/ (when "
                        "TensorBoard is installed) and RUN/checkpoint.pt every "
                        "train.checkpoint_every steps. bf16 autocast on CUDA; on CPU a run with "
                        "the same seed gives the same weights, also across --resume. Several "
@@ -61,7 +65,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--data", nargs="+", required=True, metavar="JOB",
                    help="job folders (or shard files) to train on")
     p.add_argument("--config", type=Path, metavar="vae.toml",
-                   help="settings overriding the defaults (vae/vae.toml documents every key)")
+                   help="settings on top of the job's measured ones, key by key (vae/vae.toml "
+                   "documents every key); with --resume, on top of the run's")
     p.add_argument("--out", type=Path, required=True, metavar="RUN", help="run folder")
     p.add_argument("--steps", type=int, help="optimizer steps in total (default: train.steps)")
     p.add_argument("--seed", type=int, help="seed (default: train.seed)")
@@ -69,8 +74,9 @@ def parser() -> argparse.ArgumentParser:
                    help="continue the run in RUN from its last checkpoint")
     p.add_argument("--init-from", type=Path, metavar="CKPT",
                    help="start a new run from the weights (EMA when kept) of another run's "
-                   "checkpoint or run folder, trained at any resolution; its config unless "
-                   "--config is given, whose [model] must match")
+                   "checkpoint or run folder, trained at any resolution: its [model], the job's "
+                   "measured training settings, then --config's keys (a [model] key of it must "
+                   "match the source's)")
     p.add_argument("--hold-out", type=int, metavar="N",
                    help="leave out the N items `evaluate --sample N --seed S` picks (train.hold_out)")
     p.add_argument("--hold-out-seed", type=int, metavar="S", help="their seed (train.hold_out_seed)")

@@ -1,6 +1,7 @@
-"""The VAE's settings: model shape, loss weights, training. Defaults live here and are written
-out, with the reasons, in `vae/vae.toml` (a test keeps the two equal); `--config FILE` overrides
-any key of any section.
+"""The VAE's settings: model shape, loss weights, training. The base defaults live here and are
+written out, with the reasons, in `vae/vae.toml` (a test keeps the two equal). `train` starts
+from the measured settings for the job's resolution (`sparc3d_vae/configs/<N>.toml` on top of
+these, chosen by `presets`), and `--config FILE` overrides any key of any section on top of that.
 
 Sections: `[model]` decides the network (a checkpoint records it and refuses another one),
 `[loss]` the λs of the loss, `[train]` the optimisation.
@@ -8,6 +9,7 @@ Sections: `[model]` decides the network (a checkpoint records it and refuses ano
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import sys
 from dataclasses import dataclass, field
@@ -118,11 +120,17 @@ class Config:
         """Plain nested dict (for checkpoints and logs)."""
         return dataclasses.asdict(self)
 
+    def copy(self) -> "Config":
+        """An independent copy (its lists are not shared)."""
+        return copy.deepcopy(self)
+
     @staticmethod
-    def from_dict(d: Dict[str, Any], source: str = "config") -> "Config":
-        """Builds a config from a nested dict, refusing unknown sections and keys and values of
-        the wrong type, naming `source` and the key."""
-        cfg = Config()
+    def from_dict(d: Dict[str, Any], source: str = "config",
+                  base: Optional["Config"] = None) -> "Config":
+        """Builds a config from a nested dict on top of `base` (the defaults when None; `base`
+        itself is not changed), refusing unknown sections and keys and values of the wrong
+        type, naming `source` and the key."""
+        cfg = Config() if base is None else base.copy()
         for section, values in d.items():
             target = getattr(cfg, section, None)
             if target is None or not isinstance(values, dict):
@@ -188,10 +196,14 @@ def _typed(value: Any, default: Any, where: str) -> Any:
     raise ConfigError(f"{where} = {value!r}: expected {type(default).__name__}")
 
 
-def load_config(path: Optional[Path]) -> Config:
-    """The defaults, overridden by the TOML file at `path` when given."""
+def load_config(path: Optional[Path], base: Optional[Config] = None,
+                base_name: Optional[str] = None) -> Config:
+    """`base` (the defaults when None), with the keys the TOML file at `path` sets on top when
+    it is given; a key the file leaves out keeps `base`'s value. `base_name` says what `base`
+    is in error messages (a file's keys may clash with the base's, e.g. a `downsample` that
+    needs another number of `channels`)."""
     if path is None:
-        return Config()
+        return Config() if base is None else base.copy()
     try:
         with open(path, "rb") as f:
             data = tomllib.load(f)
@@ -199,4 +211,5 @@ def load_config(path: Optional[Path]) -> Config:
         raise ConfigError(f"{path}: no such config file") from None
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(f"{path}: not valid TOML: {e}") from None
-    return Config.from_dict(data, str(path))
+    source = str(path) if base_name is None else f"{path} (on top of {base_name})"
+    return Config.from_dict(data, source, base)

@@ -1,8 +1,11 @@
 """`sparc3d-vae train`: AdamW on the VAE loss over the items of one or more jobs.
 
-The run folder holds `config.json` (the settings in force), `loss.csv` (one row per logged
-step), `tensorboard/` (when TensorBoard is installed) and `checkpoint.pt` (model, optimizer,
-step, RNG state), written every `train.checkpoint_every` steps and at the end. `--resume`
+A new run's settings are the ones measured for the jobs' resolution, with `--config`'s keys on
+top (`presets` says how they are chosen); a line on stderr says which it took. The run folder
+holds `config.json` (the settings in force, and under `settings` where they came from),
+`loss.csv` (one row per logged step), `tensorboard/` (when TensorBoard is installed) and
+`checkpoint.pt` (model, optimizer, step, RNG state, settings), written every
+`train.checkpoint_every` steps and at the end. `--resume`
 continues from the checkpoint: the batches and the latent noise are pure functions of (seed,
 step, rank), so on CPU a resumed run ends with the same weights as one never stopped.
 
@@ -27,7 +30,7 @@ import numpy as np
 import torch
 from torch.nn.parallel import DistributedDataParallel
 
-from . import augment, distributed
+from . import augment, distributed, presets
 from .config import Config, TrainConfig, load_config
 from .data import DataError, Sample, Samples, job_info, make_batch
 from .loss import vae_loss
@@ -180,28 +183,30 @@ def _placeholder(width: int) -> Sample:
     return Sample("", {}, np.zeros((1, 3), np.int32), np.zeros((1, width), np.float32))
 
 
-def _asked_config(cfg: Config, config: Path) -> Tuple[Config, List[str]]:
-    """`config` read, with the checkpoint config `cfg`'s deformation (which the data decides),
-    and the [model] keys in which it differs from `cfg` (dotted, with both values)."""
-    asked = load_config(config)
+def _asked_config(cfg: Config, config: Path, base_name: str) -> Tuple[Config, List[str]]:
+    """`config`'s keys on top of `cfg` (called `base_name` in errors), keeping `cfg`'s
+    deformation (which the data decides), and the [model] keys in which the result differs
+    from `cfg` (dotted, with both values)."""
+    asked = load_config(config, cfg, base_name)
     asked.model.deformation = cfg.model.deformation
     return asked, config_diff(cfg.to_dict()["model"], asked.to_dict()["model"], "model.")
 
 
 def _resume_config(state: Dict[str, Any], ckpt_path: Path, config: Optional[Path],
-                   world: distributed.World) -> Config:
-    """The config of a resumed run: the checkpoint's, with [loss] and [train] from `config`
-    when given. Refused, naming the keys: another [model], another value of a
-    `TRAJECTORY_KEYS` key, another world size."""
+                   world: distributed.World) -> Tuple[Config, presets.Settings]:
+    """The config of a resumed run and where it came from: the checkpoint's, with the keys
+    `config` sets on top when given. Refused, naming the keys: another [model], another value
+    of a `TRAJECTORY_KEYS` key, another world size."""
     cfg = Config.from_dict(state["config"], str(ckpt_path))
+    settings = presets.Settings.from_record(state.get("settings"))
     trained_world = int(state.get("world_size", 1))
     if trained_world != world.size:
         raise UsageError(f"{ckpt_path}: trained with world size {trained_world}, resumed with "
                          f"{world.size} (WORLD_SIZE; torchrun --nproc_per_node): the batches "
                          "would differ; resume with the same number of processes")
     if config is None:
-        return cfg
-    asked, diff = _asked_config(cfg, config)
+        return cfg, settings
+    asked, diff = _asked_config(cfg, config, f"the settings of {ckpt_path}")
     old_t, new_t = cfg.to_dict()["train"], asked.to_dict()["train"]
     diff += config_diff({k: old_t[k] for k in TRAJECTORY_KEYS},
                         {k: new_t[k] for k in TRAJECTORY_KEYS}, "train.")
@@ -209,8 +214,8 @@ def _resume_config(state: Dict[str, Any], ckpt_path: Path, config: Optional[Path
         raise UsageError(f"{config}: differs from the checkpoint {ckpt_path} in "
                          f"{'; '.join(diff)} ([model] differs or the batches would); start a new "
                          "run with another --out")
-    cfg.loss, cfg.train = asked.loss, asked.train
-    return cfg
+    settings.configs.append(str(config))
+    return asked, settings
 
 
 class InitWeights:
@@ -221,6 +226,7 @@ class InitWeights:
 
     def __init__(self, path: Path, state: Dict[str, Any]):
         self.path = path
+        self.config = Config.from_dict(state["config"], str(path))
         self.weights = state.get("ema") or state["model"]
         self.step = int(state.get("step", 0))
         self.resolutions = state.get("data", {}).get("resolutions")
@@ -231,18 +237,47 @@ class InitWeights:
                 "weights_digest": distributed.weights_digest(self.weights)}
 
 
-def _init_config(state: Dict[str, Any], ckpt_path: Path, config: Optional[Path]) -> Config:
-    """The config of a run started from another's weights: the checkpoint's whole config
-    without `config`; with it, `config`, whose [model] must be the checkpoint's (refused,
-    naming the keys)."""
-    cfg = Config.from_dict(state["config"], str(ckpt_path))
+def _new_config(resolutions: List[int], config: Optional[Path],
+                init: Optional[InitWeights]) -> Tuple[Config, presets.Settings]:
+    """The config of a new run and where it came from (`presets`): the measured settings for
+    the jobs' `resolutions`, with the [model] of `init` when starting from its weights, then
+    the keys `config` sets. With `init`, a [model] key of `config` that differs from its
+    model is refused, naming the keys: the weights would not fit."""
+    cfg, settings = presets.for_jobs(resolutions)
+    if init is not None:
+        cfg.model = init.config.model
+        settings.model_from = str(init.path)
     if config is None:
-        return cfg
-    asked, diff = _asked_config(cfg, config)
-    if diff:
-        raise UsageError(f"{config}: its [model] differs from the one of --init-from {ckpt_path} "
+        return cfg, settings
+    asked, diff = _asked_config(cfg, config, settings.base())
+    if init is not None and diff:
+        raise UsageError(f"{config}: its [model] differs from the one of --init-from {init.path} "
                          f"in {'; '.join(diff)}: the weights would not fit")
-    return asked
+    settings.configs.append(str(config))
+    return asked, settings
+
+
+def _start(data: List[str], ckpt_path: Path, config: Optional[Path], resume: bool,
+           init_from: Optional[Path], world: distributed.World):
+    """What a run starts from: (the checkpoint's state when resuming, the `--init-from`
+    weights, the jobs, the config, where the config came from)."""
+    if resume and init_from is not None:
+        raise UsageError("--init-from starts a new run from another's weights, --resume "
+                         "continues this one: pass one of them")
+    if resume:
+        state = load_checkpoint(ckpt_path)
+        cfg, settings = _resume_config(state, ckpt_path, config, world)
+        return state, None, job_info(data), cfg, settings
+    if ckpt_path.exists():
+        raise UsageError(f"{ckpt_path.parent} already holds a checkpoint: pass --resume to "
+                         "continue it, or choose another --out")
+    init = None
+    if init_from is not None:
+        init_path = checkpoint_path(init_from)
+        init = InitWeights(init_path, load_checkpoint(init_path))
+    info = job_info(data)
+    cfg, settings = _new_config(info.resolutions, config, init)
+    return None, init, info, cfg, settings
 
 
 def train(data: List[str], out: Path, config: Optional[Path], steps: Optional[int],
@@ -251,33 +286,17 @@ def train(data: List[str], out: Path, config: Optional[Path], steps: Optional[in
           init_from: Optional[Path] = None) -> Dict[str, Any]:
     """Trains (or resumes) a run; returns a summary (steps, final loss terms, seconds). Under
     torchrun every process calls it (see `distributed`); rank 0 writes the run folder.
-    `seed`, `hold_out`, `hold_out_seed` override the config's train keys of those names;
-    `init_from` (a checkpoint or run folder) gives a new run its starting weights."""
+    `config`: a TOML file whose keys go on top of the jobs' measured settings (`presets`), or
+    of the checkpoint's when resuming. `seed`, `hold_out`, `hold_out_seed` override the
+    config's train keys of those names; `init_from` (a checkpoint or run folder) gives a new
+    run its starting weights."""
     out = Path(out)
     try:
         world = distributed.world_from_env()
     except ValueError as e:
         raise UsageError(str(e)) from None
     ckpt_path = out / CHECKPOINT_NAME
-    state = None
-    init = None
-    if resume and init_from is not None:
-        raise UsageError("--init-from starts a new run from another's weights, --resume "
-                         "continues this one: pass one of them")
-    if resume:
-        state = load_checkpoint(ckpt_path)
-        cfg = _resume_config(state, ckpt_path, config, world)
-    else:
-        if ckpt_path.exists():
-            raise UsageError(f"{out} already holds a checkpoint: pass --resume to continue it, "
-                             "or choose another --out")
-        if init_from is not None:
-            init_path = checkpoint_path(init_from)
-            init_state = load_checkpoint(init_path)
-            cfg = _init_config(init_state, init_path, config)
-            init = InitWeights(init_path, init_state)
-        else:
-            cfg = load_config(config)
+    state, init, info, cfg, settings = _start(data, ckpt_path, config, resume, init_from, world)
     if steps is not None:
         cfg.train.steps = steps
     for flag, key, value in (("--seed", "seed", seed), ("--hold-out", "hold_out", hold_out),
@@ -296,7 +315,6 @@ def train(data: List[str], out: Path, config: Optional[Path], steps: Optional[in
     if cfg.train.threads > 0:
         torch.set_num_threads(cfg.train.threads)
 
-    info = job_info(data)
     if (state is not None or init is not None) and cfg.model.deformation != info.deformation:
         whose = "the checkpoint's" if init is None else f"--init-from {init.path}: its"
         raise UsageError(f"{whose} model {'reads' if cfg.model.deformation else 'has no'} "
@@ -320,16 +338,18 @@ def train(data: List[str], out: Path, config: Optional[Path], steps: Optional[in
         print(f"warning: the data differs from the checkpoint's ({len(samples)} items now); "
               "the resumed run will not repeat the original one", file=sys.stderr)
 
+    if world.main:
+        print(settings.message(resumed=state is not None), file=sys.stderr)
     distributed.init(world, device)
     try:
-        return _loop(cfg, state, init, samples, pool, info, ids_digest, out, ckpt_path, device,
-                     world)
+        return _loop(cfg, settings, state, init, samples, pool, info, ids_digest, out, ckpt_path,
+                     device, world)
     finally:
         distributed.shutdown(world)
 
 
-def _loop(cfg: Config, state: Optional[Dict[str, Any]], init: Optional[InitWeights],
-          samples: Samples, pool: List[int], info, ids_digest: str,
+def _loop(cfg: Config, settings: presets.Settings, state: Optional[Dict[str, Any]],
+          init: Optional[InitWeights], samples: Samples, pool: List[int], info, ids_digest: str,
           out: Path, ckpt_path: Path, device: torch.device,
           world: distributed.World) -> Dict[str, Any]:
     """The optimisation steps of `train` (in the process group when there is one)."""
@@ -338,8 +358,8 @@ def _loop(cfg: Config, state: Optional[Dict[str, Any]], init: Optional[InitWeigh
     # Every rank starts from the same weights (same seed); DDP checks the shapes and
     # broadcasts rank 0's weights once more.
     net = DistributedDataParallel(model) if world.distributed else model
-    log = _RunLog(out, cfg, state is not None, start) if world.main else None
-    saver = _Saver(ckpt_path, cfg, model, opt, ema, device, world,
+    log = _RunLog(out, cfg, settings, state is not None, start) if world.main else None
+    saver = _Saver(ckpt_path, cfg, settings, model, opt, ema, device, world,
                    init.record() if init is not None else (state or {}).get("init_from"),
                    {"ids_digest": ids_digest, "items": len(samples), "resolutions": info.resolutions})
     t = cfg.train
@@ -417,9 +437,11 @@ class _RunLog:
     """What rank 0 writes as it goes: `config.json`, `loss.csv` (rewound to the checkpoint's
     step when resuming) and TensorBoard's scalars when it is installed."""
 
-    def __init__(self, out: Path, cfg: Config, resumed: bool, start: int):
+    def __init__(self, out: Path, cfg: Config, settings: presets.Settings, resumed: bool,
+                 start: int):
         out.mkdir(parents=True, exist_ok=True)
-        (out / "config.json").write_text(json.dumps(cfg.to_dict(), indent=2) + "\n")
+        written = {**cfg.to_dict(), "settings": settings.record()}
+        (out / "config.json").write_text(json.dumps(written, indent=2) + "\n")
         log_path = out / "loss.csv"
         if resumed:
             _rewind_log(log_path, start)
@@ -451,10 +473,12 @@ class _RunLog:
 class _Saver:
     """Writes the run's checkpoint (rank 0), once every rank's weights are known to agree."""
 
-    def __init__(self, path: Path, cfg: Config, model: SparconvVAE, opt: torch.optim.Optimizer,
-                 ema: Optional[EMA], device: torch.device, world: distributed.World,
-                 init_record: Optional[Dict[str, Any]], data: Dict[str, Any]):
-        self.path, self.cfg, self.model, self.opt, self.ema = path, cfg, model, opt, ema
+    def __init__(self, path: Path, cfg: Config, settings: presets.Settings, model: SparconvVAE,
+                 opt: torch.optim.Optimizer, ema: Optional[EMA], device: torch.device,
+                 world: distributed.World, init_record: Optional[Dict[str, Any]],
+                 data: Dict[str, Any]):
+        self.path, self.cfg, self.settings, self.model = path, cfg, settings, model
+        self.opt, self.ema = opt, ema
         self.device, self.world, self.init_record, self.data = device, world, init_record, data
 
     def save(self, step: int) -> None:
@@ -466,7 +490,8 @@ class _Saver:
             raise RuntimeError(f"the ranks' weights differ at step {step} ({digests}): a bug")
         if world.main:
             save_checkpoint(self.path, {
-                "config": self.cfg.to_dict(), "model": self.model.state_dict(),
+                "config": self.cfg.to_dict(), "settings": self.settings.record(),
+                "model": self.model.state_dict(),
                 "optimizer": self.opt.state_dict(), "step": step, "world_size": world.size,
                 "rank_digests": digests,
                 **({"ema": self.ema.state_dict()} if self.ema is not None else {}),

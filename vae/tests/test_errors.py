@@ -183,9 +183,9 @@ def test_hold_out_leaves_out_the_items_evaluate_samples(job32, tmp_path, capsys)
 
 
 def test_per_resolution_configs_load_and_keep_a_latent_grid_of_at_least_8():
-    """vae/configs/<N>.toml: valid configs, and none leaves fewer than 8 latent voxels per axis
-    (a 4³ grid at 64³ doubled the unseen error, docs/VAE.md)."""
-    folder = pathlib.Path(__file__).resolve().parents[1] / "configs"
+    """sparc3d_vae/configs/<N>.toml: valid configs, and none leaves fewer than 8 latent voxels
+    per axis (a 4³ grid at 64³ doubled the unseen error, docs/VAE.md)."""
+    folder = pathlib.Path(__file__).resolve().parents[1] / "sparc3d_vae" / "configs"
     files = sorted(folder.glob("*.toml"))
     assert files
     for f in files:
