@@ -17,6 +17,7 @@ pub mod error;
 pub mod hex;
 pub mod layout;
 pub mod manifest;
+pub mod quality;
 pub mod row;
 pub mod tensor;
 mod tensor_columns;
@@ -30,6 +31,7 @@ pub use manifest::{FrozenItem, ManifestRecord};
 pub use row::{
     AppearanceFacts, AttributeTensors, RowCounts, RowTensors, RowTimings, SampleTensors, ShardRow,
 };
+pub use quality::QualityFacts;
 pub use tensor::{DType, EncodedTensor};
 
 /// Version of the shard format; bumped on any change to columns or encodings. Version 2 stores
