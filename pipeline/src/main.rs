@@ -15,6 +15,7 @@ mod machine;
 mod memory;
 mod pictures;
 mod pool;
+mod row_filter;
 mod progress;
 mod sample;
 mod signals;
