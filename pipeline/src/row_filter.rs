@@ -36,7 +36,11 @@ impl RowFilter {
     /// Parses `text` and checks it against the columns `job`'s shards have (its config's
     /// column groups, the provenance columns of all its items).
     pub fn for_job(job: &Job, text: &str) -> Result<Self> {
-        let names: BTreeSet<&String> = job.items.iter().flat_map(|i| i.record.extra.keys()).collect();
+        let names: BTreeSet<&String> = job
+            .items
+            .iter()
+            .flat_map(|i| i.record.extra.keys())
+            .collect();
         let provenance: Vec<String> = names.into_iter().cloned().collect();
         Self::new(text, provenance, Sections::of(&job.file.config), "the job")
     }
@@ -74,7 +78,8 @@ impl RowFilter {
     }
 
     /// Whether `row` passes. Its tensors are set aside while it is judged (and put back);
-    /// `provenance`, when given, stands for the row's own (a journaled row has none yet).
+    /// `item`, when given, supplies its provenance values from the frozen manifest (a
+    /// journaled row has none yet).
     pub fn keeps(
         &self,
         row: &mut ShardRow,

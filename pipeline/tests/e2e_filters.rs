@@ -63,10 +63,16 @@ fn corpus(dir: &Path) -> PathBuf {
     std::fs::create_dir_all(&meshes).unwrap_or_else(|e| panic!("{e}"));
     let mut boxb = boxed([1.0; 3], [0.0; 3]);
     boxb.1.push([2, 1, 0]);
-    boxb.0.extend([[0.5, 0.5, 0.5], [0.6, 0.5, 0.5], [0.7, 0.5, 0.5]]);
+    boxb.0
+        .extend([[0.5, 0.5, 0.5], [0.6, 0.5, 0.5], [0.7, 0.5, 0.5]]);
     boxb.1.push([8, 9, 10]);
     let sheet = (
-        vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]],
+        vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+        ],
         vec![[0, 1, 2], [0, 2, 3]],
     );
     let fins = (
@@ -145,7 +151,11 @@ fn rows(job: &Path) -> Vec<ShardRow> {
 fn column_names(path: &Path) -> Vec<String> {
     let f = std::fs::File::open(path).unwrap_or_else(|e| panic!("{e}"));
     let b = ParquetRecordBatchReaderBuilder::try_new(f).unwrap_or_else(|e| panic!("{e}"));
-    b.schema().fields().iter().map(|f| f.name().clone()).collect()
+    b.schema()
+        .fields()
+        .iter()
+        .map(|f| f.name().clone())
+        .collect()
 }
 
 #[test]
@@ -155,18 +165,32 @@ fn quality_columns_hold_what_each_mesh_is() {
     let job = tmp.path().join("job");
     run_job(&m, &job, &[]);
     let rows = rows(&job);
-    let row = |id: &str| rows.iter().find(|r| r.id == id).unwrap_or_else(|| panic!("{id}"));
-    let quality = |id| row(id).quality.clone().unwrap_or_else(|| panic!("{id}: no facts"));
+    let row = |id: &str| {
+        rows.iter()
+            .find(|r| r.id == id)
+            .unwrap_or_else(|| panic!("{id}"))
+    };
+    let quality = |id| {
+        row(id)
+            .quality
+            .clone()
+            .unwrap_or_else(|| panic!("{id}: no facts"))
+    };
     // Counts, by hand (see `corpus`): faces, components, boundary, non-manifold,
     // degenerate and duplicate.
     let counts = |id| {
         let q = quality(id);
         let k = row(id).counts.clone().unwrap_or_default();
         let components = k.input_components.unwrap_or(0);
-        [k.input_faces, components, q.boundary_edges, q.non_manifold_edges]
-            .into_iter()
-            .chain([q.degenerate_faces, q.duplicate_faces])
-            .collect::<Vec<u64>>()
+        [
+            k.input_faces,
+            components,
+            q.boundary_edges,
+            q.non_manifold_edges,
+        ]
+        .into_iter()
+        .chain([q.degenerate_faces, q.duplicate_faces])
+        .collect::<Vec<u64>>()
     };
     assert_eq!(counts("boxa"), [12, 1, 0, 0, 0, 0]);
     assert_eq!(counts("boxb"), [13, 2, 3, 0, 1, 1]);
@@ -213,7 +237,10 @@ fn where_chooses_the_rows_ls_export_and_inspect_read() {
         ),
         ("license != cc0", &["boxb", "sphere10", "sheet", "fins"]),
         ("status = failed", &["broken"]),
-        ("Input_Faces > 100 AND shell_share < 0.5", &["sphere6", "sphere10"]),
+        (
+            "Input_Faces > 100 AND shell_share < 0.5",
+            &["sphere6", "sphere10"],
+        ),
     ] {
         assert_eq!(ls_ids(&job, filter), want, "ls --where {filter}");
     }
@@ -247,7 +274,13 @@ fn where_chooses_the_rows_ls_export_and_inspect_read() {
     assert_eq!(report["provenance"]["license"]["cc0"], 3);
     // One shard file alone reads its own columns.
     let shard = job.join("shards").join("part-00000.parquet");
-    let text = ok(&["inspect", s(&shard), "--json", "--where", "input_faces < 50"]);
+    let text = ok(&[
+        "inspect",
+        s(&shard),
+        "--json",
+        "--where",
+        "input_faces < 50",
+    ]);
     let report: serde_json::Value = serde_json::from_str(&text).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!((&report["rows"], &report["ok"]), (&2.into(), &2.into()));
 }
@@ -263,7 +296,10 @@ fn bad_filters_are_refused_naming_the_column_or_value() {
         ("licence = cc0", "the job has no column \"licence\""),
         ("input_faces < many", "\"many\" is not a number"),
         ("license >= 3", "the column license holds text"),
-        ("input_faces = twelve", "holds numbers, and \"twelve\" is not a number"),
+        (
+            "input_faces = twelve",
+            "holds numbers, and \"twelve\" is not a number",
+        ),
     ] {
         for args in [
             vec!["ls", s(&job)],
@@ -275,7 +311,10 @@ fn bad_filters_are_refused_naming_the_column_or_value() {
         }
     }
     let err = refused(&["ls", s(&job), "--where", "licence = cc0"]);
-    assert!(err.contains("license") && err.contains("input_faces"), "{err}");
+    assert!(
+        err.contains("license") && err.contains("input_faces"),
+        "{err}"
+    );
     assert!(!out.exists(), "nothing exported");
 }
 
@@ -301,7 +340,9 @@ fn a_job_without_quality_columns_resumes_reads_and_filters_on_what_it_has() {
     for file in shard_files(&job) {
         let names = column_names(&file);
         assert!(names.contains(&"input_faces".to_string()));
-        assert!(!names.iter().any(|n| n == "aspect" || n == "input_boundary_edges"));
+        assert!(!names
+            .iter()
+            .any(|n| n == "aspect" || n == "input_boundary_edges"));
     }
     assert_eq!(ls_ids(&job, "input_faces > 100"), ["sphere6", "sphere10"]);
     let err = refused(&["ls", s(&job), "--where", "aspect > 1"]);

@@ -219,7 +219,10 @@ pub fn rows_to_batch_for(
     for name in provenance {
         cols.push(strs(&|r| r.provenance.get(name).map(String::as_str)));
     }
-    Ok(RecordBatch::try_new(schema_for(provenance, sections), cols)?)
+    Ok(RecordBatch::try_new(
+        schema_for(provenance, sections),
+        cols,
+    )?)
 }
 
 fn opt_str(a: &StringArray, i: usize) -> Option<String> {

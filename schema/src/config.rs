@@ -530,7 +530,10 @@ mod tests {
             &serde_json::json!({"params": {"seal_openings": false}, "quality": false}),
         )?;
         assert_eq!(off.fingerprint()?, INSIDE_TEST_ERA_FINGERPRINT);
-        assert_eq!(off.diff_keys(&new)?, vec!["params.seal_openings", "quality"]);
+        assert_eq!(
+            off.diff_keys(&new)?,
+            vec!["params.seal_openings", "quality"]
+        );
         Ok(())
     }
 
@@ -601,17 +604,18 @@ mod tests {
     }
 
     #[test]
-    fn quality_columns_are_on_for_new_jobs_and_off_for_stored_configs_without_the_key(
-    ) -> Result<()> {
+    fn quality_columns_are_on_for_new_jobs_and_off_for_stored_configs_without_the_key() -> Result<()>
+    {
         // Every job stored before the columns existed: off, and written back without the key.
         for (text, fingerprint) in [
             (OLD_DEFAULT_CONFIG, OLD_DEFAULT_FINGERPRINT),
             (INSIDE_TEST_ERA_CONFIG, INSIDE_TEST_ERA_FINGERPRINT),
         ] {
-            let old: JobConfig = serde_json::from_str(text).map_err(|source| SchemaError::Json {
-                context: "test".into(),
-                source,
-            })?;
+            let old: JobConfig =
+                serde_json::from_str(text).map_err(|source| SchemaError::Json {
+                    context: "test".into(),
+                    source,
+                })?;
             assert!(!old.quality);
             assert_eq!(old.fingerprint()?, fingerprint);
             assert!(!old.to_canonical_json()?.contains("quality"));

@@ -103,8 +103,20 @@ pub fn update_row(h: &mut Sha256, row: &ShardRow) {
             h.update(x.to_le_bytes());
         }
         h.update(q.surface_area.to_le_bytes());
-        opt(h, q.output_volume.map(f64::to_le_bytes).as_ref().map(|b| &b[..]));
-        opt(h, q.output_components.map(u64::to_le_bytes).as_ref().map(|b| &b[..]));
+        opt(
+            h,
+            q.output_volume
+                .map(f64::to_le_bytes)
+                .as_ref()
+                .map(|b| &b[..]),
+        );
+        opt(
+            h,
+            q.output_components
+                .map(u64::to_le_bytes)
+                .as_ref()
+                .map(|b| &b[..]),
+        );
     }
     // Rows without provenance leave the digest as it was before provenance columns existed.
     if !row.provenance.is_empty() {

@@ -28,10 +28,10 @@ pub use config::{AttributeConfig, JobConfig, JobFile, Limits, SampleConfig};
 pub use error::{Result, SchemaError};
 pub use layout::JobLayout;
 pub use manifest::{FrozenItem, ManifestRecord};
+pub use quality::QualityFacts;
 pub use row::{
     AppearanceFacts, AttributeTensors, RowCounts, RowTensors, RowTimings, SampleTensors, ShardRow,
 };
-pub use quality::QualityFacts;
 pub use tensor::{DType, EncodedTensor};
 
 /// Version of the shard format; bumped on any change to columns or encodings. Version 2 stores

@@ -38,9 +38,12 @@ impl QualityFacts {
     /// Longest extent over shortest: `inf` for a flat (or straight) source, whose shortest
     /// extent is 0; `None` when every extent is 0 (no ok row has such a source).
     pub fn aspect(&self) -> Option<f64> {
-        let [lo, hi] = self.extent.iter().fold([f64::INFINITY, 0.0f64], |[lo, hi], &e| {
-            [lo.min(e), hi.max(e)]
-        });
+        let [lo, hi] = self
+            .extent
+            .iter()
+            .fold([f64::INFINITY, 0.0f64], |[lo, hi], &e| {
+                [lo.min(e), hi.max(e)]
+            });
         match (lo, hi) {
             (_, h) if h <= 0.0 => None,
             (l, _) if l <= 0.0 => Some(f64::INFINITY),

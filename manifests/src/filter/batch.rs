@@ -142,7 +142,12 @@ mod tests {
         ]);
         let columns: Vec<Arc<dyn Array>> = vec![
             Arc::new(StringArray::from(vec!["a", "b", "c", "d"])),
-            Arc::new(UInt64Array::from(vec![Some(12), Some(5000), None, Some(800)])),
+            Arc::new(UInt64Array::from(vec![
+                Some(12),
+                Some(5000),
+                None,
+                Some(800),
+            ])),
             Arc::new(Float64Array::from(vec![
                 Some(1.0),
                 Some(f64::INFINITY),
@@ -150,7 +155,12 @@ mod tests {
                 Some(2.5),
             ])),
             Arc::new(UInt32Array::from(vec![256, 256, 256, 64])),
-            Arc::new(BooleanArray::from(vec![Some(true), Some(false), None, None])),
+            Arc::new(BooleanArray::from(vec![
+                Some(true),
+                Some(false),
+                None,
+                None,
+            ])),
             Arc::new(arrow_array::BinaryArray::from(vec![
                 Some(&b"x"[..]),
                 None,
@@ -189,7 +199,11 @@ mod tests {
         assert_eq!(ids("input_faces not in (12, 800.0)")?, ["b", "c"]);
         assert_eq!(ids("input_faces in (5000, 1e4)")?, ["b"]);
         assert_eq!(ids("resolution = 256.0")?, ["a", "b", "c"]);
-        assert_eq!(ids("aspect > 2")?, ["b", "d"], "a flat item's aspect is inf");
+        assert_eq!(
+            ids("aspect > 2")?,
+            ["b", "d"],
+            "a flat item's aspect is inf"
+        );
         assert_eq!(ids("aspect <= inf")?, ["a", "b", "d"]);
         Ok(())
     }
@@ -205,7 +219,10 @@ mod tests {
             ids("input_faces <= 1000000 and license in (cc0, cc-by)")?,
             ["a", "b"]
         );
-        assert_eq!(ids("input_faces <= 1000 and license in (cc0, cc-by)")?, ["a"]);
+        assert_eq!(
+            ids("input_faces <= 1000 and license in (cc0, cc-by)")?,
+            ["a"]
+        );
         Ok(())
     }
 
@@ -215,7 +232,10 @@ mod tests {
             ("licence = cc0", "the job has no column \"licence\""),
             ("coords = x", "no column \"coords\""),
             ("license < 3", "the column license holds text"),
-            ("input_faces = many", "holds numbers, and \"many\" is not a number"),
+            (
+                "input_faces = many",
+                "holds numbers, and \"many\" is not a number",
+            ),
             ("input_faces in (1, x)", "\"x\" is not a number"),
         ] {
             let e = ids(bad).err().map(|e| e.to_string()).unwrap_or_default();

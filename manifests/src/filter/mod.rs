@@ -102,7 +102,11 @@ impl Condition {
             (Cell::Null, op) => op == Op::NotIn,
             (Cell::Text(t), op) => self.values.iter().any(|v| v == t) == (op == Op::In),
             (Cell::Number(x), Op::In | Op::NotIn) => {
-                let equal = self.values.iter().filter_map(|v| number(v)).any(|v| v == *x);
+                let equal = self
+                    .values
+                    .iter()
+                    .filter_map(|v| number(v))
+                    .any(|v| v == *x);
                 equal == (self.op == Op::In)
             }
             (Cell::Number(x), op) => {
@@ -154,9 +158,7 @@ impl Filter {
         if !records.is_empty() {
             self.check(&table)?;
         }
-        let keep: Vec<bool> = (0..records.len())
-            .map(|i| self.keeps(&table, i))
-            .collect();
+        let keep: Vec<bool> = (0..records.len()).map(|i| self.keeps(&table, i)).collect();
         let total = records.len();
         let kept: Vec<RawRecord> = records
             .into_iter()
