@@ -28,13 +28,21 @@ fn kind_of(data_type: &DataType) -> Option<Kind> {
     }
 }
 
+/// How a filter compares the field `name` of `schema`: by its type, and none for a tensor's
+/// dtype column (`<stem>_dtype` beside a blob column `<stem>`), which is part of the tensor.
+fn nameable(schema: &Schema, name: &str) -> Option<Kind> {
+    let (_, field) = schema.column_with_name(name)?;
+    let tensor_part = name
+        .strip_suffix("_dtype")
+        .and_then(|stem| schema.column_with_name(stem))
+        .is_some_and(|(_, f)| matches!(f.data_type(), DataType::Binary | DataType::LargeBinary));
+    (!tensor_part).then(|| kind_of(field.data_type())).flatten()
+}
+
 /// The field a filter's column `name` stands for in `schema` (itself, else the provenance
 /// column `manifest.<name>`), with its kind; `None` when there is none it may name.
 pub fn resolve(schema: &Schema, name: &str) -> Option<(usize, Kind)> {
-    let at = |n: &str| {
-        let (i, f) = schema.column_with_name(n)?;
-        Some((i, kind_of(f.data_type())?))
-    };
+    let at = |n: &str| Some((schema.index_of(n).ok()?, nameable(schema, n)?));
     at(name).or_else(|| at(&format!("{PROVENANCE_PREFIX}{name}")))
 }
 
@@ -43,7 +51,7 @@ pub fn names(schema: &Schema) -> Vec<String> {
     schema
         .fields()
         .iter()
-        .filter(|f| kind_of(f.data_type()).is_some())
+        .filter(|f| nameable(schema, f.name()).is_some())
         .map(|f| {
             let name = f.name();
             match name.strip_prefix(PROVENANCE_PREFIX) {
@@ -138,6 +146,7 @@ mod tests {
             Field::new("resolution", UInt32, false),
             Field::new("textured", Boolean, true),
             Field::new("coords", Binary, true),
+            Field::new("coords_dtype", Utf8, true),
             Field::new("manifest.license", Utf8, true),
         ]);
         let columns: Vec<Arc<dyn Array>> = vec![
@@ -167,6 +176,7 @@ mod tests {
                 None,
                 None,
             ])),
+            Arc::new(StringArray::from(vec![Some("<u2"), None, None, None])),
             Arc::new(StringArray::from(vec![
                 Some("cc0"),
                 Some("cc-by"),
@@ -231,6 +241,7 @@ mod tests {
         for (bad, said) in [
             ("licence = cc0", "the job has no column \"licence\""),
             ("coords = x", "no column \"coords\""),
+            ("coords_dtype = '<u2'", "no column \"coords_dtype\""),
             ("license < 3", "the column license holds text"),
             (
                 "input_faces = many",
