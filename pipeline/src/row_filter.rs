@@ -45,6 +45,11 @@ impl RowFilter {
         Self::new(text, provenance, Sections::of(&job.file.config), "the job")
     }
 
+    /// [`RowFilter::for_job`] of `--where`'s text when it was given.
+    pub fn optional(job: &Job, text: Option<&str>) -> Result<Option<Self>> {
+        text.map(|t| Self::for_job(job, t)).transpose()
+    }
+
     /// Parses `text` and checks it against a shard file's own `schema` (`inspect FILE`).
     pub fn for_schema(schema: &arrow_schema::Schema, text: &str, what: &str) -> Result<Self> {
         let provenance = schema

@@ -128,10 +128,7 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
     for query in &args.ids {
         wanted.insert(item_lookup::find(&job, query)?.record.id.as_str());
     }
-    let filter = match &args.filter {
-        Some(text) => Some(RowFilter::for_job(&job, text)?),
-        None => None,
-    };
+    let filter = RowFilter::optional(&job, args.filter.as_deref())?;
     refuse_a_folder_that_is_not_an_export(&args.out)?;
     let staging = Staging::create(&args.out)?;
     let chosen = Chosen {

@@ -242,13 +242,8 @@ fn add_shard(
     };
     let mut h = sha2::Sha256::default();
     for_each_row(file, |mut row| {
-        if let Some(f) = filter {
-            if !f.keeps(&mut row, None)? {
-                if let Some(c) = r.filter.as_mut() {
-                    c.rows_left_out += 1;
-                }
-                return anyhow::Ok(());
-            }
+        if !passes(r, filter, &mut row)? {
+            return anyhow::Ok(());
         }
         digest::update_row(&mut h, &row);
         digest::update_row(items, &row);
@@ -284,6 +279,23 @@ fn add_shard(
     })?;
     use sha2::Digest;
     Ok(sparc3d_schema::config::hex(&h.finalize()))
+}
+
+/// Whether `row` passes `--where` (always without one); one that does not is counted in the
+/// report's `filter.rows_left_out`.
+fn passes(
+    r: &mut Report,
+    filter: Option<&RowFilter>,
+    row: &mut sparc3d_schema::ShardRow,
+) -> Result<bool> {
+    let Some(f) = filter else {
+        return Ok(true);
+    };
+    let keep = f.keeps(row, None)?;
+    if let (false, Some(c)) = (keep, r.filter.as_mut()) {
+        c.rows_left_out += 1;
+    }
+    Ok(keep)
 }
 
 /// Prints each provenance column with its most frequent values and their row counts.

@@ -81,16 +81,34 @@ fn shard_statuses(
     Ok(Some(out))
 }
 
+/// What `ls` says of `item`: its status, error class, and whether it passes `filter` (an item
+/// without a row, pending or in a damaged shard, by what its manifest says of it).
+fn listed_status(
+    statuses: Option<&HashMap<u64, Finished>>,
+    item: &sparc3d_schema::FrozenItem,
+    filter: Option<&RowFilter>,
+) -> (&'static str, Option<&'static str>, bool) {
+    let pending_kept = || filter.is_none_or(|f| f.keeps_pending(item));
+    match statuses {
+        None => ("damaged", None, pending_kept()),
+        Some(s) => match s.get(&item.index) {
+            Some((ItemStatus::Ok, _, k)) => ("ok", None, *k),
+            Some((ItemStatus::Skipped, _, k)) => ("skipped", None, *k),
+            Some((ItemStatus::Failed, class, k)) => {
+                ("failed", Some(class.unwrap_or("unknown")), *k)
+            }
+            None => ("pending", None, pending_kept()),
+        },
+    }
+}
+
 /// Runs `sparc3d ls`.
 pub fn run(mut args: Args) -> Result<ExitCode> {
     // Messages name the job as given (a URL), not its local view.
     let named = args.job.clone();
     args.job = crate::job::bucket_home::local_view(&args.job)?;
     let job = crate::job::setup::open_read_only(&args.job)?;
-    let filter = match &args.filter {
-        Some(text) => Some(RowFilter::for_job(&job, text)?),
-        None => None,
-    };
+    let filter = RowFilter::optional(&job, args.filter.as_deref())?;
     let mut left_out = 0u64;
     let mut out = std::io::stdout().lock();
     let mut statuses = None;
@@ -101,18 +119,7 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
             statuses = shard_statuses(&job, item.shard, filter.as_ref())?;
             loaded = Some(item.shard);
         }
-        let pending_kept = || filter.as_ref().is_none_or(|f| f.keeps_pending(item));
-        let (status, class, keep) = match &statuses {
-            None => ("damaged", None, pending_kept()),
-            Some(s) => match s.get(&item.index) {
-                Some((ItemStatus::Ok, _, k)) => ("ok", None, *k),
-                Some((ItemStatus::Skipped, _, k)) => ("skipped", None, *k),
-                Some((ItemStatus::Failed, class, k)) => {
-                    ("failed", Some(class.unwrap_or("unknown")), *k)
-                }
-                None => ("pending", None, pending_kept()),
-            },
-        };
+        let (status, class, keep) = listed_status(statuses.as_ref(), item, filter.as_ref());
         if !keep {
             left_out += 1;
             continue;
