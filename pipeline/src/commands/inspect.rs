@@ -174,11 +174,13 @@ fn build_report(
     single_file: bool,
     filter: Option<&RowFilter>,
 ) -> Result<Report> {
-    let mut r = Report::default();
-    r.filter = filter.map(|f| Chosen {
-        text: f.text.clone(),
-        rows_left_out: 0,
-    });
+    let mut r = Report {
+        filter: filter.map(|f| Chosen {
+            text: f.text.clone(),
+            rows_left_out: 0,
+        }),
+        ..Report::default()
+    };
     let mut values: BTreeMap<&str, Vec<f64>> = STATS.iter().map(|s| (*s, Vec::new())).collect();
     let mut digests = Vec::new();
     let mut items = sha2::Sha256::default();
