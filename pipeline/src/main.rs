@@ -16,6 +16,7 @@ mod memory;
 mod pictures;
 mod pool;
 mod progress;
+mod row_filter;
 mod sample;
 mod signals;
 mod stats;

@@ -135,7 +135,9 @@ fn extra_columns_add_their_own_columns_and_change_nothing_else() {
         path_free_digest(&plain, true),
         path_free_digest(&licensed, true)
     );
-    let before: Vec<String> = sparc3d_schema::arrow::schema()
+    // The columns of a job with the default config (the quality columns on).
+    let sections = sparc3d_schema::arrow::Sections::of(&sparc3d_schema::JobConfig::default());
+    let before: Vec<String> = sparc3d_schema::arrow::schema_for(&[], sections)
         .fields()
         .iter()
         .map(|f| f.name().clone())

@@ -11,7 +11,7 @@ from . import jobs, location
 from .jobs import Verify
 from .schema import (APPEARANCE_COLUMNS, ATTRIBUTE_COLUMNS, ATTRIBUTE_TENSORS,
                      OPTIONAL_SAMPLE_COLUMNS, OPTIONAL_SAMPLE_TENSORS, PROVENANCE_PREFIX,
-                     READ_COLUMNS, SAMPLE_COLUMNS, SAMPLE_TENSORS, TENSORS)
+                     QUALITY_COLUMNS, READ_COLUMNS, SAMPLE_COLUMNS, SAMPLE_TENSORS, TENSORS)
 from .shards import PathLike, all_shards, check_row_count, check_version, naming, usable
 from .tensors import decode_tensor
 
@@ -32,6 +32,9 @@ def row_to_item(row: Dict[str, Any]) -> Dict[str, Any]:
         "center": np.array([row["center_x"], row["center_y"], row["center_z"]], dtype=np.float64),
         "scale": float(row["scale"]),
     }
+    for name in QUALITY_COLUMNS:  # where the shard has them (docs/FORMAT.md, "Quality columns")
+        if name in row:
+            item[name] = row[name]
     for name, dtype in TENSORS.items():
         t = decode_tensor(row, name)
         if t is None:
@@ -93,6 +96,8 @@ def item_columns(path: location.Location, f: pq.ParquetFile, samples: bool) -> L
     base = READ_COLUMNS + [c for c in names if c.startswith(PROVENANCE_PREFIX)]
     if all(c in names for c in ATTRIBUTE_COLUMNS):
         base = base + ATTRIBUTE_COLUMNS
+    if all(c in names for c in QUALITY_COLUMNS):
+        base = base + QUALITY_COLUMNS
     if not (samples and all(c in names for c in SAMPLE_COLUMNS)):
         return base
     return base + SAMPLE_COLUMNS + [c for c in OPTIONAL_SAMPLE_COLUMNS if c in names]

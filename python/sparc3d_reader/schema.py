@@ -86,3 +86,11 @@ APPEARANCE_COLUMNS = ["materials", "textured", "textures", "texture_max_size", "
                       "vertex_colors", "appearance_not_read", "attribute_nearest_cells"]
 #: Every column of the attributes (read where the shard has them all).
 ATTRIBUTE_COLUMNS = tensor_columns(ATTRIBUTE_TENSORS) + APPEARANCE_COLUMNS
+
+#: What the conversion measured of each item (docs/FORMAT.md, "Quality columns"), in column
+#: order: present when the job has `quality = true` (every job made since they exist), after
+#: the tensors and attribute columns; null in failed rows. Each item holds them as scalars.
+QUALITY_COLUMNS = ["input_boundary_edges", "input_non_manifold_edges", "input_degenerate_faces",
+                   "input_duplicate_faces", "extent_x", "extent_y", "extent_z", "aspect",
+                   "surface_area", "output_volume", "shell_share", "sealed_pockets",
+                   "output_components"]

@@ -22,13 +22,32 @@ pub fn schema() -> SchemaRef {
 /// column names, in order): [`schema`]'s columns, then one nullable `utf8` column
 /// `manifest.<name>` each.
 pub fn schema_with(provenance: &[String]) -> SchemaRef {
-    schema_for(provenance, false)
+    schema_for(provenance, Sections::default())
 }
 
-/// [`schema_with`], with the appearance columns ([`crate::attribute_columns`]) after the
-/// tensors when `attributes` (a job with `[attributes]`); without them the schema is
-/// exactly [`schema_with`]'s.
-pub fn schema_for(provenance: &[String], attributes: bool) -> SchemaRef {
+/// The optional groups of columns a job's shards hold, as its config decides.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Sections {
+    /// The appearance columns ([`crate::attribute_columns`]), a job with `[attributes]`.
+    pub attributes: bool,
+    /// The quality columns ([`crate::quality`]), a job with `quality = true`.
+    pub quality: bool,
+}
+
+impl Sections {
+    /// The sections a job with `config` writes.
+    pub fn of(config: &crate::JobConfig) -> Self {
+        Self {
+            attributes: config.attributes.enabled,
+            quality: config.quality,
+        }
+    }
+}
+
+/// [`schema_with`], with the appearance columns ([`crate::attribute_columns`]) and then the
+/// quality columns ([`crate::quality`]) after the tensors, as `sections` asks; without them
+/// the schema is exactly [`schema_with`]'s.
+pub fn schema_for(provenance: &[String], sections: Sections) -> SchemaRef {
     use DataType::*;
     let mut f = vec![
         Field::new(c::ITEM_INDEX, UInt64, false),
@@ -56,8 +75,11 @@ pub fn schema_for(provenance: &[String], attributes: bool) -> SchemaRef {
     for t in c::tensors() {
         f.extend(tensor_fields(t));
     }
-    if attributes {
+    if sections.attributes {
         f.extend(crate::attribute_columns::fields());
+    }
+    if sections.quality {
+        f.extend(crate::quality::fields());
     }
     for name in provenance {
         f.push(Field::new(c::provenance_column(name), Utf8, true));
@@ -124,14 +146,14 @@ pub fn rows_to_batch(rows: &[ShardRow]) -> Result<RecordBatch> {
 /// Builds a record batch of rows (in the given order) with [`schema_with`]`(provenance)`: a
 /// row without a value for one of the columns holds null there.
 pub fn rows_to_batch_with(rows: &[ShardRow], provenance: &[String]) -> Result<RecordBatch> {
-    rows_to_batch_for(rows, provenance, false)
+    rows_to_batch_for(rows, provenance, Sections::default())
 }
 
-/// [`rows_to_batch_with`] with [`schema_for`]`(provenance, attributes)`.
+/// [`rows_to_batch_with`] with [`schema_for`]`(provenance, sections)`.
 pub fn rows_to_batch_for(
     rows: &[ShardRow],
     provenance: &[String],
-    attributes: bool,
+    sections: Sections,
 ) -> Result<RecordBatch> {
     let strs = |f: &dyn Fn(&ShardRow) -> Option<&str>| -> ArrayRef {
         Arc::new(StringArray::from(rows.iter().map(f).collect::<Vec<_>>()))
@@ -188,14 +210,17 @@ pub fn rows_to_batch_for(
         let ts: Vec<Option<&EncodedTensor>> = rows.iter().map(|r| tensor_of(r, stem)).collect();
         cols.extend(tensor_arrays(&ts));
     }
-    if attributes {
+    if sections.attributes {
         cols.extend(crate::attribute_columns::columns(rows));
+    }
+    if sections.quality {
+        cols.extend(crate::quality::columns(rows));
     }
     for name in provenance {
         cols.push(strs(&|r| r.provenance.get(name).map(String::as_str)));
     }
     Ok(RecordBatch::try_new(
-        schema_for(provenance, attributes),
+        schema_for(provenance, sections),
         cols,
     )?)
 }
@@ -385,6 +410,7 @@ pub fn batch_to_rows(batch: &RecordBatch) -> Result<Vec<ShardRow>> {
                 .filter_map(|(name, a)| Some((name.clone(), opt_str(a, i)?)))
                 .collect(),
             appearance: crate::attribute_columns::facts_at(batch, i),
+            quality: crate::quality::facts_at(batch, i),
         });
     }
     Ok(rows)
@@ -443,6 +469,7 @@ pub(crate) mod tests {
             tensors: Some(tensors),
             provenance: Default::default(),
             appearance: None,
+            quality: None,
         };
         let mut failed = ShardRow::failed(
             1,

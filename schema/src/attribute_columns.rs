@@ -126,7 +126,9 @@ pub fn facts_at(batch: &RecordBatch, i: usize) -> Option<AppearanceFacts> {
 
 #[cfg(test)]
 mod tests {
-    use crate::arrow::{batch_to_rows, rows_to_batch, rows_to_batch_for, schema, schema_for};
+    use crate::arrow::{
+        batch_to_rows, rows_to_batch, rows_to_batch_for, schema, schema_for, Sections,
+    };
     use crate::digest::rows_digest;
     use crate::error::Result;
     use crate::row::{AppearanceFacts, AttributeTensors};
@@ -136,7 +138,7 @@ mod tests {
     fn attribute_columns_round_trip_and_are_absent_without_the_section() -> Result<()> {
         let plain = crate::arrow::tests::sample_rows();
         // Without `[attributes]`: the schema and the rows' digest are what they always were.
-        assert_eq!(schema_for(&[], false), schema());
+        assert_eq!(schema_for(&[], Sections::default()), schema());
         assert_eq!(rows_to_batch(&plain)?.schema(), schema());
         let mut rows = plain.clone();
         let cells = CellAttributes {
@@ -162,7 +164,11 @@ mod tests {
             t.attributes = Some(AttributeTensors::from_attributes(&cells, 3)?);
         }
         rows[0].appearance = Some(facts);
-        let batch = rows_to_batch_for(&rows, &[], true)?;
+        let on = Sections {
+            attributes: true,
+            ..Sections::default()
+        };
+        let batch = rows_to_batch_for(&rows, &[], on)?;
         assert_eq!(batch.num_columns(), schema().fields().len() + 12 + 8);
         let back = batch_to_rows(&batch)?;
         assert_eq!(back, rows);

@@ -178,3 +178,33 @@ pub fn dtype_column(tensor: &str) -> String {
 pub fn shape_column(tensor: &str) -> String {
     format!("{tensor}_shape")
 }
+
+// Quality columns (docs/FORMAT.md, "Quality columns"; only in jobs with `quality = true`).
+
+/// Edges of the welded source used by one triangle (`u64`): holes and open borders.
+pub const INPUT_BOUNDARY_EDGES: &str = "input_boundary_edges";
+/// Edges of the welded source used by more than two triangles (`u64`).
+pub const INPUT_NON_MANIFOLD_EDGES: &str = "input_non_manifold_edges";
+/// Source triangles of zero area (`u64`).
+pub const INPUT_DEGENERATE_FACES: &str = "input_degenerate_faces";
+/// Source triangles dropped at load for repeating an earlier one (`u64`).
+pub const INPUT_DUPLICATE_FACES: &str = "input_duplicate_faces";
+/// Extent of the source's bounding box along x, in its units (`f64`).
+pub const EXTENT_X: &str = "extent_x";
+/// Extent along y (`f64`).
+pub const EXTENT_Y: &str = "extent_y";
+/// Extent along z (`f64`).
+pub const EXTENT_Z: &str = "extent_z";
+/// Longest extent over shortest (`f64`, `inf` for a flat source).
+pub const ASPECT: &str = "aspect";
+/// Surface area of the source, in its units squared (`f64`).
+pub const SURFACE_AREA: &str = "surface_area";
+/// Volume enclosed by the output mesh, in the source's units cubed (`f64`, null when the mesh
+/// is not extracted).
+pub const OUTPUT_VOLUME: &str = "output_volume";
+/// `shell_vertices / active_vertices` (`f64`): how much of the output is thin shell.
+pub const SHELL_SHARE: &str = "shell_share";
+/// Regions sealed behind small openings and kept solid (`u64`).
+pub const SEALED_POCKETS: &str = "sealed_pockets";
+/// Connected components of the output mesh (`u64`, null when the mesh is not extracted).
+pub const OUTPUT_COMPONENTS: &str = "output_components";

@@ -62,6 +62,17 @@ pub struct JobConfig {
     /// canonical config while disabled, so jobs without it keep their fingerprint.
     #[serde(default, skip_serializing_if = "AttributeConfig::is_disabled")]
     pub attributes: AttributeConfig,
+    /// Whether each ok row stores the quality columns (`quality = true`, the default; docs/
+    /// FORMAT.md, "Quality columns"). A stored config without the key (every job made before
+    /// the columns existed) reads as off and is written back without it, so such a job keeps
+    /// its fingerprint and resumes writing the rows it wrote.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub quality: bool,
+}
+
+/// Whether a flag is off (then left out of the canonical config).
+fn is_false(b: &bool) -> bool {
+    !*b
 }
 
 /// The `[attributes]` section of a job config: `enabled = true` stores base colour, metallic,
@@ -113,6 +124,7 @@ impl Default for JobConfig {
             samples: SampleConfig::default(),
             preset: None,
             attributes: AttributeConfig::default(),
+            quality: true,
         }
     }
 }
@@ -475,16 +487,18 @@ mod tests {
         assert!(new.params.inside_test);
         assert!(new.to_canonical_json()?.contains("\"inside_test\":true"));
         assert_ne!(new.fingerprint()?, OLD_DEFAULT_FINGERPRINT);
-        // `inside_test = false` under `[params]` gives back the old default, fingerprint too.
-        let off =
-            JobConfig::from_overrides(&serde_json::json!({"params": {"inside_test": false}}))?;
+        // `inside_test = false` under `[params]` (and `quality = false`, the columns that
+        // came later) gives back the old default, fingerprint too.
+        let off = JobConfig::from_overrides(
+            &serde_json::json!({"params": {"inside_test": false}, "quality": false}),
+        )?;
         assert!(!off.params.inside_test);
         assert_eq!(off.fingerprint()?, OLD_DEFAULT_FINGERPRINT);
         assert!(!off.to_canonical_json()?.contains("inside_test"));
         // (The sealing asks the inside test, so switching the test off switches it off too.)
         assert_eq!(
             off.diff_keys(&new)?,
-            vec!["params.inside_test", "params.seal_openings"]
+            vec!["params.inside_test", "params.seal_openings", "quality"]
         );
         Ok(())
     }
@@ -512,10 +526,14 @@ mod tests {
         let new = JobConfig::default();
         assert!(new.to_canonical_json()?.contains("\"seal_openings\":true"));
         assert_ne!(new.fingerprint()?, INSIDE_TEST_ERA_FINGERPRINT);
-        let off =
-            JobConfig::from_overrides(&serde_json::json!({"params": {"seal_openings": false}}))?;
+        let off = JobConfig::from_overrides(
+            &serde_json::json!({"params": {"seal_openings": false}, "quality": false}),
+        )?;
         assert_eq!(off.fingerprint()?, INSIDE_TEST_ERA_FINGERPRINT);
-        assert_eq!(off.diff_keys(&new)?, vec!["params.seal_openings"]);
+        assert_eq!(
+            off.diff_keys(&new)?,
+            vec!["params.seal_openings", "quality"]
+        );
         Ok(())
     }
 
@@ -569,11 +587,12 @@ mod tests {
         // The old counts given explicitly, with `sharp_near = 0`, are the old job again.
         let again = JobConfig::from_overrides(&serde_json::json!({"samples": {
             "enabled": true, "surface": 124_928, "near": 249_856, "near_sigmas": [0.005, 0.05],
-            "sharp_near": 0}}))?;
+            "sharp_near": 0}, "quality": false}))?;
         assert_eq!(again.fingerprint()?, SHARP_NEAR_ERA_SAMPLES_FINGERPRINT);
         assert_eq!(
             again.diff_keys(&new)?,
             vec![
+                "quality",
                 "samples.near",
                 "samples.near_sigmas",
                 "samples.sharp_near",
@@ -581,6 +600,31 @@ mod tests {
                 "samples.surface"
             ]
         );
+        Ok(())
+    }
+
+    #[test]
+    fn quality_columns_are_on_for_new_jobs_and_off_for_stored_configs_without_the_key() -> Result<()>
+    {
+        // Every job stored before the columns existed: off, and written back without the key.
+        for (text, fingerprint) in [
+            (OLD_DEFAULT_CONFIG, OLD_DEFAULT_FINGERPRINT),
+            (INSIDE_TEST_ERA_CONFIG, INSIDE_TEST_ERA_FINGERPRINT),
+        ] {
+            let old: JobConfig =
+                serde_json::from_str(text).map_err(|source| SchemaError::Json {
+                    context: "test".into(),
+                    source,
+                })?;
+            assert!(!old.quality);
+            assert_eq!(old.fingerprint()?, fingerprint);
+            assert!(!old.to_canonical_json()?.contains("quality"));
+        }
+        let new = JobConfig::default();
+        assert!(new.quality && new.to_canonical_json()?.contains("\"quality\":true"));
+        let off = JobConfig::from_overrides(&serde_json::json!({"quality": false}))?;
+        assert_eq!(off.diff_keys(&new)?, vec!["quality"]);
+        assert_ne!(off.fingerprint()?, new.fingerprint()?);
         Ok(())
     }
 

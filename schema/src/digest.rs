@@ -86,6 +86,38 @@ pub fn update_row(h: &mut Sha256, row: &ShardRow) {
         field(h, a.not_read.join("\n").as_bytes());
         h.update(a.nearest_cells.to_le_bytes());
     }
+    // Rows without quality facts leave the digest as it was before they existed; the derived
+    // columns (`aspect`, `shell_share`) follow from what is hashed here and in the counts.
+    if let Some(q) = &row.quality {
+        field(h, b"quality");
+        for v in [
+            q.boundary_edges,
+            q.non_manifold_edges,
+            q.degenerate_faces,
+            q.duplicate_faces,
+            q.sealed_pockets,
+        ] {
+            h.update(v.to_le_bytes());
+        }
+        for x in q.extent {
+            h.update(x.to_le_bytes());
+        }
+        h.update(q.surface_area.to_le_bytes());
+        opt(
+            h,
+            q.output_volume
+                .map(f64::to_le_bytes)
+                .as_ref()
+                .map(|b| &b[..]),
+        );
+        opt(
+            h,
+            q.output_components
+                .map(u64::to_le_bytes)
+                .as_ref()
+                .map(|b| &b[..]),
+        );
+    }
     // Rows without provenance leave the digest as it was before provenance columns existed.
     if !row.provenance.is_empty() {
         field(h, crate::columns::PROVENANCE_PREFIX.as_bytes());

@@ -17,6 +17,7 @@ pub mod error;
 pub mod hex;
 pub mod layout;
 pub mod manifest;
+pub mod quality;
 pub mod row;
 pub mod tensor;
 mod tensor_columns;
@@ -27,6 +28,7 @@ pub use config::{AttributeConfig, JobConfig, JobFile, Limits, SampleConfig};
 pub use error::{Result, SchemaError};
 pub use layout::JobLayout;
 pub use manifest::{FrozenItem, ManifestRecord};
+pub use quality::QualityFacts;
 pub use row::{
     AppearanceFacts, AttributeTensors, RowCounts, RowTensors, RowTimings, SampleTensors, ShardRow,
 };

@@ -525,6 +525,11 @@ pub struct ShardRow {
     /// converted.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub appearance: Option<AppearanceFacts>,
+    /// What the conversion measured of the item's source and output, when the job stores the
+    /// quality columns and the item converted (`None` leaves the row's journal form and digest
+    /// as they were before the columns existed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub quality: Option<crate::quality::QualityFacts>,
 }
 
 impl ShardRow {
@@ -554,6 +559,7 @@ impl ShardRow {
             tensors: None,
             provenance: BTreeMap::new(),
             appearance: None,
+            quality: None,
         }
     }
 

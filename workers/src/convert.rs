@@ -5,7 +5,8 @@
 
 use sparc3d_schema::{
     AppearanceFacts, AttributeTensors, EncodedTensor, ErrorClass, FrozenItem, ItemStatus,
-    JobConfig, RowCounts, RowTensors, RowTimings, SampleTensors, SchemaError, ShardRow,
+    JobConfig, QualityFacts, RowCounts, RowTensors, RowTimings, SampleTensors, SchemaError,
+    ShardRow,
 };
 use sparcubes::attributes::CellAttributes;
 use sparcubes::io::{Buffers, LoadStats};
@@ -35,6 +36,10 @@ pub struct Steps<'a> {
     /// `convert --attributes`): its bytes are kept until the conversion is done and parsed
     /// again for materials then, so the conversion's peak memory does not hold them parsed.
     pub attributes: bool,
+    /// Measure the quality facts (a job with `quality = true`): the source's topology, bounds
+    /// and area, and the extracted mesh's volume and components (when it is extracted), timed
+    /// as the stage `quality`. The input's components then come from the same topology check.
+    pub quality: bool,
 }
 
 /// How [`convert_file`] encodes the tensors.
@@ -89,6 +94,8 @@ pub struct Converted {
     pub tensors: Option<RowTensors>,
     /// The attributes of the active cells and what the appearance is made of, when sampled.
     pub attributes: Option<(CellAttributes, AppearanceFacts)>,
+    /// The quality facts, when measured.
+    pub quality: Option<QualityFacts>,
     /// Seconds per stage.
     pub seconds: StageSeconds,
 }
@@ -166,10 +173,16 @@ pub fn convert_bytes(
         Ok(loaded) => (loaded.mesh, loaded.stats),
         Err(e) => return Err(fail(StageError::Load(e), seconds)),
     };
-    let input_components = steps
-        .input_components
-        .then(|| sparcubes::topology::component_count(&sparcubes::topology::weld(&source)));
-    seconds.timings.load_s = t.elapsed().as_secs_f64();
+    let quality_started = Instant::now();
+    let source_facts = steps.quality.then(|| crate::quality::source_facts(&source));
+    let mut quality_s = quality_started.elapsed().as_secs_f64();
+    let input_components = match &source_facts {
+        Some(f) => Some(f.components),
+        None => steps
+            .input_components
+            .then(|| sparcubes::topology::component_count(&sparcubes::topology::weld(&source))),
+    };
+    seconds.timings.load_s = t.elapsed().as_secs_f64() - quality_s;
     seconds.add("load", seconds.timings.load_s);
 
     let t = Instant::now();
@@ -198,6 +211,17 @@ pub fn convert_bytes(
         .as_ref()
         .filter(|_| steps.extract)
         .map(|m| m.triangles.len() as u64);
+    let quality = source_facts.map(|source| {
+        let t = Instant::now();
+        let cubes = &conversion.cubes;
+        let output = mesh
+            .as_ref()
+            .map(|m| crate::quality::output_facts(m, &cubes.normalization, cubes.resolution));
+        let facts = crate::quality::facts(&source, &load_stats, &conversion.stats, output);
+        quality_s += t.elapsed().as_secs_f64();
+        seconds.add_stage("quality", quality_s);
+        facts
+    });
     let samples = match samples_of(steps.samples, &conversion, mesh.as_ref(), &mut seconds) {
         Ok(s) => s,
         Err(e) => return Err(fail(StageError::Samples(e), seconds)),
@@ -240,6 +264,7 @@ pub fn convert_bytes(
         mesh: if steps.keep_mesh { mesh } else { None },
         tensors,
         attributes,
+        quality,
         seconds,
     })
 }
@@ -355,6 +380,7 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
             store_mesh: config.store_mesh,
         }),
         attributes: config.attributes.enabled,
+        quality: config.quality,
     };
     let done = match convert_bytes(bytes, path, buffers, steps, started) {
         Ok(done) => done,
@@ -400,6 +426,7 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
         tensors: done.tensors,
         provenance: Default::default(),
         appearance: done.attributes.map(|a| a.1),
+        quality: done.quality,
     }
 }
 
@@ -445,6 +472,7 @@ mod tests {
                 store_mesh: true,
             }),
             attributes: false,
+            quality: false,
         };
         let done = convert_file(&example("cube.off"), steps).map_err(|f| f.error)?;
         let names: Vec<&str> = done
@@ -497,6 +525,7 @@ mod tests {
                 store_mesh: false,
             }),
             attributes: false,
+            quality: false,
         };
         let done = convert_file(&example("cube.off"), steps).map_err(|f| f.error)?;
         let stats = done
@@ -527,6 +556,7 @@ mod tests {
             keep_mesh: false,
             encode: None,
             attributes: false,
+            quality: false,
         };
         let Err(failed) = convert_file(&example("missing.obj"), steps) else {
             panic!("a missing file converted")

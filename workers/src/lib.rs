@@ -28,6 +28,7 @@ pub mod lanes;
 pub mod lease;
 pub mod parent;
 pub mod process;
+pub mod quality;
 pub mod shard;
 pub mod source;
 pub mod store;

@@ -138,6 +138,7 @@ fn measure(args: &Args, row: &mut BenchRow) -> anyhow::Result<()> {
             store_mesh: false,
         }),
         attributes: false,
+        quality: false,
     };
     let done = match convert_file(&args.input, steps) {
         Ok(done) => done,

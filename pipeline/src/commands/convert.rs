@@ -61,6 +61,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         keep_mesh: true,
         encode: None,
         attributes: args.attributes,
+        quality: true,
     };
     let done = convert_file(&args.input, steps).map_err(|failed| {
         let context = match failed.error {
@@ -126,6 +127,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         "total_seconds": total,
         "peak_rss_bytes": peak,
         "attributes": done.attributes.as_ref().map(|(cells, facts)| attributes_summary(cells, facts)),
+        "quality": done.quality,
     });
     if args.json {
         println!("{summary}");

@@ -4,9 +4,11 @@
 //! beside `--out` and moved into place at the end, so `--out` is never half written: it is
 //! either absent, or a finished export, or (after a rerun) the new finished export.
 //! `.sparc3d-export.json` in it says which job, consumer, frame and items it holds.
+//! `--where FILTER` exports only the items whose row passes (`crate::row_filter`).
 
 use crate::export_name::ExportNames;
 use crate::item_lookup;
+use crate::row_filter::RowFilter;
 use anyhow::{bail, Context, Result};
 use clap::builder::TypedValueParser;
 use rayon::prelude::*;
@@ -43,6 +45,10 @@ pub struct Args {
     /// `normalized` for vecset-npz); `source` and `normalized` where the layout allows them.
     #[arg(long, value_parser = frame_parser())]
     pub frame: Option<Frame>,
+    /// Only the items whose row passes this filter, in `init --where`'s language over the
+    /// shards' columns: `input_faces <= 1000000 and license in (cc0, cc-by)`.
+    #[arg(long = "where", value_name = "FILTER")]
+    pub filter: Option<String>,
 }
 
 /// `--format`'s parser: the consumers' names, each with its `--help` line.
@@ -122,14 +128,19 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
     for query in &args.ids {
         wanted.insert(item_lookup::find(&job, query)?.record.id.as_str());
     }
+    let filter = RowFilter::optional(&job, args.filter.as_deref())?;
     refuse_a_folder_that_is_not_an_export(&args.out)?;
     let staging = Staging::create(&args.out)?;
-    let written = write_items(&job, consumer, frame, &wanted, &staging.dir);
+    let chosen = Chosen {
+        ids: &wanted,
+        filter: filter.as_ref(),
+    };
+    let written = write_items(&job, consumer, frame, &chosen, &staging.dir);
     let root = std::path::absolute(&args.out)
         .with_context(|| format!("resolving {}", args.out.display()))?;
     let outcome = written.and_then(|w| {
         write_listing(consumer, &w.listed, &root, &staging.dir)?;
-        write_record(&job, consumer, frame, &w, &staging.dir)?;
+        write_record(&job, consumer, frame, &w, &staging.dir, filter.as_ref())?;
         Ok(w)
     });
     let outcome = match outcome {
@@ -167,6 +178,8 @@ struct Written {
     left_out: Vec<(String, String)>,
     /// The items that failed, with why.
     failed: Vec<(String, String)>,
+    /// Ok items `--where` left out.
+    filtered_out: u64,
 }
 
 impl Written {
@@ -184,6 +197,9 @@ impl Written {
         if !self.failed.is_empty() {
             out.push_str(&format!(", {} failed", self.failed.len()));
         }
+        if self.filtered_out > 0 {
+            out.push_str(&format!(", {} left out by --where", self.filtered_out));
+        }
         if !(self.noted.is_empty() && self.left_out.is_empty()) {
             out.push_str(&format!(" (ids in {EXPORT_RECORD})"));
         }
@@ -198,6 +214,12 @@ fn tally<'a>(texts: impl Iterator<Item = &'a str>) -> BTreeMap<&'a str, usize> {
         *out.entry(t).or_insert(0) += 1;
     }
     out
+}
+
+/// Which ok items an export takes: those `--ids` names (all when empty) that pass `--where`.
+struct Chosen<'a> {
+    ids: &'a BTreeSet<&'a str>,
+    filter: Option<&'a RowFilter>,
 }
 
 /// One item's export, on its way to the writer.
@@ -219,7 +241,7 @@ fn write_items(
     job: &Job,
     consumer: Consumer,
     frame: Frame,
-    wanted: &BTreeSet<&str>,
+    wanted: &Chosen,
     dir: &Path,
 ) -> Result<Written> {
     let at_once = 2 * rayon::current_num_threads().max(1);
@@ -238,8 +260,8 @@ fn write_items(
             .join()
             .unwrap_or_else(|_| Err(anyhow::anyhow!("the export's writer thread panicked")));
         // A writer error (a file that cannot be written) is the cause when both failed.
-        let written = written?;
-        computed?;
+        let mut written = written?;
+        written.filtered_out = computed?;
         Ok(written)
     })
 }
@@ -247,15 +269,15 @@ fn write_items(
 /// Computes the wanted ok items' exports in batches of `at_once` and sends them in manifest
 /// order while a reader thread streams the next rows from the shards (only the columns the
 /// consumer reads; each finished shard's file hashed against its record as it is read);
-/// stops early when the writer has stopped.
+/// stops early when the writer has stopped. Returns how many ok items `--where` left out.
 fn compute_items(
     job: &Job,
     consumer: Consumer,
     frame: Frame,
-    wanted: &BTreeSet<&str>,
+    wanted: &Chosen,
     at_once: usize,
     send: &std::sync::mpsc::SyncSender<Exported>,
-) -> Result<()> {
+) -> Result<u64> {
     let (rows_in, rows_out) = std::sync::mpsc::sync_channel::<ShardRow>(at_once);
     std::thread::scope(|scope| {
         let reader = scope.spawn(move || read_wanted_rows(job, consumer, wanted, &rows_in));
@@ -283,13 +305,15 @@ fn compute_items(
 }
 
 /// Sends the wanted ok rows of the job's shards, in manifest order, until the receiver is
-/// gone; a shard that cannot be read, or whose file does not match its record, is an error.
+/// gone, and returns how many ok rows `--where` left out; a shard that cannot be read, or
+/// whose file does not match its record, is an error.
 fn read_wanted_rows(
     job: &Job,
     consumer: Consumer,
-    wanted: &BTreeSet<&str>,
+    chosen: &Chosen,
     send: &std::sync::mpsc::SyncSender<ShardRow>,
-) -> Result<()> {
+) -> Result<u64> {
+    let wanted = chosen.ids;
     let shards: BTreeSet<u64> = job
         .items
         .iter()
@@ -302,10 +326,16 @@ fn read_wanted_rows(
         Columns::WithoutSamples
     };
     let mut receiver_gone = false;
+    let mut filtered_out = 0;
     for shard in shards {
-        for_each_shard_row(job, shard, Check::Full, columns, |row| {
-            let keep =
+        for_each_shard_row(job, shard, Check::Full, columns, |mut row| {
+            let mut keep =
                 (wanted.is_empty() || wanted.contains(row.id.as_str())) && row.tensors.is_some();
+            if let (true, Some(filter)) = (keep, chosen.filter) {
+                let item = job.items.get(row.item_index as usize);
+                keep = filter.keeps(&mut row, item)?;
+                filtered_out += u64::from(!keep);
+            }
             if keep && !receiver_gone {
                 receiver_gone = send.send(row).is_err();
             }
@@ -316,7 +346,7 @@ fn read_wanted_rows(
             break;
         }
     }
-    Ok(())
+    Ok(filtered_out)
 }
 
 /// One row's export, named and with its provenance.
@@ -431,6 +461,7 @@ fn write_record(
     frame: Frame,
     written: &Written,
     dir: &Path,
+    filter: Option<&RowFilter>,
 ) -> Result<()> {
     let items: Vec<serde_json::Value> = written
         .listed
@@ -457,7 +488,7 @@ fn write_record(
         .iter()
         .map(|(id, note)| (id.clone(), note.to_string()))
         .collect();
-    let record = serde_json::json!({
+    let mut record = serde_json::json!({
         "job": job.layout.root.to_string_lossy(),
         "fingerprint": job.fingerprint(),
         "format": consumer.name(),
@@ -467,6 +498,9 @@ fn write_record(
         "left_out": listed(&written.left_out, "why"),
         "failed": listed(&written.failed, "error"),
     });
+    if let Some(f) = filter {
+        record["where"] = serde_json::json!(f.text);
+    }
     let bytes = serde_json::to_vec_pretty(&record)?;
     write_file(
         dir,

@@ -7,7 +7,11 @@
 //! Every finished shard is hashed against its completion record first (a shard file given
 //! alone, when its record lies beside it): a damaged shard is named and the command fails
 //! instead of reporting fewer rows or another digest.
+//!
+//! `--where FILTER` reports only the rows that pass (`crate::row_filter`): their counts,
+//! percentiles, provenance values and digests; the bytes stay those of the whole shards.
 
+use crate::row_filter::RowFilter;
 use crate::summary::shard_states;
 use anyhow::{bail, Context, Result};
 use serde::Serialize;
@@ -27,6 +31,20 @@ pub struct Args {
     /// Print JSON.
     #[arg(long)]
     pub json: bool,
+    /// Only the rows that pass this filter, in `init --where`'s language over the shards'
+    /// columns: `input_faces <= 1000000 and license in (cc0, cc-by)`.
+    #[arg(long = "where", value_name = "FILTER")]
+    pub filter: Option<String>,
+}
+
+/// What `--where` chose.
+#[derive(Debug, Serialize)]
+struct Chosen {
+    /// The filter as written.
+    #[serde(rename = "where")]
+    text: String,
+    /// Rows that did not pass (not in the rest of the report).
+    rows_left_out: u64,
 }
 
 #[derive(Debug, Default, Serialize)]
@@ -45,6 +63,9 @@ struct Report {
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     provenance: BTreeMap<String, BTreeMap<String, u64>>,
     content_digest: String,
+    /// What `--where` chose, when given.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    filter: Option<Chosen>,
     /// The rows' content in item order, one hash over all shards: the same for a job grown by
     /// `add` and one made with all its items at once.
     items_digest: String,
@@ -125,7 +146,19 @@ fn shard_files(target: &Path) -> Result<Vec<PathBuf>> {
 pub fn run(mut args: Args) -> Result<ExitCode> {
     args.target = crate::job::bucket_home::local_view(&args.target)?;
     let files = shard_files(&args.target)?;
-    let report = build_report(&files, args.target.is_file())?;
+    let filter = match &args.filter {
+        None => None,
+        Some(text) if args.target.is_file() => {
+            let schema = read::file_schema(&args.target)?;
+            let what = args.target.display().to_string();
+            Some(RowFilter::for_schema(&schema, text, &what)?)
+        }
+        Some(text) => {
+            let job = crate::job::setup::open_read_only(&args.target)?;
+            Some(RowFilter::for_job(&job, text)?)
+        }
+    };
+    let report = build_report(&files, args.target.is_file(), filter.as_ref())?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
@@ -136,14 +169,25 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
 
 /// Reads every row of `files` into one report; `single_file` keeps that file's own digest
 /// (the digest of a job is the combination of its shards' digests).
-fn build_report(files: &[PathBuf], single_file: bool) -> Result<Report> {
-    let mut r = Report::default();
+fn build_report(
+    files: &[PathBuf],
+    single_file: bool,
+    filter: Option<&RowFilter>,
+) -> Result<Report> {
+    let mut r = Report {
+        filter: filter.map(|f| Chosen {
+            text: f.text.clone(),
+            rows_left_out: 0,
+        }),
+        ..Report::default()
+    };
     let mut values: BTreeMap<&str, Vec<f64>> = STATS.iter().map(|s| (*s, Vec::new())).collect();
     let mut digests = Vec::new();
     let mut items = sha2::Sha256::default();
     for file in files {
-        digests.push(add_shard(&mut r, &mut values, &mut items, file)?);
+        digests.push(add_shard(&mut r, &mut values, &mut items, file, filter)?);
     }
+    r.rows -= r.filter.as_ref().map_or(0, |c| c.rows_left_out);
     r.items_digest = {
         use sha2::Digest;
         sparc3d_schema::config::hex(&items.finalize())
@@ -172,6 +216,7 @@ fn add_shard(
     values: &mut BTreeMap<&str, Vec<f64>>,
     items: &mut sha2::Sha256,
     file: &Path,
+    filter: Option<&RowFilter>,
 ) -> Result<String> {
     let meta = read_meta(file)?;
     r.shards += 1;
@@ -198,7 +243,10 @@ fn add_shard(
         }
     };
     let mut h = sha2::Sha256::default();
-    for_each_row(file, |row| {
+    for_each_row(file, |mut row| {
+        if !passes(r, filter, &mut row)? {
+            return anyhow::Ok(());
+        }
         digest::update_row(&mut h, &row);
         digest::update_row(items, &row);
         for (name, values) in r.provenance.iter_mut() {
@@ -233,6 +281,23 @@ fn add_shard(
     })?;
     use sha2::Digest;
     Ok(sparc3d_schema::config::hex(&h.finalize()))
+}
+
+/// Whether `row` passes `--where` (always without one); one that does not is counted in the
+/// report's `filter.rows_left_out`.
+fn passes(
+    r: &mut Report,
+    filter: Option<&RowFilter>,
+    row: &mut sparc3d_schema::ShardRow,
+) -> Result<bool> {
+    let Some(f) = filter else {
+        return Ok(true);
+    };
+    let keep = f.keeps(row, None)?;
+    if let (false, Some(c)) = (keep, r.filter.as_mut()) {
+        c.rows_left_out += 1;
+    }
+    Ok(keep)
 }
 
 /// Prints each provenance column with its most frequent values and their row counts.
@@ -270,6 +335,12 @@ fn print_text(r: &Report) {
     println!("bytes:          {}", r.file_bytes);
     println!("content digest: {}", r.content_digest);
     println!("items digest:   {}", r.items_digest);
+    if let Some(c) = &r.filter {
+        println!(
+            "where:          {} ({} rows left out; bytes are the whole shards')",
+            c.text, c.rows_left_out
+        );
+    }
     print_provenance(r);
     println!("seconds summed over items:");
     for (k, v) in &r.time_sums {

@@ -3,8 +3,11 @@
 //! matches its record) and source file: where the ids that `show`/`preview --id` take come
 //! from. One line per item, fields separated by tabs and escaped (`sparc3d_manifests::tsv`),
 //! then the item's provenance columns as `name=value` fields (`--json`: a `manifest` object).
+//! `--where FILTER` lists only the items whose row passes (`crate::row_filter`; a pending item
+//! has only its id, uri, index and provenance).
 
 use crate::hints;
+use crate::row_filter::RowFilter;
 use anyhow::Result;
 use serde::Serialize;
 use sparc3d_manifests::tsv;
@@ -25,6 +28,10 @@ pub struct Args {
     /// Only the failed items.
     #[arg(long)]
     pub failed: bool,
+    /// Only the items whose row passes this filter, in `init --where`'s language over the
+    /// shards' columns: `input_faces <= 1000000 and license in (cc0, cc-by)`.
+    #[arg(long = "where", value_name = "FILTER")]
+    pub filter: Option<String>,
     /// Print JSON lines (index, shard, id, status, error_class, uri, and `manifest`: the
     /// provenance columns, when the manifest had any).
     #[arg(long)]
@@ -44,22 +51,54 @@ struct Listed<'a> {
     manifest: &'a BTreeMap<String, String>,
 }
 
-/// Statuses (and error classes) of a shard's finished items by manifest position; `None`
-/// when the shard cannot be read (damaged), said on stderr.
+/// A finished item's status, error class, and whether its row passes `--where`.
+type Finished = (ItemStatus, Option<&'static str>, bool);
+
+/// Statuses (and error classes) of a shard's finished items by manifest position, each with
+/// whether `filter` keeps it; `None` when the shard cannot be read (damaged), said on stderr.
 fn shard_statuses(
     job: &Job,
     shard: u64,
-) -> Option<HashMap<u64, (ItemStatus, Option<&'static str>)>> {
-    match shard_rows(job, shard, Check::Quick) {
-        Ok(rows) => Some(
-            rows.into_iter()
-                .map(|r| (r.item_index, (r.status, r.error_class.map(|c| c.as_str()))))
-                .collect(),
-        ),
+    filter: Option<&RowFilter>,
+) -> Result<Option<HashMap<u64, Finished>>> {
+    let rows = match shard_rows(job, shard, Check::Quick) {
+        Ok(rows) => rows,
         Err(e) => {
             eprintln!("shard {shard}: {e:#}");
-            None
+            return Ok(None);
         }
+    };
+    let mut out = HashMap::new();
+    for mut r in rows {
+        let item = job.items.get(r.item_index as usize);
+        let keep = match filter {
+            Some(f) => f.keeps(&mut r, item)?,
+            None => true,
+        };
+        let class = r.error_class.map(|c| c.as_str());
+        out.insert(r.item_index, (r.status, class, keep));
+    }
+    Ok(Some(out))
+}
+
+/// What `ls` says of `item`: its status, error class, and whether it passes `filter` (an item
+/// without a row, pending or in a damaged shard, by what its manifest says of it).
+fn listed_status(
+    statuses: Option<&HashMap<u64, Finished>>,
+    item: &sparc3d_schema::FrozenItem,
+    filter: Option<&RowFilter>,
+) -> (&'static str, Option<&'static str>, bool) {
+    let pending_kept = || filter.is_none_or(|f| f.keeps_pending(item));
+    match statuses {
+        None => ("damaged", None, pending_kept()),
+        Some(s) => match s.get(&item.index) {
+            Some((ItemStatus::Ok, _, k)) => ("ok", None, *k),
+            Some((ItemStatus::Skipped, _, k)) => ("skipped", None, *k),
+            Some((ItemStatus::Failed, class, k)) => {
+                ("failed", Some(class.unwrap_or("unknown")), *k)
+            }
+            None => ("pending", None, pending_kept()),
+        },
     }
 }
 
@@ -69,24 +108,22 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
     let named = args.job.clone();
     args.job = crate::job::bucket_home::local_view(&args.job)?;
     let job = crate::job::setup::open_read_only(&args.job)?;
+    let filter = RowFilter::optional(&job, args.filter.as_deref())?;
+    let mut left_out = 0u64;
     let mut out = std::io::stdout().lock();
     let mut statuses = None;
     let mut loaded = None;
     let mut counts: HashMap<&'static str, u64> = HashMap::new();
     for item in &job.items {
         if loaded != Some(item.shard) {
-            statuses = shard_statuses(&job, item.shard);
+            statuses = shard_statuses(&job, item.shard, filter.as_ref())?;
             loaded = Some(item.shard);
         }
-        let (status, class) = match &statuses {
-            None => ("damaged", None),
-            Some(s) => match s.get(&item.index) {
-                Some((ItemStatus::Ok, _)) => ("ok", None),
-                Some((ItemStatus::Skipped, _)) => ("skipped", None),
-                Some((ItemStatus::Failed, class)) => ("failed", Some(class.unwrap_or("unknown"))),
-                None => ("pending", None),
-            },
-        };
+        let (status, class, keep) = listed_status(statuses.as_ref(), item, filter.as_ref());
+        if !keep {
+            left_out += 1;
+            continue;
+        }
         *counts.entry(status).or_default() += 1;
         if args.failed && status != "failed" {
             continue;
@@ -116,9 +153,12 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
         }
     }
     let n = |k: &str| counts.get(k).copied().unwrap_or(0);
+    if let Some(f) = &filter {
+        eprintln!("--where {}: {left_out} items left out", f.text);
+    }
     eprintln!(
         "{} items: {} ok, {} failed, {} pending{}",
-        job.items.len(),
+        job.items.len() as u64 - left_out,
         n("ok"),
         n("failed"),
         n("pending"),

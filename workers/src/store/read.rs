@@ -95,6 +95,15 @@ pub fn for_each_batch_of<E: From<WorkerError>>(
     Ok(())
 }
 
+/// The Arrow schema of a shard file (or a tensor file), read from its footer.
+pub fn file_schema(path: &Path) -> Result<arrow_schema::SchemaRef> {
+    let file =
+        std::fs::File::open(path).map_err(|e| WorkerError::read_shard("opening", path, e))?;
+    let builder = ParquetRecordBatchReaderBuilder::try_new(file)
+        .map_err(|e| WorkerError::read_shard("reading", path, e))?;
+    Ok(builder.schema().clone())
+}
+
 /// Calls `f` on every row of a shard file, batch by batch.
 pub fn for_each_row<E: From<WorkerError>>(
     path: &Path,

@@ -15,6 +15,7 @@ use parquet::file::metadata::KeyValue;
 use parquet::file::properties::{EnabledStatistics, WriterProperties};
 use parquet::schema::types::ColumnPath;
 use sha2::{Digest, Sha256};
+use sparc3d_schema::arrow::Sections;
 use sparc3d_schema::{columns, meta_keys, CompletionRecord, ItemStatus, ShardRow};
 use std::collections::{BTreeMap, VecDeque};
 use std::fs::File;
@@ -143,7 +144,8 @@ pub struct ShardStream {
     /// `None` once closed.
     writer: Option<ArrowWriter<HashingFile>>,
     provenance: Vec<String>,
-    attributes: bool,
+    /// The optional column groups the job's config asks for.
+    sections: Sections,
     /// The shard's items not written yet, in row order, with their provenance values.
     waiting: VecDeque<(u64, BTreeMap<String, String>)>,
     /// Blob bytes of the row group being written.
@@ -156,7 +158,7 @@ impl ShardStream {
     pub fn create(job: &Job, shard: u64, writer: &str) -> Result<Self> {
         let tmp = job.layout.shard_tmp(shard, writer);
         let provenance = provenance_names(job, shard);
-        let attributes = job.file.config.attributes.enabled;
+        let sections = Sections::of(&job.file.config);
         let mut items: Vec<u64> = job.shard_items(shard).iter().map(|i| i.index).collect();
         items.sort_unstable();
         let waiting = items
@@ -169,7 +171,7 @@ impl ShardStream {
             tmp,
             writer: None,
             provenance,
-            attributes,
+            sections,
             waiting,
             group_bytes: 0,
             tally: Tally::default(),
@@ -178,7 +180,7 @@ impl ShardStream {
             file,
             hash: Sha256::new(),
         };
-        let schema = sparc3d_schema::arrow::schema_for(&stream.provenance, attributes);
+        let schema = sparc3d_schema::arrow::schema_for(&stream.provenance, sections);
         let properties = writer_properties(job, shard)?;
         let writer = ArrowWriter::try_new(sink, schema, Some(properties))
             .map_err(|e| stream.parquet_error(e))?;
@@ -209,7 +211,7 @@ impl ShardStream {
         let batch = sparc3d_schema::arrow::rows_to_batch_for(
             std::slice::from_ref(&row),
             &self.provenance,
-            self.attributes,
+            self.sections,
         )?;
         let writer = self.open_writer()?;
         let written = writer.write(&batch);
