@@ -125,7 +125,7 @@ fn barycentric_by_areas(p: [f64; 3], tri: [[f64; 3]; 3]) -> [f64; 3] {
         (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt()
     };
     let whole = area(tri[0], tri[1], tri[2]);
-    if !(whole > 0.0) {
+    if whole.is_nan() || whole <= 0.0 {
         return [1.0 / 3.0; 3];
     }
     [
