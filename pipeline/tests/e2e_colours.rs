@@ -189,3 +189,124 @@ fn show_writes_an_item_of_a_job_with_attributes_in_the_colours_convert_writes() 
         "a textured box in one colour: {distinct:?}"
     );
 }
+
+/// The six face colours of [`six_colour_cube`] (sRGB), in the order −x, +x, −y, +y, −z, +z.
+const SIX: [[u8; 3]; 6] = [
+    [230, 25, 75],
+    [60, 180, 75],
+    [255, 225, 25],
+    [0, 130, 200],
+    [245, 130, 48],
+    [145, 30, 180],
+];
+
+/// The unit cube as an OBJ whose faces take six materials (`Kd` only), face `f` of
+/// [`SIX`] the colour `SIX[f]`; and the same cube without its material library.
+fn six_colour_cube(dir: &Path) -> (std::path::PathBuf, std::path::PathBuf) {
+    let mut mtl = String::new();
+    for (f, c) in SIX.iter().enumerate() {
+        // Kd is read as sRGB (as the viewers that write MTL show it): the bytes over 255.
+        let k = c.map(|b| f32::from(b) / 255.0);
+        mtl += &format!("newmtl face{f}\nKd {} {} {}\n", k[0], k[1], k[2]);
+    }
+    std::fs::write(dir.join("six.mtl"), mtl).unwrap_or_else(|e| panic!("{e}"));
+    let (corners, faces) = common::boxed([1.0; 3], [0.0; 3]);
+    let mut geometry = String::new();
+    for [x, y, z] in &corners {
+        geometry += &format!("v {x} {y} {z}\n");
+    }
+    let mut coloured = String::from("mtllib six.mtl\n");
+    let mut plain = String::new();
+    for tri in &faces {
+        // The face a triangle lies on: the axis its three corners share, and which side.
+        let axis = (0..3)
+            .find(|&a| tri.iter().all(|&i| corners[i][a] == corners[tri[0]][a]))
+            .unwrap_or(0);
+        let face = 2 * axis + usize::from(corners[tri[0]][axis] > 0.5);
+        let line = format!("f {} {} {}\n", tri[0] + 1, tri[1] + 1, tri[2] + 1);
+        coloured += &format!("usemtl face{face}\n{line}");
+        plain += &line;
+    }
+    let (with, without) = (dir.join("six.obj"), dir.join("plain.obj"));
+    std::fs::write(&with, geometry.clone() + &coloured).unwrap_or_else(|e| panic!("{e}"));
+    std::fs::write(&without, geometry + &plain).unwrap_or_else(|e| panic!("{e}"));
+    (with, without)
+}
+
+/// A PNG `preview` wrote, as (width, height, RGB bytes).
+fn read_png(path: &Path) -> (u32, u32, Vec<u8>) {
+    let file = std::fs::File::open(path).unwrap_or_else(|e| panic!("{e}"));
+    let mut reader = png::Decoder::new(std::io::BufReader::new(file))
+        .read_info()
+        .unwrap_or_else(|e| panic!("{e}"));
+    let mut buf = vec![0; reader.output_buffer_size().unwrap_or(0)];
+    let info = reader
+        .next_frame(&mut buf)
+        .unwrap_or_else(|e| panic!("{e}"));
+    buf.truncate(info.buffer_size());
+    (info.width, info.height, buf)
+}
+
+/// How many pixels of rows `y0..y1` of a picture `width` wide are `colour` lit by the preview's
+/// headlight: each channel the colour's times one light factor (within rounding).
+fn lit_pixels(png: &(u32, u32, Vec<u8>), y0: u32, y1: u32, colour: [u8; 3]) -> usize {
+    let (w, _, rgb) = png;
+    let row = *w as usize * 3;
+    rgb[y0 as usize * row..y1 as usize * row]
+        .chunks(3)
+        .filter(|p| {
+            let light = f32::from(p[0].max(p[1]).max(p[2]))
+                / f32::from(colour[0].max(colour[1]).max(colour[2]));
+            light > 0.2
+                && (0..3).all(|k| (f32::from(colour[k]) * light - f32::from(p[k])).abs() <= 3.0)
+        })
+        .count()
+}
+
+#[test]
+fn preview_draws_a_coloured_source_and_its_output_in_their_colours() {
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let (six, plain) = six_colour_cube(dir.path());
+    let picture = |mesh: &Path, name: &str, extra: &[&str]| {
+        let png = dir.path().join(name);
+        let mut args = vec!["preview", s(mesh), "-o", s(&png), "--views", "1"];
+        args.extend(["--tile", "128", "--resolution", "32"]);
+        args.extend(extra);
+        ok(&args);
+        read_png(&png)
+    };
+    let coloured = picture(&six, "six.png", &[]);
+    // The first camera looks from azimuth 30°, elevation 30° (towards −x, −y, −z): it sees
+    // the +x, +y and +z faces. Each shows in both rows, source (rows 0–127) and output
+    // (130–257), lit; the hidden faces' colours appear nowhere.
+    for (face, colour) in SIX.iter().enumerate() {
+        for (what, y0) in [("source", 0), ("output", 130)] {
+            let n = lit_pixels(&coloured, y0, y0 + 128, *colour);
+            if face % 2 == 1 {
+                assert!(
+                    n > 300,
+                    "face {face} of the {what}: {n} pixels of {colour:?}"
+                );
+            } else {
+                assert!(
+                    n < 20,
+                    "hidden face {face} in the {what}: {n} pixels of {colour:?}"
+                );
+            }
+        }
+    }
+    // Without colours, the same cube is drawn as a cube without materials is: the plain
+    // grey-blue picture, none of the six colours in it.
+    let off = picture(&six, "off.png", &["--no-colours"]);
+    let bare = picture(&plain, "plain.png", &[]);
+    assert!(
+        off == bare,
+        "--no-colours differs from a cube without materials"
+    );
+    for colour in SIX {
+        assert!(
+            lit_pixels(&bare, 0, 258, colour) < 20,
+            "{colour:?} in a plain picture"
+        );
+    }
+}

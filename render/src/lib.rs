@@ -8,6 +8,11 @@
 //! faces (counter-clockwise seen from the camera) are grey-blue, back faces red: back faces in
 //! sight mean an open or inverted surface. The background is white.
 //!
+//! A mesh drawn with a [`paint::Paint`] ([`render_painted`], [`compare_painted`]) has its front
+//! faces in the colour the paint gives the point hit (its vertex colours, or its materials and
+//! textures), lit the same way; back faces stay red. Without a paint the pixels are exactly the
+//! grey-blue pictures above.
+//!
 //! Rows are rendered in parallel (rayon); every pixel depends only on its own ray, so the bytes
 //! are the same for any number of threads. [`compare`] lays out a source row above an output
 //! row, one tile per view, [`label::draw`] burns a caption into it, and [`Image::encode_png`]
@@ -15,8 +20,10 @@
 #![deny(missing_docs)]
 
 pub mod label;
+pub mod paint;
 
 use glam::Vec3A;
+use paint::Paint;
 use rayon::prelude::*;
 pub use sparc3d_raycast::{orbit_cameras, Camera};
 use sparc3d_raycast::{Ray, Scene as RayScene};
@@ -130,22 +137,55 @@ impl Scene {
         }
     }
 
-    /// The colour seen along `ray`: background, or the shaded nearest triangle.
-    fn shade(&self, ray: Ray) -> [u8; 3] {
+    /// The colour seen along `ray`: background, or the shaded nearest triangle, its front
+    /// in `paint`'s colour when given.
+    fn shade(&self, ray: Ray, paint: Option<&dyn Paint>) -> [u8; 3] {
         let Some(hit) = self.scene.cast(ray) else {
             return BACKGROUND;
         };
         let [v0, v1, v2] = self.corners[hit.triangle as usize];
         let normal = (v1 - v0).cross(v2 - v0).normalize_or_zero();
         let facing = normal.dot(ray.direction);
-        let base = if facing <= 0.0 { FRONT } else { BACK };
+        let base = match (facing <= 0.0, paint) {
+            (false, _) => BACK,
+            (true, None) => FRONT,
+            (true, Some(p)) => {
+                let point = ray.origin + ray.direction * hit.t;
+                p.colour(hit.triangle as usize, barycentric(point, [v0, v1, v2]))
+            }
+        };
         let light = AMBIENT + (1.0 - AMBIENT) * facing.abs().min(1.0);
         base.map(|c| (c as f32 * light).round().clamp(0.0, 255.0) as u8)
     }
 }
 
+/// Barycentric coordinates of `p` (on the triangle's plane) in triangle `t`, each clamped to
+/// [0, 1]; the centroid's for a degenerate triangle.
+fn barycentric(p: Vec3A, t: [Vec3A; 3]) -> [f32; 3] {
+    let (e0, e1, ep) = (t[1] - t[0], t[2] - t[0], p - t[0]);
+    let (d00, d01, d11) = (e0.dot(e0), e0.dot(e1), e1.dot(e1));
+    let (d20, d21) = (ep.dot(e0), ep.dot(e1));
+    let den = d00 * d11 - d01 * d01;
+    if !den.is_normal() {
+        return [1.0 / 3.0; 3];
+    }
+    let v = ((d11 * d20 - d01 * d21) / den).clamp(0.0, 1.0);
+    let w = ((d00 * d21 - d01 * d20) / den).clamp(0.0, 1.0 - v);
+    [1.0 - v - w, v, w]
+}
+
 /// Renders `scene` through `camera` into a `size × size` picture, rows in parallel.
 pub fn render(scene: &Scene, camera: &Camera, size: u32) -> Image {
+    render_painted(scene, None, camera, size)
+}
+
+/// [`render`] with the front faces in `paint`'s colours (the plain picture without one).
+pub fn render_painted(
+    scene: &Scene,
+    paint: Option<&dyn Paint>,
+    camera: &Camera,
+    size: u32,
+) -> Image {
     let width = size as usize;
     let mut rgb = vec![0u8; width * width * 3];
     if width > 0 {
@@ -153,7 +193,7 @@ pub fn render(scene: &Scene, camera: &Camera, size: u32) -> Image {
             .enumerate()
             .for_each(|(y, row)| {
                 for x in 0..width {
-                    let c = scene.shade(camera.ray(x as u32, y as u32, size));
+                    let c = scene.shade(camera.ray(x as u32, y as u32, size), paint);
                     row[x * 3..x * 3 + 3].copy_from_slice(&c);
                 }
             });
@@ -186,14 +226,37 @@ impl Default for CompareOptions {
     }
 }
 
+/// One row of [`compare_painted`]: a mesh and, when drawn in colour, its paint.
+#[derive(Clone, Copy)]
+pub struct Drawn<'a> {
+    /// The mesh.
+    pub mesh: &'a TriMesh,
+    /// Its colours (the plain grey-blue without).
+    pub paint: Option<&'a dyn Paint>,
+}
+
 /// Renders each mesh of `rows` (e.g. source, then output) from the same cameras, framing the
 /// union of their bounds: one row of `views` tiles per mesh, separated by 2-pixel grey lines.
 pub fn compare(rows: &[&TriMesh], options: &CompareOptions) -> Image {
-    let views = options.views.max(1);
-    let tile = options.tile;
-    let gap = 2;
-    let bounds = rows
+    let drawn: Vec<Drawn> = rows
         .iter()
+        .map(|&mesh| Drawn { mesh, paint: None })
+        .collect();
+    compare_painted(&drawn, options)
+}
+
+/// The side of one pixel, in scene units, of the pictures [`compare`] draws of meshes within
+/// `bounds` (what a paint filters its textures over).
+pub fn pixel_size(bounds: ([f64; 3], [f64; 3]), options: &CompareOptions) -> f64 {
+    let camera = orbit_cameras(bounds, 1, options.elevation_deg);
+    camera.first().map_or(0.0, |c| {
+        2.0 * c.half_extent as f64 / options.tile.max(1) as f64
+    })
+}
+
+/// The union of the bounds of `meshes`, the box [-1, 1]³ when none has any.
+pub fn union_bounds<'a>(meshes: impl Iterator<Item = &'a TriMesh>) -> ([f64; 3], [f64; 3]) {
+    meshes
         .filter_map(|m| m.bounds())
         .reduce(|a, b| {
             (
@@ -201,16 +264,24 @@ pub fn compare(rows: &[&TriMesh], options: &CompareOptions) -> Image {
                 [a.1[0].max(b.1[0]), a.1[1].max(b.1[1]), a.1[2].max(b.1[2])],
             )
         })
-        .unwrap_or(([-1.0; 3], [1.0; 3]));
+        .unwrap_or(([-1.0; 3], [1.0; 3]))
+}
+
+/// [`compare`] with each row painted as its [`Drawn`] says.
+pub fn compare_painted(rows: &[Drawn], options: &CompareOptions) -> Image {
+    let views = options.views.max(1);
+    let tile = options.tile;
+    let gap = 2;
+    let bounds = union_bounds(rows.iter().map(|d| d.mesh));
     let cameras = orbit_cameras(bounds, views, options.elevation_deg);
     let n_rows = rows.len().max(1) as u32;
     let width = views * tile + (views - 1) * gap;
     let height = n_rows * tile + (n_rows - 1) * gap;
     let mut image = Image::filled(width, height, SEPARATOR);
-    for (r, mesh) in rows.iter().enumerate() {
-        let scene = Scene::new(mesh);
+    for (r, drawn) in rows.iter().enumerate() {
+        let scene = Scene::new(drawn.mesh);
         for (v, camera) in cameras.iter().enumerate() {
-            let picture = render(&scene, camera, tile);
+            let picture = render_painted(&scene, drawn.paint, camera, tile);
             image.blit(&picture, v as u32 * (tile + gap), r as u32 * (tile + gap));
         }
     }

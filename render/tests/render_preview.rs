@@ -110,3 +110,33 @@ fn empty_mesh_renders_background() {
     let image = render(&scene, &Camera::orbit([0.0; 3], 1.0, 0.0, 0.0), 8);
     assert!(image.rgb.iter().all(|&b| b == 255));
 }
+
+/// FNV-1a (64-bit) of a picture's bytes: a short fingerprint to pin them by.
+fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+    })
+}
+
+#[test]
+fn uncoloured_pictures_keep_their_bytes() {
+    // The fingerprint of this picture as the renderer drew it before coloured previews
+    // existed (commit 46e195c): a mesh drawn without colours must stay exactly as it was.
+    let image = compare(
+        &[
+            &sphere([0.0; 3], 1.0, 16),
+            &quad(-1.5, -1.5, 1.5, 1.5, -0.5),
+        ],
+        &CompareOptions {
+            views: 3,
+            tile: 64,
+            elevation_deg: 30.0,
+        },
+    );
+    assert_eq!(
+        fnv1a(&image.rgb),
+        0xc03f_7d2e_b318_b585,
+        "{:#x}",
+        fnv1a(&image.rgb)
+    );
+}

@@ -3,6 +3,11 @@
 //! views, so a broken conversion is seen at a glance. Back faces are red: red in the top row is an open or inverted source,
 //! red in the bottom row a broken output.
 //!
+//! In colour when there are colours (unless `--no-colours`): a mesh whose source has
+//! materials, textures or vertex colours is drawn in them above its output coloured as
+//! `convert --attributes` colours it; a job's item stored with attributes likewise. Other
+//! pictures are the plain grey-blue ones.
+//!
 //! With a mesh, it is converted here (like `sparc3d convert`); with a job and an item id, the
 //! item's row is decoded (as `sparc3d show` does) and the source is loaded from the row's uri.
 
@@ -45,6 +50,10 @@ pub struct Args {
     /// the job stored it (refined when its job refines).
     #[command(flatten)]
     pub refine: crate::flags::refine::RefineArgs,
+    /// Draw the plain grey-blue pictures even when the source has colours (materials,
+    /// textures, vertex colours) or the item stored attributes.
+    #[arg(long)]
+    pub no_colours: bool,
 }
 
 /// The conversion parameters of a mesh drawn by `preview`: its resolution and rules.
@@ -73,7 +82,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
             let job = crate::job::setup::open_read_only(&args.input)?;
             let row = item_lookup::row(&job, item_lookup::find(&job, id)?)?;
             (
-                preview_row(&row, &options)?,
+                preview_row(&row, &options, !args.no_colours)?,
                 format!("item {} ({})", row.id, row.uri),
             )
         }
@@ -87,7 +96,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
             let params = rules(&args);
             super::check_params(&params)?;
             (
-                preview_mesh(&args.input, &params, &options)?,
+                preview_mesh(&args.input, &params, &options, !args.no_colours)?,
                 args.input.display().to_string(),
             )
         }

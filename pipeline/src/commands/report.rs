@@ -192,7 +192,7 @@ fn preview(job: &Job, id: &str, options: &CompareOptions) -> Preview {
     let row = item_lookup::find(job, id).and_then(|item| item_lookup::row(job, item));
     let uri = row.as_ref().map(|r| r.uri.clone()).unwrap_or_default();
     let png = row
-        .and_then(|r| preview_row(&r, options))
+        .and_then(|r| preview_row(&r, options, true))
         .and_then(|image| image.encode_png().context("encoding PNG"));
     Preview {
         id: id.to_string(),
@@ -261,7 +261,7 @@ fn page(job: &Job, s: &JobSummary, c: &Columns, previews: &[Preview]) -> String 
     ));
     h.push_str("</div>\n");
     validation_section(&mut h, &job.layout.root);
-    previews_section(&mut h, previews);
+    previews_section(&mut h, previews, job.file.config.attributes.enabled);
     provenance_section(&mut h, c);
     failures_section(&mut h, c);
     h.push_str("</body></html>\n");
@@ -343,11 +343,18 @@ fn validation_section(h: &mut String, root: &Path) {
     }
 }
 
-fn previews_section(h: &mut String, previews: &[Preview]) {
+fn previews_section(h: &mut String, previews: &[Preview], coloured: bool) {
     h.push_str(
         "<h2>Previews</h2>\n<p>Source above, output below, same cameras. Back faces are red: \
-         red on top is an open source, red below a broken output.</p>\n<div class=\"previews\">\n",
+         red on top is an open source, red below a broken output.",
     );
+    if coloured {
+        h.push_str(
+            " The job stores attributes: the source is drawn in its own colours (materials, \
+             textures, vertex colours), the output with each vertex in its cell's base colour.",
+        );
+    }
+    h.push_str("</p>\n<div class=\"previews\">\n");
     if previews.is_empty() {
         h.push_str("<p>No ok items to preview.</p>\n");
     }

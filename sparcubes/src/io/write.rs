@@ -174,20 +174,14 @@ fn write_ply(
         mesh.triangles.len()
     )?;
     match colours {
-        Some(colours) => {
-            let vertices: Vec<([f32; 3], [u8; 4])> = mesh
-                .positions
-                .iter()
-                .copied()
-                .zip(colours.iter().copied())
-                .collect();
-            write_in_chunks(w, &vertices, 16, |(p, c), out| {
-                for x in p {
-                    out.extend_from_slice(&x.to_le_bytes());
-                }
-                out.extend_from_slice(c);
-            })?;
-        }
+        // `save_pending` checked one colour per vertex; encoded by index, without a copy of
+        // the vertices zipped with their colours.
+        Some(colours) => write_indexed(w, mesh.positions.len(), 16, |i, out| {
+            for x in mesh.positions[i] {
+                out.extend_from_slice(&x.to_le_bytes());
+            }
+            out.extend_from_slice(&colours[i]);
+        })?,
         None => write_in_chunks(w, &mesh.positions, 12, |p, out| {
             for c in p {
                 out.extend_from_slice(&c.to_le_bytes());
@@ -207,22 +201,38 @@ const WRITE_CHUNK: usize = 1 << 16;
 /// Work items encoded before they are written, bounding the memory held at once.
 const WRITE_BATCH: usize = 16;
 
-/// Writes `items` through `encode` (which appends `bytes_each` bytes per item): chunks of
-/// [`WRITE_CHUNK`] are encoded in parallel, a batch at a time, and written in order, so the
-/// bytes are those of a plain loop.
+/// Writes `items` through `encode` (which appends `bytes_each` bytes per item), as
+/// [`write_indexed`] writes them.
 fn write_in_chunks<T: Sync>(
     w: &mut impl Write,
     items: &[T],
     bytes_each: usize,
     encode: impl Fn(&T, &mut Vec<u8>) + Sync,
 ) -> std::io::Result<()> {
-    for batch in items.chunks(WRITE_CHUNK * WRITE_BATCH) {
-        let encoded: Vec<Vec<u8>> = batch
-            .par_chunks(WRITE_CHUNK)
-            .map(|chunk| {
-                let mut out = Vec::with_capacity(chunk.len() * bytes_each);
-                for item in chunk {
-                    encode(item, &mut out);
+    write_indexed(w, items.len(), bytes_each, |i, out| encode(&items[i], out))
+}
+
+/// Writes elements `0..len` through `encode` (which appends `bytes_each` bytes for element
+/// `i`): chunks of [`WRITE_CHUNK`] are encoded in parallel, a batch at a time, and written in
+/// order, so the bytes are those of a plain loop.
+fn write_indexed(
+    w: &mut impl Write,
+    len: usize,
+    bytes_each: usize,
+    encode: impl Fn(usize, &mut Vec<u8>) + Sync,
+) -> std::io::Result<()> {
+    let batch_len = WRITE_CHUNK * WRITE_BATCH;
+    for start in (0..len).step_by(batch_len) {
+        let end = (start + batch_len).min(len);
+        let encoded: Vec<Vec<u8>> = (start..end)
+            .step_by(WRITE_CHUNK)
+            .collect::<Vec<_>>()
+            .into_par_iter()
+            .map(|from| {
+                let to = (from + WRITE_CHUNK).min(end);
+                let mut out = Vec::with_capacity((to - from) * bytes_each);
+                for i in from..to {
+                    encode(i, &mut out);
                 }
                 out
             })
@@ -466,5 +476,31 @@ mod tests {
         assert!(written.ends_with(&body));
         let header = &written[..written.len() - body.len()];
         assert!(header.ends_with(b"end_header\n"));
+    }
+
+    #[test]
+    fn chunked_coloured_ply_is_the_plain_bytes() {
+        // Each vertex its position then its colour, element by element, over more than one
+        // batch of chunks: the bytes the writer wrote when it zipped them into a copy first.
+        let n = WRITE_CHUNK * WRITE_BATCH + 4_321;
+        let positions: Vec<[f32; 3]> = (0..n).map(|i| [i as f32, 0.5, -(i as f32)]).collect();
+        let colours: Vec<[u8; 4]> = (0..n).map(|i| [i as u8, (i >> 8) as u8, 7, 255]).collect();
+        let mesh = TriMesh::new(positions.clone(), vec![[0, 1, 2]]);
+        let mut written = Vec::new();
+        write_ply(&mesh, Some(&colours), &mut written).unwrap();
+        let mut body = Vec::new();
+        for (p, c) in positions.iter().zip(&colours) {
+            for x in p {
+                body.extend_from_slice(&x.to_le_bytes());
+            }
+            body.extend_from_slice(c);
+        }
+        body.push(3);
+        for i in [0u32, 1, 2] {
+            body.extend_from_slice(&i.to_le_bytes());
+        }
+        assert!(written.ends_with(&body));
+        let header = &written[..written.len() - body.len()];
+        assert!(header.ends_with(b"property uchar alpha\nelement face 1\nproperty list uchar uint vertex_indices\nend_header\n"));
     }
 }
