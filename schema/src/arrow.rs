@@ -79,7 +79,7 @@ pub fn schema_for(provenance: &[String], sections: Sections) -> SchemaRef {
         f.extend(crate::attribute_columns::fields());
     }
     if sections.quality {
-        f.extend(crate::quality::fields());
+        f.extend(crate::quality_columns::fields());
     }
     for name in provenance {
         f.push(Field::new(c::provenance_column(name), Utf8, true));
@@ -214,7 +214,7 @@ pub fn rows_to_batch_for(
         cols.extend(crate::attribute_columns::columns(rows));
     }
     if sections.quality {
-        cols.extend(crate::quality::columns(rows));
+        cols.extend(crate::quality_columns::columns(rows));
     }
     for name in provenance {
         cols.push(strs(&|r| r.provenance.get(name).map(String::as_str)));
@@ -410,7 +410,7 @@ pub fn batch_to_rows(batch: &RecordBatch) -> Result<Vec<ShardRow>> {
                 .filter_map(|(name, a)| Some((name.clone(), opt_str(a, i)?)))
                 .collect(),
             appearance: crate::attribute_columns::facts_at(batch, i),
-            quality: crate::quality::facts_at(batch, i),
+            quality: crate::quality_columns::facts_at(batch, i),
         });
     }
     Ok(rows)

@@ -18,6 +18,7 @@ pub mod hex;
 pub mod layout;
 pub mod manifest;
 pub mod quality;
+pub mod quality_columns;
 pub mod row;
 pub mod tensor;
 mod tensor_columns;
