@@ -92,7 +92,8 @@ pub fn boxed(d: [f64; 3], o: [f64; 3]) -> (Vec<[f64; 3]>, Vec<[usize; 3]>) {
     (v, f)
 }
 
-fn sphere(n: usize, r: f64) -> (Vec<[f64; 3]>, Vec<[usize; 3]>) {
+/// A UV sphere of radius `r` with `n` rings and `2n` segments: `4n(n - 1)` triangles.
+pub fn sphere(n: usize, r: f64) -> (Vec<[f64; 3]>, Vec<[usize; 3]>) {
     let mut v = vec![[0.0, 0.0, r], [0.0, 0.0, -r]];
     let rings = n;
     let segs = 2 * n;
@@ -342,4 +343,16 @@ pub fn twelve_mesh_manifest(dir: &Path) -> PathBuf {
     std::fs::write(&manifest, format!("{header}\n{}\n", rows.join("\n")))
         .unwrap_or_else(|e| panic!("{e}"));
     manifest
+}
+
+/// The column names of a shard file.
+pub fn column_names(path: &Path) -> Vec<String> {
+    use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
+    let f = std::fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let b = ParquetRecordBatchReaderBuilder::try_new(f).unwrap_or_else(|e| panic!("{e}"));
+    b.schema()
+        .fields()
+        .iter()
+        .map(|f| f.name().clone())
+        .collect()
 }

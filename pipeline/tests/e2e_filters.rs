@@ -5,7 +5,6 @@
 
 mod common;
 use common::*;
-use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use sparc3d_schema::ShardRow;
 use sparc3d_workers::store::read::read_rows;
 use std::path::{Path, PathBuf};
@@ -21,32 +20,6 @@ fn write_obj(path: &Path, (v, f): &Mesh) {
         s.push_str(&format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1));
     }
     std::fs::write(path, s).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-}
-
-/// A UV sphere of radius 1 with `n` rings: `4n(n-1)` triangles.
-fn sphere(n: usize) -> Mesh {
-    let segs = 2 * n;
-    let mut v = vec![[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]];
-    for i in 1..n {
-        let th = std::f64::consts::PI * i as f64 / n as f64;
-        for j in 0..segs {
-            let ph = 2.0 * std::f64::consts::PI * j as f64 / segs as f64;
-            v.push([th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()]);
-        }
-    }
-    let at = |i: usize, j: usize| 2 + (i - 1) * segs + j % segs;
-    let mut f = Vec::new();
-    for j in 0..segs {
-        f.push([0, at(1, j), at(1, j + 1)]);
-        f.push([1, at(n - 1, j + 1), at(n - 1, j)]);
-    }
-    for i in 1..n - 1 {
-        for j in 0..segs {
-            f.push([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
-            f.push([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
-        }
-    }
-    (v, f)
 }
 
 /// The meshes (id, mesh, licence) and a broken file, written with a manifest; returns it.
@@ -88,8 +61,8 @@ fn corpus(dir: &Path) -> PathBuf {
     let items: [(&str, Mesh, &str); 6] = [
         ("boxa", boxed([2.0, 1.0, 0.5], [0.0; 3]), "cc0"),
         ("boxb", boxb, "cc-by"),
-        ("sphere6", sphere(6), "cc0"),
-        ("sphere10", sphere(10), "by-nc"),
+        ("sphere6", sphere(6, 1.0), "cc0"),
+        ("sphere10", sphere(10, 1.0), "by-nc"),
         ("sheet", sheet, ""),
         ("fins", fins, "cc-by-sa"),
     ];
@@ -145,17 +118,6 @@ fn shard_files(job: &Path) -> Vec<PathBuf> {
 fn rows(job: &Path) -> Vec<ShardRow> {
     let read = |p: &PathBuf| read_rows(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
     shard_files(job).iter().flat_map(read).collect()
-}
-
-/// The column names of a shard file.
-fn column_names(path: &Path) -> Vec<String> {
-    let f = std::fs::File::open(path).unwrap_or_else(|e| panic!("{e}"));
-    let b = ParquetRecordBatchReaderBuilder::try_new(f).unwrap_or_else(|e| panic!("{e}"));
-    b.schema()
-        .fields()
-        .iter()
-        .map(|f| f.name().clone())
-        .collect()
 }
 
 #[test]

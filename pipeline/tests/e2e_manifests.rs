@@ -70,17 +70,6 @@ fn path_free_digest(job: &Path, provenance: bool) -> String {
     digest::combine(&digests)
 }
 
-/// The column names of a shard file.
-fn column_names(path: &Path) -> Vec<String> {
-    let f = std::fs::File::open(path).unwrap_or_else(|e| panic!("{e}"));
-    let b = ParquetRecordBatchReaderBuilder::try_new(f).unwrap_or_else(|e| panic!("{e}"));
-    b.schema()
-        .fields()
-        .iter()
-        .map(|f| f.name().clone())
-        .collect()
-}
-
 /// `sparc3d run INPUT --job JOB` at 32³ in shards of two with `workers` workers, then
 /// `extra` flags; returns its output (whether or not it succeeded).
 fn run_at_32(input: &Path, job: &Path, workers: &str, extra: &[&str]) -> std::process::Output {
