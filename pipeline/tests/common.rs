@@ -53,7 +53,8 @@ pub fn ok_env(args: &[&str], env: &[(&str, &str)]) -> String {
     String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
-fn write_obj(path: &Path, v: &[[f64; 3]], f: &[[usize; 3]]) {
+/// Writes the mesh (vertices `v`, triangles `f`) as an OBJ file at `path`.
+pub fn write_obj(path: &Path, v: &[[f64; 3]], f: &[[usize; 3]]) {
     let mut s = String::new();
     for p in v {
         s.push_str(&format!("v {} {} {}\n", p[0], p[1], p[2]));
@@ -355,4 +356,14 @@ pub fn column_names(path: &Path) -> Vec<String> {
         .iter()
         .map(|f| f.name().clone())
         .collect()
+}
+
+/// The shard files of a job, in shard order.
+pub fn shard_files(job: &Path) -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(job.join("shards"))
+        .map(|d| d.flatten().map(|e| e.path()).collect())
+        .unwrap_or_default();
+    files.retain(|p| p.extension().is_some_and(|e| e == "parquet"));
+    files.sort();
+    files
 }

@@ -11,17 +11,6 @@ use std::path::{Path, PathBuf};
 
 type Mesh = (Vec<[f64; 3]>, Vec<[usize; 3]>);
 
-fn write_obj(path: &Path, (v, f): &Mesh) {
-    let mut s = String::new();
-    for p in v {
-        s.push_str(&format!("v {} {} {}\n", p[0], p[1], p[2]));
-    }
-    for t in f {
-        s.push_str(&format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1));
-    }
-    std::fs::write(path, s).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-}
-
 /// The meshes (id, mesh, licence) and a broken file, written with a manifest; returns it.
 ///
 /// - `boxa`: a 2 × 1 × 0.5 box: 12 faces, closed, aspect 4, area 7, volume 1.
@@ -68,7 +57,7 @@ fn corpus(dir: &Path) -> PathBuf {
     ];
     let mut csv = String::from("path,id,license\n");
     for (id, mesh, license) in &items {
-        write_obj(&meshes.join(format!("{id}.obj")), mesh);
+        write_obj(&meshes.join(format!("{id}.obj")), &mesh.0, &mesh.1);
         csv.push_str(&format!("meshes/{id}.obj,{id},{license}\n"));
     }
     std::fs::write(meshes.join("broken.obj"), "not a mesh\n").unwrap_or_else(|e| panic!("{e}"));
@@ -102,16 +91,6 @@ fn refused(args: &[&str]) -> String {
     let out = sparc3d(args);
     assert!(!out.status.success(), "{args:?} passed");
     String::from_utf8_lossy(&out.stderr).into_owned()
-}
-
-/// The shard files of a job, in shard order.
-fn shard_files(job: &Path) -> Vec<PathBuf> {
-    let mut files: Vec<PathBuf> = std::fs::read_dir(job.join("shards"))
-        .map(|d| d.flatten().map(|e| e.path()).collect())
-        .unwrap_or_default();
-    files.retain(|p| p.extension().is_some_and(|e| e == "parquet"));
-    files.sort();
-    files
 }
 
 /// Every row of a job's shards, in shard order.

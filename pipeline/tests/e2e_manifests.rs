@@ -25,16 +25,6 @@ fn examples(dir: &Path) -> PathBuf {
     root
 }
 
-/// The shard files of a job in shard order.
-fn shard_files(job: &Path) -> Vec<PathBuf> {
-    let mut files: Vec<PathBuf> = std::fs::read_dir(job.join("shards"))
-        .map(|d| d.flatten().map(|e| e.path()).collect())
-        .unwrap_or_default();
-    files.retain(|p| p.extension().is_some_and(|e| e == "parquet"));
-    files.sort();
-    files
-}
-
 /// The Arrow batches of one shard file.
 fn batches(path: &Path) -> Vec<arrow_array::RecordBatch> {
     let f = std::fs::File::open(path).unwrap_or_else(|e| panic!("{e}"));
