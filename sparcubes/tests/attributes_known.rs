@@ -658,10 +658,16 @@ fn attributes_do_not_depend_on_the_thread_count() -> TestResult {
     let material = json!({"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}});
     let doc = gltf(&prim, material, &[data_uri("image/png", &atlas)], json!({}));
     let path = write(dir.path(), "cube.gltf", doc);
+    // At 256³ the cube's cells are several parts (attributes::parts), sampled in parallel.
     let one = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
-    let a = one.install(|| convert(&path, 48).map_err(|e| e.to_string()))?;
+    let a = one.install(|| convert(&path, 256).map_err(|e| e.to_string()))?;
     let four = rayon::ThreadPoolBuilder::new().num_threads(4).build()?;
-    let b = four.install(|| convert(&path, 48).map_err(|e| e.to_string()))?;
+    let b = four.install(|| convert(&path, 256).map_err(|e| e.to_string()))?;
+    let rows = a.cells.base_color.len();
+    assert!(
+        rows > 3 * sparcubes::attributes::parts::ROWS_PER_PART,
+        "{rows} rows"
+    );
     assert_eq!(a.cells, b.cells);
     Ok(())
 }

@@ -96,18 +96,41 @@ impl Poly {
     }
 }
 
-/// Calls `piece(cell, area, barycentric)` for every cell (integer grid coordinates of its
-/// minimum corner) the triangle `tri` (grid coordinates) crosses with a positive area, in
-/// x, y, z order.
-pub fn for_each_piece(tri: [[f64; 3]; 3], mut piece: impl FnMut([i64; 3], f64, [f64; 3])) {
+/// The triangle as a polygon whose vertices carry their barycentric coordinates.
+fn polygon(tri: [[f64; 3]; 3]) -> Poly {
     let mut poly = Poly::empty();
     for (k, p) in tri.iter().enumerate() {
         let mut b = [0.0; 3];
         b[k] = 1.0;
         poly.push([p[0], p[1], p[2], b[0], b[1], b[2]]);
     }
+    poly
+}
+
+/// The first and last x slice (cell index) the triangle `tri` reaches: the slices
+/// [`for_each_piece`] visits.
+pub fn x_span(tri: [[f64; 3]; 3]) -> (i64, i64) {
+    polygon(tri).span(0)
+}
+
+/// Calls `piece(cell, area, barycentric)` for every cell (integer grid coordinates of its
+/// minimum corner) the triangle `tri` (grid coordinates) crosses with a positive area, in
+/// x, y, z order: the cells' keys rise.
+pub fn for_each_piece(tri: [[f64; 3]; 3], piece: impl FnMut([i64; 3], f64, [f64; 3])) {
+    for_each_piece_in(tri, (i64::MIN, i64::MAX), piece);
+}
+
+/// As [`for_each_piece`], for the cells whose x slice is within `xs` (first, last) only.
+/// Each slice's pieces are cut from the whole triangle, so they are the same pieces
+/// [`for_each_piece`] gives there.
+pub fn for_each_piece_in(
+    tri: [[f64; 3]; 3],
+    xs: (i64, i64),
+    mut piece: impl FnMut([i64; 3], f64, [f64; 3]),
+) {
+    let poly = polygon(tri);
     let (x0, x1) = poly.span(0);
-    for x in x0..=x1 {
+    for x in x0.max(xs.0)..=x1.min(xs.1) {
         let px = poly.slab(0, x as f64);
         let (y0, y1) = px.span(1);
         for y in y0..=y1 {
@@ -153,6 +176,25 @@ mod tests {
             assert!((c[k] / area - 1.0 / 3.0).abs() < 1e-9, "{c:?}");
         }
         assert!(cells > 5);
+    }
+
+    #[test]
+    fn pieces_in_a_range_of_slices_are_the_whole_triangles_pieces_there() {
+        let tri = [[0.3, 0.2, 0.7], [7.9, 1.1, 2.2], [1.5, 3.8, 6.4]];
+        let mut all = Vec::new();
+        for_each_piece(tri, |cell, a, b| all.push((cell, a, b)));
+        assert_eq!(x_span(tri), (0, 7));
+        for xs in [(0, 0), (2, 4), (6, 20), (-3, 1)] {
+            let mut some = Vec::new();
+            for_each_piece_in(tri, xs, |cell, a, b| some.push((cell, a, b)));
+            let expected: Vec<_> = all
+                .iter()
+                .copied()
+                .filter(|(c, _, _)| c[0] >= xs.0 && c[0] <= xs.1)
+                .collect();
+            assert!(!some.is_empty());
+            assert_eq!(some, expected, "slices {xs:?}");
+        }
     }
 
     #[test]

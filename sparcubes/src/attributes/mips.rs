@@ -9,6 +9,9 @@
 
 pub use crate::colour::{linear_to_srgb, to_byte};
 
+use crate::colour::SrgbBytes;
+use rayon::prelude::*;
+
 use crate::materials::{Image, Wrap};
 use std::borrow::Cow;
 
@@ -149,30 +152,34 @@ fn finite(uv: [f64; 2]) -> (f64, f64) {
     (f(uv[0]), f(uv[1]))
 }
 
-/// A texel index `i` (any integer, as a float) wrapped into `0..n`.
+/// A texel index `i` (any integer, as a float; saturated to the 64-bit range, NaN read as
+/// 0) wrapped into `0..n`, in integers: a float remainder costs a library call a texel.
 fn wrap_index(i: f64, n: usize, wrap: Wrap) -> usize {
-    let n_f = n as f64;
+    let n = n.max(1) as i64;
+    let i = i as i64;
     let r = match wrap {
-        Wrap::Clamp => i.clamp(0.0, n_f - 1.0),
-        Wrap::Repeat => i.rem_euclid(n_f),
+        Wrap::Clamp => i.clamp(0, n - 1),
+        Wrap::Repeat => i.rem_euclid(n),
         Wrap::Mirror => {
-            let m = i.rem_euclid(2.0 * n_f);
-            if m < n_f {
+            let m = i.rem_euclid(2 * n);
+            if m < n {
                 m
             } else {
-                2.0 * n_f - 1.0 - m
+                2 * n - 1 - m
             }
         }
     };
-    (r as usize).min(n - 1)
+    r as usize
 }
 
-/// The next level of `l`: each texel the mean of (up to) 2×2 texels.
+/// The next level of `l`: each texel the mean of (up to) 2×2 texels, its rows in parallel
+/// (each row computed alone, so the texels do not depend on the threads).
 fn halve(l: &Level, srgb: bool, table: &[f32; 256]) -> Level<'static> {
     let (w, h) = ((l.w / 2).max(1), (l.h / 2).max(1));
-    let mut texels = Vec::with_capacity(w * h);
-    for y in 0..h {
-        for x in 0..w {
+    let bytes = SrgbBytes::new();
+    let mut texels = vec![[0u8; 4]; w * h];
+    texels.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        for (x, out) in row.iter_mut().enumerate() {
             let mut sum = [0.0f32; 4];
             for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
                 let sx = (2 * x + dx).min(l.w - 1);
@@ -186,16 +193,16 @@ fn halve(l: &Level, srgb: bool, table: &[f32; 256]) -> Level<'static> {
                     };
                 }
             }
-            texels.push(std::array::from_fn(|c| {
+            *out = std::array::from_fn(|c| {
                 let mean = sum[c] / 4.0;
-                to_byte(if srgb && c < 3 {
-                    linear_to_srgb(mean)
+                if srgb && c < 3 {
+                    bytes.byte(mean)
                 } else {
-                    mean
-                })
-            }));
+                    to_byte(mean)
+                }
+            });
         }
-    }
+    });
     Level {
         w,
         h,

@@ -10,23 +10,33 @@
 //! filled hole) takes the values at the closest point of the source surface to its centre,
 //! filtered over one cell's area.
 //!
-//! Determinism: triangles are processed in fixed batches, each batch's pieces computed in
-//! parallel and collected in triangle order, then added to the cells one after another in that
-//! order; the closest-point queries are thread-independent ([`crate::queries::closest`]). The bytes do
-//! not depend on the thread count.
+//! The cells are cut into parts of whole x slices ([`parts`]); each part, in parallel with
+//! the others, adds the pieces of the triangles that reach it into its own cells' sums, gives
+//! the cells no piece reached their closest point's values ([`nearest`]) and encodes its
+//! bytes, so only one part's sums are alive per thread (the stage holds the bytes and a few
+//! MiB, not sums for every cell at once).
+//!
+//! Determinism: the parts depend on the cells alone, a cell's pieces are added in triangle
+//! order and within a triangle in piece order, and the closest-point queries of a part do not
+//! depend on the threads ([`crate::queries::closest`]). The bytes do not depend on the thread
+//! count.
 
 pub mod clip;
 pub mod mips;
+pub mod nearest;
+pub mod parts;
 pub mod shade;
+pub mod surface;
 pub mod vertex_colours;
 
-use crate::cubes::SparseCubes;
+use crate::colour::{to_byte, SrgbBytes};
+use crate::cubes::{gallop, SparseCubes};
 use crate::materials::Appearance;
-use crate::mesh::TriMesh;
-use crate::queries::closest::TriangleIndex;
-use mips::{linear_to_srgb, to_byte};
+use nearest::Nearest;
+use parts::Part;
 use rayon::prelude::*;
 use shade::{Shader, Values};
+use surface::GridSurface;
 
 /// The attributes of the active cells, one entry per row of `cells`.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
@@ -43,188 +53,125 @@ pub struct CellAttributes {
     pub nearest_cells: u64,
 }
 
-/// Triangles whose pieces are computed in parallel before they are added, in order.
-const BATCH: usize = 1 << 16;
-/// Triangles per parallel task in a batch.
-const CHUNK: usize = 256;
-
-/// One piece's contribution: the cell (its row), the area and the values.
-type Piece = (u32, f64, Values);
-
-/// The source surface in grid coordinates, with the triangles that can carry a value
-/// (indices in range, finite corners, positive area) and their areas.
-struct GridSurface {
-    positions: Vec<[f64; 3]>,
-    /// (triangle index in the appearance, its area).
-    triangles: Vec<(usize, f64)>,
-}
-
-impl GridSurface {
-    fn new(app: &Appearance, cubes: &SparseCubes) -> Self {
-        let s = &app.surface;
-        let n = cubes.resolution;
-        let positions: Vec<[f64; 3]> = s
-            .positions
-            .iter()
-            .map(|p| cubes.normalization.source_to_grid(p.map(f64::from), n))
-            .collect();
-        let triangles = s
-            .triangles
-            .iter()
-            .enumerate()
-            .filter_map(|(t, tri)| {
-                let c = tri.map(|i| positions.get(i as usize).copied());
-                let [Some(a), Some(b), Some(c)] = c else {
-                    return None;
-                };
-                let area = crate::vec3::norm(crate::vec3::cross(
-                    crate::vec3::sub(b, a),
-                    crate::vec3::sub(c, a),
-                )) * 0.5;
-                (area.is_finite() && area > 0.0).then_some((t, area))
-            })
-            .collect();
-        Self {
-            positions,
-            triangles,
-        }
-    }
-
-    fn corners(&self, app: &Appearance, t: usize) -> [[f64; 3]; 3] {
-        app.surface.triangles[t].map(|i| self.positions[i as usize])
-    }
-}
+/// A cell's running sums: the area, then the area-weighted values.
+type Sums = [f64; 7];
 
 /// Samples the appearance `app` (its surface in the source frame) at the active cells of
 /// `cubes`.
 pub fn sample(cubes: &SparseCubes, app: &Appearance) -> CellAttributes {
-    let grid = GridSurface::new(app, cubes);
+    let surface = GridSurface::new(app, cubes);
     let shader = Shader::new(app);
-    let mut sums = vec![[0.0f64; 7]; cubes.cells.len()];
-    for batch in grid.triangles.chunks(BATCH) {
-        let pieces: Vec<Vec<Piece>> = batch
-            .par_chunks(CHUNK)
-            .map(|chunk| {
-                let mut out = Vec::new();
-                for &(t, area) in chunk {
-                    triangle_pieces(&grid, app, &shader, cubes, (t, area), &mut out);
-                }
-                out
-            })
-            .collect();
-        for (cell, w, v) in pieces.into_iter().flatten() {
-            let s = &mut sums[cell as usize];
-            s[0] += w;
-            for k in 0..6 {
-                s[k + 1] += w * v[k] as f64;
-            }
-        }
-    }
-    let mut values: Vec<Option<Values>> = sums
+    let nearest = Nearest::new(&surface, &shader);
+    let srgb = SrgbBytes::new();
+    let mut parts = parts::partition(&cubes.cells);
+    let spans = surface
+        .triangles
         .iter()
-        .map(|s| (s[0] > 0.0).then(|| std::array::from_fn(|k| (s[k + 1] / s[0]) as f32)))
+        .map(|&(t, _)| clip::x_span(surface.corners(t)));
+    parts::assign(&mut parts, spans);
+    let done: Vec<CellAttributes> = parts
+        .par_iter()
+        .map(|part| {
+            let cells = &cubes.cells[part.rows.clone()];
+            let mut sums = part_sums(&surface, &shader, cells, part);
+            let nearest_cells = fill_nearest(&nearest, cells, &mut sums);
+            encode(&sums, nearest_cells, &srgb)
+        })
         .collect();
-    let nearest_cells = fill_nearest(&grid, app, &shader, cubes, &mut values);
-    encode(&values, nearest_cells)
+    concatenate(done, cubes.cells.len())
 }
 
-/// Appends the pieces of triangle `t` (of area `area`) that lie in active cells.
-fn triangle_pieces(
-    grid: &GridSurface,
-    app: &Appearance,
-    shader: &Shader,
-    cubes: &SparseCubes,
-    (t, area): (usize, f64),
-    out: &mut Vec<Piece>,
-) {
-    let density = shader.uv_density(t, area);
-    let n = cubes.resolution as i64;
-    clip::for_each_piece(grid.corners(app, t), |cell, a, bary| {
-        if cell.iter().any(|&c| c < 0 || c >= n) {
-            return;
-        }
-        let key = cell.map(|c| c as u16);
-        if let Ok(row) = cubes.cells.binary_search(&key) {
-            out.push((row as u32, a, shader.at(t, bary, a, density)));
-        }
-    });
+/// The sums of the part's `cells` (its rows) over the pieces of its triangles inside them,
+/// added in triangle order and, within a triangle, in piece order.
+fn part_sums(surface: &GridSurface, shader: &Shader, cells: &[[u16; 3]], part: &Part) -> Vec<Sums> {
+    let mut sums = vec![[0.0f64; 7]; cells.len()];
+    for &j in &part.triangles {
+        let (t, area) = surface.triangles[j as usize];
+        let density = shader.uv_density(t, area);
+        // The pieces' keys rise (clip::for_each_piece), so one cursor walks the rows forward.
+        let mut cursor = 0;
+        clip::for_each_piece_in(surface.corners(t), part.xs, |cell, a, bary| {
+            let Some(key) = cell_key(cell) else {
+                return;
+            };
+            cursor = gallop(cells, cursor, key);
+            if cells.get(cursor) == Some(&key) {
+                let v = shader.at(t, bary, a, density);
+                let s = &mut sums[cursor];
+                s[0] += a;
+                for k in 0..6 {
+                    s[k + 1] += a * v[k] as f64;
+                }
+            }
+        });
+    }
+    sums
 }
 
-/// Gives every cell without a value the values at the source surface's closest point to its
-/// centre; returns how many there were.
-fn fill_nearest(
-    grid: &GridSurface,
-    app: &Appearance,
-    shader: &Shader,
-    cubes: &SparseCubes,
-    values: &mut [Option<Values>],
-) -> u64 {
-    let empty: Vec<usize> = (0..values.len()).filter(|&i| values[i].is_none()).collect();
+/// The key of a cell of the grid's index range, `None` outside it.
+fn cell_key(cell: [i64; 3]) -> Option<[u16; 3]> {
+    let [x, y, z] = cell.map(|c| u16::try_from(c).ok());
+    Some([x?, y?, z?])
+}
+
+/// Gives every cell no piece reached the values at the source surface's closest point to
+/// its centre, as one piece of unit area; returns how many there were.
+fn fill_nearest(nearest: &Nearest, cells: &[[u16; 3]], sums: &mut [Sums]) -> u64 {
+    let empty: Vec<usize> = (0..sums.len()).filter(|&i| sums[i][0] <= 0.0).collect();
     if empty.is_empty() {
         return 0;
     }
-    let mesh = TriMesh::new(
-        grid.positions.iter().map(|p| p.map(|x| x as f32)).collect(),
-        grid.triangles
-            .iter()
-            .map(|&(t, _)| app.surface.triangles[t])
-            .collect(),
-    );
-    let fallback: Values = [0.0; 6];
-    if mesh.triangles.is_empty() {
-        for &i in &empty {
-            values[i] = Some(fallback);
-        }
-        return empty.len() as u64;
-    }
-    let index = TriangleIndex::new(&mesh);
-    let centres: Vec<[f64; 3]> = empty
-        .iter()
-        .map(|&i| cubes.cells[i].map(|c| c as f64 + 0.5))
-        .collect();
-    let found = index.closest_batch(&centres);
-    let filled: Vec<Values> = found
-        .par_iter()
-        .map(|c| {
-            let (t, area) = grid.triangles[c.triangle as usize];
-            let bary = barycentric(c.point, grid.corners(app, t));
-            shader.at(t, bary, 1.0, shader.uv_density(t, area))
-        })
-        .collect();
-    for (&i, v) in empty.iter().zip(filled) {
-        values[i] = Some(v);
+    let values = nearest.values_at(empty.iter().map(|&i| cells[i]));
+    for (&i, v) in empty.iter().zip(values) {
+        sums[i] = one_piece(v);
     }
     empty.len() as u64
 }
 
-/// Barycentric coordinates of `p` (on the triangle's plane) in triangle `tri`.
-fn barycentric(p: [f64; 3], tri: [[f64; 3]; 3]) -> [f64; 3] {
-    use crate::vec3::{dot, sub};
-    let (e0, e1, ep) = (sub(tri[1], tri[0]), sub(tri[2], tri[0]), sub(p, tri[0]));
-    let (d00, d01, d11) = (dot(e0, e0), dot(e0, e1), dot(e1, e1));
-    let (d20, d21) = (dot(ep, e0), dot(ep, e1));
-    let den = d00 * d11 - d01 * d01;
-    if den.abs() <= 0.0 || !den.is_finite() {
-        return [1.0 / 3.0; 3];
-    }
-    let v = ((d11 * d20 - d01 * d21) / den).clamp(0.0, 1.0);
-    let w = ((d00 * d21 - d01 * d20) / den).clamp(0.0, 1.0 - v);
-    [1.0 - v - w, v, w]
+/// The sums of one piece of unit area with values `v` (their means are `v` exactly).
+fn one_piece(v: Values) -> Sums {
+    [1.0, v[0], v[1], v[2], v[3], v[4], v[5]].map(f64::from)
 }
 
-/// The values as bytes (base colour encoded to sRGB).
-fn encode(values: &[Option<Values>], nearest_cells: u64) -> CellAttributes {
+/// The cells' means as bytes (base colour encoded to sRGB).
+fn encode(sums: &[Sums], nearest_cells: u64, srgb: &SrgbBytes) -> CellAttributes {
+    let n = sums.len();
     let mut out = CellAttributes {
+        base_color: Vec::with_capacity(n),
+        metallic: Vec::with_capacity(n),
+        roughness: Vec::with_capacity(n),
+        alpha: Vec::with_capacity(n),
         nearest_cells,
-        ..Default::default()
     };
-    for v in values {
-        let v = v.unwrap_or([0.0; 6]);
-        out.base_color
-            .push([0, 1, 2].map(|c| to_byte(linear_to_srgb(v[c]))));
+    for s in sums {
+        let v: Values = if s[0] > 0.0 {
+            std::array::from_fn(|k| (s[k + 1] / s[0]) as f32)
+        } else {
+            [0.0; 6]
+        };
+        out.base_color.push([0, 1, 2].map(|c| srgb.byte(v[c])));
         out.metallic.push(to_byte(v[3]));
         out.roughness.push(to_byte(v[4]));
         out.alpha.push(to_byte(v[5]));
+    }
+    out
+}
+
+/// The parts' attributes, in part order, as one set of `rows` rows.
+fn concatenate(parts: Vec<CellAttributes>, rows: usize) -> CellAttributes {
+    let mut out = CellAttributes {
+        base_color: Vec::with_capacity(rows),
+        metallic: Vec::with_capacity(rows),
+        roughness: Vec::with_capacity(rows),
+        alpha: Vec::with_capacity(rows),
+        nearest_cells: 0,
+    };
+    for p in parts {
+        out.base_color.extend(p.base_color);
+        out.metallic.extend(p.metallic);
+        out.roughness.extend(p.roughness);
+        out.alpha.extend(p.alpha);
+        out.nearest_cells += p.nearest_cells;
     }
     out
 }

@@ -30,3 +30,21 @@ impl SparseCubes {
         self.coords.binary_search(&c).ok()
     }
 }
+
+/// Index of the first of the sorted `coords` that is `>= target`, at or after `from`, by
+/// galloping: a walk through rising targets costs the logarithm of each step, not of the
+/// whole list.
+#[inline]
+pub(crate) fn gallop(coords: &[[u16; 3]], from: usize, target: [u16; 3]) -> usize {
+    if from >= coords.len() || coords[from] >= target {
+        return from;
+    }
+    let mut step = 1;
+    let mut lo = from;
+    while lo + step < coords.len() && coords[lo + step] < target {
+        lo += step;
+        step *= 2;
+    }
+    let hi = (lo + step + 1).min(coords.len());
+    lo + coords[lo..hi].partition_point(|c| *c < target)
+}

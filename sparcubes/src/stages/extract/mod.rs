@@ -17,7 +17,7 @@
 pub mod close_grid;
 pub mod mc_table;
 
-use crate::grid::cubes::SparseCubes;
+use crate::grid::cubes::{gallop, SparseCubes};
 use crate::grid::normalization::Normalization;
 use crate::mesh::TriMesh;
 use mc_table::{Case, Table, CENTRE, EDGES, FACE_CORNERS};
@@ -216,22 +216,6 @@ pub fn to_source(mesh: &mut TriMesh, normalization: &Normalization, resolution: 
         let s = normalization.grid_to_source(g, resolution);
         *p = [s[0] as f32, s[1] as f32, s[2] as f32];
     });
-}
-
-/// Index of the first coord `>= target` at or after `from`, by galloping.
-#[inline]
-fn gallop(coords: &[[u16; 3]], from: usize, target: [u16; 3]) -> usize {
-    if from >= coords.len() || coords[from] >= target {
-        return from;
-    }
-    let mut step = 1;
-    let mut lo = from;
-    while lo + step < coords.len() && coords[lo + step] < target {
-        lo += step;
-        step *= 2;
-    }
-    let hi = (lo + step + 1).min(coords.len());
-    lo + coords[lo..hi].partition_point(|c| *c < target)
 }
 
 /// Calls `f(corner indices, corner mask, face bits)` for every cell of `cells` whose eight
