@@ -1,0 +1,324 @@
+//! A shape signature of the watertight output: a fixed-length vector that two copies of one
+//! shape share whatever rigid motion, uniform scale, mirroring or triangulation separates
+//! them, so that near-duplicates are close in plain Euclidean distance ([`distance`]).
+//!
+//! It is read from the surface of the extracted mesh (never the source's triangle list, so a
+//! re-triangulated source gives the same output up to the grid's rounding), with every length
+//! measured from the surface's area centroid `c` in units of its RMS radius
+//! `r = sqrt(∫|x − c|² dA / A)`, which removes translation and scale; only distances and
+//! eigenvalues enter, which removes rotation and mirroring:
+//!
+//! | entries | what |
+//! |---|---|
+//! | 0–2 | eigenvalues of the surface's second-moment tensor about `c` over `r²` (they sum to 1), largest first, times [`EIGEN_WEIGHT`] |
+//! | 3 | sphericity `(36π V²)^⅓ / A` of the enclosed volume `V` (1 for a ball, near 0 for a thin shell) |
+//! | 4–17 | the shell distribution: share of the area within `tᵢ = 0.15·(i+1)·r` of `c` |
+//! | 18–31 | the D2 distribution (Osada et al., "Shape distributions", ACM TOG 2002): share of pairs of [`D2_POINTS`] area-stratified surface points within `sᵢ = 0.25·(i+1)·r` of each other |
+//!
+//! Both distributions are cumulative and smoothed: each distance counts linearly across one
+//! step either side of a threshold, so a surface that moves by ε moves every entry by at most
+//! ε / step, and no entry jumps when a distance crosses a threshold. Sums run over fixed chunks
+//! combined in order, so the signature is bit-identical whatever the thread count.
+
+use crate::TriMesh;
+use rayon::prelude::*;
+
+/// Entries of a signature.
+pub const SIGNATURE_LEN: usize = 32;
+/// Thresholds of each distribution.
+const STEPS: usize = 14;
+/// Step of the shell distribution's thresholds, in units of `r`.
+const SHELL_STEP: f64 = 0.15;
+/// Step of the D2 distribution's thresholds, in units of `r`.
+const D2_STEP: f64 = 0.25;
+/// Surface points whose pairwise distances make the D2 distribution (2 096 128 pairs).
+pub const D2_POINTS: usize = 2048;
+/// Weight of the eigenvalue entries: their differences between shapes are a third of the
+/// distributions' per entry, and there are fewer of them.
+pub const EIGEN_WEIGHT: f64 = 2.0;
+/// Triangles per chunk of the parallel sums (fixed, so the sums do not depend on threads).
+const CHUNK: usize = 1 << 14;
+
+/// A shape's signature ([`shape_signature`]).
+pub type ShapeSignature = [f32; SIGNATURE_LEN];
+
+/// Euclidean distance between two signatures (of any equal length).
+pub fn distance(a: &[f32], b: &[f32]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (f64::from(*x) - f64::from(*y)).powi(2))
+        .sum::<f64>()
+        .sqrt()
+}
+
+/// Area-weighted moments of a set of triangles about a reference point.
+#[derive(Debug, Clone, Copy, Default)]
+struct Moments {
+    area: f64,
+    first: [f64; 3],
+    second: [[f64; 3]; 3],
+    volume6: f64,
+}
+
+impl Moments {
+    fn add(mut self, o: Moments) -> Moments {
+        self.area += o.area;
+        self.volume6 += o.volume6;
+        for a in 0..3 {
+            self.first[a] += o.first[a];
+            for b in 0..3 {
+                self.second[a][b] += o.second[a][b];
+            }
+        }
+        self
+    }
+}
+
+/// The corners of triangle `t` relative to `origin`, in double precision.
+fn corners(mesh: &TriMesh, t: &[u32; 3], origin: [f64; 3]) -> [[f64; 3]; 3] {
+    t.map(|i| {
+        let p = mesh.positions[i as usize];
+        [0, 1, 2].map(|a| f64::from(p[a]) - origin[a])
+    })
+}
+
+fn triangle_area(v: &[[f64; 3]; 3]) -> f64 {
+    let e1 = crate::vec3::sub(v[1], v[0]);
+    let e2 = crate::vec3::sub(v[2], v[0]);
+    0.5 * crate::vec3::norm(crate::vec3::cross(e1, e2))
+}
+
+/// Exact area moments of one triangle: `∫x dA` and `∫x xᵀ dA` are `A·s/3` and
+/// `A/12·(Σ vᵢvᵢᵀ + s sᵀ)` with `s = v₀ + v₁ + v₂`; `volume6` the signed volume of the
+/// tetrahedron to the origin, times 6 (divergence theorem).
+fn triangle_moments(v: &[[f64; 3]; 3]) -> Moments {
+    let area = triangle_area(v);
+    let s = [0, 1, 2].map(|a| v[0][a] + v[1][a] + v[2][a]);
+    let mut m = Moments {
+        area,
+        first: s.map(|x| area * x / 3.0),
+        volume6: crate::vec3::dot(v[0], crate::vec3::cross(v[1], v[2])),
+        ..Moments::default()
+    };
+    for a in 0..3 {
+        for b in 0..3 {
+            let vv: f64 = v.iter().map(|p| p[a] * p[b]).sum();
+            m.second[a][b] = area / 12.0 * (vv + s[a] * s[b]);
+        }
+    }
+    m
+}
+
+/// The moments of the whole mesh about `origin`, summed over fixed chunks in order.
+fn moments(mesh: &TriMesh, origin: [f64; 3]) -> Moments {
+    let parts: Vec<Moments> = mesh
+        .triangles
+        .par_chunks(CHUNK)
+        .map(|chunk| {
+            chunk.iter().fold(Moments::default(), |m, t| {
+                m.add(triangle_moments(&corners(mesh, t, origin)))
+            })
+        })
+        .collect();
+    parts.into_iter().fold(Moments::default(), Moments::add)
+}
+
+/// Eigenvalues of a symmetric 3×3 matrix, largest first (the trigonometric closed form:
+/// O. K. Smith, "Eigenvalues of a symmetric 3 × 3 matrix", CACM 4(4), 1961).
+fn symmetric_eigenvalues(m: &[[f64; 3]; 3]) -> [f64; 3] {
+    let p1 = m[0][1].powi(2) + m[0][2].powi(2) + m[1][2].powi(2);
+    let q = (m[0][0] + m[1][1] + m[2][2]) / 3.0;
+    let p2 = (0..3).map(|i| (m[i][i] - q).powi(2)).sum::<f64>() + 2.0 * p1;
+    let p = (p2 / 6.0).sqrt();
+    if p <= f64::EPSILON * q.abs().max(f64::MIN_POSITIVE) {
+        return [q; 3];
+    }
+    let b: Vec<[f64; 3]> = (0..3)
+        .map(|i| [0, 1, 2].map(|j| (m[i][j] - if i == j { q } else { 0.0 }) / p))
+        .collect();
+    let det = b[0][0] * (b[1][1] * b[2][2] - b[1][2] * b[2][1])
+        - b[0][1] * (b[1][0] * b[2][2] - b[1][2] * b[2][0])
+        + b[0][2] * (b[1][0] * b[2][1] - b[1][1] * b[2][0]);
+    let phi = (det / 2.0).clamp(-1.0, 1.0).acos() / 3.0;
+    let big = q + 2.0 * p * phi.cos();
+    let small = q + 2.0 * p * (phi + 2.0 * std::f64::consts::PI / 3.0).cos();
+    [big, 3.0 * q - big - small, small]
+}
+
+/// Weights and weighted distances per whole step of distance (bin `b` holds `b ≤ x < b+1`;
+/// the last bin everything beyond the last threshold's reach), from which the smoothed
+/// cumulative distribution follows exactly ([`Binned::smoothed`]).
+#[derive(Debug, Clone, Copy)]
+struct Binned {
+    weight: [f64; STEPS + 2],
+    moment: [f64; STEPS + 2],
+}
+
+impl Binned {
+    fn new() -> Self {
+        Self {
+            weight: [0.0; STEPS + 2],
+            moment: [0.0; STEPS + 2],
+        }
+    }
+
+    /// Adds weight `w` at distance `x` (in steps).
+    fn add(&mut self, x: f64, w: f64) {
+        let b = (x.max(0.0) as usize).min(STEPS + 1);
+        self.weight[b] += w;
+        self.moment[b] += w * x;
+    }
+
+    fn merge(mut self, o: Binned) -> Binned {
+        for b in 0..STEPS + 2 {
+            self.weight[b] += o.weight[b];
+            self.moment[b] += o.moment[b];
+        }
+        self
+    }
+
+    /// The smoothed cumulative distribution over `total` weight: entry `i` (threshold `i + 1`
+    /// steps) counts a distance `x` wholly when `x ≤ i`, not at all when `x ≥ i + 2`, and
+    /// `(i + 2 − x) / 2` between. With `R(k) = Σ_{x<k} (k − x) = k·W(k) − M(k)` (`W`, `M` the
+    /// weight and moment of the bins below the whole number `k`), entry `i` is
+    /// `(R(i + 2) − R(i)) / 2`.
+    fn smoothed(&self, total: f64) -> [f64; STEPS] {
+        let mut ramp = [0.0; STEPS + 2];
+        let (mut w, mut m) = (0.0, 0.0);
+        for k in 1..STEPS + 2 {
+            w += self.weight[k - 1];
+            m += self.moment[k - 1];
+            ramp[k] = k as f64 * w - m;
+        }
+        std::array::from_fn(|i| (ramp[i + 2] - ramp[i]) / (2.0 * total.max(f64::MIN_POSITIVE)))
+    }
+}
+
+/// The shell distribution: the share of the area near each threshold distance from `c`
+/// (triangles counted at their centroids; the output's triangles are under two voxels across).
+fn shell_distribution(mesh: &TriMesh, c: [f64; 3], r: f64, area: f64) -> [f64; STEPS] {
+    let parts: Vec<Binned> = mesh
+        .triangles
+        .par_chunks(CHUNK)
+        .map(|chunk| {
+            let mut bins = Binned::new();
+            for t in chunk {
+                let v = corners(mesh, t, c);
+                let g = [0, 1, 2].map(|a| (v[0][a] + v[1][a] + v[2][a]) / 3.0);
+                bins.add(crate::vec3::norm(g) / r / SHELL_STEP, triangle_area(&v));
+            }
+            bins
+        })
+        .collect();
+    parts.into_iter().fold(Binned::new(), Binned::merge).smoothed(area)
+}
+
+/// [`D2_POINTS`] surface points, one per equal share of the area along the triangle order
+/// (systematic sampling: no random draw, and the output's triangles come in grid order, so
+/// the points spread over the whole surface); each is the centroid of its triangle.
+fn stratified_points(mesh: &TriMesh, c: [f64; 3], area: f64) -> Vec<[f64; 3]> {
+    let mut points = Vec::with_capacity(D2_POINTS);
+    let step = area / D2_POINTS as f64;
+    let mut next = 0.5 * step;
+    let mut walked = 0.0;
+    for t in &mesh.triangles {
+        let v = corners(mesh, t, c);
+        walked += triangle_area(&v);
+        while walked > next && points.len() < D2_POINTS {
+            points.push([0, 1, 2].map(|a| (v[0][a] + v[1][a] + v[2][a]) / 3.0));
+            next += step;
+        }
+    }
+    points
+}
+
+/// The D2 distribution of the stratified points: the share of pairs near each threshold.
+fn d2_distribution(points: &[[f64; 3]], r: f64) -> [f64; STEPS] {
+    let scale = 1.0 / (r * D2_STEP);
+    let parts: Vec<Binned> = (0..points.len())
+        .into_par_iter()
+        .map(|i| {
+            let mut bins = Binned::new();
+            for q in &points[i + 1..] {
+                bins.add(crate::vec3::dist2(points[i], *q).sqrt() * scale, 1.0);
+            }
+            bins
+        })
+        .collect();
+    let pairs = (points.len() * points.len().saturating_sub(1) / 2) as f64;
+    parts.into_iter().fold(Binned::new(), Binned::merge).smoothed(pairs)
+}
+
+/// The signature of a mesh (the watertight output, in any frame); `None` when it has no area.
+pub fn shape_signature(mesh: &TriMesh) -> Option<ShapeSignature> {
+    let origin = mesh.bounds().map(|(lo, hi)| [0, 1, 2].map(|a| 0.5 * (lo[a] + hi[a])))?;
+    let raw = moments(mesh, origin);
+    if !(raw.area > 0.0) {
+        return None;
+    }
+    let c = [0, 1, 2].map(|a| origin[a] + raw.first[a] / raw.area);
+    let about = moments(mesh, c);
+    let cov = about.second.map(|row| row.map(|x| x / about.area));
+    let r2 = cov[0][0] + cov[1][1] + cov[2][2];
+    if !(r2 > 0.0) {
+        return None;
+    }
+    let r = r2.sqrt();
+    let eigen = symmetric_eigenvalues(&cov).map(|l| EIGEN_WEIGHT * (l / r2).max(0.0));
+    let volume = about.volume6.abs() / 6.0;
+    let sphericity = (36.0 * std::f64::consts::PI * volume * volume).cbrt() / about.area;
+    let shell = shell_distribution(mesh, c, r, about.area);
+    let d2 = d2_distribution(&stratified_points(mesh, c, about.area), r);
+    let mut s = [0.0f32; SIGNATURE_LEN];
+    let values = eigen.iter().chain([&sphericity]).chain(&shell).chain(&d2);
+    for (slot, v) in s.iter_mut().zip(values) {
+        *slot = *v as f32;
+    }
+    Some(s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn eigenvalues_of_a_diagonal_and_a_rotated_matrix() {
+        let d = [[3.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 2.0]];
+        let e = symmetric_eigenvalues(&d);
+        for (got, want) in e.iter().zip([3.0, 2.0, 1.0]) {
+            assert!((got - want).abs() < 1e-12, "{e:?}");
+        }
+        // [[2, 1], [1, 2]] has eigenvalues 3 and 1; the third axis holds 5.
+        let m = [[2.0, 1.0, 0.0], [1.0, 2.0, 0.0], [0.0, 0.0, 5.0]];
+        let e = symmetric_eigenvalues(&m);
+        for (got, want) in e.iter().zip([5.0, 3.0, 1.0]) {
+            assert!((got - want).abs() < 1e-12, "{e:?}");
+        }
+        assert_eq!(symmetric_eigenvalues(&[[2.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, 2.0]]), [2.0; 3]);
+    }
+
+    #[test]
+    fn smoothed_steps_ramp_across_each_threshold() {
+        let at = |x: f64| {
+            let mut bins = Binned::new();
+            bins.add(x, 2.0);
+            bins.smoothed(2.0)
+        };
+        assert_eq!(at(0.0), [1.0; STEPS]);
+        assert_eq!(at(0.5)[..2], [0.75, 1.0]);
+        assert_eq!(at(1.0)[0], 0.5);
+        assert_eq!(at(1.5)[0], 0.25);
+        assert_eq!(at(2.0)[0], 0.0);
+        assert_eq!(at(3.25)[..4], [0.0, 0.0, 0.375, 0.875]);
+        assert_eq!(at(99.0), [0.0; STEPS]);
+        for x in [0.3, 1.7, 5.2, 14.9] {
+            let (a, b) = (at(x), at(x + 1e-6));
+            assert!(a.iter().zip(&b).all(|(p, q)| (p - q).abs() < 1e-5), "{x}");
+        }
+    }
+
+    #[test]
+    fn an_empty_mesh_has_no_signature() {
+        assert!(shape_signature(&TriMesh::default()).is_none());
+    }
+}
