@@ -81,6 +81,7 @@ pub fn schema_for(provenance: &[String], sections: Sections) -> SchemaRef {
     if sections.quality {
         f.extend(crate::quality_columns::fields());
     }
+    f.push(crate::signature_column::field());
     for name in provenance {
         f.push(Field::new(c::provenance_column(name), Utf8, true));
     }
@@ -216,6 +217,9 @@ pub fn rows_to_batch_for(
     if sections.quality {
         cols.extend(crate::quality_columns::columns(rows));
     }
+    let signatures: Vec<Option<&[f32]>> =
+        rows.iter().map(|r| r.shape_signature.as_deref()).collect();
+    cols.push(crate::signature_column::column(&signatures)?);
     for name in provenance {
         cols.push(strs(&|r| r.provenance.get(name).map(String::as_str)));
     }
@@ -354,6 +358,7 @@ pub fn batch_to_rows(batch: &RecordBatch) -> Result<Vec<ShardRow>> {
         .collect::<Result<_>>()?;
     let stages = col::<StringArray>(batch, c::TIME_STAGES)?;
     let provenance = provenance_columns(batch)?;
+    let signatures = crate::signature_column::read(batch)?;
     let mut rows = Vec::with_capacity(batch.num_rows());
     for i in 0..batch.num_rows() {
         let normalization = normalization_at(&norm, i);
@@ -411,6 +416,7 @@ pub fn batch_to_rows(batch: &RecordBatch) -> Result<Vec<ShardRow>> {
                 .collect(),
             appearance: crate::attribute_columns::facts_at(batch, i),
             quality: crate::quality_columns::facts_at(batch, i),
+            shape_signature: signatures.as_ref().and_then(|s| s[i].clone()),
         });
     }
     Ok(rows)
@@ -470,6 +476,7 @@ pub(crate) mod tests {
             provenance: Default::default(),
             appearance: None,
             quality: None,
+            shape_signature: Some((0..32).map(|i| i as f32 / 32.0).collect()),
         };
         let mut failed = ShardRow::failed(
             1,
