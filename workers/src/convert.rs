@@ -40,6 +40,10 @@ pub struct Steps<'a> {
     /// and area, and the extracted mesh's volume and components (when it is extracted), timed
     /// as the stage `quality`. The input's components then come from the same topology check.
     pub quality: bool,
+    /// Compute the output's shape signature (a shard row's `shape_signature`, for `sparc3d
+    /// dedup`), timed as the stage `signature`; the mesh is then extracted whatever
+    /// [`Steps::extract`] says.
+    pub signature: bool,
 }
 
 /// How [`convert_file`] encodes the tensors.
@@ -96,6 +100,8 @@ pub struct Converted {
     pub attributes: Option<(CellAttributes, AppearanceFacts)>,
     /// The quality facts, when measured.
     pub quality: Option<QualityFacts>,
+    /// The output's shape signature, when asked for and the output has a surface.
+    pub signature: Option<Vec<f32>>,
     /// Seconds per stage.
     pub seconds: StageSeconds,
 }
@@ -201,7 +207,7 @@ pub fn convert_bytes(
     drop(source);
 
     let t = Instant::now();
-    let extract = steps.extract || steps.samples.is_some();
+    let extract = steps.extract || steps.samples.is_some() || steps.signature;
     let mut mesh = extract.then(|| sparcubes::extract(&conversion.cubes));
     seconds.timings.extract_s = t.elapsed().as_secs_f64();
     if extract {
@@ -226,6 +232,10 @@ pub fn convert_bytes(
         Ok(s) => s,
         Err(e) => return Err(fail(StageError::Samples(e), seconds)),
     };
+    let signature = steps
+        .signature
+        .then(|| signature_of(mesh.as_ref(), &mut seconds))
+        .flatten();
     let attributes = match kept {
         Some(bytes) => match attributes_of(&bytes, path, buffers, &conversion, &mut seconds) {
             Ok(a) => Some(a),
@@ -265,8 +275,18 @@ pub fn convert_bytes(
         tensors,
         attributes,
         quality,
+        signature,
         seconds,
     })
+}
+
+/// The shape signature of the extracted `mesh`, timed as the stage `signature`; none without
+/// a mesh or when it has no area.
+fn signature_of(mesh: Option<&TriMesh>, seconds: &mut StageSeconds) -> Option<Vec<f32>> {
+    let t = Instant::now();
+    let signature = sparcubes::products::shape_signature::shape_signature(mesh?)?;
+    seconds.add_stage("signature", t.elapsed().as_secs_f64());
+    Some(signature.to_vec())
 }
 
 /// Draws the samples (`params`, a job with `[samples]`) from the extracted `mesh` and the
@@ -381,6 +401,7 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
         }),
         attributes: config.attributes.enabled,
         quality: config.quality,
+        signature: true,
     };
     let done = match convert_bytes(bytes, path, buffers, steps, started) {
         Ok(done) => done,
@@ -427,6 +448,7 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
         provenance: Default::default(),
         appearance: done.attributes.map(|a| a.1),
         quality: done.quality,
+        shape_signature: done.signature,
     }
 }
 
@@ -473,6 +495,7 @@ mod tests {
             }),
             attributes: false,
             quality: false,
+            signature: false,
         };
         let done = convert_file(&example("cube.off"), steps).map_err(|f| f.error)?;
         let names: Vec<&str> = done
@@ -526,6 +549,7 @@ mod tests {
             }),
             attributes: false,
             quality: false,
+            signature: false,
         };
         let done = convert_file(&example("cube.off"), steps).map_err(|f| f.error)?;
         let stats = done
@@ -557,6 +581,7 @@ mod tests {
             encode: None,
             attributes: false,
             quality: false,
+            signature: false,
         };
         let Err(failed) = convert_file(&example("missing.obj"), steps) else {
             panic!("a missing file converted")

@@ -62,6 +62,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         encode: None,
         attributes: args.attributes,
         quality: true,
+        signature: false,
     };
     let done = convert_file(&args.input, steps).map_err(|failed| {
         let context = match failed.error {
