@@ -452,7 +452,13 @@ pub fn cylinder(c: [f64; 2], r: f64, z0: f64, z1: f64, segments: u32) -> TriMesh
 
 /// The mesh moved by a similarity: turned by `angle` about the unit `axis` (Rodrigues'
 /// formula), scaled by `scale`, then moved by `offset`.
-pub fn similar(mesh: &TriMesh, axis: [f64; 3], angle: f64, scale: f64, offset: [f64; 3]) -> TriMesh {
+pub fn similar(
+    mesh: &TriMesh,
+    axis: [f64; 3],
+    angle: f64,
+    scale: f64,
+    offset: [f64; 3],
+) -> TriMesh {
     let (s, c) = angle.sin_cos();
     let k = axis;
     let mut m = mesh.clone();
@@ -477,7 +483,10 @@ pub fn split_at_centroids(mesh: &TriMesh) -> TriMesh {
     let mut m = TriMesh::new(mesh.positions.clone(), Vec::new());
     for t in &mesh.triangles {
         let corner = |a: usize| t.map(|i| f64::from(mesh.positions[i as usize][a]));
-        let g = push(&mut m, [0, 1, 2].map(|a| corner(a).iter().sum::<f64>() / 3.0));
+        let g = push(
+            &mut m,
+            [0, 1, 2].map(|a| corner(a).iter().sum::<f64>() / 3.0),
+        );
         m.triangles
             .extend([[t[0], t[1], g], [t[1], t[2], g], [t[2], t[0], g]]);
     }

@@ -49,6 +49,8 @@ pub struct Args {
     /// shards' columns: `input_faces <= 1000000 and license in (cc0, cc-by)`.
     #[arg(long = "where", value_name = "FILTER")]
     pub filter: Option<String>,
+    #[command(flatten)]
+    pub dedup: super::dedup::OnePerGroup,
 }
 
 /// `--format`'s parser: the consumers' names, each with its `--help` line.
@@ -129,6 +131,18 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
         wanted.insert(item_lookup::find(&job, query)?.record.id.as_str());
     }
     let filter = RowFilter::optional(&job, args.filter.as_deref())?;
+    let dropped = args.dedup.dropped(&job)?;
+    if !dropped.is_empty() {
+        if wanted.is_empty() {
+            wanted = job.items.iter().map(|i| i.record.id.as_str()).collect();
+        }
+        wanted.retain(|id| !dropped.contains(*id));
+        anyhow::ensure!(
+            !wanted.is_empty(),
+            "every item asked for is a near-duplicate --one-per-group leaves out (nothing written)"
+        );
+        eprintln!("{} near-duplicates left out (one per group)", dropped.len());
+    }
     refuse_a_folder_that_is_not_an_export(&args.out)?;
     let staging = Staging::create(&args.out)?;
     let chosen = Chosen {

@@ -5,6 +5,8 @@
 //! then the item's provenance columns as `name=value` fields (`--json`: a `manifest` object).
 //! `--where FILTER` lists only the items whose row passes (`crate::row_filter`; a pending item
 //! has only its id, uri, index and provenance).
+//! `--one-per-group` leaves out every near-duplicate but its group's representative
+//! (`sparc3d dedup`).
 
 use crate::hints;
 use crate::row_filter::RowFilter;
@@ -36,6 +38,8 @@ pub struct Args {
     /// provenance columns, when the manifest had any).
     #[arg(long)]
     pub json: bool,
+    #[command(flatten)]
+    pub dedup: super::dedup::OnePerGroup,
 }
 
 /// One listed item.
@@ -110,6 +114,7 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
     let job = crate::job::setup::open_read_only(&args.job)?;
     let filter = RowFilter::optional(&job, args.filter.as_deref())?;
     let mut left_out = 0u64;
+    let dropped = args.dedup.dropped(&job)?;
     let mut out = std::io::stdout().lock();
     let mut statuses = None;
     let mut loaded = None;
@@ -125,7 +130,7 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
             continue;
         }
         *counts.entry(status).or_default() += 1;
-        if args.failed && status != "failed" {
+        if (args.failed && status != "failed") || dropped.contains(&item.record.id) {
             continue;
         }
         let listed = Listed {
@@ -155,6 +160,9 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
     let n = |k: &str| counts.get(k).copied().unwrap_or(0);
     if let Some(f) = &filter {
         eprintln!("--where {}: {left_out} items left out", f.text);
+    }
+    if args.dedup.one_per_group {
+        eprintln!("{} near-duplicates left out (one per group)", dropped.len());
     }
     eprintln!(
         "{} items: {} ok, {} failed, {} pending{}",

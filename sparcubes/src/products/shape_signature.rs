@@ -210,7 +210,10 @@ fn shell_distribution(mesh: &TriMesh, c: [f64; 3], r: f64, area: f64) -> [f64; S
             bins
         })
         .collect();
-    parts.into_iter().fold(Binned::new(), Binned::merge).smoothed(area)
+    parts
+        .into_iter()
+        .fold(Binned::new(), Binned::merge)
+        .smoothed(area)
 }
 
 /// [`D2_POINTS`] surface points, one per equal share of the area along the triangle order
@@ -246,12 +249,17 @@ fn d2_distribution(points: &[[f64; 3]], r: f64) -> [f64; STEPS] {
         })
         .collect();
     let pairs = (points.len() * points.len().saturating_sub(1) / 2) as f64;
-    parts.into_iter().fold(Binned::new(), Binned::merge).smoothed(pairs)
+    parts
+        .into_iter()
+        .fold(Binned::new(), Binned::merge)
+        .smoothed(pairs)
 }
 
 /// The signature of a mesh (the watertight output, in any frame); `None` when it has no area.
 pub fn shape_signature(mesh: &TriMesh) -> Option<ShapeSignature> {
-    let origin = mesh.bounds().map(|(lo, hi)| [0, 1, 2].map(|a| 0.5 * (lo[a] + hi[a])))?;
+    let origin = mesh
+        .bounds()
+        .map(|(lo, hi)| [0, 1, 2].map(|a| 0.5 * (lo[a] + hi[a])))?;
     let raw = moments(mesh, origin);
     if !(raw.area > 0.0) {
         return None;
@@ -294,7 +302,10 @@ mod tests {
         for (got, want) in e.iter().zip([5.0, 3.0, 1.0]) {
             assert!((got - want).abs() < 1e-12, "{e:?}");
         }
-        assert_eq!(symmetric_eigenvalues(&[[2.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, 2.0]]), [2.0; 3]);
+        assert_eq!(
+            symmetric_eigenvalues(&[[2.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, 2.0]]),
+            [2.0; 3]
+        );
     }
 
     #[test]
