@@ -3,22 +3,27 @@
 //! them, so that near-duplicates are close in plain Euclidean distance ([`distance`]).
 //!
 //! It is read from the surface of the extracted mesh (never the source's triangle list, so a
-//! re-triangulated source gives the same output up to the grid's rounding), with every length
-//! measured from the surface's area centroid `c` in units of its RMS radius
-//! `r = sqrt(∫|x − c|² dA / A)`, which removes translation and scale; only distances and
+//! re-triangulated source gives the same output up to the grid's rounding), through
+//! [`SURFACE_POINTS`] points taken at equal steps of area along the triangles (systematic
+//! sampling: no random draw, and the output's triangles come in grid order, so the points
+//! spread over the whole surface; each is its triangle's centroid, the output's triangles being
+//! under two voxels across). Every length is measured from the points' centroid `c` in units
+//! of their RMS radius `r`, which removes translation and scale; only distances and
 //! eigenvalues enter, which removes rotation and mirroring:
 //!
 //! | entries | what |
 //! |---|---|
-//! | 0–2 | eigenvalues of the surface's second-moment tensor about `c` over `r²` (they sum to 1), largest first, times [`EIGEN_WEIGHT`] |
-//! | 3 | sphericity `(36π V²)^⅓ / A` of the enclosed volume `V` (1 for a ball, near 0 for a thin shell) |
-//! | 4–17 | the shell distribution: share of the area within `tᵢ = 0.15·(i+1)·r` of `c` |
-//! | 18–31 | the D2 distribution (Osada et al., "Shape distributions", ACM TOG 2002): share of pairs of [`D2_POINTS`] area-stratified surface points within `sᵢ = 0.25·(i+1)·r` of each other |
+//! | 0–2 | eigenvalues of the points' second-moment tensor about `c` over `r²` (they sum to 1), largest first, times [`EIGEN_WEIGHT`] |
+//! | 3 | sphericity `(36π V²)^⅓ / A` of the enclosed volume `V` and area `A` (exact, over every triangle; 1 for a ball, near 0 for a thin shell) |
+//! | 4–17 | the shell distribution: share of the points within `tᵢ = 0.15·(i+1)·r` of `c` |
+//! | 18–31 | the D2 distribution (Osada et al., "Shape distributions", ACM TOG 2002): share of pairs of [`D2_POINTS`] of the points (every 32nd) within `sᵢ = 0.25·(i+1)·r` of each other |
 //!
 //! Both distributions are cumulative and smoothed: each distance counts linearly across one
 //! step either side of a threshold, so a surface that moves by ε moves every entry by at most
-//! ε / step, and no entry jumps when a distance crosses a threshold. Sums run over fixed chunks
-//! combined in order, so the signature is bit-identical whatever the thread count.
+//! ε / step, and no entry jumps when a distance crosses a threshold. The one pass over every
+//! triangle (areas and volume) runs over fixed chunks combined in order, so the signature is
+//! bit-identical whatever the thread count; the rest reads the points alone, which keeps the
+//! cost a few per cent of the conversion (docs/PERFORMANCE.md, "Near-duplicate groups").
 
 use crate::TriMesh;
 use rayon::prelude::*;
@@ -31,7 +36,9 @@ const STEPS: usize = 14;
 const SHELL_STEP: f64 = 0.15;
 /// Step of the D2 distribution's thresholds, in units of `r`.
 const D2_STEP: f64 = 0.25;
-/// Surface points whose pairwise distances make the D2 distribution (2 096 128 pairs).
+/// Area-stratified surface points the signature reads.
+pub const SURFACE_POINTS: usize = 1 << 16;
+/// Of those, the points whose pairwise distances make the D2 distribution (2 096 128 pairs).
 pub const D2_POINTS: usize = 2048;
 /// Weight of the eigenvalue entries: their differences between shapes are a third of the
 /// distributions' per entry, and there are fewer of them.
@@ -51,29 +58,6 @@ pub fn distance(a: &[f32], b: &[f32]) -> f64 {
         .sqrt()
 }
 
-/// Area-weighted moments of a set of triangles about a reference point.
-#[derive(Debug, Clone, Copy, Default)]
-struct Moments {
-    area: f64,
-    first: [f64; 3],
-    second: [[f64; 3]; 3],
-    volume6: f64,
-}
-
-impl Moments {
-    fn add(mut self, o: Moments) -> Moments {
-        self.area += o.area;
-        self.volume6 += o.volume6;
-        for a in 0..3 {
-            self.first[a] += o.first[a];
-            for b in 0..3 {
-                self.second[a][b] += o.second[a][b];
-            }
-        }
-        self
-    }
-}
-
 /// The corners of triangle `t` relative to `origin`, in double precision.
 fn corners(mesh: &TriMesh, t: &[u32; 3], origin: [f64; 3]) -> [[f64; 3]; 3] {
     t.map(|i| {
@@ -88,39 +72,71 @@ fn triangle_area(v: &[[f64; 3]; 3]) -> f64 {
     0.5 * crate::vec3::norm(crate::vec3::cross(e1, e2))
 }
 
-/// Exact area moments of one triangle: `∫x dA` and `∫x xᵀ dA` are `A·s/3` and
-/// `A/12·(Σ vᵢvᵢᵀ + s sᵀ)` with `s = v₀ + v₁ + v₂`; `volume6` the signed volume of the
-/// tetrahedron to the origin, times 6 (divergence theorem).
-fn triangle_moments(v: &[[f64; 3]; 3]) -> Moments {
-    let area = triangle_area(v);
-    let s = [0, 1, 2].map(|a| v[0][a] + v[1][a] + v[2][a]);
-    let mut m = Moments {
-        area,
-        first: s.map(|x| area * x / 3.0),
-        volume6: crate::vec3::dot(v[0], crate::vec3::cross(v[1], v[2])),
-        ..Moments::default()
-    };
-    for a in 0..3 {
-        for b in 0..3 {
-            let vv: f64 = v.iter().map(|p| p[a] * p[b]).sum();
-            m.second[a][b] = area / 12.0 * (vv + s[a] * s[b]);
-        }
-    }
-    m
-}
-
-/// The moments of the whole mesh about `origin`, summed over fixed chunks in order.
-fn moments(mesh: &TriMesh, origin: [f64; 3]) -> Moments {
-    let parts: Vec<Moments> = mesh
+/// Each triangle's area, and six times the enclosed volume (the signed volumes of the
+/// tetrahedra from `origin`, divergence theorem), summed over fixed chunks in order.
+fn areas_and_volume(mesh: &TriMesh, origin: [f64; 3]) -> (Vec<f64>, f64) {
+    let parts: Vec<(Vec<f64>, f64)> = mesh
         .triangles
         .par_chunks(CHUNK)
         .map(|chunk| {
-            chunk.iter().fold(Moments::default(), |m, t| {
-                m.add(triangle_moments(&corners(mesh, t, origin)))
-            })
+            let mut volume6 = 0.0;
+            let areas = chunk
+                .iter()
+                .map(|t| {
+                    let v = corners(mesh, t, origin);
+                    volume6 += crate::vec3::dot(v[0], crate::vec3::cross(v[1], v[2]));
+                    triangle_area(&v)
+                })
+                .collect();
+            (areas, volume6)
         })
         .collect();
-    parts.into_iter().fold(Moments::default(), Moments::add)
+    let mut areas = Vec::with_capacity(mesh.triangles.len());
+    let mut volume6 = 0.0;
+    for (a, v) in parts {
+        areas.extend(a);
+        volume6 += v;
+    }
+    (areas, volume6)
+}
+
+/// [`SURFACE_POINTS`] points, one per equal share of the total `area` along the triangle
+/// order, each its triangle's centroid.
+fn stratified_points(mesh: &TriMesh, areas: &[f64], area: f64) -> Vec<[f64; 3]> {
+    let mut points = Vec::with_capacity(SURFACE_POINTS);
+    let step = area / SURFACE_POINTS as f64;
+    let mut next = 0.5 * step;
+    let mut walked = 0.0;
+    for (t, a) in mesh.triangles.iter().zip(areas) {
+        walked += a;
+        while walked > next && points.len() < SURFACE_POINTS {
+            let v = corners(mesh, t, [0.0; 3]);
+            points.push([0, 1, 2].map(|k| (v[0][k] + v[1][k] + v[2][k]) / 3.0));
+            next += step;
+        }
+    }
+    points
+}
+
+/// The points' centroid and second-moment tensor about it.
+fn centroid_and_covariance(points: &[[f64; 3]]) -> ([f64; 3], [[f64; 3]; 3]) {
+    let n = points.len().max(1) as f64;
+    let mut c = [0.0; 3];
+    for p in points {
+        for k in 0..3 {
+            c[k] += p[k] / n;
+        }
+    }
+    let mut cov = [[0.0; 3]; 3];
+    for p in points {
+        let d = crate::vec3::sub(*p, c);
+        for a in 0..3 {
+            for b in 0..3 {
+                cov[a][b] += d[a] * d[b] / n;
+            }
+        }
+    }
+    (c, cov)
 }
 
 /// Eigenvalues of a symmetric 3×3 matrix, largest first (the trigonometric closed form:
@@ -194,45 +210,13 @@ impl Binned {
     }
 }
 
-/// The shell distribution: the share of the area near each threshold distance from `c`
-/// (triangles counted at their centroids; the output's triangles are under two voxels across).
-fn shell_distribution(mesh: &TriMesh, c: [f64; 3], r: f64, area: f64) -> [f64; STEPS] {
-    let parts: Vec<Binned> = mesh
-        .triangles
-        .par_chunks(CHUNK)
-        .map(|chunk| {
-            let mut bins = Binned::new();
-            for t in chunk {
-                let v = corners(mesh, t, c);
-                let g = [0, 1, 2].map(|a| (v[0][a] + v[1][a] + v[2][a]) / 3.0);
-                bins.add(crate::vec3::norm(g) / r / SHELL_STEP, triangle_area(&v));
-            }
-            bins
-        })
-        .collect();
-    parts
-        .into_iter()
-        .fold(Binned::new(), Binned::merge)
-        .smoothed(area)
-}
-
-/// [`D2_POINTS`] surface points, one per equal share of the area along the triangle order
-/// (systematic sampling: no random draw, and the output's triangles come in grid order, so
-/// the points spread over the whole surface); each is the centroid of its triangle.
-fn stratified_points(mesh: &TriMesh, c: [f64; 3], area: f64) -> Vec<[f64; 3]> {
-    let mut points = Vec::with_capacity(D2_POINTS);
-    let step = area / D2_POINTS as f64;
-    let mut next = 0.5 * step;
-    let mut walked = 0.0;
-    for t in &mesh.triangles {
-        let v = corners(mesh, t, c);
-        walked += triangle_area(&v);
-        while walked > next && points.len() < D2_POINTS {
-            points.push([0, 1, 2].map(|a| (v[0][a] + v[1][a] + v[2][a]) / 3.0));
-            next += step;
-        }
+/// The shell distribution: the share of the points near each threshold distance from `c`.
+fn shell_distribution(points: &[[f64; 3]], c: [f64; 3], r: f64) -> [f64; STEPS] {
+    let mut bins = Binned::new();
+    for p in points {
+        bins.add(crate::vec3::dist2(*p, c).sqrt() / r / SHELL_STEP, 1.0);
     }
-    points
+    bins.smoothed(points.len() as f64)
 }
 
 /// The D2 distribution of the stratified points: the share of pairs near each threshold.
@@ -257,26 +241,26 @@ fn d2_distribution(points: &[[f64; 3]], r: f64) -> [f64; STEPS] {
 
 /// The signature of a mesh (the watertight output, in any frame); `None` when it has no area.
 pub fn shape_signature(mesh: &TriMesh) -> Option<ShapeSignature> {
-    let origin = mesh
-        .bounds()
-        .map(|(lo, hi)| [0, 1, 2].map(|a| 0.5 * (lo[a] + hi[a])))?;
-    let raw = moments(mesh, origin);
-    if !(raw.area > 0.0) {
+    let origin = mesh.bounds().map(|(lo, hi)| [0, 1, 2].map(|a| 0.5 * (lo[a] + hi[a])))?;
+    let (areas, volume6) = areas_and_volume(mesh, origin);
+    let area: f64 = areas.iter().sum();
+    if !(area > 0.0) {
         return None;
     }
-    let c = [0, 1, 2].map(|a| origin[a] + raw.first[a] / raw.area);
-    let about = moments(mesh, c);
-    let cov = about.second.map(|row| row.map(|x| x / about.area));
+    let points = stratified_points(mesh, &areas, area);
+    let (c, cov) = centroid_and_covariance(&points);
     let r2 = cov[0][0] + cov[1][1] + cov[2][2];
     if !(r2 > 0.0) {
         return None;
     }
     let r = r2.sqrt();
     let eigen = symmetric_eigenvalues(&cov).map(|l| EIGEN_WEIGHT * (l / r2).max(0.0));
-    let volume = about.volume6.abs() / 6.0;
-    let sphericity = (36.0 * std::f64::consts::PI * volume * volume).cbrt() / about.area;
-    let shell = shell_distribution(mesh, c, r, about.area);
-    let d2 = d2_distribution(&stratified_points(mesh, c, about.area), r);
+    let volume = volume6.abs() / 6.0;
+    let sphericity = (36.0 * std::f64::consts::PI * volume * volume).cbrt() / area;
+    let shell = shell_distribution(&points, c, r);
+    let stride = (points.len() / D2_POINTS).max(1);
+    let d2_points: Vec<[f64; 3]> = points.iter().step_by(stride).copied().collect();
+    let d2 = d2_distribution(&d2_points, r);
     let mut s = [0.0f32; SIGNATURE_LEN];
     let values = eigen.iter().chain([&sphericity]).chain(&shell).chain(&d2);
     for (slot, v) in s.iter_mut().zip(values) {
