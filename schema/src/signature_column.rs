@@ -24,7 +24,11 @@ pub fn field() -> Field {
 /// The column over rows' signatures (`None`: null in that row). A signature of another length
 /// is an error.
 pub fn column(signatures: &[Option<&[f32]>]) -> Result<ArrayRef> {
-    if let Some(bad) = signatures.iter().flatten().find(|s| s.len() != SIGNATURE_LEN) {
+    if let Some(bad) = signatures
+        .iter()
+        .flatten()
+        .find(|s| s.len() != SIGNATURE_LEN)
+    {
         return Err(SchemaError::Column {
             name: c::SHAPE_SIGNATURE.into(),
             reason: format!("{} values, not {SIGNATURE_LEN}", bad.len()),
