@@ -36,7 +36,8 @@ pub fn groups(signatures: &[Vec<f32>], threshold: f64) -> Vec<Group> {
         return Vec::new();
     };
     let axes = principal_axes(signatures, dim, AXES.min(dim));
-    let cell = threshold.max(f64::MIN_POSITIVE);
+    // A zero threshold still needs cells of some size (only equal signatures group then).
+    let cell = threshold.max(1e-9);
     let mut grid: HashMap<Vec<i64>, Vec<usize>> = HashMap::new();
     let mut leader_of: Vec<Option<(usize, f64)>> = vec![None; signatures.len()];
     let mut neighbours = Vec::new();
@@ -95,7 +96,7 @@ fn neighbour_keys(key: &[i64], out: &mut Vec<Vec<i64>>) {
         for k in 0..so_far {
             for step in [-1, 1] {
                 let mut n = out[k].clone();
-                n[a] += step;
+                n[a] = n[a].saturating_add(step);
                 out.push(n);
             }
         }

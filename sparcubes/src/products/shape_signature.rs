@@ -16,7 +16,7 @@
 //! | 0–2 | eigenvalues of the points' second-moment tensor about `c` over `r²` (they sum to 1), largest first, times [`EIGEN_WEIGHT`] |
 //! | 3 | sphericity `(36π V²)^⅓ / A` of the enclosed volume `V` and area `A` (exact, over every triangle; 1 for a ball, near 0 for a thin shell) |
 //! | 4–17 | the shell distribution: share of the points within `tᵢ = 0.15·(i+1)·r` of `c` |
-//! | 18–31 | the D2 distribution (Osada et al., "Shape distributions", ACM TOG 2002): share of pairs of [`D2_POINTS`] of the points (every 32nd) within `sᵢ = 0.25·(i+1)·r` of each other |
+//! | 18–31 | the D2 distribution (Osada et al., "Shape distributions", ACM TOG 2002): share of pairs of [`D2_POINTS`] of the points (every 64th) within `sᵢ = 0.25·(i+1)·r` of each other |
 //!
 //! Both distributions are cumulative and smoothed: each distance counts linearly across one
 //! step either side of a threshold, so a surface that moves by ε moves every entry by at most
@@ -38,8 +38,9 @@ const SHELL_STEP: f64 = 0.15;
 const D2_STEP: f64 = 0.25;
 /// Area-stratified surface points the signature reads.
 pub const SURFACE_POINTS: usize = 1 << 16;
-/// Of those, the points whose pairwise distances make the D2 distribution (2 096 128 pairs).
-pub const D2_POINTS: usize = 2048;
+/// Of those, the points whose pairwise distances make the D2 distribution (523 776 pairs:
+/// with 2048 points the pairs were most of the signature's time, docs/PERFORMANCE.md).
+pub const D2_POINTS: usize = 1024;
 /// Weight of the eigenvalue entries: their differences between shapes are a third of the
 /// distributions' per entry, and there are fewer of them.
 pub const EIGEN_WEIGHT: f64 = 2.0;
