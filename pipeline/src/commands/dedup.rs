@@ -16,7 +16,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 /// The default threshold: the generated copies of the tests (moved, scaled, re-triangulated,
-/// mirrored and jittered) sit within 0.006 of their originals at 96³, the closest distinct
+/// mirrored and jittered) sit within 0.008 of their originals at 96³, the closest distinct
 /// shapes of one extent (a 15 % longer box and a cylinder) 0.09 apart (docs/QUALITY.md,
 /// "Near-duplicates").
 pub const DEFAULT_THRESHOLD: f64 = 0.03;
