@@ -242,7 +242,9 @@ fn d2_distribution(points: &[[f64; 3]], r: f64) -> [f64; STEPS] {
 
 /// The signature of a mesh (the watertight output, in any frame); `None` when it has no area.
 pub fn shape_signature(mesh: &TriMesh) -> Option<ShapeSignature> {
-    let origin = mesh.bounds().map(|(lo, hi)| [0, 1, 2].map(|a| 0.5 * (lo[a] + hi[a])))?;
+    let origin = mesh
+        .bounds()
+        .map(|(lo, hi)| [0, 1, 2].map(|a| 0.5 * (lo[a] + hi[a])))?;
     let (areas, volume6) = areas_and_volume(mesh, origin);
     let area: f64 = areas.iter().sum();
     if !(area > 0.0) {
