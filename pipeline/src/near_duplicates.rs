@@ -15,6 +15,9 @@
 //! cells are checked exactly. Everything runs in item order on one thread, so the groups are
 //! the same on any machine.
 
+// The matrix code indexes rows and columns by number, as the formulas do.
+#![allow(clippy::needless_range_loop)]
+
 use std::collections::HashMap;
 
 /// Principal components the grid hash is over (`3^AXES` cells checked per item).

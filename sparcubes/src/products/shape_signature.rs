@@ -247,13 +247,13 @@ pub fn shape_signature(mesh: &TriMesh) -> Option<ShapeSignature> {
         .map(|(lo, hi)| [0, 1, 2].map(|a| 0.5 * (lo[a] + hi[a])))?;
     let (areas, volume6) = areas_and_volume(mesh, origin);
     let area: f64 = areas.iter().sum();
-    if !(area > 0.0) {
+    if area.is_nan() || area <= 0.0 {
         return None;
     }
     let points = stratified_points(mesh, &areas, area);
     let (c, cov) = centroid_and_covariance(&points);
     let r2 = cov[0][0] + cov[1][1] + cov[2][2];
-    if !(r2 > 0.0) {
+    if r2.is_nan() || r2 <= 0.0 {
         return None;
     }
     let r = r2.sqrt();
