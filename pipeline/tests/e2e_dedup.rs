@@ -1,11 +1,12 @@
 //! `sparc3d dedup` over a job of generated near-duplicates: a torus moved, re-triangulated
 //! and mirrored with jitter is one group with the original as representative; boxes, a
 //! cylinder and a sphere of the same extent are in none; `ls` and `export` with
-//! `--one-per-group` leave the copies out.
+//! `--one-per-group` leave the copies out. A job made without the signature (as every job
+//! before it) has no column, and `dedup` says so.
 
 mod common;
 
-use common::{ok, s, sparc3d};
+use common::{column_names, example, ok, s, shard_files, sparc3d};
 use sparcubes::{shapes, TriMesh};
 use std::collections::BTreeSet;
 use std::path::Path;
@@ -77,6 +78,12 @@ fn copies_group_with_their_original_and_distinct_shapes_stay_apart() {
         "--workers",
         "2",
     ]);
+    let file = std::fs::read_to_string(job.join("job.json")).unwrap_or_else(|e| panic!("{e}"));
+    let config: serde_json::Value = serde_json::from_str(&file).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(config["config"]["shape_signature"], true, "{file}");
+    for file in shard_files(&job) {
+        assert!(column_names(&file).contains(&"shape_signature".to_string()));
+    }
     let ids = ids_by_file(j);
     let id = |file: &str| -> String {
         let found = ids
@@ -145,4 +152,44 @@ fn copies_group_with_their_original_and_distinct_shapes_stay_apart() {
     );
     let files = std::fs::read_dir(&export).map(|d| d.count()).unwrap_or(0);
     assert_eq!(files, 5 + 1, "five items and the export's record");
+}
+
+#[test]
+fn a_job_without_the_signature_has_no_column_and_dedup_says_so() {
+    let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let dir = tmp.path().join("meshes");
+    std::fs::create_dir_all(&dir).unwrap_or_else(|e| panic!("{e}"));
+    for name in ["cube.off", "sphere.obj"] {
+        std::fs::copy(example(name), dir.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+    }
+    // `shape_signature = false` writes the job.json of every job made before the column.
+    let config = tmp.path().join("old.toml");
+    std::fs::write(&config, "shape_signature = false\n").unwrap_or_else(|e| panic!("{e}"));
+    let job = tmp.path().join("job");
+    let j = s(&job);
+    let run = ["run", s(&dir), "--job", j, "--config", s(&config)];
+    ok(&[&run[..], &["--resolution", "32", "--workers", "1"]].concat());
+    let file = std::fs::read_to_string(job.join("job.json")).unwrap_or_else(|e| panic!("{e}"));
+    assert!(!file.contains("shape_signature"), "{file}");
+    let shards = shard_files(&job);
+    assert!(!shards.is_empty());
+    for shard in &shards {
+        assert!(!column_names(shard).contains(&"shape_signature".to_string()));
+    }
+    // `dedup` and `--one-per-group` refuse it by name, with what to do, and crash on nothing.
+    for args in [vec!["dedup", j], vec!["ls", j, "--one-per-group"]] {
+        let out = sparc3d(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert!(
+            err.contains("stores no shape signatures"),
+            "{args:?}: {err}"
+        );
+        assert!(
+            err.contains("new job") && !err.contains("panicked"),
+            "{err}"
+        );
+    }
+    // Everything else reads it as before.
+    assert_eq!(ok(&["ls", j]).lines().count(), 2);
 }

@@ -58,7 +58,7 @@ from .location import ObjectPath
 from .schema import (APPEARANCE_COLUMNS, ATTRIBUTE_TENSORS, CONSUMER_FORMATS, EXPORT_FORMATS,
                      META_COLUMNS, OPTIONAL_SAMPLE_TENSORS,
                      PROVENANCE_PREFIX, QUALITY_COLUMNS, SAMPLE_TENSORS, SCHEMA_VERSION,
-                     TENSORS)
+                     SHAPE_SIGNATURE_COLUMN, TENSORS)
 from .shards import PathLike, check_schema_version, read_job_config, shard_config, shard_paths
 from .tensors import (decode_tensor, encode_tensor, iter_tensor_rows, write_completion_record,
                       write_tensor_file)
@@ -73,6 +73,7 @@ __all__ = [
     "ATTRIBUTE_TENSORS",
     "APPEARANCE_COLUMNS",
     "QUALITY_COLUMNS",
+    "SHAPE_SIGNATURE_COLUMN",
     "OPTIONAL_SAMPLE_TENSORS",
     "samples_to_source",
     "collate_vecset",

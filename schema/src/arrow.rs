@@ -32,6 +32,9 @@ pub struct Sections {
     pub attributes: bool,
     /// The quality columns ([`crate::quality`]), a job with `quality = true`.
     pub quality: bool,
+    /// The `shape_signature` column ([`crate::signature_column`]), a job with
+    /// `shape_signature = true`.
+    pub signature: bool,
 }
 
 impl Sections {
@@ -40,13 +43,15 @@ impl Sections {
         Self {
             attributes: config.attributes.enabled,
             quality: config.quality,
+            signature: config.shape_signature,
         }
     }
 }
 
-/// [`schema_with`], with the appearance columns ([`crate::attribute_columns`]) and then the
-/// quality columns ([`crate::quality`]) after the tensors, as `sections` asks; without them
-/// the schema is exactly [`schema_with`]'s.
+/// [`schema_with`], with the appearance columns ([`crate::attribute_columns`]), the quality
+/// columns ([`crate::quality`]) and then the `shape_signature` column
+/// ([`crate::signature_column`]) after the tensors, as `sections` asks; without them the
+/// schema is exactly [`schema_with`]'s.
 pub fn schema_for(provenance: &[String], sections: Sections) -> SchemaRef {
     use DataType::*;
     let mut f = vec![
@@ -81,7 +86,9 @@ pub fn schema_for(provenance: &[String], sections: Sections) -> SchemaRef {
     if sections.quality {
         f.extend(crate::quality_columns::fields());
     }
-    f.push(crate::signature_column::field());
+    if sections.signature {
+        f.push(crate::signature_column::field());
+    }
     for name in provenance {
         f.push(Field::new(c::provenance_column(name), Utf8, true));
     }
@@ -217,9 +224,11 @@ pub fn rows_to_batch_for(
     if sections.quality {
         cols.extend(crate::quality_columns::columns(rows));
     }
-    let signatures: Vec<Option<&[f32]>> =
-        rows.iter().map(|r| r.shape_signature.as_deref()).collect();
-    cols.push(crate::signature_column::column(&signatures)?);
+    if sections.signature {
+        let signatures: Vec<Option<&[f32]>> =
+            rows.iter().map(|r| r.shape_signature.as_deref()).collect();
+        cols.push(crate::signature_column::column(&signatures)?);
+    }
     for name in provenance {
         cols.push(strs(&|r| r.provenance.get(name).map(String::as_str)));
     }
@@ -476,7 +485,7 @@ pub(crate) mod tests {
             provenance: Default::default(),
             appearance: None,
             quality: None,
-            shape_signature: Some((0..32).map(|i| i as f32 / 32.0).collect()),
+            shape_signature: None,
         };
         let mut failed = ShardRow::failed(
             1,

@@ -1,7 +1,8 @@
 //! The `shape_signature` column: each ok row's shape signature
 //! (`sparcubes::products::shape_signature`), a fixed-size list of `float32`, null in rows
-//! without one (failed items); shards written before it have no such column and read as rows
-//! without a signature (docs/FORMAT.md, "Columns").
+//! without one (failed items). Only a job with `shape_signature = true` writes it; shards of
+//! other jobs (and those written before it) have no such column and read as rows without a
+//! signature (docs/FORMAT.md, "Shape signature").
 
 use crate::columns as c;
 use crate::error::{Result, SchemaError};
@@ -83,32 +84,37 @@ pub fn read(batch: &RecordBatch) -> Result<Option<Vec<Option<Vec<f32>>>>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::arrow::{batch_to_rows, rows_to_batch};
+    use crate::arrow::{batch_to_rows, rows_to_batch, rows_to_batch_for, schema, Sections};
+    use crate::digest::rows_digest;
 
     #[test]
-    fn signatures_round_trip_and_shards_without_the_column_still_read() -> Result<()> {
-        let rows = crate::arrow::tests::sample_rows();
-        assert!(rows[0].shape_signature.is_some() && rows[1].shape_signature.is_none());
-        let batch = rows_to_batch(&rows)?;
+    fn signatures_round_trip_and_are_absent_without_the_setting() -> Result<()> {
+        let plain = crate::arrow::tests::sample_rows();
+        let mut rows = plain.clone();
+        rows[0].shape_signature = Some((0..32).map(|i| i as f32 / 32.0).collect());
+        let on = Sections {
+            signature: true,
+            ..Sections::default()
+        };
+        let batch = rows_to_batch_for(&rows, &[], on)?;
+        assert_eq!(batch.num_columns(), schema().fields().len() + 1);
         assert_eq!(batch_to_rows(&batch)?, rows);
         let Some(read_back) = read(&batch)? else {
             panic!("no signature column")
         };
         assert_eq!(read_back[0].as_deref(), rows[0].shape_signature.as_deref());
-        assert_eq!(read_back[1], None);
-        // A shard written before the column: its rows read without a signature, and digest
-        // as the same rows did then.
-        let schema = batch.schema();
-        let keep: Vec<usize> = (0..schema.fields().len())
-            .filter(|&i| schema.field(i).name() != c::SHAPE_SIGNATURE)
-            .collect();
-        let old = batch.project(&keep)?;
+        assert_eq!(read_back[1], None, "the failed row has none");
+        assert_ne!(
+            rows_digest(&rows),
+            rows_digest(&plain),
+            "the signature is content"
+        );
+        // Without the setting (a job stored before the column, or `shape_signature = false`):
+        // the schema, the rows and the digest of before.
+        let old = rows_to_batch(&plain)?;
+        assert_eq!(old.schema(), schema());
         assert!(read(&old)?.is_none());
-        let mut without = rows.clone();
-        without[0].shape_signature = None;
-        assert_eq!(batch_to_rows(&old)?, without);
-        let digest = crate::digest::rows_digest;
-        assert_ne!(digest(&rows), digest(&without), "the signature is content");
+        assert_eq!(batch_to_rows(&old)?, plain);
         Ok(())
     }
 

@@ -40,9 +40,9 @@ pub struct Steps<'a> {
     /// and area, and the extracted mesh's volume and components (when it is extracted), timed
     /// as the stage `quality`. The input's components then come from the same topology check.
     pub quality: bool,
-    /// Compute the output's shape signature (a shard row's `shape_signature`, for `sparc3d
-    /// dedup`), timed as the stage `signature`; the mesh is then extracted whatever
-    /// [`Steps::extract`] says.
+    /// Compute the output's shape signature (a job with `shape_signature = true`: a shard
+    /// row's `shape_signature`, for `sparc3d dedup`), timed as the stage `signature`; the
+    /// mesh is then extracted whatever [`Steps::extract`] says.
     pub signature: bool,
 }
 
@@ -401,7 +401,7 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
         }),
         attributes: config.attributes.enabled,
         quality: config.quality,
-        signature: true,
+        signature: config.shape_signature,
     };
     let done = match convert_bytes(bytes, path, buffers, steps, started) {
         Ok(done) => done,

@@ -12,7 +12,7 @@ use sparc3d_workers::store::read::{for_each_shard_row, Columns};
 use sparc3d_workers::store::state::Check;
 use sparc3d_workers::Job;
 use std::collections::{BTreeSet, HashSet};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 /// The default threshold: the generated copies of the tests (moved, scaled, re-triangulated,
@@ -54,10 +54,11 @@ pub struct OnePerGroup {
 }
 
 impl OnePerGroup {
-    /// The ids to leave out: none without `--one-per-group`.
-    pub fn dropped(&self, job: &Job) -> Result<HashSet<String>> {
+    /// The ids to leave out: none without `--one-per-group`; an error when the job (`named`
+    /// as given) stores no signatures.
+    pub fn dropped(&self, job: &Job, named: &Path) -> Result<HashSet<String>> {
         match self.one_per_group {
-            true => dropped_ids(job, self.threshold),
+            true => dropped_ids(job, named, self.threshold),
             false => Ok(HashSet::new()),
         }
     }
@@ -87,22 +88,33 @@ pub struct Signed {
 pub struct JobSignatures {
     /// Ok items with a signature.
     pub signed: Vec<Signed>,
-    /// Ok items without one (ids).
+    /// Ok items without one (ids): their output had no surface to measure.
     pub unsigned: Vec<String>,
-    /// Finished shards whose files have no `shape_signature` column (written before it).
-    pub shards_without_column: Vec<u64>,
 }
 
-/// Reads every finished or running shard's ok rows (without their sample columns).
-pub fn read_signatures(job: &Job) -> Result<JobSignatures> {
+/// Refuses a job whose config does not store the signatures (`shape_signature` off: made
+/// before the column, or with it turned off), naming the job and what to do.
+fn require_signatures(job: &Job, named: &Path) -> Result<()> {
+    anyhow::ensure!(
+        job.file.config.shape_signature,
+        "{}: this job stores no shape signatures (its job.json has no `shape_signature = true`: \
+         it was made before the column existed or with it off), so its items cannot be \
+         grouped; convert them again in a new job (`shape_signature` is on by default)",
+        named.display()
+    );
+    Ok(())
+}
+
+/// Reads every finished or running shard's ok rows (without their sample columns); an error
+/// when the job does not store signatures ([`require_signatures`]).
+pub fn read_signatures(job: &Job, named: &Path) -> Result<JobSignatures> {
+    require_signatures(job, named)?;
     let shards: BTreeSet<u64> = job.items.iter().map(|i| i.shard).collect();
     let mut out = JobSignatures {
         signed: Vec::new(),
         unsigned: Vec::new(),
-        shards_without_column: Vec::new(),
     };
     for shard in shards {
-        let before = (out.signed.len(), out.unsigned.len());
         for_each_shard_row(job, shard, Check::Quick, Columns::WithoutSamples, |row| {
             if row.status != ItemStatus::Ok {
                 return Ok(());
@@ -119,26 +131,9 @@ pub fn read_signatures(job: &Job) -> Result<JobSignatures> {
             Ok(())
         })
         .with_context(|| format!("reading shard {shard}"))?;
-        let unsigned_here = out.unsigned.len() > before.1 && out.signed.len() == before.0;
-        if unsigned_here && !shard_has_column(job, shard) {
-            out.shards_without_column.push(shard);
-        }
     }
     out.signed.sort_by_key(|s| s.index);
     Ok(out)
-}
-
-/// Whether a finished shard's file has the `shape_signature` column (a shard in progress is
-/// written by this version, so it does).
-fn shard_has_column(job: &Job, shard: u64) -> bool {
-    let path = job.layout.shard_file(shard);
-    match sparc3d_workers::store::footer::read_meta(&path) {
-        Ok(meta) => meta
-            .column_bytes
-            .iter()
-            .any(|(name, _)| name.starts_with(sparc3d_schema::columns::SHAPE_SIGNATURE)),
-        Err(_) => true,
-    }
 }
 
 /// The near-duplicate groups of the signed items (positions into `signed`).
@@ -149,8 +144,8 @@ pub fn group(signed: &[Signed], threshold: f64) -> Vec<Group> {
 
 /// The ids `--one-per-group` leaves out: every group member but its representative. Items
 /// without a signature are kept (said on stderr).
-pub fn dropped_ids(job: &Job, threshold: f64) -> Result<HashSet<String>> {
-    let read = read_signatures(job)?;
+pub fn dropped_ids(job: &Job, named: &Path, threshold: f64) -> Result<HashSet<String>> {
+    let read = read_signatures(job, named)?;
     warn_unsigned(&read);
     let groups = group(&read.signed, threshold);
     Ok(groups
@@ -159,38 +154,15 @@ pub fn dropped_ids(job: &Job, threshold: f64) -> Result<HashSet<String>> {
         .collect())
 }
 
-/// Says on stderr which ok items have no signature and why, when any.
+/// Says on stderr which ok items have no signature, when any.
 fn warn_unsigned(read: &JobSignatures) {
-    if read.unsigned.is_empty() {
-        return;
+    if !read.unsigned.is_empty() {
+        eprintln!(
+            "warning: {} ok items have no shape signature (an output without area) and are in \
+             no group",
+            read.unsigned.len()
+        );
     }
-    eprintln!(
-        "warning: {} ok items have no shape signature and are in no group{}",
-        read.unsigned.len(),
-        if read.shards_without_column.is_empty() {
-            String::new()
-        } else {
-            format!(
-                ": shard{} {} ha{} no `shape_signature` column (written by a sparc3d from \
-                 before it; convert the items again in a new job to group them)",
-                if read.shards_without_column.len() > 1 {
-                    "s"
-                } else {
-                    ""
-                },
-                read.shards_without_column
-                    .iter()
-                    .map(u64::to_string)
-                    .collect::<Vec<_>>()
-                    .join(", "),
-                if read.shards_without_column.len() > 1 {
-                    "ve"
-                } else {
-                    "s"
-                },
-            )
-        }
-    );
 }
 
 /// One member as `--json` prints it.
@@ -224,15 +196,7 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
     let named = args.job.clone();
     args.job = crate::job::bucket_home::local_view(&args.job)?;
     let job = crate::job::setup::open_read_only(&args.job)?;
-    let read = read_signatures(&job)?;
-    if read.signed.is_empty() && !read.unsigned.is_empty() {
-        warn_unsigned(&read);
-        eprintln!(
-            "error: {}: no ok item has a shape signature, so nothing can be grouped",
-            named.display()
-        );
-        return Ok(ExitCode::from(2));
-    }
+    let read = read_signatures(&job, &named)?;
     warn_unsigned(&read);
     let threshold = args.threshold.value;
     let found = group(&read.signed, threshold);

@@ -131,7 +131,7 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
         wanted.insert(item_lookup::find(&job, query)?.record.id.as_str());
     }
     let filter = RowFilter::optional(&job, args.filter.as_deref())?;
-    let dropped = args.dedup.dropped(&job)?;
+    let dropped = args.dedup.dropped(&job, &named)?;
     if !dropped.is_empty() {
         if wanted.is_empty() {
             wanted = job.items.iter().map(|i| i.record.id.as_str()).collect();

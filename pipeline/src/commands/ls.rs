@@ -114,7 +114,7 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
     let job = crate::job::setup::open_read_only(&args.job)?;
     let filter = RowFilter::optional(&job, args.filter.as_deref())?;
     let mut left_out = 0u64;
-    let dropped = args.dedup.dropped(&job)?;
+    let dropped = args.dedup.dropped(&job, &named)?;
     let mut out = std::io::stdout().lock();
     let mut statuses = None;
     let mut loaded = None;
