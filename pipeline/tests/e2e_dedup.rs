@@ -132,8 +132,19 @@ fn copies_group_with_their_original_and_distinct_shapes_stay_apart() {
     assert!(none.contains("\"groups\":[]"), "{none}");
 
     // `ls` and `export` keep the representative and every item of no group.
-    let listed = ok(&["ls", j, "--one-per-group"]);
+    let out = sparc3d(&["ls", j, "--one-per-group"]);
+    let (listed, err) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    assert!(out.status.success(), "{err}");
     assert_eq!(listed.lines().count(), 5, "{listed}");
+    // The summary counts what is listed and says what `--one-per-group` left out.
+    assert!(
+        err.contains("--one-per-group: 3 near-duplicates left out"),
+        "{err}"
+    );
+    assert!(err.contains("5 items: 5 ok, 0 failed, 0 pending"), "{err}");
     assert!(copies.iter().all(|f| !listed.contains(&id(f))), "{listed}");
     let export = tmp.path().join("export");
     let out = sparc3d(&[
@@ -145,10 +156,11 @@ fn copies_group_with_their_original_and_distinct_shapes_stay_apart() {
         s(&export),
         "--one-per-group",
     ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
     assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+        err.contains("--one-per-group: 3 near-duplicates left out"),
+        "{err}"
     );
     let files = std::fs::read_dir(&export).map(|d| d.count()).unwrap_or(0);
     assert_eq!(files, 5 + 1, "five items and the export's record");
