@@ -10,6 +10,7 @@ use sparc3d_schema::{
 };
 use sparcubes::attributes::CellAttributes;
 use sparcubes::io::{Buffers, LoadStats};
+use sparcubes::products::shape_signature::shape_signature_with;
 use sparcubes::samples::{SampleParams, Samples};
 use sparcubes::{Conversion, Params, TriMesh};
 use std::path::Path;
@@ -181,7 +182,7 @@ pub fn convert_bytes(
     };
     let quality_started = Instant::now();
     let source_facts = steps.quality.then(|| crate::quality::source_facts(&source));
-    let mut quality_s = quality_started.elapsed().as_secs_f64();
+    let quality_s = quality_started.elapsed().as_secs_f64();
     let input_components = match &source_facts {
         Some(f) => Some(f.components),
         None => steps
@@ -217,25 +218,19 @@ pub fn convert_bytes(
         .as_ref()
         .filter(|_| steps.extract)
         .map(|m| m.triangles.len() as u64);
-    let quality = source_facts.map(|source| {
-        let t = Instant::now();
-        let cubes = &conversion.cubes;
-        let output = mesh
-            .as_ref()
-            .map(|m| crate::quality::output_facts(m, &cubes.normalization, cubes.resolution));
-        let facts = crate::quality::facts(&source, &load_stats, &conversion.stats, output);
-        quality_s += t.elapsed().as_secs_f64();
-        seconds.add_stage("quality", quality_s);
-        facts
-    });
+    let source = source_facts.map(|facts| (facts, quality_s));
+    let (quality, signature) = measure_output(
+        &steps,
+        mesh.as_ref(),
+        source,
+        &load_stats,
+        &conversion,
+        &mut seconds,
+    );
     let samples = match samples_of(steps.samples, &conversion, mesh.as_ref(), &mut seconds) {
         Ok(s) => s,
         Err(e) => return Err(fail(StageError::Samples(e), seconds)),
     };
-    let signature = steps
-        .signature
-        .then(|| signature_of(mesh.as_ref(), &mut seconds))
-        .flatten();
     let attributes = match kept {
         Some(bytes) => match attributes_of(&bytes, path, buffers, &conversion, &mut seconds) {
             Ok(a) => Some(a),
@@ -280,13 +275,45 @@ pub fn convert_bytes(
     })
 }
 
-/// The shape signature of the extracted `mesh`, timed as the stage `signature`; none without
-/// a mesh or when it has no area.
-fn signature_of(mesh: Option<&TriMesh>, seconds: &mut StageSeconds) -> Option<Vec<f32>> {
+/// The quality facts (given the `source`'s, measured in `seconds` before the conversion) and
+/// the shape signature of the extracted `mesh`, as `steps` asks, timed as the stages `quality`
+/// and `signature`. The output's volume is one pass over its triangles that both read,
+/// measured once: timed with the quality facts when they are asked for (they measured it
+/// before the signature existed), with the signature otherwise.
+fn measure_output(
+    steps: &Steps,
+    mesh: Option<&TriMesh>,
+    source: Option<(crate::quality::SourceFacts, f64)>,
+    load_stats: &LoadStats,
+    conversion: &Conversion,
+    seconds: &mut StageSeconds,
+) -> (Option<QualityFacts>, Option<Vec<f32>>) {
     let t = Instant::now();
-    let signature = sparcubes::products::shape_signature::shape_signature(mesh?)?;
-    seconds.add_stage("signature", t.elapsed().as_secs_f64());
-    Some(signature.to_vec())
+    let volume = mesh
+        .filter(|_| steps.quality || steps.signature)
+        .map(TriMesh::signed_volume);
+    let volume_s = t.elapsed().as_secs_f64();
+    let quality = source.map(|(source, source_s)| {
+        let t = Instant::now();
+        let cubes = &conversion.cubes;
+        let output = mesh.zip(volume).map(|(m, v)| {
+            crate::quality::output_facts(m, v, &cubes.normalization, cubes.resolution)
+        });
+        let facts = crate::quality::facts(&source, load_stats, &conversion.stats, output);
+        seconds.add_stage("quality", source_s + volume_s + t.elapsed().as_secs_f64());
+        facts
+    });
+    let signature = mesh
+        .zip(volume)
+        .filter(|_| steps.signature)
+        .and_then(|(m, v)| {
+            let t = Instant::now();
+            let signature = shape_signature_with(m, v)?;
+            let own = if steps.quality { 0.0 } else { volume_s };
+            seconds.add_stage("signature", own + t.elapsed().as_secs_f64());
+            Some(signature.to_vec())
+        });
+    (quality, signature)
 }
 
 /// Draws the samples (`params`, a job with `[samples]`) from the extracted `mesh` and the

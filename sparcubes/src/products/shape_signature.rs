@@ -3,27 +3,30 @@
 //! them, so that near-duplicates are close in plain Euclidean distance ([`distance`]).
 //!
 //! It is read from the surface of the extracted mesh (never the source's triangle list, so a
-//! re-triangulated source gives the same output up to the grid's rounding), through
-//! [`SURFACE_POINTS`] points taken at equal steps of area along the triangles (systematic
-//! sampling: no random draw, and the output's triangles come in grid order, so the points
-//! spread over the whole surface; each is its triangle's centroid, the output's triangles being
-//! under two voxels across). Every length is measured from the points' centroid `c` in units
-//! of their RMS radius `r`, which removes translation and scale; only distances and
-//! eigenvalues enter, which removes rotation and mirroring:
+//! re-triangulated source gives the same output up to the grid's rounding), through a sample
+//! of [`SAMPLED_TRIANGLES`] of its triangles taken at equal steps along the triangle order
+//! (systematic sampling: no random draw, and the output's triangles come in grid order, so the
+//! sample spreads over the whole surface), each standing for the surface by its centroid with
+//! its area as weight (the output's triangles are under two voxels across). Every length is
+//! measured from the sample's weighted centroid `c` in units of its RMS radius `r`, which
+//! removes translation and scale; only distances and eigenvalues enter, which removes rotation
+//! and mirroring:
 //!
 //! | entries | what |
 //! |---|---|
-//! | 0–2 | eigenvalues of the points' second-moment tensor about `c` over `r²` (they sum to 1), largest first, times [`EIGEN_WEIGHT`] |
-//! | 3 | sphericity `(36π V²)^⅓ / A` of the enclosed volume `V` and area `A` (exact, over every triangle; 1 for a ball, near 0 for a thin shell) |
-//! | 4–17 | the shell distribution: share of the points within `tᵢ = 0.15·(i+1)·r` of `c` |
-//! | 18–31 | the D2 distribution (Osada et al., "Shape distributions", ACM TOG 2002): share of pairs of [`D2_POINTS`] of the points (every 64th) within `sᵢ = 0.25·(i+1)·r` of each other |
+//! | 0–2 | eigenvalues of the sample's second-moment tensor about `c` over `r²` (they sum to 1), largest first, times [`EIGEN_WEIGHT`] |
+//! | 3 | compactness `V / (4/3 π r³)` of the enclosed volume `V` (exact, [`TriMesh::signed_volume`]: 1 for a ball, 0.89 for a cube, near 0 for a thin shell), times [`COMPACTNESS_WEIGHT`] |
+//! | 4–17 | the shell distribution: share of the area within `tᵢ = 0.15·(i+1)·r` of `c` |
+//! | 18–31 | the D2 distribution (Osada et al., "Shape distributions", ACM TOG 2002): share of pairs of surface points within `sᵢ = 0.25·(i+1)·r` of each other, over [`D2_ROUNDS`] rounds that pair each sampled triangle with another drawn by a hash |
 //!
 //! Both distributions are cumulative and smoothed: each distance counts linearly across one
 //! step either side of a threshold, so a surface that moves by ε moves every entry by at most
-//! ε / step, and no entry jumps when a distance crosses a threshold. The one pass over every
-//! triangle (areas and volume) runs over fixed chunks combined in order, so the signature is
-//! bit-identical whatever the thread count; the rest reads the points alone, which keeps the
-//! cost a few per cent of the conversion (docs/PERFORMANCE.md, "Near-duplicate groups").
+//! ε / step, and no entry jumps when a distance crosses a threshold. Everything but the
+//! volume reads the sample alone, a fixed amount of work whatever the mesh's size, and the
+//! volume is the quality facts' own (one pass over the triangles, measured once for both:
+//! [`shape_signature_with`]), so the signature costs a few milliseconds (docs/PERFORMANCE.md,
+//! "Near-duplicate groups"). Every sum runs over fixed parts combined in a fixed order, so the
+//! signature is bit-identical whatever the thread count.
 
 use crate::TriMesh;
 use rayon::prelude::*;
@@ -36,16 +39,35 @@ const STEPS: usize = 14;
 const SHELL_STEP: f64 = 0.15;
 /// Step of the D2 distribution's thresholds, in units of `r`.
 const D2_STEP: f64 = 0.25;
-/// Area-stratified surface points the signature reads.
-pub const SURFACE_POINTS: usize = 1 << 16;
-/// Of those, the points whose pairwise distances make the D2 distribution (523 776 pairs:
-/// with 2048 points the pairs were most of the signature's time, docs/PERFORMANCE.md).
-pub const D2_POINTS: usize = 1024;
+/// Triangles the signature samples (all of them in a smaller mesh).
+pub const SAMPLED_TRIANGLES: usize = 1 << 14;
+/// Rounds of pairs for the D2 distribution: each round pairs every sample with one other
+/// ([`partner`]), 131 072 pairs for a full sample (a quarter of the 523 776 of all pairs among
+/// 1024 points, with every sample in them). Four rounds left copies of the tests up to 0.014
+/// apart, eight 0.009.
+pub const D2_ROUNDS: usize = 8;
+/// A sample's partner in round `round` of the D2 pairings: a SplitMix64 hash of the two
+/// (Steele, Lea and Flood, "Fast splittable pseudorandom number generators", OOPSLA 2014),
+/// so that the partners of neighbours along the triangle order lie anywhere on the surface,
+/// in no pattern a turned or mirrored copy's order could change.
+fn partner(i: usize, round: usize, n: usize) -> usize {
+    let mut z = ((round as u64) << 32 | i as u64).wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^= z >> 31;
+    // The high half of the hash times n: in 0..n without a division (Lemire, "Fast random
+    // integer generation in an interval", ACM TOMACS 2019).
+    (((z >> 32) * n as u64) >> 32) as usize
+}
+
 /// Weight of the eigenvalue entries: their differences between shapes are a third of the
 /// distributions' per entry, and there are fewer of them.
 pub const EIGEN_WEIGHT: f64 = 2.0;
-/// Triangles per chunk of the parallel sums (fixed, so the sums do not depend on threads).
-const CHUNK: usize = 1 << 14;
+
+/// Weight of the compactness entry: a box and a cylinder of one extent differ by only 0.03 in
+/// it (0.89 against 0.92); weighted 2, the closest distinct shapes of the tests (a 15 % longer
+/// box and a cylinder) are 0.097 apart instead of 0.072, the copies still under 0.009.
+pub const COMPACTNESS_WEIGHT: f64 = 2.0;
 
 /// A shape's signature ([`shape_signature`]).
 pub type ShapeSignature = [f32; SIGNATURE_LEN];
@@ -59,85 +81,53 @@ pub fn distance(a: &[f32], b: &[f32]) -> f64 {
         .sqrt()
 }
 
-/// The corners of triangle `t` relative to `origin`, in double precision.
-fn corners(mesh: &TriMesh, t: &[u32; 3], origin: [f64; 3]) -> [[f64; 3]; 3] {
-    t.map(|i| {
-        let p = mesh.positions[i as usize];
-        [0, 1, 2].map(|a| f64::from(p[a]) - origin[a])
-    })
+/// A sampled triangle: its centroid and its area (the weight it stands for).
+#[derive(Debug, Clone, Copy)]
+struct Sample {
+    point: [f64; 3],
+    weight: f64,
 }
 
-fn triangle_area(v: &[[f64; 3]; 3]) -> f64 {
-    let e1 = crate::vec3::sub(v[1], v[0]);
-    let e2 = crate::vec3::sub(v[2], v[0]);
-    0.5 * crate::vec3::norm(crate::vec3::cross(e1, e2))
-}
-
-/// Each triangle's area, and six times the enclosed volume (the signed volumes of the
-/// tetrahedra from `origin`, divergence theorem), summed over fixed chunks in order.
-fn areas_and_volume(mesh: &TriMesh, origin: [f64; 3]) -> (Vec<f64>, f64) {
-    let parts: Vec<(Vec<f64>, f64)> = mesh
-        .triangles
-        .par_chunks(CHUNK)
-        .map(|chunk| {
-            let mut volume6 = 0.0;
-            let areas = chunk
-                .iter()
-                .map(|t| {
-                    let v = corners(mesh, t, origin);
-                    volume6 += crate::vec3::dot(v[0], crate::vec3::cross(v[1], v[2]));
-                    triangle_area(&v)
-                })
-                .collect();
-            (areas, volume6)
+/// [`SAMPLED_TRIANGLES`] triangles (or all), at equal steps along the triangle order, each its
+/// centroid weighted by its area.
+fn sample_triangles(mesh: &TriMesh) -> Vec<Sample> {
+    let t = mesh.triangles.len();
+    let n = t.min(SAMPLED_TRIANGLES);
+    (0..n)
+        .into_par_iter()
+        .map(|j| {
+            // The middle of the j-th of n equal stretches of the triangle order.
+            let i = ((2 * j + 1) * t) / (2 * n);
+            let [a, b, c] = mesh.triangle(i);
+            let n = mesh.face_normal(i);
+            Sample {
+                point: [0, 1, 2].map(|k| (a[k] + b[k] + c[k]) / 3.0),
+                weight: 0.5 * crate::vec3::norm(n),
+            }
         })
-        .collect();
-    let mut areas = Vec::with_capacity(mesh.triangles.len());
-    let mut volume6 = 0.0;
-    for (a, v) in parts {
-        areas.extend(a);
-        volume6 += v;
-    }
-    (areas, volume6)
+        .collect()
 }
 
-/// [`SURFACE_POINTS`] points, one per equal share of the total `area` along the triangle
-/// order, each its triangle's centroid.
-fn stratified_points(mesh: &TriMesh, areas: &[f64], area: f64) -> Vec<[f64; 3]> {
-    let mut points = Vec::with_capacity(SURFACE_POINTS);
-    let step = area / SURFACE_POINTS as f64;
-    let mut next = 0.5 * step;
-    let mut walked = 0.0;
-    for (t, a) in mesh.triangles.iter().zip(areas) {
-        walked += a;
-        while walked > next && points.len() < SURFACE_POINTS {
-            let v = corners(mesh, t, [0.0; 3]);
-            points.push([0, 1, 2].map(|k| (v[0][k] + v[1][k] + v[2][k]) / 3.0));
-            next += step;
-        }
-    }
-    points
-}
-
-/// The points' centroid and second-moment tensor about it.
-fn centroid_and_covariance(points: &[[f64; 3]]) -> ([f64; 3], [[f64; 3]; 3]) {
-    let n = points.len().max(1) as f64;
+/// The samples' weighted centroid, second-moment tensor about it, and total weight.
+fn centroid_and_covariance(samples: &[Sample]) -> ([f64; 3], [[f64; 3]; 3], f64) {
+    let total: f64 = samples.iter().map(|s| s.weight).sum();
+    let w = 1.0 / total.max(f64::MIN_POSITIVE);
     let mut c = [0.0; 3];
-    for p in points {
+    for s in samples {
         for k in 0..3 {
-            c[k] += p[k] / n;
+            c[k] += s.point[k] * s.weight * w;
         }
     }
     let mut cov = [[0.0; 3]; 3];
-    for p in points {
-        let d = crate::vec3::sub(*p, c);
+    for s in samples {
+        let d = crate::vec3::sub(s.point, c);
         for a in 0..3 {
             for b in 0..3 {
-                cov[a][b] += d[a] * d[b] / n;
+                cov[a][b] += d[a] * d[b] * s.weight * w;
             }
         }
     }
-    (c, cov)
+    (c, cov, total)
 }
 
 /// Eigenvalues of a symmetric 3×3 matrix, largest first (the trigonometric closed form:
@@ -211,61 +201,74 @@ impl Binned {
     }
 }
 
-/// The shell distribution: the share of the points near each threshold distance from `c`.
-fn shell_distribution(points: &[[f64; 3]], c: [f64; 3], r: f64) -> [f64; STEPS] {
+/// The shell distribution: the share of the sampled area near each threshold distance from
+/// `c`.
+fn shell_distribution(samples: &[Sample], c: [f64; 3], r: f64, total: f64) -> [f64; STEPS] {
+    let scale = 1.0 / (r * SHELL_STEP);
     let mut bins = Binned::new();
-    for p in points {
-        bins.add(crate::vec3::dist2(*p, c).sqrt() / r / SHELL_STEP, 1.0);
+    for s in samples {
+        bins.add(crate::vec3::dist2(s.point, c).sqrt() * scale, s.weight);
     }
-    bins.smoothed(points.len() as f64)
+    bins.smoothed(total)
 }
 
-/// The D2 distribution of the stratified points: the share of pairs near each threshold.
-fn d2_distribution(points: &[[f64; 3]], r: f64) -> [f64; STEPS] {
+/// The D2 distribution over [`D2_ROUNDS`] rounds of pairs of the samples ([`partner`]), each pair
+/// weighted by both its samples' areas: the share of the pairs' weight near each threshold.
+fn d2_distribution(samples: &[Sample], r: f64) -> [f64; STEPS] {
+    let n = samples.len();
     let scale = 1.0 / (r * D2_STEP);
-    let parts: Vec<Binned> = (0..points.len())
+    // Single precision, 16 bytes a sample: the random partners are then read from a quarter
+    // of a megabyte (a core's L2 cache) rather than half of one.
+    let compact: Vec<[f32; 4]> = samples
+        .iter()
+        .map(|s| [s.point[0], s.point[1], s.point[2], s.weight].map(|x| x as f32))
+        .collect();
+    let rounds: Vec<(Binned, f64)> = (0..D2_ROUNDS)
         .into_par_iter()
-        .map(|i| {
+        .map(|round| {
             let mut bins = Binned::new();
-            for q in &points[i + 1..] {
-                bins.add(crate::vec3::dist2(points[i], *q).sqrt() * scale, 1.0);
+            let mut total = 0.0;
+            for (i, p) in compact.iter().enumerate() {
+                let q = &compact[partner(i, round, n)];
+                let d2: f32 = (0..3).map(|k| (p[k] - q[k]) * (p[k] - q[k])).sum();
+                let w = f64::from(p[3]) * f64::from(q[3]);
+                bins.add(f64::from(d2.sqrt()) * scale, w);
+                total += w;
             }
-            bins
+            (bins, total)
         })
         .collect();
-    let pairs = (points.len() * points.len().saturating_sub(1) / 2) as f64;
-    parts
-        .into_iter()
-        .fold(Binned::new(), Binned::merge)
-        .smoothed(pairs)
+    // Merged in round order, so the sums do not depend on the threads.
+    let (mut bins, mut total) = (Binned::new(), 0.0);
+    for (b, t) in rounds {
+        bins = bins.merge(b);
+        total += t;
+    }
+    bins.smoothed(total)
 }
 
 /// The signature of a mesh (the watertight output, in any frame); `None` when it has no area.
 pub fn shape_signature(mesh: &TriMesh) -> Option<ShapeSignature> {
-    let origin = mesh
-        .bounds()
-        .map(|(lo, hi)| [0, 1, 2].map(|a| 0.5 * (lo[a] + hi[a])))?;
-    let (areas, volume6) = areas_and_volume(mesh, origin);
-    let area: f64 = areas.iter().sum();
-    if area.is_nan() || area <= 0.0 {
-        return None;
-    }
-    let points = stratified_points(mesh, &areas, area);
-    let (c, cov) = centroid_and_covariance(&points);
+    shape_signature_with(mesh, mesh.signed_volume())
+}
+
+/// [`shape_signature`] of a mesh whose [`TriMesh::signed_volume`] is `volume` (measured once
+/// for the quality facts and the signature).
+pub fn shape_signature_with(mesh: &TriMesh, volume: f64) -> Option<ShapeSignature> {
+    let samples = sample_triangles(mesh);
+    let (c, cov, total) = centroid_and_covariance(&samples);
     let r2 = cov[0][0] + cov[1][1] + cov[2][2];
-    if r2.is_nan() || r2 <= 0.0 {
+    if r2.is_nan() || r2 <= 0.0 || total <= 0.0 {
         return None;
     }
     let r = r2.sqrt();
     let eigen = symmetric_eigenvalues(&cov).map(|l| EIGEN_WEIGHT * (l / r2).max(0.0));
-    let volume = volume6.abs() / 6.0;
-    let sphericity = (36.0 * std::f64::consts::PI * volume * volume).cbrt() / area;
-    let shell = shell_distribution(&points, c, r);
-    let stride = (points.len() / D2_POINTS).max(1);
-    let d2_points: Vec<[f64; 3]> = points.iter().step_by(stride).copied().collect();
-    let d2 = d2_distribution(&d2_points, r);
+    let compactness =
+        COMPACTNESS_WEIGHT * volume.abs() / (4.0 / 3.0 * std::f64::consts::PI * r2 * r);
+    let shell = shell_distribution(&samples, c, r, total);
+    let d2 = d2_distribution(&samples, r);
     let mut s = [0.0f32; SIGNATURE_LEN];
-    let values = eigen.iter().chain([&sphericity]).chain(&shell).chain(&d2);
+    let values = eigen.iter().chain([&compactness]).chain(&shell).chain(&d2);
     for (slot, v) in s.iter_mut().zip(values) {
         *slot = *v as f32;
     }
