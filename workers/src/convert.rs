@@ -552,6 +552,48 @@ mod tests {
     }
 
     #[test]
+    fn the_signature_shares_the_quality_facts_volume_and_changes_none_of_them(
+    ) -> Result<(), Box<dyn std::error::Error>> {
+        let params = Params::with_resolution(32);
+        let steps = |quality, signature| Steps {
+            params: &params,
+            input_components: false,
+            extract: true,
+            samples: None,
+            keep_mesh: true,
+            encode: None,
+            attributes: false,
+            quality,
+            signature,
+        };
+        let both = convert_file(&example("sphere.obj"), steps(true, true)).map_err(|f| f.error)?;
+        let quality =
+            convert_file(&example("sphere.obj"), steps(true, false)).map_err(|f| f.error)?;
+        let alone =
+            convert_file(&example("sphere.obj"), steps(false, true)).map_err(|f| f.error)?;
+        assert_eq!(
+            both.quality, quality.quality,
+            "the same facts with the signature"
+        );
+        assert!(alone.quality.is_none() && quality.signature.is_none());
+        let mesh = both.mesh.as_ref().ok_or("no mesh")?;
+        let want = sparcubes::products::shape_signature::shape_signature(mesh).map(|s| s.to_vec());
+        assert!(want.is_some());
+        assert_eq!(both.signature, want);
+        assert_eq!(alone.signature, want);
+        let stages = |c: &Converted| {
+            c.seconds
+                .in_order
+                .iter()
+                .map(|(k, _)| k.clone())
+                .collect::<Vec<_>>()
+        };
+        assert!(stages(&both).ends_with(&["quality".to_string(), "signature".to_string()]));
+        assert!(stages(&alone).ends_with(&["signature".to_string()]));
+        Ok(())
+    }
+
+    #[test]
     fn a_refined_row_gives_back_the_refined_mesh() -> Result<(), Box<dyn std::error::Error>> {
         // The refinement runs inside the conversion, so the row stores its displacements and
         // decoding the row extracts the mesh the conversion gave (what `show` relies on).
