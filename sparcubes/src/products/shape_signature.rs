@@ -15,17 +15,17 @@
 //! | entries | what |
 //! |---|---|
 //! | 0–2 | eigenvalues of the sample's second-moment tensor about `c` over `r²` (they sum to 1), largest first, times [`EIGEN_WEIGHT`] |
-//! | 3 | compactness `V / (4/3 π r³)` of the enclosed volume `V` (exact, [`TriMesh::signed_volume`]: 1 for a ball, 0.89 for a cube, near 0 for a thin shell), times [`COMPACTNESS_WEIGHT`] |
+//! | 3 | sphericity `(36π V²)^⅓ / A` of the enclosed volume `V` and the area `A` (both exact, over every triangle; 1 for a ball, near 0 for a thin shell) |
 //! | 4–17 | the shell distribution: share of the area within `tᵢ = 0.15·(i+1)·r` of `c` |
 //! | 18–31 | the D2 distribution (Osada et al., "Shape distributions", ACM TOG 2002): share of pairs of surface points within `sᵢ = 0.25·(i+1)·r` of each other, over [`D2_ROUNDS`] rounds that pair each sampled triangle with another drawn by a hash |
 //!
 //! Both distributions are cumulative and smoothed: each distance counts linearly across one
 //! step either side of a threshold, so a surface that moves by ε moves every entry by at most
-//! ε / step, and no entry jumps when a distance crosses a threshold. Everything but the
-//! volume reads the sample alone, a fixed amount of work whatever the mesh's size, and the
+//! ε / step, and no entry jumps when a distance crosses a threshold. Everything but the area
+//! and the volume reads the sample alone, a fixed amount of work whatever the mesh's size; the
 //! volume is the quality facts' own (one pass over the triangles, measured once for both:
-//! [`shape_signature_with`]), so the signature costs a few milliseconds (docs/PERFORMANCE.md,
-//! "Near-duplicate groups"). Every sum runs over fixed parts combined in a fixed order, so the
+//! [`shape_signature_with`]) and the area one light parallel pass, so the signature costs a
+//! few milliseconds (docs/PERFORMANCE.md, "Near-duplicate groups"). Every sum runs over fixed parts combined in a fixed order, so the
 //! signature is bit-identical whatever the thread count.
 
 use crate::TriMesh;
@@ -43,8 +43,8 @@ const D2_STEP: f64 = 0.25;
 pub const SAMPLED_TRIANGLES: usize = 1 << 14;
 /// Rounds of pairs for the D2 distribution: each round pairs every sample with one other
 /// ([`partner`]), 131 072 pairs for a full sample (a quarter of the 523 776 of all pairs among
-/// 1024 points, with every sample in them). Four rounds left copies of the tests up to 0.014
-/// apart, eight 0.009.
+/// 1024 points, with every sample in them). Four rounds left the copies of the tests up to
+/// 0.014 apart, against under 0.009 with eight.
 pub const D2_ROUNDS: usize = 8;
 /// A sample's partner in round `round` of the D2 pairings: a SplitMix64 hash of the two
 /// (Steele, Lea and Flood, "Fast splittable pseudorandom number generators", OOPSLA 2014),
@@ -64,10 +64,9 @@ fn partner(i: usize, round: usize, n: usize) -> usize {
 /// distributions' per entry, and there are fewer of them.
 pub const EIGEN_WEIGHT: f64 = 2.0;
 
-/// Weight of the compactness entry: a box and a cylinder of one extent differ by only 0.03 in
-/// it (0.89 against 0.92); weighted 2, the closest distinct shapes of the tests (a 15 % longer
-/// box and a cylinder) are 0.097 apart instead of 0.072, the copies still under 0.009.
-pub const COMPACTNESS_WEIGHT: f64 = 2.0;
+/// Triangles per part of the area's parallel sum (fixed, so the sum does not depend on the
+/// threads).
+const AREA_CHUNK: usize = 1 << 14;
 
 /// A shape's signature ([`shape_signature`]).
 pub type ShapeSignature = [f32; SIGNATURE_LEN];
@@ -79,6 +78,32 @@ pub fn distance(a: &[f32], b: &[f32]) -> f64 {
         .map(|(x, y)| (f64::from(*x) - f64::from(*y)).powi(2))
         .sum::<f64>()
         .sqrt()
+}
+
+/// The mesh's total area: each triangle's in single precision (a quarter of the time of
+/// `TriMesh::area`'s double-precision pass on the corpus' largest outputs), summed in double
+/// precision over fixed parts combined in order.
+fn surface_area(mesh: &TriMesh) -> f64 {
+    let parts: Vec<f64> = mesh
+        .triangles
+        .par_chunks(AREA_CHUNK)
+        .map(|chunk| {
+            let mut sum = 0.0f64;
+            for t in chunk {
+                let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
+                let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+                let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+                let n = [
+                    u[1] * v[2] - u[2] * v[1],
+                    u[2] * v[0] - u[0] * v[2],
+                    u[0] * v[1] - u[1] * v[0],
+                ];
+                sum += f64::from((n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt());
+            }
+            0.5 * sum
+        })
+        .collect();
+    parts.into_iter().sum()
 }
 
 /// A sampled triangle: its centroid and its area (the weight it stands for).
@@ -263,12 +288,12 @@ pub fn shape_signature_with(mesh: &TriMesh, volume: f64) -> Option<ShapeSignatur
     }
     let r = r2.sqrt();
     let eigen = symmetric_eigenvalues(&cov).map(|l| EIGEN_WEIGHT * (l / r2).max(0.0));
-    let compactness =
-        COMPACTNESS_WEIGHT * volume.abs() / (4.0 / 3.0 * std::f64::consts::PI * r2 * r);
+    let area = surface_area(mesh);
+    let sphericity = (36.0 * std::f64::consts::PI * volume * volume).cbrt() / area;
     let shell = shell_distribution(&samples, c, r, total);
     let d2 = d2_distribution(&samples, r);
     let mut s = [0.0f32; SIGNATURE_LEN];
-    let values = eigen.iter().chain([&compactness]).chain(&shell).chain(&d2);
+    let values = eigen.iter().chain([&sphericity]).chain(&shell).chain(&d2);
     for (slot, v) in s.iter_mut().zip(values) {
         *slot = *v as f32;
     }
