@@ -13,6 +13,7 @@ mod lane_plan;
 mod local_workers;
 mod machine;
 mod memory;
+mod near_duplicates;
 mod pictures;
 mod pool;
 mod progress;

@@ -61,6 +61,7 @@ impl RowFilter {
         let sections = Sections {
             attributes: schema.column_with_name(c::MATERIALS).is_some(),
             quality: schema.column_with_name(c::INPUT_BOUNDARY_EDGES).is_some(),
+            signature: schema.column_with_name(c::SHAPE_SIGNATURE).is_some(),
         };
         Self::new(text, provenance, sections, what)
     }

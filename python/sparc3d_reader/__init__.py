@@ -21,7 +21,8 @@ Jobs with `[samples]` also give `item["samples"]` (vector-set VAE samples in the
 frame; `samples_to_source` maps them to the source frame), batched by `collate_vecset`. The
 layouts of other codebases are written by `sparc3d export` (`run_export`) and read back with
 `iter_export` / `ExportDataset` and `collate_direct3d_s2`, `collate_cubvh` (TRELLIS.2's export is
-its own dataset folder, read by its `FlexiDualGridDataset`).
+its own dataset folder, read by its `FlexiDualGridDataset`). `one_per_group(items, result)` keeps
+one item per near-duplicate group of `sparc3d dedup --json` (`dedup.py`).
 
 A job folder is read as the CLI reads it (`jobs.py`): only its own shards, each checked against
 its completion record (`verify=True`: the sha256; "quick"; False) and its rows against the
@@ -48,6 +49,7 @@ from __future__ import annotations
 
 from . import jobs, location
 from .collate import CORNER_OFFSETS, collate_sparse, collate_vecset, corner_index
+from .dedup import dropped_ids, one_per_group
 from .exports import (ExportDataset, collate_cubvh, collate_direct3d_s2, cubvh_cells,
                       cubvh_corner_values, iter_export, run_export)
 from .items import iter_items, row_to_item, samples_to_source
@@ -56,7 +58,7 @@ from .location import ObjectPath
 from .schema import (APPEARANCE_COLUMNS, ATTRIBUTE_TENSORS, CONSUMER_FORMATS, EXPORT_FORMATS,
                      META_COLUMNS, OPTIONAL_SAMPLE_TENSORS,
                      PROVENANCE_PREFIX, QUALITY_COLUMNS, SAMPLE_TENSORS, SCHEMA_VERSION,
-                     TENSORS)
+                     SHAPE_SIGNATURE_COLUMN, TENSORS)
 from .shards import PathLike, check_schema_version, read_job_config, shard_config, shard_paths
 from .tensors import (decode_tensor, encode_tensor, iter_tensor_rows, write_completion_record,
                       write_tensor_file)
@@ -71,6 +73,7 @@ __all__ = [
     "ATTRIBUTE_TENSORS",
     "APPEARANCE_COLUMNS",
     "QUALITY_COLUMNS",
+    "SHAPE_SIGNATURE_COLUMN",
     "OPTIONAL_SAMPLE_TENSORS",
     "samples_to_source",
     "collate_vecset",
@@ -98,6 +101,8 @@ __all__ = [
     "StreamingDataset",
     "Where",
     "ObjectPath",
+    "dropped_ids",
+    "one_per_group",
 ]
 
 __version__ = "0.1.0"

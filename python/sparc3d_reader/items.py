@@ -11,7 +11,8 @@ from . import jobs, location
 from .jobs import Verify
 from .schema import (APPEARANCE_COLUMNS, ATTRIBUTE_COLUMNS, ATTRIBUTE_TENSORS,
                      OPTIONAL_SAMPLE_COLUMNS, OPTIONAL_SAMPLE_TENSORS, PROVENANCE_PREFIX,
-                     QUALITY_COLUMNS, READ_COLUMNS, SAMPLE_COLUMNS, SAMPLE_TENSORS, TENSORS)
+                     QUALITY_COLUMNS, READ_COLUMNS, SAMPLE_COLUMNS, SAMPLE_TENSORS,
+                     SHAPE_SIGNATURE_COLUMN, TENSORS)
 from .shards import PathLike, all_shards, check_row_count, check_version, naming, usable
 from .tensors import decode_tensor
 
@@ -35,6 +36,8 @@ def row_to_item(row: Dict[str, Any]) -> Dict[str, Any]:
     for name in QUALITY_COLUMNS:  # where the shard has them (docs/FORMAT.md, "Quality columns")
         if name in row:
             item[name] = row[name]
+    if row.get(SHAPE_SIGNATURE_COLUMN) is not None:  # docs/FORMAT.md, "Shape signature"
+        item[SHAPE_SIGNATURE_COLUMN] = np.array(row[SHAPE_SIGNATURE_COLUMN], dtype=np.float32)
     for name, dtype in TENSORS.items():
         t = decode_tensor(row, name)
         if t is None:
@@ -98,6 +101,8 @@ def item_columns(path: location.Location, f: pq.ParquetFile, samples: bool) -> L
         base = base + ATTRIBUTE_COLUMNS
     if all(c in names for c in QUALITY_COLUMNS):
         base = base + QUALITY_COLUMNS
+    if SHAPE_SIGNATURE_COLUMN in names:
+        base = base + [SHAPE_SIGNATURE_COLUMN]
     if not (samples and all(c in names for c in SAMPLE_COLUMNS)):
         return base
     return base + SAMPLE_COLUMNS + [c for c in OPTIONAL_SAMPLE_COLUMNS if c in names]

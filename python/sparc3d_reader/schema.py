@@ -94,3 +94,8 @@ QUALITY_COLUMNS = ["input_boundary_edges", "input_non_manifold_edges", "input_de
                    "input_duplicate_faces", "extent_x", "extent_y", "extent_z", "aspect",
                    "surface_area", "output_volume", "shell_share", "sealed_pockets",
                    "output_components"]
+
+#: The output's shape signature (docs/FORMAT.md, "Shape signature"): 32 float32 per ok row,
+#: present when the job has `shape_signature = true` (every job made since it exists), after
+#: the quality columns; null in failed rows. Each item holds it as a float32 array [32].
+SHAPE_SIGNATURE_COLUMN = "shape_signature"

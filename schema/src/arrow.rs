@@ -32,6 +32,9 @@ pub struct Sections {
     pub attributes: bool,
     /// The quality columns ([`crate::quality`]), a job with `quality = true`.
     pub quality: bool,
+    /// The `shape_signature` column ([`crate::signature_column`]), a job with
+    /// `shape_signature = true`.
+    pub signature: bool,
 }
 
 impl Sections {
@@ -40,13 +43,15 @@ impl Sections {
         Self {
             attributes: config.attributes.enabled,
             quality: config.quality,
+            signature: config.shape_signature,
         }
     }
 }
 
-/// [`schema_with`], with the appearance columns ([`crate::attribute_columns`]) and then the
-/// quality columns ([`crate::quality`]) after the tensors, as `sections` asks; without them
-/// the schema is exactly [`schema_with`]'s.
+/// [`schema_with`], with the appearance columns ([`crate::attribute_columns`]), the quality
+/// columns ([`crate::quality`]) and then the `shape_signature` column
+/// ([`crate::signature_column`]) after the tensors, as `sections` asks; without them the
+/// schema is exactly [`schema_with`]'s.
 pub fn schema_for(provenance: &[String], sections: Sections) -> SchemaRef {
     use DataType::*;
     let mut f = vec![
@@ -80,6 +85,9 @@ pub fn schema_for(provenance: &[String], sections: Sections) -> SchemaRef {
     }
     if sections.quality {
         f.extend(crate::quality_columns::fields());
+    }
+    if sections.signature {
+        f.push(crate::signature_column::field());
     }
     for name in provenance {
         f.push(Field::new(c::provenance_column(name), Utf8, true));
@@ -215,6 +223,11 @@ pub fn rows_to_batch_for(
     }
     if sections.quality {
         cols.extend(crate::quality_columns::columns(rows));
+    }
+    if sections.signature {
+        let signatures: Vec<Option<&[f32]>> =
+            rows.iter().map(|r| r.shape_signature.as_deref()).collect();
+        cols.push(crate::signature_column::column(&signatures)?);
     }
     for name in provenance {
         cols.push(strs(&|r| r.provenance.get(name).map(String::as_str)));
@@ -354,6 +367,7 @@ pub fn batch_to_rows(batch: &RecordBatch) -> Result<Vec<ShardRow>> {
         .collect::<Result<_>>()?;
     let stages = col::<StringArray>(batch, c::TIME_STAGES)?;
     let provenance = provenance_columns(batch)?;
+    let signatures = crate::signature_column::read(batch)?;
     let mut rows = Vec::with_capacity(batch.num_rows());
     for i in 0..batch.num_rows() {
         let normalization = normalization_at(&norm, i);
@@ -411,6 +425,7 @@ pub fn batch_to_rows(batch: &RecordBatch) -> Result<Vec<ShardRow>> {
                 .collect(),
             appearance: crate::attribute_columns::facts_at(batch, i),
             quality: crate::quality_columns::facts_at(batch, i),
+            shape_signature: signatures.as_ref().and_then(|s| s[i].clone()),
         });
     }
     Ok(rows)
@@ -470,6 +485,7 @@ pub(crate) mod tests {
             provenance: Default::default(),
             appearance: None,
             quality: None,
+            shape_signature: None,
         };
         let mut failed = ShardRow::failed(
             1,

@@ -44,6 +44,9 @@ pub const OUTPUT_FACES: &str = "output_faces";
 pub const SHELL_VERTICES: &str = "shell_vertices";
 /// Cells touched by the surface (`u64`).
 pub const WALL_CELLS: &str = "wall_cells";
+/// The shape signature of an ok row (`fixed_size_list<float32>`, null otherwise; absent from
+/// shards written before it): near-duplicates have close signatures (`sparc3d dedup`).
+pub const SHAPE_SIGNATURE: &str = "shape_signature";
 /// Seconds loading the file (`f64`).
 pub const TIME_LOAD: &str = "time_load_s";
 /// Seconds converting (`f64`).

@@ -68,6 +68,12 @@ pub struct JobConfig {
     /// its fingerprint and resumes writing the rows it wrote.
     #[serde(default, skip_serializing_if = "is_false")]
     pub quality: bool,
+    /// Whether each ok row stores the output's shape signature (`shape_signature = true`, the
+    /// default; docs/FORMAT.md, "Shape signature"), which `sparc3d dedup` groups by. Like
+    /// [`JobConfig::quality`], a stored config without the key reads as off and is written
+    /// back without it, so a job made before the column keeps its fingerprint and its rows.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub shape_signature: bool,
 }
 
 /// Whether a flag is off (then left out of the canonical config).
@@ -125,6 +131,7 @@ impl Default for JobConfig {
             preset: None,
             attributes: AttributeConfig::default(),
             quality: true,
+            shape_signature: true,
         }
     }
 }
@@ -487,18 +494,22 @@ mod tests {
         assert!(new.params.inside_test);
         assert!(new.to_canonical_json()?.contains("\"inside_test\":true"));
         assert_ne!(new.fingerprint()?, OLD_DEFAULT_FINGERPRINT);
-        // `inside_test = false` under `[params]` (and `quality = false`, the columns that
-        // came later) gives back the old default, fingerprint too.
-        let off = JobConfig::from_overrides(
-            &serde_json::json!({"params": {"inside_test": false}, "quality": false}),
-        )?;
+        // `inside_test = false` under `[params]` (and `quality = false`, `shape_signature =
+        // false`, the columns that came later) gives back the old default, fingerprint too.
+        let off = JobConfig::from_overrides(&serde_json::json!({
+            "params": {"inside_test": false}, "quality": false, "shape_signature": false}))?;
         assert!(!off.params.inside_test);
         assert_eq!(off.fingerprint()?, OLD_DEFAULT_FINGERPRINT);
         assert!(!off.to_canonical_json()?.contains("inside_test"));
         // (The sealing asks the inside test, so switching the test off switches it off too.)
         assert_eq!(
             off.diff_keys(&new)?,
-            vec!["params.inside_test", "params.seal_openings", "quality"]
+            vec![
+                "params.inside_test",
+                "params.seal_openings",
+                "quality",
+                "shape_signature"
+            ]
         );
         Ok(())
     }
@@ -526,13 +537,12 @@ mod tests {
         let new = JobConfig::default();
         assert!(new.to_canonical_json()?.contains("\"seal_openings\":true"));
         assert_ne!(new.fingerprint()?, INSIDE_TEST_ERA_FINGERPRINT);
-        let off = JobConfig::from_overrides(
-            &serde_json::json!({"params": {"seal_openings": false}, "quality": false}),
-        )?;
+        let off = JobConfig::from_overrides(&serde_json::json!({
+            "params": {"seal_openings": false}, "quality": false, "shape_signature": false}))?;
         assert_eq!(off.fingerprint()?, INSIDE_TEST_ERA_FINGERPRINT);
         assert_eq!(
             off.diff_keys(&new)?,
-            vec!["params.seal_openings", "quality"]
+            vec!["params.seal_openings", "quality", "shape_signature"]
         );
         Ok(())
     }
@@ -587,7 +597,7 @@ mod tests {
         // The old counts given explicitly, with `sharp_near = 0`, are the old job again.
         let again = JobConfig::from_overrides(&serde_json::json!({"samples": {
             "enabled": true, "surface": 124_928, "near": 249_856, "near_sigmas": [0.005, 0.05],
-            "sharp_near": 0}, "quality": false}))?;
+            "sharp_near": 0}, "quality": false, "shape_signature": false}))?;
         assert_eq!(again.fingerprint()?, SHARP_NEAR_ERA_SAMPLES_FINGERPRINT);
         assert_eq!(
             again.diff_keys(&new)?,
@@ -597,7 +607,8 @@ mod tests {
                 "samples.near_sigmas",
                 "samples.sharp_near",
                 "samples.sharp_near_sigmas",
-                "samples.surface"
+                "samples.surface",
+                "shape_signature"
             ]
         );
         Ok(())
@@ -625,6 +636,45 @@ mod tests {
         let off = JobConfig::from_overrides(&serde_json::json!({"quality": false}))?;
         assert_eq!(off.diff_keys(&new)?, vec!["quality"]);
         assert_ne!(off.fingerprint()?, new.fingerprint()?);
+        Ok(())
+    }
+
+    /// The canonical JSON of the default config as `sparc3d init` wrote it after the quality
+    /// columns came and before the shape signature (`JobConfig::shape_signature`), with the
+    /// fingerprint it wrote into job.json.
+    const QUALITY_ERA_CONFIG: &str = r#"{"extract_mesh":true,"limits":{"item_memory_bytes":8589934592,"item_timeout_s":600.0,"max_crash_retries":2,"max_interrupted_attempts":5},"params":{"deform":false,"deform_max":0.45,"deform_step":0.5,"inside_test":true,"margin_cells":3,"resolution":512,"seal_openings":true,"shell_half_thickness":0.9},"quality":true,"shard_size":256,"store_mesh":false,"validation_sample_rate":0.01,"zstd_level":3}"#;
+    const QUALITY_ERA_FINGERPRINT: &str =
+        "10e9f98243b7c861604d847baf0f78d71c1d03fa55b789b8f2f2ce5081e72c5d";
+
+    #[test]
+    fn the_shape_signature_is_on_for_new_jobs_and_off_for_stored_configs_without_the_key(
+    ) -> Result<()> {
+        // Every job stored before the column existed: off, its fingerprint, and written back
+        // without the key.
+        for (text, fingerprint) in [
+            (OLD_DEFAULT_CONFIG, OLD_DEFAULT_FINGERPRINT),
+            (INSIDE_TEST_ERA_CONFIG, INSIDE_TEST_ERA_FINGERPRINT),
+            (QUALITY_ERA_CONFIG, QUALITY_ERA_FINGERPRINT),
+        ] {
+            let old: JobConfig =
+                serde_json::from_str(text).map_err(|source| SchemaError::Json {
+                    context: "test".into(),
+                    source,
+                })?;
+            assert!(!old.shape_signature);
+            assert_eq!(old.fingerprint()?, fingerprint);
+            assert!(!old.to_canonical_json()?.contains("shape_signature"));
+        }
+        let new = JobConfig::default();
+        assert!(new.shape_signature);
+        assert!(new
+            .to_canonical_json()?
+            .contains("\"shape_signature\":true"));
+        assert_ne!(new.fingerprint()?, QUALITY_ERA_FINGERPRINT);
+        // `shape_signature = false` gives back the quality era's default, fingerprint too.
+        let off = JobConfig::from_overrides(&serde_json::json!({"shape_signature": false}))?;
+        assert_eq!(off.fingerprint()?, QUALITY_ERA_FINGERPRINT);
+        assert_eq!(off.diff_keys(&new)?, vec!["shape_signature"]);
         Ok(())
     }
 

@@ -118,6 +118,13 @@ pub fn update_row(h: &mut Sha256, row: &ShardRow) {
                 .map(|b| &b[..]),
         );
     }
+    // Rows without a signature (failed, or written before it existed) digest as before it.
+    if let Some(s) = &row.shape_signature {
+        field(h, crate::columns::SHAPE_SIGNATURE.as_bytes());
+        for x in s {
+            h.update(x.to_le_bytes());
+        }
+    }
     // Rows without provenance leave the digest as it was before provenance columns existed.
     if !row.provenance.is_empty() {
         field(h, crate::columns::PROVENANCE_PREFIX.as_bytes());

@@ -20,6 +20,7 @@ pub mod manifest;
 pub mod quality;
 pub mod quality_columns;
 pub mod row;
+pub mod signature_column;
 pub mod tensor;
 mod tensor_columns;
 

@@ -530,6 +530,10 @@ pub struct ShardRow {
     /// as they were before the columns existed).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub quality: Option<crate::quality::QualityFacts>,
+    /// The shape signature of the output (`sparcubes::products::shape_signature`), when
+    /// converted; `None` in failed rows and in rows of shards written before it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shape_signature: Option<Vec<f32>>,
 }
 
 impl ShardRow {
@@ -560,6 +564,7 @@ impl ShardRow {
             provenance: BTreeMap::new(),
             appearance: None,
             quality: None,
+            shape_signature: None,
         }
     }
 

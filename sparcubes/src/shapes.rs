@@ -435,3 +435,85 @@ pub fn slotted_block(lo: [f64; 3], hi: [f64; 3], width: f64, depth: f64) -> TriM
     }
     m
 }
+
+/// A closed cylinder around the z axis through `c`: [`open_cylinder`]'s side and two fan
+/// caps.
+pub fn cylinder(c: [f64; 2], r: f64, z0: f64, z1: f64, segments: u32) -> TriMesh {
+    let mut m = open_cylinder(c, r, z0, z1, segments);
+    let bottom = push(&mut m, [c[0], c[1], z0]);
+    let top = push(&mut m, [c[0], c[1], z1]);
+    for i in 0..segments {
+        let j = (i + 1) % segments;
+        m.triangles.push([bottom, 2 * j, 2 * i]);
+        m.triangles.push([top, 2 * i + 1, 2 * j + 1]);
+    }
+    m
+}
+
+/// The mesh moved by a similarity: turned by `angle` about the unit `axis` (Rodrigues'
+/// formula), scaled by `scale`, then moved by `offset`.
+pub fn similar(
+    mesh: &TriMesh,
+    axis: [f64; 3],
+    angle: f64,
+    scale: f64,
+    offset: [f64; 3],
+) -> TriMesh {
+    let (s, c) = angle.sin_cos();
+    let k = axis;
+    let mut m = mesh.clone();
+    for p in &mut m.positions {
+        let p64 = p.map(f64::from);
+        let dot = k[0] * p64[0] + k[1] * p64[1] + k[2] * p64[2];
+        let cross = [
+            k[1] * p64[2] - k[2] * p64[1],
+            k[2] * p64[0] - k[0] * p64[2],
+            k[0] * p64[1] - k[1] * p64[0],
+        ];
+        *p = [0, 1, 2].map(|a| {
+            let turned = p64[a] * c + cross[a] * s + k[a] * dot * (1.0 - c);
+            (scale * turned + offset[a]) as f32
+        });
+    }
+    m
+}
+
+/// The same surface with every triangle split into three at its centroid.
+pub fn split_at_centroids(mesh: &TriMesh) -> TriMesh {
+    let mut m = TriMesh::new(mesh.positions.clone(), Vec::new());
+    for t in &mesh.triangles {
+        let corner = |a: usize| t.map(|i| f64::from(mesh.positions[i as usize][a]));
+        let g = push(
+            &mut m,
+            [0, 1, 2].map(|a| corner(a).iter().sum::<f64>() / 3.0),
+        );
+        m.triangles
+            .extend([[t[0], t[1], g], [t[1], t[2], g], [t[2], t[0], g]]);
+    }
+    m
+}
+
+/// The mesh mirrored in x (its triangles turned back to face out) with every vertex moved
+/// by a fixed pseudo-random offset of up to `jitter` times its largest extent along each axis.
+pub fn mirrored_jittered(mesh: &TriMesh, jitter: f64) -> TriMesh {
+    let extent = mesh.bounds().map_or(0.0, |(lo, hi)| {
+        (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max)
+    });
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    let mut next = move || {
+        // Knuth's MMIX linear congruential generator.
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 2.0 * jitter * extent
+    };
+    let mut m = mesh.clone();
+    for p in &mut m.positions {
+        let q = [-f64::from(p[0]), f64::from(p[1]), f64::from(p[2])];
+        *p = q.map(|x| (x + next()) as f32);
+    }
+    for t in &mut m.triangles {
+        t.swap(1, 2);
+    }
+    m
+}

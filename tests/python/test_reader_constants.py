@@ -133,17 +133,21 @@ def test_export_formats_are_the_binarys():
     assert sorted(ours) == sorted(values)
 
 
-def test_quality_columns_are_the_binarys_and_in_every_item(job, shard):
-    """QUALITY_COLUMNS are the columns a job with the quality columns (the default) writes
-    between its tensors and its provenance columns, in order; every item holds them, and a
-    failed row holds none (null)."""
+def test_quality_and_signature_columns_are_the_binarys_and_in_every_item(job, shard):
+    """QUALITY_COLUMNS and then SHAPE_SIGNATURE_COLUMN are the columns a job with both (the
+    default) writes between its tensors and its provenance columns, in order; every item holds
+    them, and a failed row holds none (null)."""
     columns = pq.ParquetFile(shard).schema_arrow.names
     after_tensors = columns.index(schema.SAMPLE_TENSORS[-1] + "_shape") + 1
     first_provenance = next(i for i, c in enumerate(columns) if c.startswith(schema.PROVENANCE_PREFIX))
-    assert columns[after_tensors:first_provenance] == schema.QUALITY_COLUMNS
+    signature = schema.SHAPE_SIGNATURE_COLUMN
+    assert columns[after_tensors:first_provenance] == schema.QUALITY_COLUMNS + [signature]
     items = list(sparc3d_reader.iter_items(job, samples=False))
     assert items and all(set(schema.QUALITY_COLUMNS) <= set(item) for item in items)
+    assert all(item[signature].dtype == np.float32 and item[signature].shape == (32,)
+               for item in items)
     cube = next(i for i in items if i["uri"].endswith("cube.off"))
     assert cube["input_boundary_edges"] == 0 and cube["aspect"] == pytest.approx(1.0)
     failed = [r for r in pq.read_table(shard).to_pylist() if r["status"] == "failed"]
     assert failed and all(r[c] is None for r in failed for c in schema.QUALITY_COLUMNS)
+    assert all(r[signature] is None for r in failed)

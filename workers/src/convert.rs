@@ -10,6 +10,7 @@ use sparc3d_schema::{
 };
 use sparcubes::attributes::CellAttributes;
 use sparcubes::io::{Buffers, LoadStats};
+use sparcubes::products::shape_signature::shape_signature_with;
 use sparcubes::samples::{SampleParams, Samples};
 use sparcubes::{Conversion, Params, TriMesh};
 use std::path::Path;
@@ -40,6 +41,10 @@ pub struct Steps<'a> {
     /// and area, and the extracted mesh's volume and components (when it is extracted), timed
     /// as the stage `quality`. The input's components then come from the same topology check.
     pub quality: bool,
+    /// Compute the output's shape signature (a job with `shape_signature = true`: a shard
+    /// row's `shape_signature`, for `sparc3d dedup`), timed as the stage `signature`; the
+    /// mesh is then extracted whatever [`Steps::extract`] says.
+    pub signature: bool,
 }
 
 /// How [`convert_file`] encodes the tensors.
@@ -96,6 +101,8 @@ pub struct Converted {
     pub attributes: Option<(CellAttributes, AppearanceFacts)>,
     /// The quality facts, when measured.
     pub quality: Option<QualityFacts>,
+    /// The output's shape signature, when asked for and the output has a surface.
+    pub signature: Option<Vec<f32>>,
     /// Seconds per stage.
     pub seconds: StageSeconds,
 }
@@ -175,7 +182,7 @@ pub fn convert_bytes(
     };
     let quality_started = Instant::now();
     let source_facts = steps.quality.then(|| crate::quality::source_facts(&source));
-    let mut quality_s = quality_started.elapsed().as_secs_f64();
+    let quality_s = quality_started.elapsed().as_secs_f64();
     let input_components = match &source_facts {
         Some(f) => Some(f.components),
         None => steps
@@ -201,7 +208,7 @@ pub fn convert_bytes(
     drop(source);
 
     let t = Instant::now();
-    let extract = steps.extract || steps.samples.is_some();
+    let extract = steps.extract || steps.samples.is_some() || steps.signature;
     let mut mesh = extract.then(|| sparcubes::extract(&conversion.cubes));
     seconds.timings.extract_s = t.elapsed().as_secs_f64();
     if extract {
@@ -211,17 +218,15 @@ pub fn convert_bytes(
         .as_ref()
         .filter(|_| steps.extract)
         .map(|m| m.triangles.len() as u64);
-    let quality = source_facts.map(|source| {
-        let t = Instant::now();
-        let cubes = &conversion.cubes;
-        let output = mesh
-            .as_ref()
-            .map(|m| crate::quality::output_facts(m, &cubes.normalization, cubes.resolution));
-        let facts = crate::quality::facts(&source, &load_stats, &conversion.stats, output);
-        quality_s += t.elapsed().as_secs_f64();
-        seconds.add_stage("quality", quality_s);
-        facts
-    });
+    let source = source_facts.map(|facts| (facts, quality_s));
+    let (quality, signature) = measure_output(
+        &steps,
+        mesh.as_ref(),
+        source,
+        &load_stats,
+        &conversion,
+        &mut seconds,
+    );
     let samples = match samples_of(steps.samples, &conversion, mesh.as_ref(), &mut seconds) {
         Ok(s) => s,
         Err(e) => return Err(fail(StageError::Samples(e), seconds)),
@@ -265,8 +270,50 @@ pub fn convert_bytes(
         tensors,
         attributes,
         quality,
+        signature,
         seconds,
     })
+}
+
+/// The quality facts (given the `source`'s, measured in `seconds` before the conversion) and
+/// the shape signature of the extracted `mesh`, as `steps` asks, timed as the stages `quality`
+/// and `signature`. The output's volume is one pass over its triangles that both read,
+/// measured once: timed with the quality facts when they are asked for (they measured it
+/// before the signature existed), with the signature otherwise.
+fn measure_output(
+    steps: &Steps,
+    mesh: Option<&TriMesh>,
+    source: Option<(crate::quality::SourceFacts, f64)>,
+    load_stats: &LoadStats,
+    conversion: &Conversion,
+    seconds: &mut StageSeconds,
+) -> (Option<QualityFacts>, Option<Vec<f32>>) {
+    let t = Instant::now();
+    let volume = mesh
+        .filter(|_| steps.quality || steps.signature)
+        .map(TriMesh::signed_volume);
+    let volume_s = t.elapsed().as_secs_f64();
+    let quality = source.map(|(source, source_s)| {
+        let t = Instant::now();
+        let cubes = &conversion.cubes;
+        let output = mesh.zip(volume).map(|(m, v)| {
+            crate::quality::output_facts(m, v, &cubes.normalization, cubes.resolution)
+        });
+        let facts = crate::quality::facts(&source, load_stats, &conversion.stats, output);
+        seconds.add_stage("quality", source_s + volume_s + t.elapsed().as_secs_f64());
+        facts
+    });
+    let signature = mesh
+        .zip(volume)
+        .filter(|_| steps.signature)
+        .and_then(|(m, v)| {
+            let t = Instant::now();
+            let signature = shape_signature_with(m, v)?;
+            let own = if steps.quality { 0.0 } else { volume_s };
+            seconds.add_stage("signature", own + t.elapsed().as_secs_f64());
+            Some(signature.to_vec())
+        });
+    (quality, signature)
 }
 
 /// Draws the samples (`params`, a job with `[samples]`) from the extracted `mesh` and the
@@ -381,6 +428,7 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
         }),
         attributes: config.attributes.enabled,
         quality: config.quality,
+        signature: config.shape_signature,
     };
     let done = match convert_bytes(bytes, path, buffers, steps, started) {
         Ok(done) => done,
@@ -427,6 +475,7 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
         provenance: Default::default(),
         appearance: done.attributes.map(|a| a.1),
         quality: done.quality,
+        shape_signature: done.signature,
     }
 }
 
@@ -473,6 +522,7 @@ mod tests {
             }),
             attributes: false,
             quality: false,
+            signature: false,
         };
         let done = convert_file(&example("cube.off"), steps).map_err(|f| f.error)?;
         let names: Vec<&str> = done
@@ -502,6 +552,48 @@ mod tests {
     }
 
     #[test]
+    fn the_signature_shares_the_quality_facts_volume_and_changes_none_of_them(
+    ) -> Result<(), Box<dyn std::error::Error>> {
+        let params = Params::with_resolution(32);
+        let steps = |quality, signature| Steps {
+            params: &params,
+            input_components: false,
+            extract: true,
+            samples: None,
+            keep_mesh: true,
+            encode: None,
+            attributes: false,
+            quality,
+            signature,
+        };
+        let both = convert_file(&example("sphere.obj"), steps(true, true)).map_err(|f| f.error)?;
+        let quality =
+            convert_file(&example("sphere.obj"), steps(true, false)).map_err(|f| f.error)?;
+        let alone =
+            convert_file(&example("sphere.obj"), steps(false, true)).map_err(|f| f.error)?;
+        assert_eq!(
+            both.quality, quality.quality,
+            "the same facts with the signature"
+        );
+        assert!(alone.quality.is_none() && quality.signature.is_none());
+        let mesh = both.mesh.as_ref().ok_or("no mesh")?;
+        let want = sparcubes::products::shape_signature::shape_signature(mesh).map(|s| s.to_vec());
+        assert!(want.is_some());
+        assert_eq!(both.signature, want);
+        assert_eq!(alone.signature, want);
+        let stages = |c: &Converted| {
+            c.seconds
+                .in_order
+                .iter()
+                .map(|(k, _)| k.clone())
+                .collect::<Vec<_>>()
+        };
+        assert!(stages(&both).ends_with(&["quality".to_string(), "signature".to_string()]));
+        assert!(stages(&alone).ends_with(&["signature".to_string()]));
+        Ok(())
+    }
+
+    #[test]
     fn a_refined_row_gives_back_the_refined_mesh() -> Result<(), Box<dyn std::error::Error>> {
         // The refinement runs inside the conversion, so the row stores its displacements and
         // decoding the row extracts the mesh the conversion gave (what `show` relies on).
@@ -526,6 +618,7 @@ mod tests {
             }),
             attributes: false,
             quality: false,
+            signature: false,
         };
         let done = convert_file(&example("cube.off"), steps).map_err(|f| f.error)?;
         let stats = done
@@ -557,6 +650,7 @@ mod tests {
             encode: None,
             attributes: false,
             quality: false,
+            signature: false,
         };
         let Err(failed) = convert_file(&example("missing.obj"), steps) else {
             panic!("a missing file converted")

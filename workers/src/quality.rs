@@ -44,12 +44,18 @@ pub struct OutputFacts {
 }
 
 /// Measures the extracted `mesh` (in grid coordinates at `resolution`, placed by
-/// `normalization`): a voxel's side is `1 / (resolution · scale)` source units
-/// (`Normalization::grid_to_source`), so its volume is that cubed.
-pub fn output_facts(mesh: &TriMesh, normalization: &Normalization, resolution: u32) -> OutputFacts {
+/// `normalization`) of signed volume `grid_volume` (`TriMesh::signed_volume`, measured once
+/// for these facts and the shape signature): a voxel's side is `1 / (resolution · scale)` source
+/// units (`Normalization::grid_to_source`), so its volume is that cubed.
+pub fn output_facts(
+    mesh: &TriMesh,
+    grid_volume: f64,
+    normalization: &Normalization,
+    resolution: u32,
+) -> OutputFacts {
     let voxel = 1.0 / (f64::from(resolution) * normalization.scale);
     OutputFacts {
-        volume: mesh.signed_volume() * voxel.powi(3),
+        volume: grid_volume * voxel.powi(3),
         components: sparcubes::topology::component_count(mesh),
     }
 }

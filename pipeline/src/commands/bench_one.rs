@@ -139,6 +139,7 @@ fn measure(args: &Args, row: &mut BenchRow) -> anyhow::Result<()> {
         }),
         attributes: false,
         quality: false,
+        signature: false,
     };
     let done = match convert_file(&args.input, steps) {
         Ok(done) => done,

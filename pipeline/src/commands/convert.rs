@@ -35,6 +35,10 @@ pub struct Args {
     /// the output in colour (each vertex its cell's base colour and alpha; .ply, .obj, .glb).
     #[arg(long)]
     pub attributes: bool,
+    /// Also compute the output's shape signature, as a job with `shape_signature = true`
+    /// does (the stage `signature`; `--json` prints it as `shape_signature`).
+    #[arg(long)]
+    pub shape_signature: bool,
 }
 
 /// Why an output can have more components than its input, when it has: read without it, the
@@ -62,6 +66,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         encode: None,
         attributes: args.attributes,
         quality: true,
+        signature: args.shape_signature,
     };
     let done = convert_file(&args.input, steps).map_err(|failed| {
         let context = match failed.error {
@@ -128,6 +133,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         "peak_rss_bytes": peak,
         "attributes": done.attributes.as_ref().map(|(cells, facts)| attributes_summary(cells, facts)),
         "quality": done.quality,
+        "shape_signature": done.signature,
     });
     if args.json {
         println!("{summary}");

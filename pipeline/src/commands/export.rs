@@ -49,6 +49,8 @@ pub struct Args {
     /// shards' columns: `input_faces <= 1000000 and license in (cc0, cc-by)`.
     #[arg(long = "where", value_name = "FILTER")]
     pub filter: Option<String>,
+    #[command(flatten)]
+    pub dedup: super::dedup::OnePerGroup,
 }
 
 /// `--format`'s parser: the consumers' names, each with its `--help` line.
@@ -68,6 +70,32 @@ fn frame_parser() -> impl clap::builder::TypedValueParser<Value = Frame> {
             .find(|f| f.name() == name)
             .unwrap_or(Frame::Consumer)
     })
+}
+
+/// Takes `--one-per-group`'s `dropped` ids out of the `wanted` ones (every item when none
+/// were named) and says how many it took; an error when nothing is left.
+fn leave_out_near_duplicates<'a>(
+    job: &'a Job,
+    wanted: &mut BTreeSet<&'a str>,
+    dropped: &std::collections::HashSet<String>,
+) -> Result<()> {
+    if dropped.is_empty() {
+        return Ok(());
+    }
+    if wanted.is_empty() {
+        *wanted = job.items.iter().map(|i| i.record.id.as_str()).collect();
+    }
+    let asked = wanted.len();
+    wanted.retain(|id| !dropped.contains(*id));
+    anyhow::ensure!(
+        !wanted.is_empty(),
+        "every item asked for is a near-duplicate --one-per-group leaves out (nothing written)"
+    );
+    eprintln!(
+        "--one-per-group: {} near-duplicates left out",
+        asked - wanted.len()
+    );
+    Ok(())
 }
 
 /// Runs `sparc3d export`.
@@ -129,6 +157,8 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
         wanted.insert(item_lookup::find(&job, query)?.record.id.as_str());
     }
     let filter = RowFilter::optional(&job, args.filter.as_deref())?;
+    let dropped = args.dedup.dropped(&job, &named)?;
+    leave_out_near_duplicates(&job, &mut wanted, &dropped)?;
     refuse_a_folder_that_is_not_an_export(&args.out)?;
     let staging = Staging::create(&args.out)?;
     let chosen = Chosen {

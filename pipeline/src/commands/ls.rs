@@ -5,6 +5,9 @@
 //! then the item's provenance columns as `name=value` fields (`--json`: a `manifest` object).
 //! `--where FILTER` lists only the items whose row passes (`crate::row_filter`; a pending item
 //! has only its id, uri, index and provenance).
+//! `--one-per-group` leaves out every near-duplicate but its group's representative
+//! (`sparc3d dedup`). The summary on stderr counts the items listed, and says how many each
+//! option left out.
 
 use crate::hints;
 use crate::row_filter::RowFilter;
@@ -36,6 +39,8 @@ pub struct Args {
     /// provenance columns, when the manifest had any).
     #[arg(long)]
     pub json: bool,
+    #[command(flatten)]
+    pub dedup: super::dedup::OnePerGroup,
 }
 
 /// One listed item.
@@ -102,6 +107,16 @@ fn listed_status(
     }
 }
 
+/// Items `ls` leaves out of its listing and its summary's counts.
+#[derive(Debug, Default)]
+struct LeftOut {
+    /// By `--where`.
+    by_filter: u64,
+    /// By `--one-per-group` (near-duplicates of a group's representative), among the items
+    /// `--where` keeps: an item both leave out counts once, under `by_filter`.
+    by_group: u64,
+}
+
 /// Runs `sparc3d ls`.
 pub fn run(mut args: Args) -> Result<ExitCode> {
     // Messages name the job as given (a URL), not its local view.
@@ -109,7 +124,8 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
     args.job = crate::job::bucket_home::local_view(&args.job)?;
     let job = crate::job::setup::open_read_only(&args.job)?;
     let filter = RowFilter::optional(&job, args.filter.as_deref())?;
-    let mut left_out = 0u64;
+    let dropped = args.dedup.dropped(&job, &named)?;
+    let mut left_out = LeftOut::default();
     let mut out = std::io::stdout().lock();
     let mut statuses = None;
     let mut loaded = None;
@@ -121,7 +137,11 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
         }
         let (status, class, keep) = listed_status(statuses.as_ref(), item, filter.as_ref());
         if !keep {
-            left_out += 1;
+            left_out.by_filter += 1;
+            continue;
+        }
+        if dropped.contains(&item.record.id) {
+            left_out.by_group += 1;
             continue;
         }
         *counts.entry(status).or_default() += 1;
@@ -152,13 +172,19 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
             return Ok(ExitCode::SUCCESS); // the reader went away (e.g. `| head`)
         }
     }
-    let n = |k: &str| counts.get(k).copied().unwrap_or(0);
     if let Some(f) = &filter {
-        eprintln!("--where {}: {left_out} items left out", f.text);
+        eprintln!("--where {}: {} items left out", f.text, left_out.by_filter);
     }
+    if args.dedup.one_per_group {
+        eprintln!(
+            "--one-per-group: {} near-duplicates left out",
+            left_out.by_group
+        );
+    }
+    let n = |k: &str| counts.get(k).copied().unwrap_or(0);
     eprintln!(
         "{} items: {} ok, {} failed, {} pending{}",
-        job.items.len() as u64 - left_out,
+        job.items.len() as u64 - left_out.by_filter - left_out.by_group,
         n("ok"),
         n("failed"),
         n("pending"),

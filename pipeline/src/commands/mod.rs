@@ -3,8 +3,10 @@
 
 pub mod add;
 pub mod bench;
+pub mod bench_dedup;
 pub mod bench_one;
 pub mod convert;
+pub mod dedup;
 pub mod eval;
 pub mod export;
 pub mod extract;
@@ -82,6 +84,9 @@ enum Command {
     Inspect(inspect::Args),
     /// Decode one item of a job and write its mesh.
     Show(show::Args),
+    /// Group a job's near-duplicates (same shape up to motion, scale, mirroring and
+    /// triangulation) by their shape signatures; writes nothing.
+    Dedup(dedup::Args),
     /// Write a job's items in the layout another codebase's loader reads: Hunyuan3D-2.1, Dora,
     /// Step1X-3D, TripoSG, TRELLIS.2, Direct3D-S2, cubvh, or our vector-set samples.
     Export(export::Args),
@@ -96,6 +101,8 @@ enum Command {
     Report(report::Args),
     /// Benchmark conversion over a folder or manifest: time per stage, peak memory, size.
     Bench(bench::Args),
+    /// Benchmark `dedup`'s grouping on N synthetic shape signatures (default a million).
+    BenchDedup(bench_dedup::Args),
     /// Internal: converts one mesh for `bench` and prints one JSON row.
     #[command(hide = true)]
     BenchOne(bench_one::Args),
@@ -123,12 +130,14 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Retry(args) => retry::run(args),
         Command::Inspect(args) => inspect::run(args),
         Command::Show(args) => show::run(args),
+        Command::Dedup(args) => dedup::run(args),
         Command::Export(args) => export::run(args),
         Command::Verify(args) => verify::run(args),
         Command::Validate(args) => validate::run(args),
         Command::Preview(args) => preview::run(args),
         Command::Report(args) => report::run(args),
         Command::Bench(args) => bench::run(args),
+        Command::BenchDedup(args) => bench_dedup::run(args),
         Command::BenchOne(args) => bench_one::run(args),
         Command::ItemWorker(args) => item_worker::run(args),
     }

@@ -8,6 +8,8 @@
 //!   corner.
 //! - [`truncated_sdf`] — the grid points within a band of the surface with their signed
 //!   distance over the band's width.
+//! - [`shape_signature`] — a fixed-length vector of the output's shape, the same whatever
+//!   rigid motion, uniform scale, mirroring or triangulation, for finding near-duplicates.
 //!
 //! Everything is in the item's grid (resolution N, the job's normalization) and the same
 //! whatever the thread count.
@@ -15,4 +17,5 @@
 pub mod corners;
 pub mod dual_vertices;
 pub mod samples;
+pub mod shape_signature;
 pub mod truncated_sdf;
