@@ -42,7 +42,7 @@ const D2_STEP: f64 = 0.25;
 /// Triangles the signature samples (all of them in a smaller mesh).
 pub const SAMPLED_TRIANGLES: usize = 1 << 14;
 /// Rounds of pairs for the D2 distribution: each round pairs every sample with one other
-/// ([`partner`]), 131 072 pairs for a full sample (a quarter of the 523 776 of all pairs among
+/// (`partner`), 131 072 pairs for a full sample (a quarter of the 523 776 of all pairs among
 /// 1024 points, with every sample in them). Four rounds left the copies of the tests up to
 /// 0.014 apart, against under 0.009 with eight.
 pub const D2_ROUNDS: usize = 8;
