@@ -41,13 +41,14 @@ impl<'a> Pyramid<'a> {
     /// Builds the pyramid of `image`, averaging colour channels in linear light when `srgb`.
     pub fn new(image: &'a Image, srgb: bool) -> Self {
         let table = decode_table();
+        let bytes = SrgbBytes::new();
         let mut levels = vec![Level {
             w: image.width as usize,
             h: image.height as usize,
             texels: Cow::Borrowed(&image.pixels),
         }];
         while let Some(last) = levels.last().filter(|l| l.w > 1 || l.h > 1) {
-            let next = halve(last, srgb, &table);
+            let next = halve(last, srgb, &table, &bytes);
             levels.push(next);
         }
         Self {
@@ -174,9 +175,8 @@ fn wrap_index(i: f64, n: usize, wrap: Wrap) -> usize {
 
 /// The next level of `l`: each texel the mean of (up to) 2×2 texels, its rows in parallel
 /// (each row computed alone, so the texels do not depend on the threads).
-fn halve(l: &Level, srgb: bool, table: &[f32; 256]) -> Level<'static> {
+fn halve(l: &Level, srgb: bool, table: &[f32; 256], bytes: &SrgbBytes) -> Level<'static> {
     let (w, h) = ((l.w / 2).max(1), (l.h / 2).max(1));
-    let bytes = SrgbBytes::new();
     let mut texels = vec![[0u8; 4]; w * h];
     texels.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
         for (x, out) in row.iter_mut().enumerate() {

@@ -53,6 +53,19 @@ pub struct CellAttributes {
     pub nearest_cells: u64,
 }
 
+impl CellAttributes {
+    /// No rows yet, room for `rows`.
+    fn with_capacity(rows: usize) -> Self {
+        Self {
+            base_color: Vec::with_capacity(rows),
+            metallic: Vec::with_capacity(rows),
+            roughness: Vec::with_capacity(rows),
+            alpha: Vec::with_capacity(rows),
+            nearest_cells: 0,
+        }
+    }
+}
+
 /// A cell's running sums: the area, then the area-weighted values.
 type Sums = [f64; 7];
 
@@ -135,13 +148,9 @@ fn one_piece(v: Values) -> Sums {
 
 /// The cells' means as bytes (base colour encoded to sRGB).
 fn encode(sums: &[Sums], nearest_cells: u64, srgb: &SrgbBytes) -> CellAttributes {
-    let n = sums.len();
     let mut out = CellAttributes {
-        base_color: Vec::with_capacity(n),
-        metallic: Vec::with_capacity(n),
-        roughness: Vec::with_capacity(n),
-        alpha: Vec::with_capacity(n),
         nearest_cells,
+        ..CellAttributes::with_capacity(sums.len())
     };
     for s in sums {
         let v: Values = if s[0] > 0.0 {
@@ -159,13 +168,7 @@ fn encode(sums: &[Sums], nearest_cells: u64, srgb: &SrgbBytes) -> CellAttributes
 
 /// The parts' attributes, in part order, as one set of `rows` rows.
 fn concatenate(parts: Vec<CellAttributes>, rows: usize) -> CellAttributes {
-    let mut out = CellAttributes {
-        base_color: Vec::with_capacity(rows),
-        metallic: Vec::with_capacity(rows),
-        roughness: Vec::with_capacity(rows),
-        alpha: Vec::with_capacity(rows),
-        nearest_cells: 0,
-    };
+    let mut out = CellAttributes::with_capacity(rows);
     for p in parts {
         out.base_color.extend(p.base_color);
         out.metallic.extend(p.metallic);
