@@ -22,6 +22,10 @@ use std::path::Path;
 use std::process::ExitCode;
 use std::time::Instant;
 
+#[path = "../tests/support/barycentric.rs"]
+mod barycentric;
+use barycentric::barycentric_by_areas;
+
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let Some(n) = args.first().and_then(|a| a.parse::<u32>().ok()) else {
@@ -110,29 +114,6 @@ fn reference(cubes: &SparseCubes, app: &Appearance, hit: ClosestPoint) -> [u8; 3
         }
     }
     rgb.map(|l| (linear_to_srgb(l as f32) * 255.0).round() as u8)
-}
-
-/// Barycentric coordinates of `p` in `tri` by the areas of the sub-triangles.
-fn barycentric_by_areas(p: [f64; 3], tri: [[f64; 3]; 3]) -> [f64; 3] {
-    let area = |a: [f64; 3], b: [f64; 3], c: [f64; 3]| {
-        let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-        let w = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-        let x = [
-            u[1] * w[2] - u[2] * w[1],
-            u[2] * w[0] - u[0] * w[2],
-            u[0] * w[1] - u[1] * w[0],
-        ];
-        (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt()
-    };
-    let whole = area(tri[0], tri[1], tri[2]);
-    if whole.is_nan() || whole <= 0.0 {
-        return [1.0 / 3.0; 3];
-    }
-    [
-        area(p, tri[1], tri[2]) / whole,
-        area(tri[0], p, tri[2]) / whole,
-        area(tri[0], tri[1], p) / whole,
-    ]
 }
 
 /// The nearest texel of texture `tex` of triangle `t` at barycentric `b`; none when the

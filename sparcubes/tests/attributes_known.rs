@@ -14,6 +14,9 @@ use sparcubes::materials::{self, Appearance};
 use sparcubes::{Params, SparseCubes};
 use std::path::{Path, PathBuf};
 
+#[path = "support/barycentric.rs"]
+mod barycentric;
+
 type TestResult = Result<(), Box<dyn std::error::Error>>;
 
 /// A PNG of `w × h` RGBA pixels from `pixel(x, y)`.
@@ -691,23 +694,7 @@ fn reference_color(
         let p = app.surface.positions[v as usize].map(f64::from);
         s.cubes.normalization.source_to_grid(p, n)
     });
-    // Barycentric coordinates by areas of the sub-triangles.
-    let area = |a: [f64; 3], b: [f64; 3], c: [f64; 3]| {
-        let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-        let w = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-        let x = [
-            u[1] * w[2] - u[2] * w[1],
-            u[2] * w[0] - u[0] * w[2],
-            u[0] * w[1] - u[1] * w[0],
-        ];
-        (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt()
-    };
-    let whole = area(corners[0], corners[1], corners[2]).max(1e-300);
-    let b = [
-        area(hit.point, corners[1], corners[2]) / whole,
-        area(corners[0], hit.point, corners[2]) / whole,
-        area(corners[0], corners[1], hit.point) / whole,
-    ];
+    let b = barycentric::barycentric_by_areas(hit.point, corners);
     let m = &app.materials[app.surface.material[t] as usize];
     let mut rgb = [m.base_color[0], m.base_color[1], m.base_color[2]].map(f64::from);
     if let (Some(tex), Some(uv)) = (m.base_color_map, app.surface.uv[0].at(t)) {
