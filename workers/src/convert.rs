@@ -10,7 +10,7 @@ use sparc3d_schema::{
 };
 use sparcubes::attributes::CellAttributes;
 use sparcubes::io::{Buffers, LoadStats};
-use sparcubes::products::shape_signature::shape_signature_with;
+use sparcubes::products::shape_signature::{signature_of, surface_pass};
 use sparcubes::samples::{SampleParams, Samples};
 use sparcubes::{Conversion, Params, TriMesh};
 use std::path::Path;
@@ -277,9 +277,9 @@ pub fn convert_bytes(
 
 /// The quality facts (given the `source`'s, measured in `seconds` before the conversion) and
 /// the shape signature of the extracted `mesh`, as `steps` asks, timed as the stages `quality`
-/// and `signature`. The output's volume is one pass over its triangles that both read,
-/// measured once: timed with the quality facts when they are asked for (they measured it
-/// before the signature existed), with the signature otherwise.
+/// and `signature`. Both read one pass over the output's triangles (`surface_pass`: the volume
+/// for both, the area and the sample for the signature), timed with the signature when it is
+/// asked for and with the quality facts otherwise.
 fn measure_output(
     steps: &Steps,
     mesh: Option<&TriMesh>,
@@ -289,30 +289,27 @@ fn measure_output(
     seconds: &mut StageSeconds,
 ) -> (Option<QualityFacts>, Option<Vec<f32>>) {
     let t = Instant::now();
-    let volume = mesh
+    let pass = mesh
         .filter(|_| steps.quality || steps.signature)
-        .map(TriMesh::signed_volume);
-    let volume_s = t.elapsed().as_secs_f64();
+        .map(|m| surface_pass(m, steps.signature));
+    let pass_s = t.elapsed().as_secs_f64();
     let quality = source.map(|(source, source_s)| {
         let t = Instant::now();
         let cubes = &conversion.cubes;
-        let output = mesh.zip(volume).map(|(m, v)| {
-            crate::quality::output_facts(m, v, &cubes.normalization, cubes.resolution)
+        let output = mesh.zip(pass.as_ref()).map(|(m, p)| {
+            crate::quality::output_facts(m, p.volume, &cubes.normalization, cubes.resolution)
         });
         let facts = crate::quality::facts(&source, load_stats, &conversion.stats, output);
-        seconds.add_stage("quality", source_s + volume_s + t.elapsed().as_secs_f64());
+        let pass_share = if steps.signature { 0.0 } else { pass_s };
+        seconds.add_stage("quality", source_s + pass_share + t.elapsed().as_secs_f64());
         facts
     });
-    let signature = mesh
-        .zip(volume)
-        .filter(|_| steps.signature)
-        .and_then(|(m, v)| {
-            let t = Instant::now();
-            let signature = shape_signature_with(m, v)?;
-            let own = if steps.quality { 0.0 } else { volume_s };
-            seconds.add_stage("signature", own + t.elapsed().as_secs_f64());
-            Some(signature.to_vec())
-        });
+    let signature = pass.filter(|_| steps.signature).and_then(|pass| {
+        let t = Instant::now();
+        let signature = signature_of(&pass)?;
+        seconds.add_stage("signature", pass_s + t.elapsed().as_secs_f64());
+        Some(signature.to_vec())
+    });
     (quality, signature)
 }
 

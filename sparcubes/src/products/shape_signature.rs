@@ -3,29 +3,30 @@
 //! them, so that near-duplicates are close in plain Euclidean distance ([`distance`]).
 //!
 //! It is read from the surface of the extracted mesh (never the source's triangle list, so a
-//! re-triangulated source gives the same output up to the grid's rounding), through a sample
-//! of [`SAMPLED_TRIANGLES`] of its triangles taken at equal steps along the triangle order
-//! (systematic sampling: no random draw, and the output's triangles come in grid order, so the
-//! sample spreads over the whole surface), each standing for the surface by its centroid with
-//! its area as weight (the output's triangles are under two voxels across). Every length is
-//! measured from the sample's weighted centroid `c` in units of its RMS radius `r`, which
-//! removes translation and scale; only distances and eigenvalues enter, which removes rotation
-//! and mirroring:
+//! re-triangulated source gives the same output up to the grid's rounding), in one pass over
+//! its triangles ([`surface_pass`]) that sums the area's moments over every triangle (each
+//! standing for the surface by its centroid with its area as weight; the output's triangles
+//! are under two voxels across) and takes a sample of up to 16384 of them ([`sample_size`]),
+//! one drawn by a hash from each of equal stretches of the triangle order (stratified
+//! sampling: the output's triangles come in grid order, so the sample spreads over the whole
+//! surface; the middle of each stretch, taken at first, aliased with the extraction's period
+//! along the grid). Every length is measured from the area's centroid `c` in units of its RMS
+//! radius `r`, which removes translation and scale; only distances and eigenvalues enter,
+//! which removes rotation and mirroring:
 //!
 //! | entries | what |
 //! |---|---|
-//! | 0–2 | eigenvalues of the sample's second-moment tensor about `c` over `r²` (they sum to 1), largest first, times [`EIGEN_WEIGHT`] |
+//! | 0–2 | eigenvalues of the area's second-moment tensor about `c` over `r²` (they sum to 1), largest first, times [`EIGEN_WEIGHT`] |
 //! | 3 | sphericity `(36π V²)^⅓ / A` of the enclosed volume `V` and the area `A` (both exact, over every triangle; 1 for a ball, near 0 for a thin shell) |
-//! | 4–17 | the shell distribution: share of the area within `tᵢ = 0.15·(i+1)·r` of `c` |
+//! | 4–17 | the shell distribution: share of the sampled area within `tᵢ = 0.15·(i+1)·r` of `c` |
 //! | 18–31 | the D2 distribution (Osada et al., "Shape distributions", ACM TOG 2002): share of pairs of surface points within `sᵢ = 0.25·(i+1)·r` of each other, over [`D2_ROUNDS`] rounds that pair each sampled triangle with another drawn by a hash |
 //!
 //! Both distributions are cumulative and smoothed: each distance counts linearly across one
 //! step either side of a threshold, so a surface that moves by ε moves every entry by at most
-//! ε / step, and no entry jumps when a distance crosses a threshold. Everything but the area
-//! and the volume reads the sample alone, a fixed amount of work whatever the mesh's size; the
-//! volume is the quality facts' own (one pass over the triangles, measured once for both:
-//! [`shape_signature_with`]) and the area one light parallel pass, so the signature costs a
-//! few milliseconds (docs/PERFORMANCE.md, "Near-duplicate groups"). Every sum runs over fixed parts combined in a fixed order, so the
+//! ε / step, and no entry jumps when a distance crosses a threshold. The pass also measures the
+//! volume, which the quality facts need anyway; the sample's statistics are then a fixed
+//! amount of work whatever the mesh's size, so the signature costs a few milliseconds (docs/PERFORMANCE.md,
+//! "Near-duplicate groups"). Every sum runs over fixed parts combined in a fixed order, so the
 //! signature is bit-identical whatever the thread count.
 
 use crate::TriMesh;
@@ -39,8 +40,17 @@ const STEPS: usize = 14;
 const SHELL_STEP: f64 = 0.15;
 /// Step of the D2 distribution's thresholds, in units of `r`.
 const D2_STEP: f64 = 0.25;
-/// Triangles the signature samples (all of them in a smaller mesh).
+/// Most triangles the signature samples ([`sample_size`]).
 pub const SAMPLED_TRIANGLES: usize = 1 << 14;
+
+/// How many of `t` triangles the signature samples: all, up to [`SAMPLED_TRIANGLES`]. (A
+/// sample that shrank with the output, one triangle in eight down to 4096, was a third
+/// cheaper on the smallest outputs but left copies in the tests up to 0.017 apart, over half
+/// the default threshold; the full sample keeps them under 0.008.)
+pub fn sample_size(t: usize) -> usize {
+    t.min(SAMPLED_TRIANGLES)
+}
+
 /// Rounds of pairs for the D2 distribution: each round pairs every sample with one other
 /// (`partner`), 131 072 pairs for a full sample (a quarter of the 523 776 of all pairs among
 /// 1024 points, with every sample in them). Four rounds left the copies of the tests up to
@@ -51,22 +61,27 @@ pub const D2_ROUNDS: usize = 8;
 /// so that the partners of neighbours along the triangle order lie anywhere on the surface,
 /// in no pattern a turned or mirrored copy's order could change.
 fn partner(i: usize, round: usize, n: usize) -> usize {
-    let mut z = ((round as u64) << 32 | i as u64).wrapping_add(0x9e37_79b9_7f4a_7c15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    z ^= z >> 31;
+    let z = mix((round as u64) << 32 | i as u64);
     // The high half of the hash times n: in 0..n without a division (Lemire, "Fast random
     // integer generation in an interval", ACM TOMACS 2019).
     (((z >> 32) * n as u64) >> 32) as usize
+}
+
+/// The SplitMix64 finaliser of `x` ([`partner`]).
+fn mix(x: u64) -> u64 {
+    let mut z = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
 }
 
 /// Weight of the eigenvalue entries: their differences between shapes are a third of the
 /// distributions' per entry, and there are fewer of them.
 pub const EIGEN_WEIGHT: f64 = 2.0;
 
-/// Triangles per part of the area's parallel sum (fixed, so the sum does not depend on the
-/// threads).
-const AREA_CHUNK: usize = 1 << 14;
+/// Triangles per part of the pass over the mesh ([`surface_pass`]; fixed, so its sums do not
+/// depend on the threads).
+const PART_TRIANGLES: usize = 1 << 14;
 
 /// A shape's signature ([`shape_signature`]).
 pub type ShapeSignature = [f32; SIGNATURE_LEN];
@@ -80,32 +95,6 @@ pub fn distance(a: &[f32], b: &[f32]) -> f64 {
         .sqrt()
 }
 
-/// The mesh's total area: each triangle's in single precision (a quarter of the time of
-/// `TriMesh::area`'s double-precision pass on the corpus' largest outputs), summed in double
-/// precision over fixed parts combined in order.
-fn surface_area(mesh: &TriMesh) -> f64 {
-    let parts: Vec<f64> = mesh
-        .triangles
-        .par_chunks(AREA_CHUNK)
-        .map(|chunk| {
-            let mut sum = 0.0f64;
-            for t in chunk {
-                let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
-                let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-                let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-                let n = [
-                    u[1] * v[2] - u[2] * v[1],
-                    u[2] * v[0] - u[0] * v[2],
-                    u[0] * v[1] - u[1] * v[0],
-                ];
-                sum += f64::from((n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt());
-            }
-            0.5 * sum
-        })
-        .collect();
-    parts.into_iter().sum()
-}
-
 /// A sampled triangle: its centroid and its area (the weight it stands for).
 #[derive(Debug, Clone, Copy)]
 struct Sample {
@@ -113,46 +102,202 @@ struct Sample {
     weight: f64,
 }
 
-/// [`SAMPLED_TRIANGLES`] triangles (or all), at equal steps along the triangle order, each its
-/// centroid weighted by its area.
-fn sample_triangles(mesh: &TriMesh) -> Vec<Sample> {
-    let t = mesh.triangles.len();
-    let n = t.min(SAMPLED_TRIANGLES);
-    (0..n)
-        .into_par_iter()
-        .map(|j| {
-            // The middle of the j-th of n equal stretches of the triangle order.
-            let i = ((2 * j + 1) * t) / (2 * n);
-            let [a, b, c] = mesh.triangle(i);
-            let n = mesh.face_normal(i);
-            Sample {
-                point: [0, 1, 2].map(|k| (a[k] + b[k] + c[k]) / 3.0),
-                weight: 0.5 * crate::vec3::norm(n),
-            }
-        })
-        .collect()
+/// What one pass over a mesh's triangles measures ([`surface_pass`]): its signed volume (the
+/// quality facts' output volume), its area and, when asked, the area's moments and the
+/// signature's sample.
+#[derive(Debug, Clone, Default)]
+pub struct SurfacePass {
+    /// Signed volume: [`TriMesh::signed_volume`]'s terms, summed over fixed parts in order.
+    pub volume: f64,
+    /// Total area.
+    pub area: f64,
+    moments: Moments,
+    samples: Vec<Sample>,
 }
 
-/// The samples' weighted centroid, second-moment tensor about it, and total weight.
-fn centroid_and_covariance(samples: &[Sample]) -> ([f64; 3], [[f64; 3]; 3], f64) {
-    let total: f64 = samples.iter().map(|s| s.weight).sum();
-    let w = 1.0 / total.max(f64::MIN_POSITIVE);
-    let mut c = [0.0; 3];
-    for s in samples {
-        for k in 0..3 {
-            c[k] += s.point[k] * s.weight * w;
-        }
+impl SurfacePass {
+    /// Adds a later part's sums and samples.
+    fn append(mut self, later: SurfacePass) -> SurfacePass {
+        self.volume += later.volume;
+        self.area += later.area;
+        self.moments = self.moments.merge(&later.moments);
+        self.samples.extend(later.samples);
+        self
     }
-    let mut cov = [[0.0; 3]; 3];
-    for s in samples {
-        let d = crate::vec3::sub(s.point, c);
+}
+
+/// The area's first and second moments over every triangle (each its centroid weighted by its
+/// area), about a fixed `origin` near the mesh (a vertex), so that the second moments about
+/// the centroid lose few digits to the subtraction.
+#[derive(Debug, Clone, Copy, Default)]
+struct Moments {
+    origin: [f64; 3],
+    weight: f64,
+    first: [f64; 3],
+    second: [[f64; 3]; 3],
+}
+
+impl Moments {
+    #[inline]
+    fn add(&mut self, point: [f64; 3], w: f64) {
+        let d = crate::vec3::sub(point, self.origin);
+        let wd = d.map(|x| w * x);
+        self.weight += w;
+        self.first = [0, 1, 2].map(|a| self.first[a] + wd[a]);
+        // The upper triangle, spelled out (a loop over it kept the sums in memory).
+        let s = &mut self.second;
+        s[0][0] += wd[0] * d[0];
+        s[0][1] += wd[0] * d[1];
+        s[0][2] += wd[0] * d[2];
+        s[1][1] += wd[1] * d[1];
+        s[1][2] += wd[1] * d[2];
+        s[2][2] += wd[2] * d[2];
+    }
+
+    fn merge(mut self, o: &Moments) -> Moments {
+        self.weight += o.weight;
         for a in 0..3 {
-            for b in 0..3 {
-                cov[a][b] += d[a] * d[b] * s.weight * w;
+            self.first[a] += o.first[a];
+            for b in a..3 {
+                self.second[a][b] += o.second[a][b];
             }
         }
+        self
     }
-    (c, cov, total)
+
+    /// The weighted centroid and the second-moment tensor about it.
+    fn centroid_and_covariance(&self) -> ([f64; 3], [[f64; 3]; 3]) {
+        let w = 1.0 / self.weight.max(f64::MIN_POSITIVE);
+        let m = self.first.map(|x| x * w);
+        let mut cov = [[0.0; 3]; 3];
+        for a in 0..3 {
+            for b in a..3 {
+                cov[a][b] = self.second[a][b] * w - m[a] * m[b];
+                cov[b][a] = cov[a][b];
+            }
+        }
+        (crate::vec3::add(self.origin, m), cov)
+    }
+}
+
+/// The first triangle of the j-th of `n` equal stretches of `t` triangles' order (`n ≤ t`, so
+/// no stretch is empty).
+fn stretch_start(j: usize, t: usize, n: usize) -> usize {
+    (j * t) / n
+}
+
+/// The triangle that sample `j` of `n` stands for among `t` (`n ≤ t`): one drawn by a hash of
+/// `j` ([`mix`]) within the j-th of n equal stretches of the triangle order (stratified
+/// sampling). The middle of each stretch, as taken at first, aliased with the period of the
+/// extraction's triangles along the grid: a box's turned copy came out 0.08 from the box.
+fn sampled_triangle(j: usize, t: usize, n: usize) -> usize {
+    let (lo, hi) = (stretch_start(j, t, n), stretch_start(j + 1, t, n));
+    lo + (((mix(j as u64 | 1 << 63) >> 32) * (hi - lo) as u64) >> 32) as usize
+}
+
+/// The first sample of `n` among `t` triangles whose triangle is at or after `start`.
+fn first_sample_from(start: usize, t: usize, n: usize) -> usize {
+    if n == 0 || start >= t {
+        return n;
+    }
+    // The stretch that holds `start`: the last `j` whose stretch starts at or before it.
+    let mut j = (start * n) / t;
+    while stretch_start(j + 1, t, n) <= start {
+        j += 1;
+    }
+    while stretch_start(j, t, n) > start {
+        j -= 1;
+    }
+    if sampled_triangle(j, t, n) < start {
+        j + 1
+    } else {
+        j
+    }
+}
+
+/// One pass over the mesh, in parallel over fixed parts of [`PART_TRIANGLES`] combined in
+/// order: the volume and area, and with `sample` the [`sample_size`] sampled triangles, each
+/// its centroid weighted by its area. Reading the sample in the same pass
+/// that streams the triangles for the volume saves the sample's scattered reads and a second
+/// pass for the area (on a mesh that is no longer in the cache, they were most of the
+/// signature's time).
+pub fn surface_pass(mesh: &TriMesh, sample: bool) -> SurfacePass {
+    let t = mesh.triangles.len();
+    let n = if sample { sample_size(t) } else { 0 };
+    let origin = mesh.triangles.first().map_or([0.0; 3], |&[a, _, _]| {
+        mesh.positions[a as usize].map(f64::from)
+    });
+    let parts: Vec<SurfacePass> = (0..t.div_ceil(PART_TRIANGLES))
+        .into_par_iter()
+        .map(|p| {
+            let range = p * PART_TRIANGLES..((p + 1) * PART_TRIANGLES).min(t);
+            part_pass(mesh, range, n, origin)
+        })
+        .collect();
+    let start = SurfacePass {
+        moments: Moments {
+            origin,
+            ..Moments::default()
+        },
+        ..SurfacePass::default()
+    };
+    parts.into_iter().fold(start, SurfacePass::append)
+}
+
+/// [`surface_pass`] over the triangles `range`, with the samples of `n` that fall in it.
+fn part_pass(
+    mesh: &TriMesh,
+    range: std::ops::Range<usize>,
+    n: usize,
+    origin: [f64; 3],
+) -> SurfacePass {
+    let t = mesh.triangles.len();
+    let mut next = first_sample_from(range.start, t, n);
+    // The triangle of sample `next` (none past the last), found once per sample.
+    let mut next_triangle = if next < n {
+        sampled_triangle(next, t, n)
+    } else {
+        usize::MAX
+    };
+    // Locals rather than fields of the result, so that the sums stay in registers past the
+    // sample's pushes.
+    let (mut six_volume, mut area_sum) = (0.0, 0.0);
+    let mut moments = Moments {
+        origin,
+        ..Moments::default()
+    };
+    let mut samples = Vec::with_capacity((range.len() * n).div_ceil(t.max(1)) + 1);
+    for i in range {
+        let [a, b, c] = mesh.triangle(i);
+        six_volume += a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+            + a[2] * (b[0] * c[1] - b[1] * c[0]);
+        let normal = crate::vec3::cross(crate::vec3::sub(b, a), crate::vec3::sub(c, a));
+        let area = 0.5 * crate::vec3::norm(normal);
+        area_sum += area;
+        if n == 0 {
+            continue;
+        }
+        let centroid = [0, 1, 2].map(|k| (a[k] + b[k] + c[k]) * (1.0 / 3.0));
+        moments.add(centroid, area);
+        if i == next_triangle {
+            samples.push(Sample {
+                point: centroid,
+                weight: area,
+            });
+            next += 1;
+            next_triangle = if next < n {
+                sampled_triangle(next, t, n)
+            } else {
+                usize::MAX
+            };
+        }
+    }
+    SurfacePass {
+        volume: six_volume / 6.0,
+        area: area_sum,
+        moments,
+        samples,
+    }
 }
 
 /// Eigenvalues of a symmetric 3×3 matrix, largest first (the trigonometric closed form:
@@ -240,6 +385,7 @@ fn shell_distribution(samples: &[Sample], c: [f64; 3], r: f64, total: f64) -> [f
 /// The D2 distribution over [`D2_ROUNDS`] rounds of pairs of the samples ([`partner`]), each pair
 /// weighted by both its samples' areas: the share of the pairs' weight near each threshold.
 fn d2_distribution(samples: &[Sample], r: f64) -> [f64; STEPS] {
+    const BLOCK: usize = 64;
     let n = samples.len();
     let scale = 1.0 / (r * D2_STEP);
     // Single precision, 16 bytes a sample: the random partners are then read from a quarter
@@ -253,12 +399,24 @@ fn d2_distribution(samples: &[Sample], r: f64) -> [f64; STEPS] {
         .map(|round| {
             let mut bins = Binned::new();
             let mut total = 0.0;
-            for (i, p) in compact.iter().enumerate() {
-                let q = &compact[partner(i, round, n)];
-                let d2: f32 = (0..3).map(|k| (p[k] - q[k]) * (p[k] - q[k])).sum();
-                let w = f64::from(p[3]) * f64::from(q[3]);
-                bins.add(f64::from(d2.sqrt()) * scale, w);
-                total += w;
+            // In blocks: the distances of a block first (their square roots then run side by
+            // side rather than each waiting for the one before to be binned), then its bins.
+            let (mut distance, mut weight) = ([0.0f32; BLOCK], [0.0f32; BLOCK]);
+            for (b, block) in compact.chunks(BLOCK).enumerate() {
+                for (k, p) in block.iter().enumerate() {
+                    let q = &compact[partner(b * BLOCK + k, round, n)];
+                    let d2: f32 = (0..3).map(|a| (p[a] - q[a]) * (p[a] - q[a])).sum();
+                    distance[k] = d2;
+                    weight[k] = p[3] * q[3];
+                }
+                for d in &mut distance[..block.len()] {
+                    *d = d.sqrt();
+                }
+                for k in 0..block.len() {
+                    let w = f64::from(weight[k]);
+                    bins.add(f64::from(distance[k]) * scale, w);
+                    total += w;
+                }
             }
             (bins, total)
         })
@@ -274,24 +432,25 @@ fn d2_distribution(samples: &[Sample], r: f64) -> [f64; STEPS] {
 
 /// The signature of a mesh (the watertight output, in any frame); `None` when it has no area.
 pub fn shape_signature(mesh: &TriMesh) -> Option<ShapeSignature> {
-    shape_signature_with(mesh, mesh.signed_volume())
+    signature_of(&surface_pass(mesh, true))
 }
 
-/// [`shape_signature`] of a mesh whose [`TriMesh::signed_volume`] is `volume` (measured once
-/// for the quality facts and the signature).
-pub fn shape_signature_with(mesh: &TriMesh, volume: f64) -> Option<ShapeSignature> {
-    let samples = sample_triangles(mesh);
-    let (c, cov, total) = centroid_and_covariance(&samples);
+/// The signature from a [`surface_pass`] that took the sample (`None` when it has no area or
+/// took no sample).
+pub fn signature_of(pass: &SurfacePass) -> Option<ShapeSignature> {
+    let samples = &pass.samples;
+    let total: f64 = samples.iter().map(|s| s.weight).sum();
+    let (c, cov) = pass.moments.centroid_and_covariance();
     let r2 = cov[0][0] + cov[1][1] + cov[2][2];
-    if r2.is_nan() || r2 <= 0.0 || total <= 0.0 {
+    if samples.is_empty() || r2.is_nan() || r2 <= 0.0 || total <= 0.0 {
         return None;
     }
     let r = r2.sqrt();
     let eigen = symmetric_eigenvalues(&cov).map(|l| EIGEN_WEIGHT * (l / r2).max(0.0));
-    let area = surface_area(mesh);
-    let sphericity = (36.0 * std::f64::consts::PI * volume * volume).cbrt() / area;
-    let shell = shell_distribution(&samples, c, r, total);
-    let d2 = d2_distribution(&samples, r);
+    let volume = pass.volume;
+    let sphericity = (36.0 * std::f64::consts::PI * volume * volume).cbrt() / pass.area;
+    let shell = shell_distribution(samples, c, r, total);
+    let d2 = d2_distribution(samples, r);
     let mut s = [0.0f32; SIGNATURE_LEN];
     let values = eigen.iter().chain([&sphericity]).chain(&shell).chain(&d2);
     for (slot, v) in s.iter_mut().zip(values) {
@@ -341,6 +500,58 @@ mod tests {
             let (a, b) = (at(x), at(x + 1e-6));
             assert!(a.iter().zip(&b).all(|(p, q)| (p - q).abs() < 1e-5), "{x}");
         }
+    }
+
+    #[test]
+    fn the_first_sample_of_a_part_is_the_first_at_or_after_its_start() {
+        for (t, n) in [
+            (1, 1),
+            (7, 7),
+            (10, 3),
+            (100, 7),
+            (100_003, 16_384),
+            (40_000, 16_384),
+        ] {
+            for start in (0..=t).step_by((t / 97).max(1)) {
+                let want = (0..n)
+                    .find(|&j| sampled_triangle(j, t, n) >= start)
+                    .unwrap_or(n);
+                assert_eq!(
+                    first_sample_from(start, t, n).min(n),
+                    want,
+                    "t {t} n {n} {start}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn the_pass_measures_what_the_mesh_does() {
+        let mesh = crate::shapes::torus([0.0; 3], 1.0, 0.35, 300);
+        let t = mesh.triangles.len();
+        assert!(t > 2 * PART_TRIANGLES, "{t} triangles: more than one part");
+        let pass = surface_pass(&mesh, true);
+        assert!((pass.volume - mesh.signed_volume()).abs() < 1e-9 * mesh.signed_volume());
+        assert!((pass.area - mesh.area()).abs() < 1e-9 * mesh.area());
+        let n = sample_size(t);
+        assert_eq!(pass.samples.len(), n);
+        for (j, s) in pass.samples.iter().enumerate().step_by(331) {
+            let [a, b, c] = mesh.triangle(sampled_triangle(j, t, n));
+            assert_eq!(
+                s.point,
+                [0, 1, 2].map(|k| (a[k] + b[k] + c[k]) * (1.0 / 3.0)),
+                "{j}"
+            );
+        }
+        // A torus about the origin in the xy plane: its area's centroid is the origin, its
+        // second moments are diagonal with equal x and y.
+        let (c, cov) = pass.moments.centroid_and_covariance();
+        assert!(c.iter().all(|x| x.abs() < 1e-9), "{c:?}");
+        assert!((cov[0][0] - cov[1][1]).abs() < 1e-6 && cov[0][1].abs() < 1e-9, "{cov:?}");
+        assert!(cov[2][2] < cov[0][0], "{cov:?}");
+        let bare = surface_pass(&mesh, false);
+        assert!(bare.samples.is_empty() && signature_of(&bare).is_none());
+        assert_eq!(bare.volume.to_bits(), pass.volume.to_bits());
     }
 
     #[test]
