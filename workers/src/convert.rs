@@ -278,8 +278,9 @@ pub fn convert_bytes(
 /// The quality facts (given the `source`'s, measured in `seconds` before the conversion) and
 /// the shape signature of the extracted `mesh`, as `steps` asks, timed as the stages `quality`
 /// and `signature`. Both read one pass over the output's triangles (`surface_pass`: the volume
-/// for both, the area and the sample for the signature), timed with the signature when it is
-/// asked for and with the quality facts otherwise.
+/// for both, the area and the sample for the signature), timed with the quality facts when
+/// they are asked for (the pass is theirs; taking the sample on the way adds little:
+/// docs/PERFORMANCE.md, "Near-duplicate groups") and with the signature otherwise.
 fn measure_output(
     steps: &Steps,
     mesh: Option<&TriMesh>,
@@ -300,8 +301,7 @@ fn measure_output(
             crate::quality::output_facts(m, p.volume, &cubes.normalization, cubes.resolution)
         });
         let facts = crate::quality::facts(&source, load_stats, &conversion.stats, output);
-        let pass_share = if steps.signature { 0.0 } else { pass_s };
-        seconds.add_stage("quality", source_s + pass_share + t.elapsed().as_secs_f64());
+        seconds.add_stage("quality", source_s + pass_s + t.elapsed().as_secs_f64());
         facts
     });
     let signature = pass.filter(|_| steps.signature).and_then(|pass| {
