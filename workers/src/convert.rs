@@ -280,7 +280,8 @@ pub fn convert_bytes(
 /// and `signature`. Both read one pass over the output's triangles (`surface_pass`: the volume
 /// for both, the area and the sample for the signature), timed with the quality facts when
 /// they are asked for (the pass is theirs; taking the sample on the way adds little:
-/// docs/PERFORMANCE.md, "Near-duplicate groups") and with the signature otherwise.
+/// docs/PERFORMANCE.md, "Near-duplicate groups") and with the signature otherwise. The
+/// signature is read right after the pass, while its sample is still in the cache.
 fn measure_output(
     steps: &Steps,
     mesh: Option<&TriMesh>,
@@ -294,6 +295,16 @@ fn measure_output(
         .filter(|_| steps.quality || steps.signature)
         .map(|m| surface_pass(m, steps.signature));
     let pass_s = t.elapsed().as_secs_f64();
+    let (pass_for_quality, pass_for_signature) = match source {
+        Some(_) => (pass_s, 0.0),
+        None => (0.0, pass_s),
+    };
+    let t = Instant::now();
+    let signature = pass
+        .as_ref()
+        .filter(|_| steps.signature)
+        .and_then(signature_of);
+    let signature_s = pass_for_signature + t.elapsed().as_secs_f64();
     let quality = source.map(|(source, source_s)| {
         let t = Instant::now();
         let cubes = &conversion.cubes;
@@ -301,16 +312,16 @@ fn measure_output(
             crate::quality::output_facts(m, p.volume, &cubes.normalization, cubes.resolution)
         });
         let facts = crate::quality::facts(&source, load_stats, &conversion.stats, output);
-        seconds.add_stage("quality", source_s + pass_s + t.elapsed().as_secs_f64());
+        seconds.add_stage(
+            "quality",
+            source_s + pass_for_quality + t.elapsed().as_secs_f64(),
+        );
         facts
     });
-    let signature = pass.filter(|_| steps.signature).and_then(|pass| {
-        let t = Instant::now();
-        let signature = signature_of(&pass)?;
-        seconds.add_stage("signature", pass_s + t.elapsed().as_secs_f64());
-        Some(signature.to_vec())
-    });
-    (quality, signature)
+    if signature.is_some() {
+        seconds.add_stage("signature", signature_s);
+    }
+    (quality, signature.map(|s| s.to_vec()))
 }
 
 /// Draws the samples (`params`, a job with `[samples]`) from the extracted `mesh` and the
