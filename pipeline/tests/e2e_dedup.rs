@@ -127,9 +127,29 @@ fn copies_group_with_their_original_and_distinct_shapes_stay_apart() {
         text.contains(&format!("\t{}\trepresentative\t", id("a_torus.obj"))),
         "{text}"
     );
-    // A threshold of 0 groups nothing.
-    let none = ok(&["dedup", j, "--threshold", "0", "--json"]);
-    assert!(none.contains("\"groups\":[]"), "{none}");
+    // A threshold of 0 groups only identical signatures: the re-triangulated copy, whose
+    // output is the original's (split triangles convert to the same grid), and none of the
+    // moved or mirrored copies.
+    let exact: serde_json::Value =
+        serde_json::from_str(&ok(&["dedup", j, "--threshold", "0", "--json"]))
+            .unwrap_or_else(|e| panic!("{e}"));
+    let exact_members: Vec<(String, f64)> = exact["groups"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .flat_map(|g| g["members"].as_array().cloned().unwrap_or_default())
+        .map(|m| {
+            let id = m["id"].as_str().unwrap_or_default().to_string();
+            (id, m["distance"].as_f64().unwrap_or(f64::NAN))
+        })
+        .collect();
+    assert!(exact_members.iter().all(|(_, d)| *d == 0.0), "{exact}");
+    for moved in ["c_torus_moved.ply", "g_torus_mirrored.stl"] {
+        assert!(
+            exact_members.iter().all(|(m, _)| *m != id(moved)),
+            "{moved}: {exact}"
+        );
+    }
 
     // `ls` and `export` keep the representative and every item of no group.
     let out = sparc3d(&["ls", j, "--one-per-group"]);
