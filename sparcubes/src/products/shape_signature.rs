@@ -172,7 +172,7 @@ fn first_sample_from(start: usize, t: usize, n: usize) -> usize {
     }
 }
 
-/// One pass over the mesh, in parallel over fixed parts of [`PART_TRIANGLES`] combined in
+/// One pass over the mesh, in parallel over fixed parts of 16384 triangles combined in
 /// order: the volume and area, and with `sample` the [`sample_size`] sampled triangles, each
 /// its centroid weighted by its area. Reading the sample in the same pass
 /// that streams the triangles for the volume saves the sample's scattered reads and a second
