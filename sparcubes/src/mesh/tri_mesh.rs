@@ -82,9 +82,7 @@ impl TriMesh {
         (0..self.triangles.len())
             .map(|t| {
                 let [a, b, c] = self.triangle(t);
-                (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
-                    + a[2] * (b[0] * c[1] - b[1] * c[0]))
-                    / 6.0
+                crate::vec3::dot(a, crate::vec3::cross(b, c)) / 6.0
             })
             .sum()
     }

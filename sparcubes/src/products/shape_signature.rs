@@ -29,6 +29,7 @@
 //! "Near-duplicate groups"). Every sum runs over fixed parts combined in a fixed order, so the
 //! signature is bit-identical whatever the thread count.
 
+use crate::vec3::{cross, dist2, dot, norm, sub};
 use crate::TriMesh;
 use rayon::prelude::*;
 
@@ -214,10 +215,9 @@ fn part_pass(mesh: &TriMesh, range: std::ops::Range<usize>, n: usize) -> Surface
     let mut samples = Vec::with_capacity((range.len() * n).div_ceil(t.max(1)) + 1);
     for i in range {
         let [a, b, c] = mesh.triangle(i);
-        six_volume += a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
-            + a[2] * (b[0] * c[1] - b[1] * c[0]);
-        let normal = crate::vec3::cross(crate::vec3::sub(b, a), crate::vec3::sub(c, a));
-        let area = 0.5 * crate::vec3::norm(normal);
+        // Six times `TriMesh::signed_volume`'s term (the same triple product).
+        six_volume += dot(a, cross(b, c));
+        let area = 0.5 * norm(cross(sub(b, a), sub(c, a)));
         area_sum += area;
         if i == next_triangle {
             samples.push(Sample {
@@ -252,7 +252,7 @@ fn centroid_and_covariance(samples: &[Sample]) -> ([f64; 3], [[f64; 3]; 3], f64)
     }
     let mut cov = [[0.0; 3]; 3];
     for s in samples {
-        let d = crate::vec3::sub(s.at(), c);
+        let d = sub(s.at(), c);
         for a in 0..3 {
             for b in 0..3 {
                 cov[a][b] += d[a] * d[b] * s.area() * w;
@@ -339,7 +339,7 @@ fn shell_distribution(samples: &[Sample], c: [f64; 3], r: f64, total: f64) -> [f
     let scale = 1.0 / (r * SHELL_STEP);
     let mut bins = Binned::new();
     for s in samples {
-        bins.add(crate::vec3::dist2(s.at(), c).sqrt() * scale, s.area());
+        bins.add(dist2(s.at(), c).sqrt() * scale, s.area());
     }
     bins.smoothed(total)
 }
