@@ -158,6 +158,9 @@ fn finite(uv: [f64; 2]) -> (f64, f64) {
 fn wrap_index(i: f64, n: usize, wrap: Wrap) -> usize {
     let n = n.max(1) as i64;
     let i = i as i64;
+    if (0..n).contains(&i) {
+        return i as usize;
+    }
     let r = match wrap {
         Wrap::Clamp => i.clamp(0, n - 1),
         Wrap::Repeat => i.rem_euclid(n),
