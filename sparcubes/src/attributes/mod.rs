@@ -12,16 +12,21 @@
 //!
 //! The cells are cut into parts of whole x slices ([`parts`]); each part, in parallel with
 //! the others, adds the pieces of the triangles that reach it into its own cells' sums, gives
-//! the cells no piece reached their closest point's values ([`nearest`]) and encodes its
-//! bytes, so only one part's sums are alive per thread (the stage holds the bytes and a few
-//! MiB, not sums for every cell at once).
+//! the cells no piece reached their closest point's values and encodes its bytes, so only
+//! one part's sums are alive per thread (the stage holds the bytes and a few MiB, not sums
+//! for every cell at once). A closest point comes from the triangles crossing the 27 cells
+//! around the cell where that makes it certain ([`crossings`]: the pieces' cells, noted while
+//! cutting), else from a search of the whole surface ([`nearest`]).
 //!
 //! Determinism: the parts depend on the cells alone, a cell's pieces are added in triangle
-//! order and within a triangle in piece order, and the closest-point queries of a part do not
-//! depend on the threads ([`crate::queries::closest`]). The bytes do not depend on the thread
+//! order and within a triangle in piece order, and the closest-point answers of a part depend
+//! on its cells and the surface only (among equally near triangles the crossings take the
+//! first in the surface's order, the whole-surface search the first it meets, which does not
+//! depend on the threads: [`crate::queries::closest`]). The bytes do not depend on the thread
 //! count.
 
 pub mod clip;
+pub mod crossings;
 pub mod mips;
 pub mod nearest;
 pub mod parts;
@@ -32,6 +37,7 @@ pub mod vertex_colours;
 use crate::colour::{to_byte, SrgbBytes};
 use crate::cubes::{gallop, SparseCubes};
 use crate::materials::Appearance;
+use crossings::Crossings;
 use nearest::Nearest;
 use parts::Part;
 use rayon::prelude::*;
@@ -77,17 +83,19 @@ pub fn sample(cubes: &SparseCubes, app: &Appearance) -> CellAttributes {
     let nearest = Nearest::new(&surface, &shader);
     let srgb = SrgbBytes::new();
     let mut parts = parts::partition(&cubes.cells);
-    let spans = surface
-        .triangles
-        .iter()
-        .map(|&(t, _)| clip::x_span(surface.corners(t)));
+    // A part also gets the triangles of the slice on either side, which its first and last
+    // slices' cells may need for their closest points (crossings.rs).
+    let spans = surface.triangles.iter().map(|&(t, _)| {
+        let (x0, x1) = clip::x_span(surface.corners(t));
+        (x0 - 1, x1 + 1)
+    });
     parts::assign(&mut parts, spans);
     let done: Vec<CellAttributes> = parts
         .par_iter()
         .map(|part| {
             let cells = &cubes.cells[part.rows.clone()];
-            let mut sums = part_sums(&surface, &shader, cells, part);
-            let nearest_cells = fill_nearest(&nearest, cells, &mut sums);
+            let (mut sums, mut crossings) = part_sums(&surface, &shader, cells, part);
+            let nearest_cells = fill_nearest(&nearest, &mut crossings, cells, part, &mut sums);
             encode(&sums, nearest_cells, &srgb)
         })
         .collect();
@@ -95,15 +103,23 @@ pub fn sample(cubes: &SparseCubes, app: &Appearance) -> CellAttributes {
 }
 
 /// The sums of the part's `cells` (its rows) over the pieces of its triangles inside them,
-/// added in triangle order and, within a triangle, in piece order.
-fn part_sums(surface: &GridSurface, shader: &Shader, cells: &[[u16; 3]], part: &Part) -> Vec<Sums> {
+/// added in triangle order and, within a triangle, in piece order; and every piece's cell
+/// and triangle in the part's slices, active or not.
+fn part_sums(
+    surface: &GridSurface,
+    shader: &Shader,
+    cells: &[[u16; 3]],
+    part: &Part,
+) -> (Vec<Sums>, Crossings) {
     let mut sums = vec![[0.0f64; 7]; cells.len()];
+    let mut crossings = Crossings::new(part.xs);
     for &j in &part.triangles {
         let (t, area) = surface.triangles[j as usize];
         let density = shader.uv_density(t, area);
         // The pieces' keys rise (clip::for_each_piece), so one cursor walks the rows forward.
         let mut cursor = 0;
         clip::for_each_piece_in(surface.corners(t), part.xs, |cell, a, bary| {
+            crossings.record(cell, j);
             let Some(key) = cell_key(cell) else {
                 return;
             };
@@ -118,27 +134,70 @@ fn part_sums(surface: &GridSurface, shader: &Shader, cells: &[[u16; 3]], part: &
             }
         });
     }
-    sums
+    (sums, crossings)
 }
 
 /// The key of a cell of the grid's index range, `None` outside it.
+#[inline]
 fn cell_key(cell: [i64; 3]) -> Option<[u16; 3]> {
-    let [x, y, z] = cell.map(|c| u16::try_from(c).ok());
-    Some([x?, y?, z?])
+    let inside = |c: i64| (0..=i64::from(u16::MAX)).contains(&c);
+    (inside(cell[0]) && inside(cell[1]) && inside(cell[2])).then(|| cell.map(|c| c as u16))
 }
 
 /// Gives every cell no piece reached the values at the source surface's closest point to
-/// its centre, as one piece of unit area; returns how many there were.
-fn fill_nearest(nearest: &Nearest, cells: &[[u16; 3]], sums: &mut [Sums]) -> u64 {
+/// its centre, as one piece of unit area: from the `crossings` around it where they make the
+/// answer certain, else from the whole surface. Returns how many cells there were.
+fn fill_nearest(
+    nearest: &Nearest,
+    crossings: &mut Crossings,
+    cells: &[[u16; 3]],
+    part: &Part,
+    sums: &mut [Sums],
+) -> u64 {
     let empty: Vec<usize> = (0..sums.len()).filter(|&i| sums[i][0] <= 0.0).collect();
     if empty.is_empty() {
         return 0;
     }
-    let values = nearest.values_at(empty.iter().map(|&i| cells[i]));
-    for (&i, v) in empty.iter().zip(values) {
+    let rest = if crossings.worth_sorting_for(empty.len()) {
+        fill_from_crossings(nearest, crossings, cells, part, &empty, sums)
+    } else {
+        empty.clone()
+    };
+    let values = nearest.values_at(rest.iter().map(|&i| cells[i]));
+    for (&i, v) in rest.iter().zip(values) {
         sums[i] = one_piece(v);
     }
     empty.len() as u64
+}
+
+/// Gives the `empty` cells whose closest point the crossings around them make certain its
+/// values (crossings.rs); returns the others.
+fn fill_from_crossings(
+    nearest: &Nearest,
+    crossings: &mut Crossings,
+    cells: &[[u16; 3]],
+    part: &Part,
+    empty: &[usize],
+    sums: &mut [Sums],
+) -> Vec<usize> {
+    let surface = nearest.surface();
+    let (first, last) = part.xs;
+    if empty.iter().any(|&i| i64::from(cells[i][0]) == first) {
+        crossings.cover(first - 1, surface, &part.triangles);
+    }
+    if empty.iter().any(|&i| i64::from(cells[i][0]) == last) {
+        crossings.cover(last + 1, surface, &part.triangles);
+    }
+    crossings.sort();
+    let mut walker = crossings.walker();
+    let mut rest = Vec::new();
+    for &i in empty {
+        match walker.closest(cells[i], surface) {
+            Some(found) => sums[i] = one_piece(nearest.values_on(found.triangle, found.point)),
+            None => rest.push(i),
+        }
+    }
+    rest
 }
 
 /// The sums of one piece of unit area with values `v` (their means are `v` exactly).

@@ -54,13 +54,22 @@ impl<'s, 'a> Nearest<'s, 'a> {
         index
             .closest_batch(&centres)
             .iter()
-            .map(|c| {
-                let (t, area) = self.surface.triangles[c.triangle as usize];
-                let bary = barycentric(c.point, self.surface.corners(t));
-                let density = self.shader.uv_density(t, area);
-                self.shader.at(t, bary, 1.0, density)
-            })
+            .map(|c| self.values_on(c.triangle, c.point))
             .collect()
+    }
+
+    /// The values at `point` (grid coordinates) of the surface's triangle `j` (a position in
+    /// `surface.triangles`), textures filtered over one cell's area.
+    pub fn values_on(&self, j: u32, point: [f64; 3]) -> Values {
+        let (t, area) = self.surface.triangles[j as usize];
+        let bary = barycentric(point, self.surface.corners(t));
+        let density = self.shader.uv_density(t, area);
+        self.shader.at(t, bary, 1.0, density)
+    }
+
+    /// The surface the lookups are on.
+    pub fn surface(&self) -> &'s GridSurface<'a> {
+        self.surface
     }
 }
 

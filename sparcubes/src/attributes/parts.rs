@@ -19,7 +19,8 @@ pub struct Part {
     pub rows: Range<usize>,
     /// Its first and last x slice.
     pub xs: (i64, i64),
-    /// The triangles (positions in the surface's list) whose x span meets `xs`, in order.
+    /// The triangles (positions in the surface's list) whose x span, as given to [`assign`],
+    /// meets `xs`, in order.
     pub triangles: Vec<u32>,
 }
 

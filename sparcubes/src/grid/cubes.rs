@@ -35,7 +35,7 @@ impl SparseCubes {
 /// galloping: a walk through rising targets costs the logarithm of each step, not of the
 /// whole list.
 #[inline]
-pub(crate) fn gallop(coords: &[[u16; 3]], from: usize, target: [u16; 3]) -> usize {
+pub(crate) fn gallop<T: Ord>(coords: &[T], from: usize, target: T) -> usize {
     if from >= coords.len() || coords[from] >= target {
         return from;
     }

@@ -1,0 +1,349 @@
+//! The source triangles that cross each cell of a part's slices, sorted by cell, so that a
+//! cell no triangle crosses can find the closest source point among the triangles of the 27
+//! cells around it, and know when that answer is the whole surface's.
+//!
+//! Why: the cells that need a closest point (a thin shell's far wall, a sealed opening) lie
+//! within a voxel or two of the source surface, and on sheets and thin walls they are most of
+//! the cells. A search of the whole surface's tree visits every node whose box reaches the
+//! query, and a sheet's few large triangles have boxes that reach everywhere (about 1.4 µs a
+//! query on `Helgo_Toilets`, docs/PERFORMANCE.md); the triangles crossing the cells around a
+//! cell are a handful, already known from cutting them into pieces.
+//!
+//! When the answer is certain: a triangle with a point nearer than 1.5 to the cell's centre
+//! has a piece inside the 3 × 3 × 3 cells around it (the ball lies inside them), so the
+//! nearest of the triangles crossing those cells is the surface's nearest whenever it is
+//! nearer than 1.5. The crossings are those of the slices they cover (a part's own, and the
+//! slice on either side where a cell of its first or last slice asks: [`Crossings::cover`];
+//! a part can be a single slice), so the bound is also at most the centre's distance to the
+//! ends of those slices. Beyond the bound (or when the cells around hold more than
+//! [`MAX_CANDIDATES`] triangles) the caller asks the whole surface. A triangle whose pieces
+//! all have no area (numerically) is not a candidate.
+
+use super::clip;
+use super::surface::GridSurface;
+use crate::cubes::gallop;
+use crate::mesh::triangle::closest_point_on_triangle;
+use crate::vec3::dist2;
+
+/// Distinct triangles the cells around a cell may hold for an answer from them.
+const MAX_CANDIDATES: usize = 48;
+
+/// How far from a cell's centre the 3 × 3 × 3 cells around it reach at least.
+const REACH: f64 = 1.5;
+
+/// Crossings a query may cost in sorting before the whole-surface search is the cheaper
+/// way: sorting costs some tens of nanoseconds a crossing, a whole-surface query on a dense
+/// mesh about a microsecond, an answer from the crossings a few hundred nanoseconds.
+const WORTH: usize = 16;
+
+/// Kept from the bound for rounding: an answer must be nearer than the bound by this much.
+const SLACK: f64 = 1e-6;
+
+/// The crossings of a run of x slices: for every piece, its cell and its triangle.
+#[derive(Debug, Default)]
+pub struct Crossings {
+    /// `(cell key << 32) | triangle`, the triangle a position in the surface's list.
+    hits: Vec<u128>,
+    /// The first and last x slice covered.
+    xs: (i64, i64),
+}
+
+/// A closest point found from the cells around a cell.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Found {
+    /// The triangle (position in the surface's list).
+    pub triangle: u32,
+    /// The closest point on it (grid coordinates).
+    pub point: [f64; 3],
+}
+
+/// A cell's key: its coordinates, each shifted by one into 17 bits, so that the cells around
+/// any cell of the grid have keys, in the cells' own order. `None` outside that range.
+fn key(cell: [i64; 3]) -> Option<u128> {
+    let fits = |c: i64| (-1..=i64::from(u16::MAX) + 1).contains(&c);
+    if !cell.iter().all(|&c| fits(c)) {
+        return None;
+    }
+    let [x, y, z] = cell.map(|c| (c + 1) as u128);
+    Some((x << 34) | (y << 17) | z)
+}
+
+impl Crossings {
+    /// None yet, for the slices `xs` (first, last), whose pieces the caller records.
+    pub fn new(xs: (i64, i64)) -> Self {
+        Self {
+            hits: Vec::new(),
+            xs,
+        }
+    }
+
+    /// Notes that triangle `j` has a piece in `cell`.
+    #[inline]
+    pub fn record(&mut self, cell: [i64; 3], j: u32) {
+        if let Some(k) = key(cell) {
+            self.hits.push((k << 32) | u128::from(j));
+        }
+    }
+
+    /// Also covers slice `x`, next to the first or last slice covered, cutting the
+    /// `triangles` (positions in the surface's list; those that do not reach `x` add nothing)
+    /// into its cells.
+    pub fn cover(&mut self, x: i64, surface: &GridSurface, triangles: &[u32]) {
+        if x + 1 != self.xs.0 && x - 1 != self.xs.1 {
+            return;
+        }
+        for &j in triangles {
+            let (t, _) = surface.triangles[j as usize];
+            clip::for_each_piece_in(surface.corners(t), (x, x), |cell, _, _| {
+                self.record(cell, j)
+            });
+        }
+        self.xs = (self.xs.0.min(x), self.xs.1.max(x));
+    }
+
+    /// Whether answering `queries` cells from the crossings is worth sorting them: not where
+    /// the crossings outnumber the queries [`WORTH`] times or more (a dense mesh with few
+    /// cells to fill, whose whole-surface search is quick: its triangles' boxes are small).
+    pub fn worth_sorting_for(&self, queries: usize) -> bool {
+        self.hits.len() < WORTH * queries
+    }
+
+    /// Sorts the crossings by cell (each triangle's come in rising order, so this merges
+    /// runs); call once, after the last [`Crossings::record`].
+    pub fn sort(&mut self) {
+        self.hits.sort_unstable();
+    }
+
+    /// A walk over cells in rising order.
+    pub fn walker(&self) -> Walker<'_> {
+        Walker {
+            crossings: self,
+            cursors: [0; 9],
+        }
+    }
+}
+
+/// Closest points for cells taken in rising order, from the crossings around each.
+pub struct Walker<'c> {
+    crossings: &'c Crossings,
+    /// For each of the 9 columns around a cell, where its crossings start.
+    cursors: [usize; 9],
+}
+
+impl Walker<'_> {
+    /// The surface's closest point to the centre of `cell` (after any cell asked before it),
+    /// when the crossings around it make it certain; `None` when the whole surface must be
+    /// asked.
+    pub fn closest(&mut self, cell: [u16; 3], surface: &GridSurface) -> Option<Found> {
+        let centre = cell.map(|c| f64::from(c) + 0.5);
+        let (first, last) = self.crossings.xs;
+        let bound = REACH
+            .min(centre[0] - first as f64)
+            .min((last + 1) as f64 - centre[0])
+            - SLACK;
+        if bound <= 0.0 {
+            return None;
+        }
+        let candidates = self.candidates(cell)?;
+        let mut best: Option<(f64, Found)> = None;
+        for &j in &candidates.list[..candidates.len] {
+            let (t, _) = surface.triangles[j as usize];
+            let point = closest_point_on_triangle(centre, &surface.corners(t));
+            let d2 = dist2(point, centre);
+            let better = best.is_none_or(|(b, f)| d2 < b || (d2 == b && j < f.triangle));
+            if better {
+                best = Some((d2, Found { triangle: j, point }));
+            }
+        }
+        let (d2, found) = best?;
+        (d2 < bound * bound).then_some(found)
+    }
+
+    /// The distinct triangles crossing the 27 cells around `cell`, `None` when there are more
+    /// than [`MAX_CANDIDATES`].
+    fn candidates(&mut self, cell: [u16; 3]) -> Option<Candidates> {
+        let hits = &self.crossings.hits;
+        let mut out = Candidates {
+            list: [0; MAX_CANDIDATES],
+            len: 0,
+        };
+        let [x, y, z] = cell.map(i64::from);
+        for (k, cursor) in self.cursors.iter_mut().enumerate() {
+            let (dx, dy) = (k as i64 / 3 - 1, k as i64 % 3 - 1);
+            let (Some(lo), Some(hi)) = (key([x + dx, y + dy, z - 1]), key([x + dx, y + dy, z + 1]))
+            else {
+                continue;
+            };
+            *cursor = gallop(hits, *cursor, lo << 32);
+            for &h in hits[*cursor..].iter().take_while(|&&h| h >> 32 <= hi) {
+                out.insert(h as u32)?;
+            }
+        }
+        Some(out)
+    }
+}
+
+/// A small set of triangles.
+struct Candidates {
+    list: [u32; MAX_CANDIDATES],
+    len: usize,
+}
+
+impl Candidates {
+    /// Adds `j` unless it is there; `None` when the set is full.
+    fn insert(&mut self, j: u32) -> Option<()> {
+        if self.list[..self.len].contains(&j) {
+            return Some(());
+        }
+        *self.list.get_mut(self.len)? = j;
+        self.len += 1;
+        Some(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cubes::SparseCubes;
+    use crate::materials::Appearance;
+
+    /// Grid resolution of the tests.
+    const N: u32 = 32;
+
+    /// An appearance whose surface has `triangles` (grid coordinates of a grid of `N`³ with
+    /// the identity normalization), and that grid.
+    fn grid_surface(triangles: &[[[f64; 3]; 3]]) -> (Appearance, SparseCubes) {
+        let mut app = Appearance::default();
+        for (k, t) in triangles.iter().enumerate() {
+            for p in t {
+                let unit = p.map(|g| (g / f64::from(N) - 0.5) as f32);
+                app.surface.positions.push(unit);
+            }
+            let i = 3 * k as u32;
+            app.surface.triangles.push([i, i + 1, i + 2]);
+        }
+        let cubes = SparseCubes {
+            resolution: N,
+            normalization: Default::default(),
+            coords: Vec::new(),
+            sdf: Vec::new(),
+            deformation: Vec::new(),
+            cells: Vec::new(),
+        };
+        (app, cubes)
+    }
+
+    /// A tilted sheet of two large triangles, a fold of two more, and a fan of small ones.
+    fn triangles() -> Vec<[[f64; 3]; 3]> {
+        let mut t = vec![
+            [[2.3, 3.1, 4.2], [29.7, 5.3, 9.9], [3.4, 28.8, 7.1]],
+            [[29.7, 5.3, 9.9], [28.1, 29.2, 12.6], [3.4, 28.8, 7.1]],
+            [[6.5, 6.5, 20.5], [25.5, 6.5, 20.5], [16.0, 16.0, 27.5]],
+            [[6.5, 6.5, 20.5], [16.0, 16.0, 27.5], [6.5, 25.5, 20.5]],
+        ];
+        for k in 0..24 {
+            let a = f64::from(k) * std::f64::consts::TAU / 24.0;
+            let b = a + std::f64::consts::TAU / 24.0;
+            t.push([
+                [16.2, 16.3, 15.1],
+                [16.2 + 4.0 * a.cos(), 16.3 + 4.0 * a.sin(), 16.1],
+                [16.2 + 4.0 * b.cos(), 16.3 + 4.0 * b.sin(), 16.1],
+            ]);
+        }
+        t
+    }
+
+    /// The distance from `q` to the nearest of the surface's triangles, by trying them all.
+    fn nearest_distance(surface: &GridSurface, q: [f64; 3]) -> f64 {
+        surface
+            .triangles
+            .iter()
+            .map(|&(t, _)| dist2(closest_point_on_triangle(q, &surface.corners(t)), q))
+            .fold(f64::INFINITY, f64::min)
+            .sqrt()
+    }
+
+    /// Crossings of the slices `xs` of `surface` (every triangle cut there).
+    fn crossings_of(surface: &GridSurface, xs: (i64, i64)) -> Crossings {
+        let mut c = Crossings::new(xs);
+        for (j, &(t, _)) in surface.triangles.iter().enumerate() {
+            clip::for_each_piece_in(surface.corners(t), xs, |cell, _, _| {
+                c.record(cell, j as u32)
+            });
+        }
+        c
+    }
+
+    /// Every cell of the grid whose centre is within 2 of the surface, in order, with that
+    /// distance.
+    fn band(surface: &GridSurface) -> Vec<([u16; 3], f64)> {
+        let n = N as u16;
+        let cells = (0..n).flat_map(|x| (0..n).flat_map(move |y| (0..n).map(move |z| [x, y, z])));
+        cells
+            .map(|c| (c, nearest_distance(surface, c.map(|v| f64::from(v) + 0.5))))
+            .filter(|&(_, d)| d < 2.0)
+            .collect()
+    }
+
+    #[test]
+    fn answers_from_the_cells_around_are_the_whole_surfaces_nearest() {
+        let (app, cubes) = grid_surface(&triangles());
+        let surface = GridSurface::new(&app, &cubes);
+        let mut crossings = crossings_of(&surface, (0, i64::from(N) - 1));
+        crossings.sort();
+        let mut walker = crossings.walker();
+        let band = band(&surface);
+        let mut answered = 0;
+        for &(cell, want) in &band {
+            if let Some(found) = walker.closest(cell, &surface) {
+                let centre = cell.map(|v| f64::from(v) + 0.5);
+                let got = dist2(found.point, centre).sqrt();
+                assert!((got - want).abs() < 1e-12, "{cell:?}: {got} against {want}");
+                assert!(want < REACH);
+                answered += 1;
+            } else {
+                assert!(want >= REACH - 1e-3, "{cell:?} at {want} went unanswered");
+            }
+        }
+        assert!(
+            answered * 10 > band.len() * 6,
+            "{answered} of {}",
+            band.len()
+        );
+    }
+
+    #[test]
+    fn a_slice_at_the_end_of_the_covered_ones_answers_once_its_neighbour_is_covered() {
+        let (app, cubes) = grid_surface(&triangles());
+        let surface = GridSurface::new(&app, &cubes);
+        let everything: Vec<u32> = (0..surface.triangles.len() as u32).collect();
+        let slice: Vec<([u16; 3], f64)> = band(&surface)
+            .into_iter()
+            .filter(|(c, _)| c[0] == 12)
+            .collect();
+        let answered = |crossings: &mut Crossings| {
+            crossings.sort();
+            let mut walker = crossings.walker();
+            let mut count = 0;
+            for &(cell, want) in &slice {
+                if let Some(found) = walker.closest(cell, &surface) {
+                    let got = dist2(found.point, cell.map(|v| f64::from(v) + 0.5)).sqrt();
+                    assert!((got - want).abs() < 1e-12, "{cell:?}: {got} against {want}");
+                    count += 1;
+                }
+            }
+            count
+        };
+        // A part of the one slice 12: only cells nearer than half a cell are certain.
+        let mut alone = crossings_of(&surface, (12, 12));
+        let few = answered(&mut alone);
+        let mut covered = crossings_of(&surface, (12, 12));
+        covered.cover(11, &surface, &everything);
+        covered.cover(13, &surface, &everything);
+        covered.cover(20, &surface, &everything); // not next to the covered slices: no effect
+        let many = answered(&mut covered);
+        assert!(few < many, "{few} then {many} of {}", slice.len());
+        let within_reach = slice.iter().filter(|(_, d)| *d < REACH - 1e-3).count();
+        assert_eq!(many, within_reach);
+    }
+}
