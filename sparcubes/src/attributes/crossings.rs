@@ -16,7 +16,7 @@
 //! slice on either side where a cell of its first or last slice asks: [`Crossings::cover`];
 //! a part can be a single slice), so the bound is also at most the centre's distance to the
 //! ends of those slices. Beyond the bound (or when the cells around hold more than
-//! [`MAX_CANDIDATES`] triangles) the caller asks the whole surface. A triangle whose pieces
+//! 48 triangles) the caller asks the whole surface. A triangle whose pieces
 //! all have no area (numerically) is not a candidate.
 
 use super::clip;
@@ -102,7 +102,7 @@ impl Crossings {
     }
 
     /// Whether answering `queries` cells from the crossings is worth sorting them: not where
-    /// the crossings outnumber the queries [`WORTH`] times or more (a dense mesh with few
+    /// the crossings outnumber the queries 16 times or more (a dense mesh with few
     /// cells to fill, whose whole-surface search is quick: its triangles' boxes are small).
     pub fn worth_sorting_for(&self, queries: usize) -> bool {
         self.hits.len() < WORTH * queries
