@@ -108,8 +108,8 @@ impl Crossings {
         self.hits.len() < WORTH * queries
     }
 
-    /// Sorts the crossings by cell (each triangle's come in rising order, so this merges
-    /// runs); call once, after the last [`Crossings::record`].
+    /// Sorts the crossings by cell; call once, after the last [`Crossings::record`] and
+    /// [`Crossings::cover`].
     pub fn sort(&mut self) {
         self.hits.sort_unstable();
     }

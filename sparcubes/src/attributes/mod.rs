@@ -155,19 +155,20 @@ fn fill_nearest(
     sums: &mut [Sums],
 ) -> u64 {
     let empty: Vec<usize> = (0..sums.len()).filter(|&i| sums[i][0] <= 0.0).collect();
+    let count = empty.len() as u64;
     if empty.is_empty() {
         return 0;
     }
     let rest = if crossings.worth_sorting_for(empty.len()) {
         fill_from_crossings(nearest, crossings, cells, part, &empty, sums)
     } else {
-        empty.clone()
+        empty
     };
     let values = nearest.values_at(rest.iter().map(|&i| cells[i]));
     for (&i, v) in rest.iter().zip(values) {
         sums[i] = one_piece(v);
     }
-    empty.len() as u64
+    count
 }
 
 /// Gives the `empty` cells whose closest point the crossings around them make certain its
