@@ -1,17 +1,19 @@
 //! The attribute stage's time on real textured meshes, measured inside one process: each mesh
-//! is loaded and converted once (timed: the conversion), its appearance read once, then the
-//! cells' attributes sampled ROUNDS times (`sparcubes::attributes::sample`, median). Prints
-//! one JSON line per mesh (cells, cells filled from the closest point, the conversion's and
-//! the sampling's milliseconds, the sampling's CPU milliseconds a round over all threads, which
-//! a busy shared machine disturbs less than the wall time, and a hash of the bytes, so that two builds can be compared
-//! for speed and for identical output), then the median share of the conversion:
+//! is loaded and converted once (timed: the conversion), its appearance read once (timed),
+//! then the cells' attributes sampled ROUNDS times (`sparcubes::attributes::sample`, median).
+//! Prints one JSON line per mesh (cells, cells filled from the closest point, the
+//! milliseconds of the conversion, of reading the materials and of the sampling, the
+//! sampling's CPU milliseconds a round over all threads, which a busy shared machine disturbs
+//! less than the wall time, and a hash of the bytes, so that two builds can be compared for
+//! speed and for identical output), then the median share of the conversion:
 //!
 //!     cargo run --release -p sparcubes --example attributes_bench -- [--resolution R] \
 //!         [--rounds K] MESH...
 //!
-//! The share here leaves out reading the materials (the stage's `materials::read`, a few
-//! milliseconds) and counts the conversion without extraction, so it is not the row's
-//! `attributes` share; it is for comparing builds of the sampling itself.
+//! The share here leaves out reading the materials (the stage's `materials::read`: 2–40 ms on
+//! the items of docs/PERFORMANCE.md, the most where a 2048² PNG is decoded) and counts the
+//! conversion without extraction, so it is not the row's `attributes` share; it is for
+//! comparing builds of the sampling itself.
 
 use sparcubes::attributes::{sample, CellAttributes};
 use sparcubes::io::Buffers;
@@ -59,8 +61,10 @@ fn measure(
     let loaded = sparcubes::io::load(path)?;
     let cubes = sparcubes::convert(&loaded.mesh, &sparcubes::Params::with_resolution(n))?.cubes;
     let conversion_ms = t.elapsed().as_secs_f64() * 1e3;
+    let t = Instant::now();
     let bytes = std::fs::read(path)?;
     let app = sparcubes::materials::read(&bytes, path, Buffers::Folder)?;
+    let read_ms = t.elapsed().as_secs_f64() * 1e3;
     let mut times = Vec::new();
     let mut out = CellAttributes::default();
     let cpu = cpu_seconds();
@@ -80,6 +84,7 @@ fn measure(
         "cells": cubes.cells.len(),
         "nearest_cells": out.nearest_cells,
         "conversion_ms": conversion_ms,
+        "read_ms": read_ms,
         "sample_ms": sample_ms,
         "cpu_ms": cpu_ms,
         "share": share,
