@@ -9,6 +9,16 @@ meshes and sources.
         --minutes 30 --steps-per-second 0.75 [--config vae.toml] [--run NAME] [--steps S] \\
         [--init-from RUN] [--unseen-only]
 
+`--unseen-job JOB` evaluates on a job of items from outside the corpus instead of a split:
+all of the corpus's ok items (up to `--train`) are trained on, and every ok item of JOB is
+unseen. `vae_heldout_manifest.tsv` beside this script names 24 such meshes (the dev corpus's
+fetch script takes it as its MANIFEST argument; docs/VAE.md, "Round three"):
+
+    fetch.sh corpus ops/bench/vae_heldout_manifest.tsv
+    sparc3d run corpus/vae_heldout --job held64 --resolution 64
+    ops/bench/vae_dev_corpus.py --job dev64 --work out --train 1000 --unseen-job held64 \
+        --steps 2800 --run base
+
 Several runs may share one WORK folder (`--run NAME`: WORK/NAME/ holds the run, its
 evaluations and its report; the split jobs are converted once). `--steps` fixes the step count
 instead of the time budget (for ablations that compare settings at equal steps).
@@ -90,15 +100,22 @@ def main():
     ap.add_argument("--run", default="run", help="name of the run folder under WORK")
     ap.add_argument("--steps", type=int, help="step count (instead of minutes × rate)")
     ap.add_argument("--unseen-only", action="store_true", help="evaluate the unseen items only")
+    ap.add_argument("--unseen-job", type=pathlib.Path,
+                    help="a converted job of items from outside the corpus: evaluate on all of its "
+                         "items, and train on the corpus's first --train items (no split)")
     args = ap.parse_args()
     args.work.mkdir(parents=True, exist_ok=True)
     config = json.loads((pathlib.Path(args.job) / "job.json").read_text())["config"]
     resolution = config["params"]["resolution"]
 
     ids = sorted(ok_ids(args.job), key=lambda i: (sample_key(args.seed, i), i))
-    unseen, training = ids[:args.unseen], ids[args.unseen:args.unseen + args.train]
+    if args.unseen_job:
+        unseen, training = ok_ids(args.unseen_job), ids[:args.train]
+        unseen_job = args.unseen_job
+    else:
+        unseen, training = ids[:args.unseen], ids[args.unseen:args.unseen + args.train]
+        unseen_job = make_job(args.job, unseen, args.work, "unseen", resolution)
     train_job = make_job(args.job, training, args.work, "train", resolution)
-    unseen_job = make_job(args.job, unseen, args.work, "unseen", resolution)
 
     steps = args.steps or int(args.minutes * 60 * args.steps_per_second)
     home = args.work if args.run == "run" else args.work / args.run
