@@ -12,7 +12,7 @@ meshes and sources.
 `--unseen-job JOB` evaluates on a job of items from outside the corpus instead of a split:
 all of the corpus's ok items (up to `--train`) are trained on, and every ok item of JOB is
 unseen. `vae_heldout_manifest.tsv` beside this script names 24 such meshes (the dev corpus's
-fetch script takes it as its MANIFEST argument; docs/VAE.md, "Round three"):
+fetch script takes it as its MANIFEST argument; docs/VAE.md, "Measured: round three"):
 
     fetch.sh corpus ops/bench/vae_heldout_manifest.tsv
     sparc3d run corpus/vae_heldout --job held64 --resolution 64
