@@ -209,7 +209,7 @@ impl Fixed {
 /// are averaged in 16-bit fixed-point linear light (a step of 1/65,535, a twentieth of the
 /// darkest sRGB step), the others as bytes; both round the mean to the nearest, halves up.
 /// Integers and two table lookups a channel: a 2048² texture's pyramid was an eighth of its
-/// item's sampling time with a float mean and a search of the sRGB thresholds per channel.
+/// item's sampling time with a float mean and an sRGB encoding per channel.
 fn halve(l: &Level, fixed: Option<&Fixed>) -> Level<'static> {
     let (w, h) = ((l.w / 2).max(1), (l.h / 2).max(1));
     let mut texels = vec![[0u8; 4]; w * h];
