@@ -115,7 +115,9 @@ def main():
     else:
         unseen, training = ids[:args.unseen], ids[args.unseen:args.unseen + args.train]
         unseen_job = make_job(args.job, unseen, args.work, "unseen", resolution)
-    train_job = make_job(args.job, training, args.work, "train", resolution)
+    # Training on every ok item of the corpus needs no copy of its job.
+    whole = args.unseen_job and len(training) == len(ids)
+    train_job = args.job if whole else make_job(args.job, training, args.work, "train", resolution)
 
     steps = args.steps or int(args.minutes * 60 * args.steps_per_second)
     home = args.work if args.run == "run" else args.work / args.run
