@@ -34,8 +34,9 @@ pub fn to_byte(x: f32) -> u8 {
 /// every float in [0, 1], which a test checks on a dense sweep and on both sides of every
 /// threshold.
 pub struct SrgbBytes {
-    /// `least[b - 1]`: the least x in [0, 1] whose byte is at least `b`.
-    least: [f32; 255],
+    /// `least[b - 1]`: the least x in [0, 1] whose byte is at least `b`; `least[255]` is
+    /// infinite, so that no float steps past 255.
+    least: [f32; 256],
     /// `first[i]`: the byte of the float whose bits are `i << 16`, for every such float in
     /// [0, 1].
     first: Vec<u8>,
@@ -45,8 +46,10 @@ impl SrgbBytes {
     /// Builds the tables.
     pub fn new() -> Self {
         let byte = |x: f32| to_byte(linear_to_srgb(x));
-        let least: [f32; 255] = std::array::from_fn(|i| {
-            let b = i as u8 + 1;
+        let least: [f32; 256] = std::array::from_fn(|i| {
+            let Ok(b) = u8::try_from(i + 1) else {
+                return f32::INFINITY;
+            };
             // Non-negative floats order as their bits do: bisect on the bits in [0, 1].
             let (mut lo, mut hi) = (0u32, 1.0f32.to_bits());
             while lo < hi {
@@ -77,7 +80,10 @@ impl SrgbBytes {
             return 255;
         }
         let mut b = self.first[(x.to_bits() >> 16) as usize];
-        while b < 255 && self.least[b as usize] <= x {
+        // The first step without a branch (whether a run's float passes its first threshold
+        // is a coin toss to the branch predictor); the loop after it is rarely entered.
+        b += u8::from(self.least[usize::from(b)] <= x);
+        while self.least[usize::from(b)] <= x {
             b += 1;
         }
         b
@@ -114,7 +120,7 @@ mod tests {
     #[test]
     fn the_table_agrees_on_either_side_of_every_step() {
         let table = SrgbBytes::new();
-        for t in table.least {
+        for &t in &table.least[..255] {
             for x in [
                 f32::from_bits(t.to_bits() - 1),
                 t,

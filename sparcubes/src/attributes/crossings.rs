@@ -39,14 +39,44 @@ const WORTH: usize = 16;
 /// Kept from the bound for rounding: an answer must be nearer than the bound by this much.
 const SLACK: f64 = 1e-6;
 
-/// The crossings of a run of x slices: for every piece, its cell and its triangle.
+/// The crossings of a run of x slices: for every piece, its cell and its triangle; once
+/// sorted, each column's (x, y) crossings in rising z, found by the column's place.
+///
+/// Why columns: the cells around a cell are nine short runs of three, one in each of the
+/// nine columns around its own, so a column's crossings are all a query reads; sorting by
+/// column is a counting pass over the crossings and small sorts within each column, not one
+/// sort of them all (which cost about as much as the walk: docs/PERFORMANCE.md, "Fifth
+/// round").
 #[derive(Debug, Default)]
 pub struct Crossings {
-    /// `(cell key << 32) | triangle`, the triangle a position in the surface's list.
-    hits: Vec<u128>,
+    /// The pieces recorded, in the order recorded (emptied by [`Crossings::sort`]).
+    hits: Vec<Hit>,
     /// The first and last x slice covered.
     xs: (i64, i64),
+    /// The least and greatest y of the pieces recorded.
+    ys: (i64, i64),
+    /// After [`Crossings::sort`]: where each column's crossings start in `entries`, the
+    /// columns x-major over `xs` and `ys`, and one more for the end.
+    starts: Vec<u32>,
+    /// After [`Crossings::sort`]: each column's `(z + 1) << 32 | triangle`, rising.
+    entries: Vec<u64>,
 }
+
+/// One piece's cell and triangle (a position in the surface's list).
+#[derive(Debug, Clone, Copy)]
+struct Hit {
+    cell: [i32; 3],
+    triangle: u32,
+}
+
+/// Columns a set of crossings may sort into, beyond [`COLUMNS_PER_CROSSING`] a crossing:
+/// a sparse part of a large grid has more columns than crossings, and one start a column is
+/// what that costs.
+const SPARE_COLUMNS: usize = 1 << 16;
+
+/// Columns a crossing may bring (see [`SPARE_COLUMNS`]); past that the walk answers nothing
+/// and the whole surface is asked.
+const COLUMNS_PER_CROSSING: usize = 64;
 
 /// A closest point found from the cells around a cell.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -57,31 +87,30 @@ pub struct Found {
     pub point: [f64; 3],
 }
 
-/// A cell's key: its coordinates, each shifted by one into 17 bits, so that the cells around
-/// any cell of the grid have keys, in the cells' own order. `None` outside that range.
-fn key(cell: [i64; 3]) -> Option<u128> {
-    let fits = |c: i64| (-1..=i64::from(u16::MAX) + 1).contains(&c);
-    if !cell.iter().all(|&c| fits(c)) {
-        return None;
-    }
-    let [x, y, z] = cell.map(|c| (c + 1) as u128);
-    Some((x << 34) | (y << 17) | z)
+/// Whether a cell coordinate is one whose cell, or a neighbour of one of the grid's, can be
+/// recorded: from -1 to 65,536 (the cells around any cell of the grid).
+#[inline]
+fn fits(c: i64) -> bool {
+    (-1..=i64::from(u16::MAX) + 1).contains(&c)
 }
 
 impl Crossings {
     /// None yet, for the slices `xs` (first, last), whose pieces the caller records.
     pub fn new(xs: (i64, i64)) -> Self {
         Self {
-            hits: Vec::new(),
             xs,
+            ys: (i64::MAX, i64::MIN),
+            ..Self::default()
         }
     }
 
     /// Notes that triangle `j` has a piece in `cell`.
     #[inline]
     pub fn record(&mut self, cell: [i64; 3], j: u32) {
-        if let Some(k) = key(cell) {
-            self.hits.push((k << 32) | u128::from(j));
+        if cell.iter().all(|&c| fits(c)) {
+            self.ys = (self.ys.0.min(cell[1]), self.ys.1.max(cell[1]));
+            let cell = cell.map(|c| c as i32);
+            self.hits.push(Hit { cell, triangle: j });
         }
     }
 
@@ -103,21 +132,77 @@ impl Crossings {
 
     /// Whether answering `queries` cells from the crossings is worth sorting them: not where
     /// the crossings outnumber the queries 16 times or more (a dense mesh with few
-    /// cells to fill, whose whole-surface search is quick: its triangles' boxes are small).
+    /// cells to fill, whose whole-surface search is quick: its triangles' boxes are small),
+    /// nor where they would sort into too many columns (with room for the two slices
+    /// [`Crossings::cover`] may add).
     pub fn worth_sorting_for(&self, queries: usize) -> bool {
-        self.hits.len() < WORTH * queries
+        let xs = (self.xs.0 - 1, self.xs.1 + 1);
+        self.hits.len() < WORTH * queries && self.columns(xs).is_some()
     }
 
-    /// Sorts the crossings by cell; call once, after the last [`Crossings::record`] and
-    /// [`Crossings::cover`].
+    /// The number of columns over the slices `xs` and the recorded `ys`, `None` when that is
+    /// more than the crossings may bring.
+    fn columns(&self, xs: (i64, i64)) -> Option<usize> {
+        let n = self.hits.len();
+        let nx = usize::try_from(xs.1 - xs.0 + 1).ok()?;
+        let ny = usize::try_from(self.ys.1 - self.ys.0 + 1).ok()?;
+        let columns = nx.checked_mul(ny)?;
+        let allowed = n.saturating_mul(COLUMNS_PER_CROSSING) + SPARE_COLUMNS;
+        (columns <= allowed && n < u32::MAX as usize).then_some(columns)
+    }
+
+    /// Sorts the crossings by column and, within a column, by z and triangle; call once,
+    /// after the last [`Crossings::record`] and [`Crossings::cover`]. Where there would be
+    /// too many columns ([`Crossings::worth_sorting_for`]) the walk answers nothing.
     pub fn sort(&mut self) {
-        self.hits.sort_unstable();
+        let hits = std::mem::take(&mut self.hits);
+        let Some(columns) = self.columns(self.xs).filter(|_| !hits.is_empty()) else {
+            return;
+        };
+        let (x0, y0) = (self.xs.0, self.ys.0);
+        let ny = self.ys.1 - y0 + 1;
+        let column =
+            |h: &Hit| ((i64::from(h.cell[0]) - x0) * ny + i64::from(h.cell[1]) - y0) as usize;
+        let mut starts = vec![0u32; columns + 1];
+        for h in &hits {
+            starts[column(h) + 1] += 1;
+        }
+        for c in 1..starts.len() {
+            starts[c] += starts[c - 1];
+        }
+        let mut next = starts.clone();
+        let mut entries = vec![0u64; hits.len()];
+        for h in &hits {
+            let slot = &mut next[column(h)];
+            entries[*slot as usize] = ((h.cell[2] + 1) as u64) << 32 | u64::from(h.triangle);
+            *slot += 1;
+        }
+        for c in 0..columns {
+            entries[starts[c] as usize..starts[c + 1] as usize].sort_unstable();
+        }
+        self.starts = starts;
+        self.entries = entries;
+    }
+
+    /// The sorted crossings of column (`x`, `y`); none outside the columns covered.
+    fn column(&self, x: i64, y: i64) -> &[u64] {
+        let (x0, y0) = (self.xs.0, self.ys.0);
+        let ny = self.ys.1 - y0 + 1;
+        if self.starts.is_empty()
+            || !(x0..=self.xs.1).contains(&x)
+            || !(y0..=self.ys.1).contains(&y)
+        {
+            return &[];
+        }
+        let c = ((x - x0) * ny + (y - y0)) as usize;
+        &self.entries[self.starts[c] as usize..self.starts[c + 1] as usize]
     }
 
     /// A walk over cells in rising order.
     pub fn walker(&self) -> Walker<'_> {
         Walker {
             crossings: self,
+            last: None,
             cursors: [0; 9],
         }
     }
@@ -126,7 +211,10 @@ impl Crossings {
 /// Closest points for cells taken in rising order, from the crossings around each.
 pub struct Walker<'c> {
     crossings: &'c Crossings,
-    /// For each of the 9 columns around a cell, where its crossings start.
+    /// The cell asked before, whose column the cursors are in.
+    last: Option<[u16; 3]>,
+    /// For each of the 9 columns around the cell, where its crossings from the cell's z − 1
+    /// on start.
     cursors: [usize; 9],
 }
 
@@ -162,21 +250,26 @@ impl Walker<'_> {
     /// The distinct triangles crossing the 27 cells around `cell`, `None` when there are more
     /// than [`MAX_CANDIDATES`].
     fn candidates(&mut self, cell: [u16; 3]) -> Option<Candidates> {
-        let hits = &self.crossings.hits;
+        let same_column = self
+            .last
+            .is_some_and(|l| l[0] == cell[0] && l[1] == cell[1] && l[2] <= cell[2]);
+        if !same_column {
+            self.cursors = [0; 9];
+        }
+        self.last = Some(cell);
         let mut out = Candidates {
             list: [0; MAX_CANDIDATES],
             len: 0,
         };
-        let [x, y, z] = cell.map(i64::from);
+        let [x, y, z] = cell.map(u64::from);
+        // Cells z − 1 to z + 1 are entries z to z + 2 (z shifted by one).
+        let (lo, hi) = (z << 32, z + 2);
         for (k, cursor) in self.cursors.iter_mut().enumerate() {
             let (dx, dy) = (k as i64 / 3 - 1, k as i64 % 3 - 1);
-            let (Some(lo), Some(hi)) = (key([x + dx, y + dy, z - 1]), key([x + dx, y + dy, z + 1]))
-            else {
-                continue;
-            };
-            *cursor = gallop(hits, *cursor, lo << 32);
-            for &h in hits[*cursor..].iter().take_while(|&&h| h >> 32 <= hi) {
-                out.insert(h as u32)?;
+            let column = self.crossings.column(x as i64 + dx, y as i64 + dy);
+            *cursor = gallop(column, *cursor, lo);
+            for &e in column[*cursor..].iter().take_while(|&&e| e >> 32 <= hi) {
+                out.insert(e as u32)?;
             }
         }
         Some(out)
@@ -345,5 +438,22 @@ mod tests {
         assert!(few < many, "{few} then {many} of {}", slice.len());
         let within_reach = slice.iter().filter(|(_, d)| *d < REACH - 1e-3).count();
         assert_eq!(many, within_reach);
+    }
+
+    #[test]
+    fn crossings_spread_over_too_many_columns_send_every_cell_to_the_whole_surface() {
+        let (app, cubes) = grid_surface(&triangles());
+        let surface = GridSurface::new(&app, &cubes);
+        let mut sparse = crossings_of(&surface, (0, i64::from(N) - 1));
+        let queries = sparse.hits.len();
+        assert!(sparse.worth_sorting_for(queries));
+        // The same crossings, said to cover every slice of the largest grid.
+        sparse.xs = (-1, i64::from(u16::MAX) + 1);
+        assert!(!sparse.worth_sorting_for(queries));
+        sparse.sort();
+        let mut walker = sparse.walker();
+        assert!(band(&surface)
+            .iter()
+            .all(|&(cell, _)| walker.closest(cell, &surface).is_none()));
     }
 }

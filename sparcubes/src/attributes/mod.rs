@@ -115,7 +115,7 @@ fn part_sums(
     let mut crossings = Crossings::new(part.xs);
     for &j in &part.triangles {
         let (t, area) = surface.triangles[j as usize];
-        let density = shader.uv_density(t, area);
+        let shading = shader.prepare(t, shader.uv_density(t, area));
         // The pieces' keys rise (clip::for_each_piece), so one cursor walks the rows forward.
         let mut cursor = 0;
         clip::for_each_piece_in(surface.corners(t), part.xs, |cell, a, bary| {
@@ -125,7 +125,7 @@ fn part_sums(
             };
             cursor = gallop(cells, cursor, key);
             if cells.get(cursor) == Some(&key) {
-                let v = shader.at(t, bary, a, density);
+                let v = shading.at(bary, a);
                 let s = &mut sums[cursor];
                 s[0] += a;
                 for k in 0..6 {
