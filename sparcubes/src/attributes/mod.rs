@@ -38,7 +38,7 @@ use crate::colour::{to_byte, SrgbBytes};
 use crate::cubes::{gallop, SparseCubes};
 use crate::materials::Appearance;
 use crossings::Crossings;
-use nearest::Nearest;
+use nearest::{LastShading, Nearest};
 use parts::Part;
 use rayon::prelude::*;
 use shade::{Shader, Values};
@@ -192,9 +192,12 @@ fn fill_from_crossings(
     crossings.sort();
     let mut walker = crossings.walker();
     let mut rest = Vec::new();
+    let mut last = LastShading::default();
     for &i in empty {
         match walker.closest(cells[i], surface) {
-            Some(found) => sums[i] = one_piece(nearest.values_on(found.triangle, found.point)),
+            Some(found) => {
+                sums[i] = one_piece(nearest.values_on(found.triangle, found.point, &mut last))
+            }
             None => rest.push(i),
         }
     }

@@ -2,7 +2,7 @@
 //! opening, a filled hole): those at the source surface's closest point to the cell's centre,
 //! textures filtered over one cell's area.
 
-use super::shade::{Shader, Values};
+use super::shade::{Prepared, Shader, Values};
 use super::surface::GridSurface;
 use crate::mesh::TriMesh;
 use crate::queries::closest::TriangleIndex;
@@ -11,9 +11,13 @@ use std::sync::OnceLock;
 /// The values a cell takes when the surface has no triangle to be near: all zero.
 const FALLBACK: Values = [0.0; 6];
 
+/// The prepared shading of the triangle a lookup was last on (none at first).
+#[derive(Default)]
+pub struct LastShading<'s>(Option<(u32, Prepared<'s>)>);
+
 /// Closest-point lookups on the source surface, its index built on first use (most meshes'
 /// cells are all crossed and never need it).
-pub struct Nearest<'s, 'a> {
+pub struct Nearest<'s, 'a: 's> {
     surface: &'s GridSurface<'a>,
     shader: &'s Shader<'a>,
     index: OnceLock<Option<TriangleIndex>>,
@@ -51,20 +55,30 @@ impl<'s, 'a> Nearest<'s, 'a> {
         let Some(index) = self.index() else {
             return vec![FALLBACK; centres.len()];
         };
+        let mut last = LastShading::default();
         index
             .closest_batch(&centres)
             .iter()
-            .map(|c| self.values_on(c.triangle, c.point))
+            .map(|c| self.values_on(c.triangle, c.point, &mut last))
             .collect()
     }
 
     /// The values at `point` (grid coordinates) of the surface's triangle `j` (a position in
-    /// `surface.triangles`), textures filtered over one cell's area.
-    pub fn values_on(&self, j: u32, point: [f64; 3]) -> Values {
+    /// `surface.triangles`), textures filtered over one cell's area; `last` keeps the
+    /// triangle's prepared shading for the next lookup, which is often on the same triangle.
+    pub fn values_on(&self, j: u32, point: [f64; 3], last: &mut LastShading<'s>) -> Values {
         let (t, area) = self.surface.triangles[j as usize];
-        let bary = barycentric(point, self.surface.corners(t));
-        let density = self.shader.uv_density(t, area);
-        self.shader.at(t, bary, 1.0, density)
+        let shading = match &mut last.0 {
+            Some((k, shading)) if *k == j => shading,
+            slot => {
+                let density = self.shader.uv_density(t, area);
+                &slot.insert((j, self.shader.prepare(t, density))).1
+            }
+        };
+        if let Some(v) = shading.constant() {
+            return v;
+        }
+        shading.at(barycentric(point, self.surface.corners(t)), 1.0)
     }
 
     /// The surface the lookups are on.

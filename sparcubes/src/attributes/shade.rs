@@ -154,6 +154,11 @@ impl Prepared<'_> {
         }
     }
 
+    /// The values everywhere on the triangle, when nothing varies over it.
+    pub fn constant(&self) -> Option<Values> {
+        self.constant
+    }
+
     /// Whether the values can differ from one point of the triangle to another.
     fn varies(&self) -> bool {
         self.vertex_colour.is_some()
