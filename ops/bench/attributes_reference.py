@@ -9,8 +9,9 @@ DEST/cache): the member's folder out of a Sweet Home 3D `.sh3f` or a wheel, the 
 place in an unpacked Debian package, a FlightGear model's converted GLB beside its textures.
 It then runs the Rust example `attributes_reference` (sparcubes/examples) on every item to
 read its facts, keeps those with materials, textures or vertex colours, and measures them at
-the resolution given. Prints a Markdown table (the one in docs/QUALITY.md) and writes the
-JSON lines to --out.
+the resolution given, against both of the example's references (a texel at the closest point;
+the area mean over the cell's surface, `area`). Prints a Markdown table (the one in
+docs/QUALITY.md) and writes the JSON lines to --out.
 
     cargo build --release -p sparcubes --example attributes_reference
     python3 ops/bench/attributes_reference.py /tmp/corpus42 --resolution 256 --out ref.jsonl \
@@ -120,8 +121,8 @@ def main():
             for r in results:
                 f.write(json.dumps({**r, "item": names.get(r["path"], r["path"])}) + "\n")
     print(f"| item | materials / textures (largest) / vertex colours | cells | "
-          f"nearest-filled | median | p90 | > 48 | meets |")
-    print("|---|---|---|---|---|---|---|---|")
+          f"nearest-filled | median | p90 | > 48 | meets | area: cells | area: median / p90 |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for r in sorted(results, key=lambda r: names.get(r["path"], "")):
         if "error" in r:
             print(f"| `{names.get(r['path'], r['path'])}` | error: {r['error']} |")
@@ -131,7 +132,8 @@ def main():
         print(f"| `{names.get(r['path'], r['path'])}` | {r['materials']} / {r['textures']} "
               f"({r['largest_texture']}) / {vc} | {r['cells']} | {r['nearest_cells']} | "
               f"{r['median']} | {r['p90']} | {100 * r['over_48']:.1f} % | "
-              f"{'yes' if ok else '**no**'} |")
+              f"{'yes' if ok else '**no**'} | {r['area_cells']} | "
+              f"{r['area_median']} / {r['area_p90']} |")
 
 
 if __name__ == "__main__":

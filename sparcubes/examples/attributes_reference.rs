@@ -6,7 +6,16 @@
 //! applied), the nearest texel of the full-size image, times the base colour factor and the
 //! vertex colour. The error of a cell is the largest of its three channel differences in sRGB
 //! bytes. Prints one JSON line per mesh: its facts, cell counts, the error's median, 90th
-//! percentile and mean, and the share of cells over 48/255:
+//! percentile and mean, and the share of cells over 48/255.
+//!
+//! A second reference, the `area_*` fields, measures what the sampler is meant to store
+//! rather than a point of it: for every cell the source surface crosses, the mean over that
+//! surface inside the cell, by brute force: every source triangle cut into a lattice of
+//! small triangles (sides at most an eighth of a cell; at most 2048 to a side), each
+//! small triangle's centroid coloured by the nearest texel (as above) and weighted by its
+//! area, in linear light. No clipping, no mip levels, no code shared with the sampler. Where
+//! a texture's detail is finer than a cell, the first reference reads one texel of it and
+//! this one their mean:
 //!
 //!     cargo run --release -p sparcubes --example attributes_reference -- RESOLUTION MESH...
 //!
@@ -65,11 +74,97 @@ fn measure(path: &Path, n: u32) -> Result<serde_json::Value, Box<dyn std::error:
     let mut errors: Vec<u8> = (0..cubes.cells.len())
         .map(|i| {
             let want = found[i].map_or([0; 3], |hit| reference(&cubes, &app, hit));
-            let got = cells.base_color[i];
-            (0..3).map(|c| got[c].abs_diff(want[c])).max().unwrap_or(0)
+            error(cells.base_color[i], want)
         })
         .collect();
-    Ok(summary(path, n, &app, &cells, &mut errors, convert_s))
+    let mut area_errors: Vec<u8> = area_means(&cubes, &app)
+        .iter()
+        .enumerate()
+        .filter(|(_, (_, weight))| *weight > 0.0)
+        .map(|(i, (sum, weight))| error(cells.base_color[i], srgb(sum.map(|s| s / weight))))
+        .collect();
+    let mut line = summary(path, n, &app, &cells, &mut errors, convert_s);
+    let area = quantiles(&mut area_errors);
+    for (key, value) in area {
+        line[format!("area_{key}")] = value;
+    }
+    Ok(line)
+}
+
+/// The largest of the three channel differences between `got` and `want`.
+fn error(got: [u8; 3], want: [u8; 3]) -> u8 {
+    (0..3).map(|c| got[c].abs_diff(want[c])).max().unwrap_or(0)
+}
+
+/// Linear RGB as sRGB bytes.
+fn srgb(rgb: [f64; 3]) -> [u8; 3] {
+    rgb.map(|l| (linear_to_srgb(l as f32) * 255.0).round() as u8)
+}
+
+/// For every active cell, the area-weighted sum of the linear base colour over the source
+/// surface inside it and that area (zero where no surface is inside), from a lattice of small
+/// triangles on every source triangle.
+fn area_means(cubes: &SparseCubes, app: &Appearance) -> Vec<([f64; 3], f64)> {
+    let mut sums = vec![([0.0; 3], 0.0); cubes.cells.len()];
+    for (t, tri) in app.surface.triangles.iter().enumerate() {
+        let corners = tri.map(|v| {
+            let p = app.surface.positions[v as usize].map(f64::from);
+            cubes.normalization.source_to_grid(p, cubes.resolution)
+        });
+        let side = |a: usize, b: usize| {
+            (0..3)
+                .map(|k| (corners[a][k] - corners[b][k]).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        };
+        let longest = side(0, 1).max(side(1, 2)).max(side(2, 0));
+        if !longest.is_finite() {
+            continue;
+        }
+        let k = ((longest * 8.0).ceil() as usize).clamp(1, 2048);
+        let weight = area(corners) / (k * k) as f64;
+        for (b1, b2) in lattice_centroids(k) {
+            let b = [1.0 - b1 - b2, b1, b2];
+            let p: [f64; 3] = std::array::from_fn(|a| (0..3).map(|i| b[i] * corners[i][a]).sum());
+            let cell = p.map(|x| x.floor().clamp(0.0, f64::from(u16::MAX)) as u16);
+            if let Ok(row) = cubes.cells.binary_search(&cell) {
+                let rgb = linear_colour(app, t, b);
+                let (sum, w) = &mut sums[row];
+                for c in 0..3 {
+                    sum[c] += weight * rgb[c];
+                }
+                *w += weight;
+            }
+        }
+    }
+    sums
+}
+
+/// The area of the triangle `c`.
+fn area(c: [[f64; 3]; 3]) -> f64 {
+    let (u, w) = (
+        [0, 1, 2].map(|k| c[1][k] - c[0][k]),
+        [0, 1, 2].map(|k| c[2][k] - c[0][k]),
+    );
+    let x = [
+        u[1] * w[2] - u[2] * w[1],
+        u[2] * w[0] - u[0] * w[2],
+        u[0] * w[1] - u[1] * w[0],
+    ];
+    0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt()
+}
+
+/// The barycentric coordinates (of corners 1 and 2) of the centroids of the `k`² equal small
+/// triangles that a lattice of `k` steps a side cuts a triangle into.
+fn lattice_centroids(k: usize) -> impl Iterator<Item = (f64, f64)> {
+    let step = 1.0 / k as f64;
+    (0..k).flat_map(move |i| {
+        (0..k - i).flat_map(move |j| {
+            let up = ((i as f64 + 1.0 / 3.0) * step, (j as f64 + 1.0 / 3.0) * step);
+            let down = ((i as f64 + 2.0 / 3.0) * step, (j as f64 + 2.0 / 3.0) * step);
+            std::iter::once(up).chain((i + j + 1 < k).then_some(down))
+        })
+    })
 }
 
 /// The closest source point (in the grid frame) to each cell's centre.
@@ -100,7 +195,16 @@ fn reference(cubes: &SparseCubes, app: &Appearance, hit: ClosestPoint) -> [u8; 3
         let p = app.surface.positions[v as usize].map(f64::from);
         cubes.normalization.source_to_grid(p, cubes.resolution)
     });
-    let b = barycentric_by_areas(hit.point, corners);
+    srgb(linear_colour(
+        app,
+        t,
+        barycentric_by_areas(hit.point, corners),
+    ))
+}
+
+/// The linear base colour on triangle `t` at barycentric `b`: factor × vertex colour ×
+/// nearest texel.
+fn linear_colour(app: &Appearance, t: usize, b: [f64; 3]) -> [f64; 3] {
     let m = &app.materials[app.surface.material[t] as usize];
     let mut rgb = [0, 1, 2].map(|k| f64::from(m.base_color[k]));
     if let Some(c) = app.surface.color.at(t) {
@@ -113,7 +217,7 @@ fn reference(cubes: &SparseCubes, app: &Appearance, hit: ClosestPoint) -> [u8; 3
             rgb[k] *= f64::from(srgb_to_linear(f32::from(texel[k]) / 255.0));
         }
     }
-    rgb.map(|l| (linear_to_srgb(l as f32) * 255.0).round() as u8)
+    rgb
 }
 
 /// The nearest texel of texture `tex` of triangle `t` at barycentric `b`; none when the
@@ -156,13 +260,8 @@ fn summary(
     errors: &mut [u8],
     convert_s: f64,
 ) -> serde_json::Value {
-    errors.sort_unstable();
-    let k = errors.len().max(1);
-    let at = |q: usize| errors.get((errors.len() * q / 100).min(k - 1)).copied();
-    let mean = errors.iter().map(|&e| f64::from(e)).sum::<f64>() / k as f64;
-    let over = errors.iter().filter(|&&e| e > 48).count() as f64 / k as f64;
     let f = &app.facts;
-    serde_json::json!({
+    let mut line = serde_json::json!({
         "path": path.display().to_string(),
         "resolution": n,
         "materials": f.materials,
@@ -171,12 +270,27 @@ fn summary(
         "vertex_colors": f.vertex_colors,
         "alpha_modes": f.alpha_modes,
         "not_read": f.not_read,
-        "cells": errors.len(),
         "nearest_cells": cells.nearest_cells,
-        "median": at(50),
-        "p90": at(90),
-        "mean": mean,
-        "over_48": over,
         "seconds": convert_s,
-    })
+    });
+    for (key, value) in quantiles(errors) {
+        line[key] = value;
+    }
+    line
+}
+
+/// The errors' count (`cells`), median, 90th percentile, mean and share over 48.
+fn quantiles(errors: &mut [u8]) -> [(&'static str, serde_json::Value); 5] {
+    errors.sort_unstable();
+    let k = errors.len().max(1);
+    let at = |q: usize| errors.get((errors.len() * q / 100).min(k - 1)).copied();
+    let mean = errors.iter().map(|&e| f64::from(e)).sum::<f64>() / k as f64;
+    let over = errors.iter().filter(|&&e| e > 48).count() as f64 / k as f64;
+    [
+        ("cells", errors.len().into()),
+        ("median", at(50).into()),
+        ("p90", at(90).into()),
+        ("mean", mean.into()),
+        ("over_48", over.into()),
+    ]
 }
