@@ -33,7 +33,7 @@ use std::time::Instant;
 
 #[path = "../tests/support/barycentric.rs"]
 mod barycentric;
-use barycentric::barycentric_by_areas;
+use barycentric::{barycentric_by_areas, doubled_area};
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -122,7 +122,7 @@ fn area_means(cubes: &SparseCubes, app: &Appearance) -> Vec<([f64; 3], f64)> {
             continue;
         }
         let k = ((longest * 8.0).ceil() as usize).clamp(1, 2048);
-        let weight = area(corners) / (k * k) as f64;
+        let weight = 0.5 * doubled_area(corners[0], corners[1], corners[2]) / (k * k) as f64;
         for (b1, b2) in lattice_centroids(k) {
             let b = [1.0 - b1 - b2, b1, b2];
             let p: [f64; 3] = std::array::from_fn(|a| (0..3).map(|i| b[i] * corners[i][a]).sum());
@@ -138,20 +138,6 @@ fn area_means(cubes: &SparseCubes, app: &Appearance) -> Vec<([f64; 3], f64)> {
         }
     }
     sums
-}
-
-/// The area of the triangle `c`.
-fn area(c: [[f64; 3]; 3]) -> f64 {
-    let (u, w) = (
-        [0, 1, 2].map(|k| c[1][k] - c[0][k]),
-        [0, 1, 2].map(|k| c[2][k] - c[0][k]),
-    );
-    let x = [
-        u[1] * w[2] - u[2] * w[1],
-        u[2] * w[0] - u[0] * w[2],
-        u[0] * w[1] - u[1] * w[0],
-    ];
-    0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt()
 }
 
 /// The barycentric coordinates (of corners 1 and 2) of the centroids of the `k`² equal small

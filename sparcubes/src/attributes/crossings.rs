@@ -159,10 +159,7 @@ impl Crossings {
         let Some(columns) = self.columns(self.xs).filter(|_| !hits.is_empty()) else {
             return;
         };
-        let (x0, y0) = (self.xs.0, self.ys.0);
-        let ny = self.ys.1 - y0 + 1;
-        let column =
-            |h: &Hit| ((i64::from(h.cell[0]) - x0) * ny + i64::from(h.cell[1]) - y0) as usize;
+        let column = |h: &Hit| self.column_index(i64::from(h.cell[0]), i64::from(h.cell[1]));
         let mut starts = vec![0u32; columns + 1];
         for h in &hits {
             starts[column(h) + 1] += 1;
@@ -184,17 +181,20 @@ impl Crossings {
         self.entries = entries;
     }
 
+    /// The place of column (`x`, `y`), one inside the slices `xs` and the recorded `ys`, in
+    /// x-major order.
+    fn column_index(&self, x: i64, y: i64) -> usize {
+        let ny = self.ys.1 - self.ys.0 + 1;
+        ((x - self.xs.0) * ny + (y - self.ys.0)) as usize
+    }
+
     /// The sorted crossings of column (`x`, `y`); none outside the columns covered.
     fn column(&self, x: i64, y: i64) -> &[u64] {
-        let (x0, y0) = (self.xs.0, self.ys.0);
-        let ny = self.ys.1 - y0 + 1;
-        if self.starts.is_empty()
-            || !(x0..=self.xs.1).contains(&x)
-            || !(y0..=self.ys.1).contains(&y)
-        {
+        let inside = (self.xs.0..=self.xs.1).contains(&x) && (self.ys.0..=self.ys.1).contains(&y);
+        if self.starts.is_empty() || !inside {
             return &[];
         }
-        let c = ((x - x0) * ny + (y - y0)) as usize;
+        let c = self.column_index(x, y);
         &self.entries[self.starts[c] as usize..self.starts[c + 1] as usize]
     }
 
