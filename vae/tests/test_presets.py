@@ -172,6 +172,8 @@ def test_resume_keeps_the_runs_settings_with_config_keys_on_top(job32, tmp_path,
 
 def test_init_from_keeps_the_source_model_and_takes_the_jobs_training(run64, job64, job128,
                                                                        job32, tmp_path, capsys):
+    # 128.toml is meant to continue a 64³ run: its [model] is 64.toml's, key for key.
+    assert preset(128)["model"] == preset(64)["model"]
     source = load_checkpoint(run64)
     code, err, written = train(job128, tmp_path / "warm", "--init-from", run64, capsys=capsys)
     assert code == 0, err
