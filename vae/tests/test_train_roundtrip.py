@@ -73,9 +73,10 @@ def test_encode_decode_extract_gives_closed_manifold_meshes(trained, job32, tmp_
     assert enc["items"] == 2
     rows = list(reader.iter_tensor_rows(latents, infer.LATENT_TENSORS))
     assert len(rows) == 2
+    channels = load_checkpoint(run / "checkpoint.pt")["config"]["model"]["latent_channels"]
     for r in rows:
         assert r["coords"].dtype == np.int32 and r["coords"].shape[1] == 3
-        assert r["mean"].shape == (len(r["coords"]), 8) and r["logvar"].shape == r["mean"].shape
+        assert r["mean"].shape == (len(r["coords"]), channels) and r["logvar"].shape == r["mean"].shape
         assert r["coords"].max() < 32 // 8  # the latent grid of a 32³ job at downsample 8
     meshes = tmp_path / "meshes"
     out = infer.decode(run, latents, None, meshes, "cpu", True, binary)
