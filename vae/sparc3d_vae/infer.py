@@ -65,6 +65,13 @@ class Loaded:
                 f"{source}: the data {'stores' if deformation else 'has no'} deformation, but "
                 f"the checkpoint {self.path} was trained {'with' if self.cfg.model.deformation else 'without'} it")
 
+    def too_large(self, s: Sample) -> Optional[str]:
+        """Why an item cannot go through one forward pass, or None when it fits."""
+        if len(s.cells) <= self.max_cells:
+            return None
+        return (f"item {s.id!r}: {len(s.cells)} cells, more than the {self.max_cells} cells "
+                f"per forward pass ({self.budget_note})")
+
     def batches(self, samples: Sequence[Sample]) -> Iterator[List[Sample]]:
         """Samples grouped so that no group holds more than `max_cells` cells; an item larger
         than that alone is refused, naming it."""
@@ -72,9 +79,9 @@ class Loaded:
         group: List[Sample] = []
         cells = 0
         for s in samples:
-            if len(s.cells) > limit:
-                raise DataError(f"item {s.id!r}: {len(s.cells)} cells, more than the "
-                                f"{limit} cells per forward pass ({self.budget_note})")
+            why = self.too_large(s)
+            if why:
+                raise DataError(why)
             if group and (cells + len(s.cells) > limit or len(group) >= self.cfg.train.batch_size):
                 yield group
                 group, cells = [], 0
@@ -271,30 +278,46 @@ def decode(ckpt: Path, latents: Path, ids: Optional[List[str]], out: Path, devic
 def reconstruct_items(loaded: Loaded, samples: Sequence[Sample], binary: str,
                       meshes: Sequence[Path], fill_holes: bool,
                       keep_tensors: Optional[Path] = None) -> List[Dict[str, Any]]:
-    """Encode (the mean) → decode → extract, for samples; one extract summary each, with the
-    latent size added. An item whose decoding holds no surface, or whose extraction fails, gets
-    an `error` instead of a mesh; the others go on."""
-    results = []
+    """Encode (the mean) → decode → extract, for samples; one extract summary each (in the
+    samples' order, `meshes[i]` the mesh of `samples[i]`), with the latent size added. An item
+    larger than the forward pass's budget, whose decoding holds no surface, or whose extraction
+    fails gets an `error` instead of a mesh; the others go on."""
+    results: List[Dict[str, Any]] = [{} for _ in samples]
+    fits = []
+    for i, s in enumerate(samples):
+        why = loaded.too_large(s)
+        if why:
+            results[i] = {"id": s.id, "watertight_before": False, "watertight": False, "error": why,
+                          "latent_voxels": 0, "latent_floats": 0, "decoded_cells": 0,
+                          "true_cells": int(len(s.cells))}
+        else:
+            fits.append(i)
+    order = iter(fits)  # `batches` keeps the order of what it is given
     with tempfile.TemporaryDirectory() as tmp:
-        for gi, group in enumerate(loaded.batches(samples)):
+        for gi, group in enumerate(loaded.batches([samples[i] for i in fits])):
             lats = loaded.encode(group)
             cubes = loaded.decode(lats)
             file = keep_tensors if keep_tensors is not None else Path(tmp) / f"cubes-{gi}.parquet"
             write_cubes(file, [cubes_row(s.id, s.meta, c) for s, c in zip(group, cubes)])
             for s, lat, c in zip(group, lats, cubes):
-                mesh = meshes[len(results)]
-                summary: Dict[str, Any] = {"id": s.id, "watertight_before": False, "watertight": False}
-                try:
-                    if len(c.cells) == 0:
-                        raise UsageError(f"item {s.id!r}: the decoder kept no cell with a surface")
-                    summary.update(extract(binary, file, s.id, mesh, fill_holes))
-                except UsageError as e:
-                    summary["error"] = str(e)
-                summary.update({"latent_voxels": int(len(lat["coords"])),
-                                "latent_floats": int(lat["mean"].size),
-                                "decoded_cells": int(len(c.cells)), "true_cells": int(len(s.cells))})
-                results.append(summary)
+                i = next(order)
+                results[i] = _reconstructed(s, lat, c, binary, file, meshes[i], fill_holes)
     return results
+
+
+def _reconstructed(s: Sample, lat: Dict[str, np.ndarray], c: Cubes, binary: str, file: Path,
+                   mesh: Path, fill_holes: bool) -> Dict[str, Any]:
+    """The summary of one decoded item: its extraction (or why there is none) and its sizes."""
+    summary: Dict[str, Any] = {"id": s.id, "watertight_before": False, "watertight": False}
+    try:
+        if len(c.cells) == 0:
+            raise UsageError(f"item {s.id!r}: the decoder kept no cell with a surface")
+        summary.update(extract(binary, file, s.id, mesh, fill_holes))
+    except UsageError as e:
+        summary["error"] = str(e)
+    summary.update({"latent_voxels": int(len(lat["coords"])), "latent_floats": int(lat["mean"].size),
+                    "decoded_cells": int(len(c.cells)), "true_cells": int(len(s.cells))})
+    return summary
 
 
 def reconstruct(ckpt: Path, data: Sequence[str], item_id: str, out: Path, device: str,

@@ -103,8 +103,8 @@ def test_config_file_matches_the_defaults_and_refuses_unknown_keys(tmp_path):
     assert np.isclose(load_config(None).loss.kl, 1e-6)
 
 
-def test_batches_over_the_cell_limit_are_split_and_large_items_refused(job32, tmp_path, capsys):
-    from sparc3d_vae import train
+def test_batches_over_the_cell_limit_are_split_and_large_items_refused_or_reported(job32, tmp_path, capsys, binary):
+    from sparc3d_vae import infer, train
     from sparc3d_vae.train import split_parts
 
     samples = [to_sample(it, deformation=False) for it in reader.iter_items(job32)]
@@ -131,6 +131,13 @@ def test_batches_over_the_cell_limit_are_split_and_large_items_refused(job32, tm
     code, err = run_cli("encode", "--ckpt", tmp_path / "run", "--data", job32, "--out",
                         tmp_path / "lat0", "--device", "cpu", "--max-cells", 0, capsys=capsys)
     assert code == 2 and "--max-cells 0" in err, err
+    # Evaluating goes on past it: that item is reported with the reason, the other measured.
+    summary = infer.evaluate(tmp_path / "run", [str(job32)], 2, 0, tmp_path / "eval", "cpu", binary)
+    rows = {r["id"]: r for r in summary["items"]}
+    assert f"{len(big.cells)} cells" in rows[big.id]["error"] and "--max-cells" in rows[big.id]["error"]
+    assert "forward pass" not in rows[small.id].get("error", "")
+    assert rows[small.id]["latent_voxels"] > 0 and rows[small.id]["true_cells"] == len(small.cells)
+    assert summary["aggregate"]["failed"] >= 1
 
 
 def test_gpu_out_of_memory_names_the_batch_and_the_budget_key(job32, tmp_path, capsys, monkeypatch):
