@@ -458,6 +458,14 @@ def _aggregate(rows: List[Dict[str, Any]]) -> Dict[str, Any]:
     return agg
 
 
+def _miss(row: Dict[str, Any]) -> int:
+    """+1 where an item has more pieces than the bar allows, −1 where fewer, 0 within it."""
+    pieces, reference = row["components"], row["sparcubes_components"]
+    if within_20pct(pieces, reference):
+        return 0
+    return 1 if pieces > reference else -1
+
+
 def _pieces_aggregate(pieces: List[Dict[str, Any]]) -> Dict[str, Any]:
     """The issue's bar (the output's pieces within ±20 % of the Sparcubes mesh's) on every
     item and on the items whose count the converter itself keeps at N ± 1, and the bar applied
@@ -474,6 +482,10 @@ def _pieces_aggregate(pieces: List[Dict[str, Any]]) -> Dict[str, Any]:
         "components_within_20pct": share(pieces, lambda r: r["components"]),
         "components_stable_items": len(stable),
         "components_within_20pct_stable": share(stable, lambda r: r["components"]),
+        # Which way the stable items that miss the bar miss it: more pieces (a speck the
+        # decoder adds) or fewer (a piece it loses); docs/VAE.md, "Pieces".
+        "components_stable_more": sum(_miss(r) > 0 for r in stable),
+        "components_stable_fewer": sum(_miss(r) < 0 for r in stable),
     }
     near = [r for r in pieces if r.get("pieces_stable") is not None]
     if near:
@@ -499,7 +511,9 @@ def _markdown(summary: Dict[str, Any]) -> str:
             if agg.get("components_within_20pct_stable") is not None:
                 lines.append(f"- of the {agg['components_stable_items']} items whose piece count "
                              f"`sparc3d convert` keeps at N ± 1: "
-                             f"{100 * agg['components_within_20pct_stable']:.0f}% within ±20 %")
+                             f"{100 * agg['components_within_20pct_stable']:.0f}% within ±20 % "
+                             f"(misses: {agg['components_stable_more']} with more pieces, "
+                             f"{agg['components_stable_fewer']} with fewer)")
             if "sparcubes_nearby_within_20pct" in agg:
                 near = agg["sparcubes_nearby_within_20pct"]
                 lines.append(f"- the converter against itself: its pieces at N − 1 and N + 1 within "

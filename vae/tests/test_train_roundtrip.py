@@ -170,7 +170,13 @@ def test_evaluated_pieces_are_the_binarys_count(tmp_path, trained, job32, binary
         stable = all(abs(near[str(n)] - near[str(res)]) <= 0.2 * near[str(res)] for n in (res - 1, res + 1))
         assert row["pieces_stable"] is stable
     stable = [r for r in summary["items"] if r["pieces_stable"]]
-    assert summary["aggregate"]["components_stable_items"] == len(stable)
+    agg = summary["aggregate"]
+    assert agg["components_stable_items"] == len(stable)
+    # Every stable item meets the bar or misses it one way or the other, never both.
+    hits = sum(infer.within_20pct(r["components"], r["sparcubes_components"]) for r in stable)
+    assert hits + agg["components_stable_more"] + agg["components_stable_fewer"] == len(stable)
+    assert agg["components_stable_more"] == sum(
+        r["components"] > 1.2 * r["sparcubes_components"] for r in stable)
     # The ruler: `sparc3d eval`'s default up to 128³, ten times more points from 256³.
     assert all(r["eval_samples"] == infer.eval_samples(r["resolution"]) == 100_000
                for r in summary["items"])
