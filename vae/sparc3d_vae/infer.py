@@ -287,9 +287,7 @@ def reconstruct_items(loaded: Loaded, samples: Sequence[Sample], binary: str,
     for i, s in enumerate(samples):
         why = loaded.too_large(s)
         if why:
-            results[i] = {"id": s.id, "watertight_before": False, "watertight": False, "error": why,
-                          "latent_voxels": 0, "latent_floats": 0, "decoded_cells": 0,
-                          "true_cells": int(len(s.cells))}
+            results[i] = {**_unmeshed(s), "error": why}
         else:
             fits.append(i)
     order = iter(fits)  # `batches` keeps the order of what it is given
@@ -305,10 +303,16 @@ def reconstruct_items(loaded: Loaded, samples: Sequence[Sample], binary: str,
     return results
 
 
+def _unmeshed(s: Sample) -> Dict[str, Any]:
+    """The summary of an item before (or without) its mesh: not watertight, nothing decoded."""
+    return {"id": s.id, "watertight_before": False, "watertight": False, "latent_voxels": 0,
+            "latent_floats": 0, "decoded_cells": 0, "true_cells": int(len(s.cells))}
+
+
 def _reconstructed(s: Sample, lat: Dict[str, np.ndarray], c: Cubes, binary: str, file: Path,
                    mesh: Path, fill_holes: bool) -> Dict[str, Any]:
     """The summary of one decoded item: its extraction (or why there is none) and its sizes."""
-    summary: Dict[str, Any] = {"id": s.id, "watertight_before": False, "watertight": False}
+    summary = _unmeshed(s)
     try:
         if len(c.cells) == 0:
             raise UsageError(f"item {s.id!r}: the decoder kept no cell with a surface")
@@ -316,7 +320,7 @@ def _reconstructed(s: Sample, lat: Dict[str, np.ndarray], c: Cubes, binary: str,
     except UsageError as e:
         summary["error"] = str(e)
     summary.update({"latent_voxels": int(len(lat["coords"])), "latent_floats": int(lat["mean"].size),
-                    "decoded_cells": int(len(c.cells)), "true_cells": int(len(s.cells))})
+                    "decoded_cells": int(len(c.cells))})
     return summary
 
 
