@@ -3,7 +3,8 @@
 //! needs.
 //!
 //! ```text
-//! P/job.json, P/manifest.jsonl                   as in a job folder (job.json written last)
+//! P/job.json, P/manifest/...                     as in a job folder (job.json written last)
+//! P/manifest.jsonl                               the frozen manifest of a job made before slices
 //! P/shards/part-NNNNN.complete.json              the completion record, created only if absent;
 //!                                                its `object` names the shard's data
 //! P/shards/part-NNNNN.<writer>.parquet           one writer's upload of the shard
@@ -16,8 +17,17 @@ use sparc3d_schema::{CompletionRecord, JobLayout};
 /// `job.json`.
 pub const JOB_FILE: &str = "job.json";
 
-/// `manifest.jsonl`.
+/// `manifest.jsonl`: the frozen manifest of a job made before slices.
 pub const MANIFEST: &str = "manifest.jsonl";
+
+/// `manifest/`: the frozen manifest's slices and index pages (names as in a job folder,
+/// `sparc3d_schema::JobLayout::page_name` and `slice_name`; created once, never replaced).
+pub const MANIFEST_FILES: &str = "manifest/";
+
+/// The key of the frozen manifest's file `name` (a slice or an index page).
+pub fn manifest_file(name: &str) -> String {
+    format!("{MANIFEST_FILES}{name}")
+}
 
 /// `shards/`.
 pub const SHARDS: &str = "shards/";

@@ -1,7 +1,10 @@
 //! Making a job's home a bucket: `init` freezes the manifest into a local folder as for any
-//! job, then the two files go up, each created only if absent: `manifest.jsonl` first, then
-//! `job.json`. A job exists in a bucket once its `job.json` does, and then with its manifest.
+//! job, then its files go up, each created only if absent: the frozen manifest's slices and
+//! index pages first (named by their content, so two `init`s never write one name with two
+//! contents), then `job.json`, which pins the pages. A job exists in a bucket once its
+//! `job.json` does, and then with its manifest.
 //!
+//! Jobs made before slices went up as `manifest.jsonl` and `job.json`, in that order:
 //! Of two `init`s at once on one URL with different manifests, exactly one creates
 //! `manifest.jsonl`; the other finds another manifest there and stops before its `job.json`,
 //! so a job's two files always come from one `init` (with the same manifest and different
@@ -32,15 +35,72 @@ pub fn publish(prefix: &Prefix<'_>, local: &Path) -> Result<()> {
             prefix.root()
         );
     }
-    create(prefix, keys::MANIFEST, read(keys::MANIFEST)?, |_| {
-        manifest_taken(prefix)
-    })?;
+    let slices = local.join(keys::MANIFEST_FILES);
+    if slices.is_dir() {
+        upload_slices(prefix, &slices)?;
+    } else {
+        create(prefix, keys::MANIFEST, read(keys::MANIFEST)?, |_| {
+            manifest_taken(prefix)
+        })?;
+    }
     create(prefix, keys::JOB_FILE, job_file, |_| {
         Err(anyhow::anyhow!(
-            "{}: another `init` made a job there at the same moment, with the same manifest \
-             and another config; a job never changes once made (use another prefix)",
+            "{}: another `init` made a job there at the same moment, with another config or \
+             manifest; a job never changes once made (use another prefix)",
             prefix.root()
         ))
+    })
+}
+
+/// Uploads in which a sliced job's files go up at once.
+const UPLOADS_IN_FLIGHT: usize = 8;
+
+/// Uploads every file of the local `manifest/` folder `dir` (the frozen manifest's slices and
+/// index pages), each created only if absent, a few at once. Their names carry their content's
+/// sha256, so an object already there under a name is the same file (another `init` of the
+/// same rows); one with other bytes is refused, naming it.
+fn upload_slices(prefix: &Prefix<'_>, dir: &Path) -> Result<()> {
+    let mut names = Vec::new();
+    for entry in std::fs::read_dir(dir).with_context(|| format!("listing {}", dir.display()))? {
+        let entry = entry.with_context(|| format!("listing {}", dir.display()))?;
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if !name.starts_with('.') && !name.contains(".tmp-") {
+            names.push(name);
+        }
+    }
+    names.sort();
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let upload = || -> Result<()> {
+        loop {
+            let at = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            let Some(name) = names.get(at) else {
+                return Ok(());
+            };
+            let path = dir.join(name);
+            let bytes =
+                std::fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
+            let key = keys::manifest_file(name);
+            create(prefix, &key, bytes, |_| {
+                Err(anyhow::anyhow!(
+                    "{}: another object is there under this name, which a frozen manifest's \
+                     file of these bytes alone should have; delete it and run `init` again",
+                    prefix.url(&key)
+                ))
+            })?;
+        }
+    };
+    std::thread::scope(|scope| {
+        let workers: Vec<_> = (0..UPLOADS_IN_FLIGHT)
+            .map(|_| scope.spawn(upload))
+            .collect();
+        workers
+            .into_iter()
+            .map(|w| {
+                w.join()
+                    .unwrap_or_else(|_| Err(anyhow::anyhow!("an upload stopped")))
+            })
+            .collect::<Result<Vec<()>>>()
+            .map(|_| ())
     })
 }
 

@@ -6,8 +6,11 @@
 use crate::keys;
 use anyhow::{bail, Context, Result};
 use sha2::{Digest, Sha256};
+use sparc3d_schema::manifest::PAGE_SHARDS;
+use sparc3d_schema::{JobFile, JobLayout};
 use sparc3d_sources::objects::Prefix;
 use sparc3d_sources::RemoteUrl;
+use sparc3d_workers::frozen::FrozenManifest;
 use sparc3d_workers::{Job, WorkerError};
 use std::path::{Path, PathBuf};
 
@@ -26,8 +29,10 @@ pub fn folder(url: &RemoteUrl, base: Option<&Path>) -> PathBuf {
     ))
 }
 
-/// Brings `job.json` and `manifest.jsonl` of the bucket job at `prefix` into `dir` (replacing
-/// older copies) and opens the job there. `read_only` opens it as the read-only commands do.
+/// Brings `job.json` of the bucket job at `prefix` into `dir` (replacing an older copy) and
+/// opens the job there; a job made before slices brings its `manifest.jsonl` too. A sliced
+/// job's slices are brought as they are needed ([`pull_slices`]). `read_only` opens it as the
+/// read-only commands do.
 pub fn pull_job(prefix: &Prefix<'_>, dir: &Path, read_only: bool) -> Result<(Job, Vec<String>)> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let Some(job_file) = prefix
@@ -40,13 +45,17 @@ pub fn pull_job(prefix: &Prefix<'_>, dir: &Path, read_only: bool) -> Result<(Job
             prefix.root()
         );
     };
-    let Some(manifest) = prefix
-        .get(keys::MANIFEST)
-        .with_context(|| format!("reading {}", prefix.url(keys::MANIFEST)))?
-    else {
-        bail!("{}: job.json without manifest.jsonl", prefix.root());
-    };
-    replace(&dir.join(keys::MANIFEST), &manifest.bytes)?;
+    let sliced = serde_json::from_slice::<JobFile>(&job_file.bytes)
+        .is_ok_and(|f| f.manifest_pages.is_some());
+    if !sliced {
+        let Some(manifest) = prefix
+            .get(keys::MANIFEST)
+            .with_context(|| format!("reading {}", prefix.url(keys::MANIFEST)))?
+        else {
+            bail!("{}: job.json without manifest.jsonl", prefix.root());
+        };
+        replace(&dir.join(keys::MANIFEST), &manifest.bytes)?;
+    }
     replace(&dir.join(keys::JOB_FILE), &job_file.bytes)?;
     let opened = if read_only {
         Job::open_read_only(dir)
@@ -54,6 +63,71 @@ pub fn pull_job(prefix: &Prefix<'_>, dir: &Path, read_only: bool) -> Result<(Job
         Job::open(dir).map(|job| (job, Vec::new()))
     };
     opened.map_err(|e| damaged(prefix, dir, e))
+}
+
+/// Brings into the local copy `job` the frozen manifest's files that `shards` need: their
+/// index pages and slices, each downloaded once (a file already there with the pinned bytes is
+/// kept: the names carry the content's sha256). Nothing for a job made before slices, whose
+/// `manifest.jsonl` came with [`pull_job`].
+pub fn pull_slices(prefix: &Prefix<'_>, job: &Job, shards: &[u64]) -> Result<()> {
+    let FrozenManifest::Sliced(sliced) = &job.manifest else {
+        return Ok(());
+    };
+    let mut pages_pulled = std::collections::BTreeSet::new();
+    for &shard in shards.iter().filter(|&&s| s < job.file.shards) {
+        let page = shard / PAGE_SHARDS;
+        if pages_pulled.insert(page) {
+            let pin = &sliced.pages()[page as usize];
+            let name = JobLayout::page_name(page, &pin.sha256);
+            pull_pinned(prefix, job, &name, &pin.sha256)?;
+        }
+        let entry = sliced
+            .entry(shard)
+            .map_err(|e| damaged(prefix, &job.layout.root, e))?;
+        let name = JobLayout::slice_name(shard, &entry.sha256);
+        pull_pinned(prefix, job, &name, &entry.sha256)?;
+    }
+    Ok(())
+}
+
+/// [`pull_slices`] for every shard of `job`: what a command that reads every item needs.
+pub fn pull_all_slices(prefix: &Prefix<'_>, job: &Job) -> Result<()> {
+    let shards: Vec<u64> = (0..job.file.shards).collect();
+    pull_slices(prefix, job, &shards)
+}
+
+/// Downloads `manifest/NAME` into the local copy unless a file with the pinned `sha256` is
+/// there; an object missing or with other bytes is a damaged job, said with what to do.
+fn pull_pinned(prefix: &Prefix<'_>, job: &Job, name: &str, sha256: &str) -> Result<()> {
+    let path = job.layout.manifest_dir().join(name);
+    let kept =
+        std::fs::read(&path).is_ok_and(|b| sparc3d_workers::fsutil::bytes_sha256(&b) == sha256);
+    if kept {
+        return Ok(());
+    }
+    let key = keys::manifest_file(name);
+    let Some(object) = prefix
+        .get(&key)
+        .with_context(|| format!("reading {}", prefix.url(&key)))?
+    else {
+        bail!(
+            "the job at {} is damaged: {} is missing (its job.json pins it); restore it as \
+             `init` wrote it, or make the job again under another prefix",
+            prefix.root().to_string().trim_end_matches('/'),
+            prefix.url(&key)
+        );
+    };
+    let found = sparc3d_workers::fsutil::bytes_sha256(&object.bytes);
+    if found != sha256 {
+        bail!(
+            "the job at {} is damaged: {} has sha256 {found}, not the {sha256} its job pins \
+             (replaced after `init`); restore it as `init` wrote it, or make the job again \
+             under another prefix",
+            prefix.root().to_string().trim_end_matches('/'),
+            prefix.url(&key)
+        );
+    }
+    replace(&path, &object.bytes)
 }
 
 /// The error of a bucket job whose files the local copy in `dir` refused: said of the
@@ -83,7 +157,7 @@ fn damaged(prefix: &Prefix<'_>, dir: &Path, e: WorkerError) -> anyhow::Error {
         prefix.root().to_string().trim_end_matches('/'),
         dir.display(),
         prefix.url(keys::JOB_FILE),
-        prefix.url(keys::MANIFEST),
+        prefix.url(keys::MANIFEST_FILES),
     )
 }
 

@@ -34,6 +34,8 @@ pub fn work_shard(
         skipped(opts, shard, "already done");
         return Ok(ShardOutcome::AlreadyDone(*r));
     }
+    // This shard's slice of the frozen manifest and its index page, nothing more of it.
+    crate::scratch::pull_slices(prefix, job, &[shard])?;
     let owner = owner_name();
     let shard_stop = Arc::new(AtomicBool::new(false));
     let held = match acquire(

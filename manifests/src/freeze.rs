@@ -1,25 +1,213 @@
-//! A manifest's rows frozen into a job's items (`sparc3d init`): every row's sha256 well formed, every
-//! id known (a row with neither id nor sha256 is identified by its file's sha256, hashed here),
-//! ids unique, and each item's shard. Problems are named by row, the first few in full and the
-//! rest counted. [`append`] freezes the rows a growing job does not have yet (`sparc3d add`)
-//! into new shards after its last one.
+//! A manifest's rows frozen into a job's items (`sparc3d init`): every row's sha256 well formed,
+//! every id known (a row with neither id nor sha256 is identified by its file's sha256, hashed
+//! here), ids unique, and each item's shard. Problems are named by row, the first few in full
+//! and the rest counted. [`Freezer`] does it a batch of rows at a time (a job's frozen
+//! manifest is written as it goes); [`freeze`] and [`append`] (the rows a growing job does not
+//! have yet, `sparc3d add`, into new shards after its last one) in memory.
 
 use crate::record::{FrozenItem, ManifestRecord};
 use crate::table::RawRecord;
 use anyhow::{bail, Result};
 use rayon::prelude::*;
 use std::collections::{BTreeSet, HashMap, HashSet};
+use std::hash::{Hash, Hasher};
 
 /// Rows listed in full when many have a problem; the rest are counted.
 const LISTED: usize = 10;
 
-/// The rows' items in order, each with its index and shard (`index / shard_size`). Says how
-/// many items have no sha256 to check their file against before it is converted.
+/// The key an id is known by while freezing: 128 bits of two salted hashes of it (the
+/// standard library's), so that ten million ids take 24 bytes each rather than their text; two
+/// different ids share a key with a chance of about 10⁻²² at 10⁸ ids. Keys live only in the
+/// process that makes them, never in a file.
+pub fn id_key(id: &str) -> u128 {
+    let half = |salt: u8| {
+        let mut h = std::collections::hash_map::DefaultHasher::new();
+        salt.hash(&mut h);
+        id.hash(&mut h);
+        h.finish()
+    };
+    (u128::from(half(0)) << 64) | u128::from(half(1))
+}
+
+/// Freezes a manifest's rows a batch at a time, in bounded memory but for the key of each id
+/// seen ([`id_key`]): every row's sha256 well formed, every id known (a row with neither id nor
+/// sha256 is identified by its file's sha256, hashed in parallel), ids unique (and, growing a
+/// job, not the job's already). Problems are gathered as rows come and refused by
+/// [`Freezer::finish`], the first few in full and the rest counted; once one is found no more
+/// records are given out, since the freeze will be refused.
+#[derive(Debug, Default)]
+pub struct Freezer {
+    /// The row each id was first seen in, by key.
+    seen: HashMap<u128, u64>,
+    /// The ids of the job being grown (rows with them are left out).
+    known: HashSet<u128>,
+    /// The growing job's provenance columns, given to every new item.
+    columns: BTreeSet<String>,
+    bad_sha: Problems,
+    unreadable: Problems,
+    duplicates: Problems,
+    rows: u64,
+    kept: u64,
+    already: u64,
+    unchecked: u64,
+}
+
+/// Problems of one kind: the first few in full, and how many.
+#[derive(Debug, Default)]
+struct Problems {
+    listed: Vec<String>,
+    count: u64,
+}
+
+impl Problems {
+    fn add(&mut self, what: impl FnOnce() -> String, keep: usize) {
+        self.count += 1;
+        if self.listed.len() < keep {
+            self.listed.push(what());
+        }
+    }
+
+    /// The first [`LISTED`] in full and the rest counted.
+    fn listing(&self) -> String {
+        let mut text = self.listed.join("; ");
+        if self.count > self.listed.len() as u64 {
+            text.push_str(&format!(
+                "; and {} more",
+                self.count - self.listed.len() as u64
+            ));
+        }
+        text
+    }
+}
+
+/// What a freeze did, once [`Freezer::finish`] found nothing wrong.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Frozen {
+    /// Rows given.
+    pub rows: u64,
+    /// Items frozen (rows that were new).
+    pub items: u64,
+    /// Rows left out because the job has their id already.
+    pub already: u64,
+}
+
+impl Freezer {
+    /// A freezer of a new job's rows.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// A freezer of the rows to add to a job with the ids `known` (their [`id_key`]s) and the
+    /// provenance `columns`: rows with a known id are left out, and every new item gets every
+    /// column (`""` where its row has none), so new shards have at least the earlier ones'.
+    pub fn growing(known: HashSet<u128>, columns: BTreeSet<String>) -> Self {
+        Self {
+            known,
+            columns,
+            ..Self::default()
+        }
+    }
+
+    /// Whether a problem was found: the freeze will be refused.
+    pub fn failed(&self) -> bool {
+        self.bad_sha.count + self.unreadable.count + self.duplicates.count > 0
+    }
+
+    /// Freezes `rows` (each with its row number in the manifest): the records of the new
+    /// items, in order. None once a problem has been found.
+    pub fn batch(&mut self, rows: Vec<(u64, RawRecord)>) -> Vec<ManifestRecord> {
+        self.rows += rows.len() as u64;
+        for (n, r) in &rows {
+            if let Some(sha) = r.sha256.as_deref().filter(|s| !is_sha256(s)) {
+                self.bad_sha.add(|| format!("row {n}: {sha:?}"), LISTED);
+            }
+        }
+        if self.bad_sha.count > 0 {
+            return Vec::new();
+        }
+        let identified: Vec<(u64, Result<ManifestRecord, String>)> = rows
+            .into_par_iter()
+            .map(|(n, r)| (n, identify(r).map_err(|e| format!("row {n}: {e}"))))
+            .collect();
+        let mut out = Vec::with_capacity(identified.len());
+        for (n, record) in identified {
+            match record {
+                Ok(record) => self.keep(n, record, &mut out),
+                Err(e) => self.unreadable.add(|| e, LISTED),
+            }
+        }
+        if self.failed() {
+            out.clear();
+        }
+        out
+    }
+
+    /// Keeps `record` (row `n`) in `out` unless its id is known or seen.
+    fn keep(&mut self, n: u64, mut record: ManifestRecord, out: &mut Vec<ManifestRecord>) {
+        let key = id_key(&record.id);
+        if self.known.contains(&key) {
+            self.already += 1;
+            return;
+        }
+        if let Some(first) = self.seen.get(&key) {
+            let first = *first;
+            self.duplicates
+                .add(|| format!("{} (rows {first} and {n})", record.id), 5);
+            return;
+        }
+        self.seen.insert(key, n);
+        for name in &self.columns {
+            record.extra.entry(name.clone()).or_default();
+        }
+        self.unchecked += u64::from(record.sha256.is_none());
+        self.kept += 1;
+        out.push(record);
+    }
+
+    /// Refuses the freeze if any row had a problem, naming them; otherwise what was frozen,
+    /// saying how many items have no sha256 to check their file against.
+    pub fn finish(self) -> Result<Frozen> {
+        if self.bad_sha.count > 0 {
+            bail!(
+                "{} rows have a sha256 that is not 64 hex digits (a file's bytes are checked \
+                 against it before they are converted): {}",
+                self.bad_sha.count,
+                self.bad_sha.listing()
+            );
+        }
+        if self.unreadable.count > 0 {
+            bail!(
+                "{} of {} files could not be hashed for their ids (a row without id or sha256 \
+                 is identified by its file's sha256): {}",
+                self.unreadable.count,
+                self.rows,
+                self.unreadable.listing()
+            );
+        }
+        if self.duplicates.count > 0 {
+            bail!(
+                "the manifest has {} duplicate ids, e.g. {}; ids must be unique",
+                self.duplicates.count,
+                self.duplicates.listed.join(", ")
+            );
+        }
+        note_unchecked(self.unchecked);
+        Ok(Frozen {
+            rows: self.rows,
+            items: self.kept,
+            already: self.already,
+        })
+    }
+}
+
+/// The rows' items in order, each with its index and shard (`index / shard_size`), in memory
+/// (a job freezes its rows a batch at a time with [`Freezer`]).
 pub fn freeze(records: Vec<RawRecord>, shard_size: u32) -> Result<Vec<FrozenItem>> {
-    check_sha256s(&records)?;
-    let items = assign(identify(records)?, shard_size, (0, 0))?;
-    note_unchecked(&items);
-    Ok(items)
+    let mut freezer = Freezer::new();
+    let rows = records.into_iter().enumerate();
+    let kept = freezer.batch(rows.map(|(i, r)| (i as u64 + 1, r)).collect());
+    freezer.finish()?;
+    Ok(assign(kept, shard_size, (0, 0)))
 }
 
 /// The rows of a growing job's new manifest (or folder) that it does not have yet.
@@ -32,44 +220,35 @@ pub struct Appended {
 }
 
 /// Freezes the rows whose id is not among `existing` (a job's items, in order) as items after
-/// them: indices from `existing.len()`, shards from the one after the last existing item's, so
-/// the job's finished shards are never touched. Every new item gets the job's provenance
-/// columns too (`""` where its row has none), so the new shards have at least the columns of
-/// the earlier ones.
+/// them, in memory: indices from `existing.len()`, shards from the one after the last existing
+/// item's, so the job's finished shards are never touched (a job grows a batch at a time with
+/// [`Freezer::growing`]).
 pub fn append(
     existing: &[FrozenItem],
     records: Vec<RawRecord>,
     shard_size: u32,
 ) -> Result<Appended> {
-    check_sha256s(&records)?;
-    let known: HashSet<&str> = existing.iter().map(|i| i.record.id.as_str()).collect();
-    let columns: BTreeSet<&String> = existing
+    let known = existing.iter().map(|i| id_key(&i.record.id)).collect();
+    let columns = existing
         .iter()
-        .flat_map(|i| i.record.extra.keys())
+        .flat_map(|i| i.record.extra.keys().cloned())
         .collect();
-    let total = records.len();
-    let mut fresh: Vec<ManifestRecord> = identify(records)?
-        .into_iter()
-        .filter(|r| !known.contains(r.id.as_str()))
-        .collect();
-    for r in &mut fresh {
-        for name in &columns {
-            r.extra.entry((*name).clone()).or_default();
-        }
-    }
-    let already = total - fresh.len();
+    let mut freezer = Freezer::growing(known, columns);
+    let rows = records.into_iter().enumerate();
+    let kept = freezer.batch(rows.map(|(i, r)| (i as u64 + 1, r)).collect());
+    let frozen = freezer.finish()?;
     let start = (
         existing.len() as u64,
         existing.last().map_or(0, |i| i.shard + 1),
     );
-    let items = assign(fresh, shard_size, start)?;
-    note_unchecked(&items);
-    Ok(Appended { items, already })
+    Ok(Appended {
+        items: assign(kept, shard_size, start),
+        already: frozen.already as usize,
+    })
 }
 
 /// Says how many items have no sha256 to check their file against before it is converted.
-fn note_unchecked(items: &[FrozenItem]) {
-    let unchecked = items.iter().filter(|i| i.record.sha256.is_none()).count();
+fn note_unchecked(unchecked: u64) {
     if unchecked > 0 {
         eprintln!(
             "note: {unchecked} items have an id but no sha256: their rows record the sha256 of \
@@ -85,116 +264,39 @@ fn is_sha256(sha: &str) -> bool {
     sha.len() == 64 && sha.bytes().all(|b| b.is_ascii_hexdigit())
 }
 
-/// Refuses rows whose sha256 is not one: a file's bytes are checked against it.
-fn check_sha256s(records: &[RawRecord]) -> Result<()> {
-    let bad: Vec<String> = records
-        .iter()
-        .enumerate()
-        .filter_map(|(i, r)| {
-            let sha = r.sha256.as_deref()?;
-            (!is_sha256(sha)).then(|| format!("row {}: {sha:?}", i + 1))
-        })
-        .collect();
-    if !bad.is_empty() {
-        bail!(
-            "{} rows have a sha256 that is not 64 hex digits (a file's bytes are checked against \
-             it before they are converted): {}",
-            bad.len(),
-            listing(&bad)
-        );
-    }
-    Ok(())
-}
-
-/// A row's id and frozen sha256: the manifest's own, or (a row with neither) the sha256 of the
-/// file, which is then also the id.
-fn id_and_sha(r: &RawRecord) -> Result<(String, Option<String>)> {
-    Ok(match (&r.id, &r.sha256) {
-        (Some(id), sha) => (id.clone(), sha.clone()),
-        (None, Some(sha)) => (sha.clone(), Some(sha.clone())),
+/// A row's record with its id and frozen sha256: the manifest's own, or (a row with neither)
+/// the sha256 of the file, which is then also the id.
+fn identify(r: RawRecord) -> Result<ManifestRecord> {
+    let (id, sha256) = match (r.id, r.sha256) {
+        (Some(id), sha) => (id, sha),
+        (None, Some(sha)) => (sha.clone(), Some(sha)),
         (None, None) => {
             let sha = crate::hash::source_sha256(&r.uri)?;
             (sha.clone(), Some(sha))
         }
+    };
+    Ok(ManifestRecord {
+        id,
+        uri: r.uri,
+        sha256,
+        format: r.format,
+        extra: r.extra,
     })
-}
-
-/// Every row with its id (files hashed in parallel); refused naming every file that could not
-/// be hashed.
-fn identify(records: Vec<RawRecord>) -> Result<Vec<ManifestRecord>> {
-    let total = records.len();
-    let results: Vec<Result<ManifestRecord, String>> = records
-        .into_par_iter()
-        .enumerate()
-        .map(|(i, r)| {
-            let (id, sha256) = id_and_sha(&r).map_err(|e| format!("row {}: {e}", i + 1))?;
-            Ok(ManifestRecord {
-                id,
-                uri: r.uri,
-                sha256,
-                format: r.format,
-                extra: r.extra,
-            })
-        })
-        .collect();
-    let unreadable: Vec<String> = results.iter().filter_map(|r| r.clone().err()).collect();
-    if !unreadable.is_empty() {
-        bail!(
-            "{} of {total} files could not be hashed for their ids (a row without id or sha256 \
-             is identified by its file's sha256): {}",
-            unreadable.len(),
-            listing(&unreadable)
-        );
-    }
-    Ok(results.into_iter().flatten().collect())
 }
 
 /// The records as items with their index and shard, numbered from `start` (first index, first
 /// shard): the k-th item gets index `start.0 + k` and shard `start.1 + k / shard_size`.
-/// Duplicate ids are refused.
-fn assign(
-    records: Vec<ManifestRecord>,
-    shard_size: u32,
-    start: (u64, u64),
-) -> Result<Vec<FrozenItem>> {
-    let mut seen: HashMap<String, usize> = HashMap::new();
-    let mut items = Vec::with_capacity(records.len());
-    let mut dups = Vec::new();
-    for (i, rec) in records.into_iter().enumerate() {
-        if let Some(first) = seen.get(&rec.id) {
-            dups.push(format!("{} (rows {} and {})", rec.id, first + 1, i + 1));
-            continue;
-        }
-        seen.insert(rec.id.clone(), i);
-        let k = items.len() as u64;
-        items.push(FrozenItem {
-            index: start.0 + k,
-            shard: start.1 + k / u64::from(shard_size.max(1)),
-            record: rec,
-        });
-    }
-    if !dups.is_empty() {
-        bail!(
-            "the manifest has {} duplicate ids, e.g. {}; ids must be unique",
-            dups.len(),
-            dups.iter().take(5).cloned().collect::<Vec<_>>().join(", ")
-        );
-    }
-    Ok(items)
-}
-
-/// The first [`LISTED`] lines of `bad` in full and the rest counted.
-fn listing(bad: &[String]) -> String {
-    let mut text = bad
-        .iter()
-        .take(LISTED)
-        .cloned()
-        .collect::<Vec<_>>()
-        .join("; ");
-    if bad.len() > LISTED {
-        text.push_str(&format!("; and {} more", bad.len() - LISTED));
-    }
-    text
+fn assign(records: Vec<ManifestRecord>, shard_size: u32, start: (u64, u64)) -> Vec<FrozenItem> {
+    let size = u64::from(shard_size.max(1));
+    records
+        .into_iter()
+        .enumerate()
+        .map(|(k, record)| FrozenItem {
+            index: start.0 + k as u64,
+            shard: start.1 + k as u64 / size,
+            record,
+        })
+        .collect()
 }
 
 #[cfg(test)]

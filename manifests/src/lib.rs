@@ -1,5 +1,6 @@
 //! What a manifest is: the table of meshes a job converts, read from CSV, JSONL or Parquet
-//! ([`table`], its path column chosen by one rule: [`path_column`]) and written by `manifest
+//! ([`table`] whole, [`stream`] a batch of rows at a time; its path column chosen by one rule:
+//! [`path_column`]) and written by `manifest
 //! build` ([`mod@write`]), or made by scanning a folder ([`folder_scan`]) or listing a bucket
 //! prefix ([`bucket_scan`]); files identified by
 //! their sha256 ([`hash`]); column names read without case, two that fold to one refused
@@ -20,6 +21,7 @@ pub mod freeze;
 pub mod hash;
 pub mod path_column;
 pub mod record;
+pub mod stream;
 pub mod table;
 pub mod tsv;
 pub mod write;

@@ -30,6 +30,30 @@ pub struct PathColumn {
 
 pub use sparc3d_sources::location::is_url;
 
+/// Which columns of a manifest hold values, as [`choose_from`] needs to know: the path-like
+/// columns with a value in some row, and those with a value that is not a URL.
+#[derive(Debug, Clone, Default)]
+pub struct ValueSurvey {
+    /// Columns with a value in some row.
+    pub has_value: std::collections::BTreeSet<String>,
+    /// Columns with a value that is not a URL in some row.
+    pub not_only_urls: std::collections::BTreeSet<String>,
+}
+
+impl ValueSurvey {
+    /// Counts one row's values in.
+    pub fn add(&mut self, row: &BTreeMap<String, String>) {
+        for (name, value) in row.iter().filter(|(_, v)| !v.is_empty()) {
+            if !self.has_value.contains(name) {
+                self.has_value.insert(name.clone());
+            }
+            if !is_url(value) && !self.not_only_urls.contains(name) {
+                self.not_only_urls.insert(name.clone());
+            }
+        }
+    }
+}
+
 /// The path column of `rows` (keys in lower case) by the module's rule; `given` is
 /// `--path-column`. `source` names the manifest in errors.
 pub fn choose(
@@ -37,44 +61,30 @@ pub fn choose(
     given: Option<&str>,
     source: &Path,
 ) -> Result<PathColumn> {
-    let has_value = |col: &str| {
-        rows.iter()
-            .any(|r| r.get(col).is_some_and(|v| !v.is_empty()))
-    };
+    let mut survey = ValueSurvey::default();
+    rows.iter().for_each(|r| survey.add(r));
+    choose_from(&survey, given, source)
+}
+
+/// [`choose`] from what a pass over the rows found.
+pub fn choose_from(survey: &ValueSurvey, given: Option<&str>, source: &Path) -> Result<PathColumn> {
+    let has_value = |col: &str| survey.has_value.contains(col);
     if let Some(name) = given {
         let name = name.trim().to_ascii_lowercase();
         if !has_value(&name) {
-            bail!(
-                "{}: --path-column {name}: no row has a value in a column of that name",
-                source.display()
-            );
+            return Err(no_value_in(&name, source));
         }
-        return Ok(PathColumn {
-            name,
-            why: "given with --path-column".into(),
-        });
+        return Ok(given_column(name));
     }
     let candidates: Vec<&str> = PATH_COLUMNS.into_iter().filter(|c| has_value(c)).collect();
-    let all_urls = |col: &str| {
-        rows.iter()
-            .filter_map(|r| r.get(col).filter(|v| !v.is_empty()))
-            .all(|v| is_url(v))
-    };
     let local: Vec<&str> = candidates
         .iter()
         .copied()
-        .filter(|c| !all_urls(c))
+        .filter(|c| survey.not_only_urls.contains(*c))
         .collect();
     match (candidates.as_slice(), local.as_slice()) {
-        ([], _) => bail!(
-            "{}: no path column (expected a column named one of {}, or --path-column NAME)",
-            source.display(),
-            PATH_COLUMNS.join(", ")
-        ),
-        ([only], _) => Ok(PathColumn {
-            name: only.to_string(),
-            why: "the only path column".into(),
-        }),
+        ([], _) => Err(no_path_column(source)),
+        ([only], _) => Ok(only_column(only)),
         (_, [one]) => {
             let urls: Vec<&str> = candidates.iter().copied().filter(|c| c != one).collect();
             Ok(PathColumn {
@@ -100,6 +110,88 @@ pub fn choose(
     }
 }
 
+/// The column `--path-column` named (folded).
+pub fn given_column(name: String) -> PathColumn {
+    PathColumn {
+        name,
+        why: "given with --path-column".into(),
+    }
+}
+
+/// The only path-like column.
+pub fn only_column(name: &str) -> PathColumn {
+    PathColumn {
+        name: name.to_string(),
+        why: "the only path column".into(),
+    }
+}
+
+/// The refusal of `--path-column name` when no row has a value there.
+pub fn no_value_in(name: &str, source: &Path) -> anyhow::Error {
+    anyhow::anyhow!(
+        "{}: --path-column {name}: no row has a value in a column of that name",
+        source.display()
+    )
+}
+
+/// The refusal of a manifest without a path-like column holding a value.
+pub fn no_path_column(source: &Path) -> anyhow::Error {
+    anyhow::anyhow!(
+        "{}: no path column (expected a column named one of {}, or --path-column NAME)",
+        source.display(),
+        PATH_COLUMNS.join(", ")
+    )
+}
+
+/// Why `row` has no source in `column` (a local path, or a URL a worker can fetch); `None`
+/// when it has one.
+pub fn row_problem(row: &BTreeMap<String, String>, column: &PathColumn) -> Option<String> {
+    let value = row.get(&column.name).map(String::as_str).unwrap_or("");
+    if value.is_empty() {
+        let others: Vec<(&str, &String)> = PATH_COLUMNS
+            .into_iter()
+            .filter(|c| *c != column.name)
+            .filter_map(|c| Some((c, row.get(c).filter(|v| !v.is_empty())?)))
+            .collect();
+        let names = others
+            .iter()
+            .map(|(c, _)| *c)
+            .collect::<Vec<_>>()
+            .join(", ");
+        return Some(if others.is_empty() {
+            format!("no {}", column.name)
+        } else if others.iter().all(|(_, v)| is_url(v)) {
+            format!("no {}, only a URL in {names}", column.name)
+        } else {
+            format!(
+                "no {}, only a path in {names} (ambiguous: say which with --path-column)",
+                column.name
+            )
+        });
+    }
+    let parsed = sparc3d_sources::Location::parse(value);
+    parsed.err().map(|e| format!("{}: {e}", column.name))
+}
+
+/// The refusal of a manifest whose rows `bad` (the first few, as `row N: why`; `count` in
+/// all, of `total`) have no readable source in `column`.
+pub fn rows_refusal(
+    source: &Path,
+    column: &PathColumn,
+    bad: &[String],
+    count: u64,
+    total: u64,
+) -> anyhow::Error {
+    anyhow::anyhow!(
+        "{}: {count} of {total} rows have no readable source in column {} ({}): {}{}",
+        source.display(),
+        column.name,
+        column.why,
+        bad.iter().take(10).cloned().collect::<Vec<_>>().join("; "),
+        if count > 10 { "; …" } else { "" }
+    )
+}
+
 /// Refuses rows without a source in `column` (a local path, or a URL a worker can fetch),
 /// naming the first few and how many.
 pub fn check_rows(
@@ -107,50 +199,21 @@ pub fn check_rows(
     column: &PathColumn,
     source: &Path,
 ) -> Result<()> {
-    let mut bad = Vec::new();
-    for (n, row) in rows.iter().enumerate() {
-        let value = row.get(&column.name).map(String::as_str).unwrap_or("");
-        let why = if value.is_empty() {
-            let others: Vec<(&str, &String)> = PATH_COLUMNS
-                .into_iter()
-                .filter(|c| *c != column.name)
-                .filter_map(|c| Some((c, row.get(c).filter(|v| !v.is_empty())?)))
-                .collect();
-            let names = others
-                .iter()
-                .map(|(c, _)| *c)
-                .collect::<Vec<_>>()
-                .join(", ");
-            if others.is_empty() {
-                format!("no {}", column.name)
-            } else if others.iter().all(|(_, v)| is_url(v)) {
-                format!("no {}, only a URL in {names}", column.name)
-            } else {
-                format!(
-                    "no {}, only a path in {names} (ambiguous: say which with --path-column)",
-                    column.name
-                )
-            }
-        } else if let Err(e) = sparc3d_sources::Location::parse(value) {
-            format!("{}: {e}", column.name)
-        } else {
-            continue;
-        };
-        bad.push(format!("row {}: {why}", n + 1));
+    let bad: Vec<String> = rows
+        .iter()
+        .enumerate()
+        .filter_map(|(n, row)| Some(format!("row {}: {}", n + 1, row_problem(row, column)?)))
+        .collect();
+    if bad.is_empty() {
+        return Ok(());
     }
-    if !bad.is_empty() {
-        bail!(
-            "{}: {} of {} rows have no readable source in column {} ({}): {}{}",
-            source.display(),
-            bad.len(),
-            rows.len(),
-            column.name,
-            column.why,
-            bad.iter().take(10).cloned().collect::<Vec<_>>().join("; "),
-            if bad.len() > 10 { "; …" } else { "" }
-        );
-    }
-    Ok(())
+    Err(rows_refusal(
+        source,
+        column,
+        &bad,
+        bad.len() as u64,
+        rows.len() as u64,
+    ))
 }
 
 #[cfg(test)]

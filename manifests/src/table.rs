@@ -6,12 +6,11 @@
 //! ([`crate::columns`]).
 
 use crate::path_column::PathColumn;
-use crate::record::{ManifestRecord, KNOWN_COLUMNS, PATH_COLUMNS};
-use anyhow::{bail, Context, Result};
+use crate::record::ManifestRecord;
+use anyhow::Result;
 use arrow_array::{Array, LargeStringArray, StringArray, StringViewArray};
-use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// A manifest row before its id is known: path, optional id / sha256 / format, and the
 /// provenance columns.
@@ -72,57 +71,7 @@ pub struct Manifest {
     pub path_column: PathColumn,
 }
 
-/// The provenance columns of `rows`: every column some row has a key for, except the path
-/// column and the known ones, in name order.
-fn provenance_names(rows: &[BTreeMap<String, String>], path_column: &str) -> Vec<String> {
-    let mut names: std::collections::BTreeSet<&String> = std::collections::BTreeSet::new();
-    for row in rows {
-        names.extend(row.keys());
-    }
-    names
-        .into_iter()
-        .filter(|n| n.as_str() != path_column && !KNOWN_COLUMNS.contains(&n.as_str()))
-        .cloned()
-        .collect()
-}
-
-fn from_table(
-    rows: Vec<BTreeMap<String, String>>,
-    base: &Path,
-    source: &Path,
-    path_column: Option<&str>,
-) -> Result<Manifest> {
-    let column = crate::path_column::choose(&rows, path_column, source)?;
-    crate::path_column::check_rows(&rows, &column, source)?;
-    let extra_names = provenance_names(&rows, &column.name);
-    let mut out = Vec::with_capacity(rows.len());
-    for row in rows {
-        let get = |k: &str| row.get(k).filter(|v| !v.is_empty()).cloned();
-        let uri = get(&column.name).unwrap_or_default();
-        let p = PathBuf::from(&uri);
-        let abs = if p.is_absolute() || crate::path_column::is_url(&uri) {
-            uri
-        } else {
-            base.join(p).to_string_lossy().into_owned()
-        };
-        out.push(RawRecord {
-            id: get("id"),
-            uri: abs,
-            sha256: get("sha256"),
-            format: get("format"),
-            extra: extra_names
-                .iter()
-                .map(|n| (n.clone(), row.get(n).cloned().unwrap_or_default()))
-                .collect(),
-        });
-    }
-    Ok(Manifest {
-        records: out,
-        path_column: column,
-    })
-}
-
-fn string_at(col: &dyn Array, i: usize) -> Option<String> {
+pub(crate) fn string_at(col: &dyn Array, i: usize) -> Option<String> {
     if col.is_null(i) {
         return None;
     }
@@ -141,7 +90,7 @@ fn string_at(col: &dyn Array, i: usize) -> Option<String> {
 /// A number or boolean cell of a Parquet manifest as text (for provenance columns such as a
 /// count or a score; the id, sha256, format and path columns are read as strings only);
 /// `None` for other types.
-fn number_at(col: &dyn Array, i: usize) -> Option<String> {
+pub(crate) fn number_at(col: &dyn Array, i: usize) -> Option<String> {
     use arrow_array::cast::AsArray;
     use arrow_array::types::{
         Float32Type, Float64Type, Int32Type, Int64Type, UInt32Type, UInt64Type,
@@ -159,105 +108,43 @@ fn number_at(col: &dyn Array, i: usize) -> Option<String> {
     })
 }
 
-fn read_parquet_table(path: &Path) -> Result<Vec<BTreeMap<String, String>>> {
-    let f = std::fs::File::open(path).with_context(|| format!("opening {}", path.display()))?;
-    let reader = ParquetRecordBatchReaderBuilder::try_new(f)
-        .with_context(|| format!("reading {}", path.display()))?
-        .build()
-        .with_context(|| format!("reading {}", path.display()))?;
-    let mut rows = Vec::new();
-    for batch in reader {
-        let batch = batch.with_context(|| format!("reading {}", path.display()))?;
-        let schema = batch.schema();
-        let names: Vec<&str> = schema.fields().iter().map(|f| f.name().as_str()).collect();
-        let names = crate::columns::folded(&names, path, "the schema")?;
-        for i in 0..batch.num_rows() {
-            let mut m = BTreeMap::new();
-            for (name, col) in names.iter().zip(batch.columns()) {
-                let name = name.clone();
-                let known =
-                    KNOWN_COLUMNS.contains(&name.as_str()) || PATH_COLUMNS.contains(&name.as_str());
-                let value = match string_at(col.as_ref(), i) {
-                    None if !known => number_at(col.as_ref(), i),
-                    v => v,
-                };
-                if let Some(v) = value {
-                    m.insert(name, v);
+/// Reads a manifest file whole; `path_column` is `--path-column` (otherwise
+/// [`crate::path_column`]'s rule picks the column). Rows without a readable source are
+/// refused, naming the first few. Jobs read theirs a batch at a time ([`crate::stream`]).
+pub fn read(path: &Path, path_column: Option<&str>) -> Result<Manifest> {
+    let mut stream = crate::stream::RowStream::open(path, path_column)?;
+    let mut records = Vec::new();
+    let mut bad = Vec::new();
+    let mut bad_count = 0u64;
+    loop {
+        let batch = stream.next_batch(1 << 16)?;
+        if batch.is_empty() {
+            break;
+        }
+        for (row, record) in batch {
+            match record {
+                Ok(r) => records.push(r),
+                Err(why) => {
+                    bad_count += 1;
+                    if bad.len() < 10 {
+                        bad.push(format!("row {row}: {why}"));
+                    }
                 }
             }
-            rows.push(m);
         }
     }
-    Ok(rows)
-}
-
-/// Reads a manifest file; `path_column` is `--path-column` (otherwise [`crate::path_column`]'s rule
-/// picks the column).
-pub fn read(path: &Path, path_column: Option<&str>) -> Result<Manifest> {
-    let base = path.parent().map(|p| p.to_path_buf()).unwrap_or_default();
-    let base = std::fs::canonicalize(if base.as_os_str().is_empty() {
-        Path::new(".")
-    } else {
-        &base
+    stream.finish()?;
+    let column = stream.path_column().clone();
+    if bad_count > 0 {
+        let total = stream.rows_read();
+        return Err(crate::path_column::rows_refusal(
+            path, &column, &bad, bad_count, total,
+        ));
+    }
+    Ok(Manifest {
+        records,
+        path_column: column,
     })
-    .with_context(|| format!("resolving the folder of {}", path.display()))?;
-    let rows: Vec<BTreeMap<String, String>> = match ext(path).as_str() {
-        "csv" | "tsv" => {
-            let mut r = csv::ReaderBuilder::new()
-                .delimiter(if ext(path) == "tsv" { b'\t' } else { b',' })
-                .from_path(path)
-                .with_context(|| format!("opening {}", path.display()))?;
-            let header = r
-                .headers()
-                .with_context(|| format!("reading {}", path.display()))?
-                .clone();
-            let names: Vec<&str> = header.iter().collect();
-            let headers = crate::columns::folded(&names, path, "the header")?;
-            let mut rows = Vec::new();
-            for rec in r.records() {
-                let rec = rec.with_context(|| format!("reading {}", path.display()))?;
-                rows.push(
-                    headers
-                        .iter()
-                        .cloned()
-                        .zip(rec.iter().map(|v| v.trim().to_string()))
-                        .collect(),
-                );
-            }
-            rows
-        }
-        "jsonl" | "ndjson" => {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("reading {}", path.display()))?;
-            let mut rows = Vec::new();
-            for (n, line) in text.lines().enumerate() {
-                if line.trim().is_empty() {
-                    continue;
-                }
-                let v: serde_json::Map<String, serde_json::Value> = serde_json::from_str(line)
-                    .with_context(|| format!("{}: line {}", path.display(), n + 1))?;
-                let names: Vec<&str> = v.keys().map(String::as_str).collect();
-                let keys = crate::columns::folded(&names, path, &format!("line {}", n + 1))?;
-                rows.push(
-                    keys.into_iter()
-                        .zip(v.into_iter().map(|(_, v)| v))
-                        .filter_map(|(k, v)| match v {
-                            serde_json::Value::String(s) => Some((k, s)),
-                            serde_json::Value::Null => None,
-                            other => Some((k, other.to_string())),
-                        })
-                        .collect(),
-                );
-            }
-            rows
-        }
-        "parquet" => read_parquet_table(path)?,
-        other => bail!(
-            "{}: unknown manifest format {other:?} (expected .csv, .jsonl or .parquet)",
-            path.display()
-        ),
-    };
-    from_table(rows, &base, path, path_column)
 }
 
 #[cfg(test)]

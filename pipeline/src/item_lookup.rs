@@ -16,25 +16,30 @@ const LISTED: usize = 5;
 /// The item `query` names: its id, a prefix of its id that no other item has, or its source
 /// file (the path as in the manifest, a path to the same file, or the path's last components,
 /// e.g. the file name) when no other item has it. An exact id wins over everything else.
-pub fn find<'a>(job: &'a Job, query: &str) -> Result<&'a FrozenItem> {
+pub fn find(job: &Job, query: &str) -> Result<FrozenItem> {
     let q = query.trim();
     let root = job.layout.root.display();
     if q.is_empty() {
         bail!("an empty --id names no item; `sparc3d ls {root}` lists the items with their ids");
     }
-    if let Some(item) = job.items.iter().find(|i| i.record.id == q) {
-        return Ok(item);
-    }
     let canonical = std::fs::canonicalize(q)
         .ok()
         .map(|p| p.to_string_lossy().into_owned());
-    let matches: Vec<&FrozenItem> = job
-        .items
-        .iter()
-        .filter(|i| i.record.id.starts_with(q) || is_source(&i.record.uri, q, canonical.as_deref()))
-        .collect();
+    // One pass over the items, a shard at a time: an exact id ends it; a few matches are kept.
+    let mut matches: Vec<FrozenItem> = Vec::new();
+    for item in job.items() {
+        let item = item?;
+        if item.record.id == q {
+            return Ok(item);
+        }
+        let matching =
+            item.record.id.starts_with(q) || is_source(&item.record.uri, q, canonical.as_deref());
+        if matching && matches.len() < 64 {
+            matches.push(item);
+        }
+    }
     match matches.as_slice() {
-        [one] => Ok(*one),
+        [one] => Ok(one.clone()),
         [] => bail!(
             "no item of {root} matches --id {q:?} (not an id, a unique id prefix or a source \
              file){}; `sparc3d ls {root}` lists every item with its id",
@@ -45,7 +50,7 @@ pub fn find<'a>(job: &'a Job, query: &str) -> Result<&'a FrozenItem> {
             many.len(),
             many.iter()
                 .take(LISTED)
-                .map(|i| describe(i))
+                .map(describe)
                 .collect::<Vec<_>>()
                 .join(", "),
             if many.len() > LISTED { ", …" } else { "" }
@@ -97,8 +102,8 @@ fn describe(item: &FrozenItem) -> String {
 fn suggestions(job: &Job, query: &str) -> String {
     let q = query.to_lowercase();
     let limit = (q.chars().count() / 3).max(2);
-    let mut near: Vec<(usize, &FrozenItem)> = job
-        .items
+    let items: Vec<FrozenItem> = job.items().filter_map(|i| i.ok()).collect();
+    let mut near: Vec<(usize, &FrozenItem)> = items
         .iter()
         .filter_map(|i| {
             let id: String = i

@@ -36,12 +36,16 @@ impl RowFilter {
     /// Parses `text` and checks it against the columns `job`'s shards have (its config's
     /// column groups, the provenance columns of all its items).
     pub fn for_job(job: &Job, text: &str) -> Result<Self> {
-        let names: BTreeSet<&String> = job
-            .items
-            .iter()
-            .flat_map(|i| i.record.extra.keys())
-            .collect();
-        let provenance: Vec<String> = names.into_iter().cloned().collect();
+        // Every item a job gets later carries every column of the earlier ones (`add`), so the
+        // last item has them all: one slice read, not the whole manifest.
+        let last = match job.file.items.checked_sub(1) {
+            Some(i) => job.item(i)?,
+            None => None,
+        };
+        let names: BTreeSet<String> = last
+            .map(|i| i.record.extra.into_keys().collect())
+            .unwrap_or_default();
+        let provenance: Vec<String> = names.into_iter().collect();
         Self::new(text, provenance, Sections::of(&job.file.config), "the job")
     }
 

@@ -146,23 +146,23 @@ pub fn draw(job: &Job, size: SampleSize, seed: u64) -> Result<Sample> {
     let ok = ok_items(job)?;
     let mut ids = Vec::with_capacity(ok.len());
     for &i in &ok {
-        let Some(item) = job.items.get(i as usize) else {
+        let Some(item) = job.item(i)? else {
             bail!(
                 "a shard row has item_index {i}, but the manifest of {} has {} items",
                 job.layout.root.display(),
-                job.items.len()
+                job.file.items
             );
         };
-        ids.push(item.record.id.as_str());
+        ids.push(item.record.id);
     }
     let chosen: std::collections::HashSet<&str> =
-        select(ids.iter().copied(), seed, size.of(ids.len()))
+        select(ids.iter().map(String::as_str), seed, size.of(ids.len()))
             .into_iter()
             .collect();
     let items = ok
         .iter()
         .zip(&ids)
-        .filter(|(_, id)| chosen.contains(*id))
+        .filter(|(_, id)| chosen.contains(id.as_str()))
         .map(|(&i, _)| i)
         .collect();
     Ok(Sample {
@@ -182,7 +182,7 @@ pub fn for_each_sampled_row(
     let mut shards: Vec<u64> = sample
         .items
         .iter()
-        .filter_map(|&i| job.items.get(i as usize).map(|it| it.shard))
+        .filter_map(|&i| job.item(i).ok().flatten().map(|it| it.shard))
         .collect();
     shards.sort_unstable();
     shards.dedup();

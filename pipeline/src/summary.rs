@@ -148,7 +148,7 @@ pub fn summarize_states(job: &Job, states: &[ShardState]) -> JobSummary {
         }
         if matches!(state, ShardState::Running(_)) {
             for (&index, &at) in &js.in_flight {
-                if let Some(item) = job.items.get(index as usize) {
+                if let Ok(Some(item)) = job.item(index) {
                     s.in_flight.push(InFlight {
                         shard,
                         id: item.record.id.clone(),

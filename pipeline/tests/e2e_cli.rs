@@ -60,7 +60,7 @@ fn run_dir(input: &Path, job: &Path, extra: &[&str]) -> Output {
 
 /// The id of the item whose source ends with `name`, from the job's frozen manifest.
 fn id_of(job: &Path, name: &str) -> String {
-    let text = std::fs::read_to_string(job.join("manifest.jsonl")).unwrap_or_default();
+    let text = frozen_text(job);
     text.lines()
         .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
         .find(|v| v["uri"].as_str().is_some_and(|u| u.ends_with(name)))

@@ -187,7 +187,7 @@ fn flip_byte(file: &Path) {
 
 /// The id of an item of `shard`.
 fn item_of_shard(job: &Path, shard: u64) -> String {
-    let text = std::fs::read_to_string(job.join("manifest.jsonl")).unwrap_or_default();
+    let text = frozen_text(job);
     text.lines()
         .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
         .find(|v| v["shard"] == shard)

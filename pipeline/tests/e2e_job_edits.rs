@@ -69,10 +69,17 @@ fn edit(file: &Path, from: &str, to: &str) -> Vec<u8> {
 /// Every command that changes a job refuses it, naming what `says` names; `status` and `ls`
 /// still read it and warn with the same.
 fn assert_refused(job: &Path, says: &[&str]) {
+    assert_refused_at(job, says, "1", &["status", "ls"]);
+}
+
+/// [`assert_refused`] with `work` on shard `shard`, and only the read-only commands `warners`
+/// expected to warn (`status` reads no slice of the frozen manifest, so an edited slice is not
+/// its to see).
+fn assert_refused_at(job: &Path, says: &[&str], shard: &str, warners: &[&str]) {
     let j = s(job);
     for args in [
         vec!["run", j, "--workers", "1"],
-        vec!["work", j, "--shard-index", "1"],
+        vec!["work", j, "--shard-index", shard],
         vec!["retry", j],
         vec!["verify", j],
         vec!["verify", j, "--dry-run"],
@@ -89,7 +96,8 @@ fn assert_refused(job: &Path, says: &[&str]) {
         }
         assert!(!err.contains("in 0 shards"), "{err}");
     }
-    for args in [vec!["status", j], vec!["ls", j]] {
+    for command in warners {
+        let args = vec![*command, j];
         let out = sparc3d(&args);
         let err = stderr(&out);
         assert!(out.status.success(), "{args:?}: {err}");
@@ -173,15 +181,36 @@ fn an_out_of_range_resolution_is_refused_with_the_valid_range() {
 }
 
 /// Item 3: a path edited in the frozen manifest (it would convert another file under the old
-/// id) is refused, naming manifest.jsonl; `init` with the original manifest no longer says
+/// id) is refused, naming the slice it is in; `init` with the original manifest no longer says
 /// "already initialised" but names the edited line.
 #[test]
 fn an_edited_path_in_the_frozen_manifest_is_refused_and_init_names_the_line() {
     let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
     let (job, m) = job_with_one_shard(tmp.path());
-    let file = job.join("manifest.jsonl");
+    let file = slice_files(&job)
+        .into_iter()
+        .find(|f| std::fs::read_to_string(f).is_ok_and(|t| t.contains("meshes/sphere.obj")))
+        .unwrap_or_else(|| panic!("no slice holds sphere.obj"));
+    let name = file
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let shard = name["part-".len().."part-00000".len()]
+        .trim_start_matches('0')
+        .to_string();
+    let shard = if shard.is_empty() {
+        "0".to_string()
+    } else {
+        shard
+    };
     let original = edit(&file, "meshes/sphere.obj", "meshes/wuson.stl");
-    assert_refused(&job, &["manifest.jsonl", "the frozen manifest was edited"]);
+    let named = format!("manifest/{name}");
+    assert_refused_at(
+        &job,
+        &[&named, "the frozen manifest was edited"],
+        &shard,
+        &["ls"],
+    );
     let out = sparc3d(&init_args(&job, &m));
     let err = stderr(&out);
     assert!(!out.status.success(), "{err}");

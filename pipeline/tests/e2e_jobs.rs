@@ -173,7 +173,7 @@ fn bad_files_become_failed_rows_and_show_matches_convert() {
     );
     // show == convert for one item.
     let rows = all_rows(&job);
-    let frozen = std::fs::read_to_string(job.join("manifest.jsonl")).unwrap_or_default();
+    let frozen = frozen_text(&job);
     let item: serde_json::Value = frozen
         .lines()
         .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())

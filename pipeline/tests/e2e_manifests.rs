@@ -90,8 +90,7 @@ fn extra_columns_add_their_own_columns_and_change_nothing_else() {
     let plain = tmp.path().join("plain");
     ok_at_32(&meshes, &plain, "2");
     // The same items in the same order, through a manifest with a licence column.
-    let frozen =
-        std::fs::read_to_string(plain.join("manifest.jsonl")).unwrap_or_else(|e| panic!("{e}"));
+    let frozen = frozen_text(&plain);
     let mut csv = String::from("path,License\n");
     for line in frozen.lines() {
         let v: serde_json::Value = serde_json::from_str(line).unwrap_or_else(|e| panic!("{e}"));

@@ -229,7 +229,7 @@ fn the_path_column_is_chosen_by_one_rule_that_init_states() {
         stderr(&out)
     );
     // The local paths are the items' sources; the URLs are kept as provenance only.
-    let frozen = std::fs::read_to_string(job.join("manifest.jsonl")).unwrap_or_default();
+    let frozen = frozen_text(&job);
     for line in frozen.lines() {
         let item: serde_json::Value = serde_json::from_str(line).unwrap_or_default();
         let source = item["uri"].as_str().unwrap_or_default();
@@ -282,7 +282,7 @@ fn the_path_column_is_chosen_by_one_rule_that_init_states() {
     let out = init(&job3, &two, &["--path-column", "local_path"]);
     assert!(out.status.success(), "{}", stderr(&out));
     // The chosen column is the source; the other is kept as a provenance column.
-    let frozen = std::fs::read_to_string(job3.join("manifest.jsonl")).unwrap_or_default();
+    let frozen = frozen_text(&job3);
     let item: serde_json::Value = serde_json::from_str(frozen.trim()).unwrap_or_default();
     assert!(
         item["uri"]

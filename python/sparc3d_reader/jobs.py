@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import bisect
 import dataclasses
+import hashlib
 import json
 import math
 import os
@@ -64,6 +65,10 @@ _MAX_SCALE = 1e15
 _MAX_CENTER = 3.5e38
 
 
+# Shards one index page of a sliced frozen manifest lists (schema/src/manifest.rs PAGE_SHARDS).
+PAGE_SHARDS = 1024
+
+
 class ShardWarning(UserWarning):
     """A shard of a job that is not read (not finished, damaged, quarantined) or a file in
     `shards/` that is not one of the job's shards; the message names it and says why."""
@@ -80,8 +85,12 @@ class Job:
     shards: int
     shard_size: int
     resolution: Optional[int]
+    # The index pages `job.json` pins (a job kept in slices, one a shard, under `manifest/`);
+    # None for a job made before slices, whose frozen manifest is `manifest.jsonl`.
+    pages: Optional[List[dict]] = None
     _items: Optional[List[Tuple[str, str]]] = None
     _shards: Optional[List[int]] = None
+    _page_entries: Optional[Dict[int, List[Tuple[int, int, str]]]] = None
 
     def shard_file(self, shard: int) -> Location:
         """`shards/part-NNNNN.parquet`."""
@@ -108,7 +117,11 @@ class Job:
 
     def shard_items(self, shard: int) -> range:
         """Manifest positions of the items of a shard: those frozen with that shard
-        (`index // shard_size` for a job made at once; each `sparc3d add` starts new shards)."""
+        (`index // shard_size` for a job made at once; each `sparc3d add` starts new shards).
+        A sliced job reads the shard's index page only."""
+        if self.pages is not None:
+            first, count, _ = self._entry(shard)
+            return range(first, first + count)
         if self._shards is None:
             self._read_manifest()
         shards = self._shards or []
@@ -116,10 +129,44 @@ class Job:
         return range(start, bisect.bisect_right(shards, shard))
 
     def manifest(self) -> List[Tuple[str, str]]:
-        """(id, uri) of every item of the frozen manifest (`manifest.jsonl`), in order."""
+        """(id, uri) of every item of the frozen manifest, in order (every slice read)."""
+        if self.pages is not None:
+            return [pair for shard in range(self.shards) for pair in self.shard_manifest(shard)]
         if self._items is None:
             self._read_manifest()
         return self._items or []
+
+    def shard_manifest(self, shard: int) -> List[Tuple[str, str]]:
+        """(id, uri) of the items of one shard, in order: its slice alone for a sliced job."""
+        if self.pages is None:
+            manifest = self.manifest()
+            return [manifest[i] for i in self.shard_items(shard)]
+        first, count, sha = self._entry(shard)
+        path = self.root / "manifest" / f"part-{shard:05d}.{sha[:16]}.jsonl"
+        items = _manifest_items(path, sha)
+        if len(items) != count or any(s != shard for _, _, s in items):
+            raise ValueError(f"{path}: not the {count} items of shard {shard} its index page lists")
+        return [(i, u) for i, u, _ in items]
+
+    def _entry(self, shard: int) -> Tuple[int, int, str]:
+        """(first item, items, slice sha256) of `shard` from its index page (read once)."""
+        page = shard // PAGE_SHARDS
+        if not 0 <= shard < self.shards or self.pages is None:
+            raise ValueError(f"{self.root}: the job has no shard {shard}")
+        if self._page_entries is None:
+            self._page_entries = {}
+        if page not in self._page_entries:
+            pin = self.pages[page]
+            path = self.root / "manifest" / f"index-{page:05d}.{pin['sha256'][:16]}.tsv"
+            data = location.read_bytes(path)
+            if hashlib.sha256(data).hexdigest() != pin["sha256"]:
+                raise ValueError(f"{path}: its sha256 is not the one job.json pins (edited after init?)")
+            entries = []
+            for line in data.decode().splitlines():
+                _, first, count, sha = line.split("\t")
+                entries.append((int(first), int(count), sha))
+            self._page_entries[page] = entries
+        return self._page_entries[page][shard % PAGE_SHARDS]
 
     def _read_manifest(self) -> None:
         items = _manifest_items(self.root / "manifest.jsonl")
@@ -141,7 +188,8 @@ def open_job(root: Union[str, os.PathLike, ObjectPath]) -> Job:
         config = job["config"]
         return Job(root=root, fingerprint=str(job["fingerprint"]), items=int(job["items"]),
                    shards=int(job["shards"]), shard_size=max(int(config["shard_size"]), 1),
-                   resolution=config.get("params", {}).get("resolution"))
+                   resolution=config.get("params", {}).get("resolution"),
+                   pages=job.get("manifest_pages"))
     except (OSError, ValueError, KeyError, TypeError) as e:
         raise ValueError(f"{path}: not a readable job file ({type(e).__name__}: {e})") from None
 
@@ -166,14 +214,23 @@ def job_of_file(path: pathlib.Path) -> Tuple[Optional[Job], Optional[int]]:
     return (job, shard) if shard < job.shards and path.name == job.shard_file(shard).name else (None, None)
 
 
-def _manifest_items(path: Location) -> List[Tuple[str, str, int]]:
+def _manifest_items(path: Location, sha256: Optional[str] = None) -> List[Tuple[str, str, int]]:
+    """(id, uri, shard) of each line of a frozen manifest file; with `sha256`, the file's bytes
+    are checked against it first."""
     items = []
     try:
-        with location.open_text(path) as f:
-            for line in f:
-                if line.strip():
-                    record = json.loads(line)
-                    items.append((record["id"], record["uri"], int(record["shard"])))
+        if sha256 is not None:
+            data = location.read_bytes(path)
+            if hashlib.sha256(data).hexdigest() != sha256:
+                raise ValueError("its sha256 is not the one its index page lists (edited after init?)")
+            lines = data.decode().splitlines()
+        else:
+            with location.open_text(path) as f:
+                lines = list(f)
+        for line in lines:
+            if line.strip():
+                record = json.loads(line)
+                items.append((record["id"], record["uri"], int(record["shard"])))
     except (OSError, ValueError, KeyError, TypeError) as e:
         raise ValueError(f"{path}: the frozen manifest cannot be read ({type(e).__name__}: {e})") from None
     return items
@@ -410,10 +467,10 @@ def check_rows(shard: Shard, columns: Dict[str, Sequence]) -> Optional[str]:
     if indices != expected:
         return (f"its rows are items {_span(indices)}, shard {shard.index} holds items "
                 f"{_span(expected)} (a file restored into another shard's slot?)")
-    manifest = job.manifest()
+    manifest = job.shard_manifest(shard.index)
     for r, index in enumerate(indices):
         row = {k: columns[k][r] for k in CHECK_COLUMNS}
-        why = _not_the_item(row, manifest[index]) or (
+        why = _not_the_item(row, manifest[index - expected[0]]) or (
             _implausible(job, row) if row["status"] == "ok" else None)
         if why:
             return f"row of item {index} ({row['id']!r}): {why}"

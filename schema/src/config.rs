@@ -416,8 +416,16 @@ pub struct JobFile {
     pub items: u64,
     /// Number of shards.
     pub shards: u64,
-    /// sha256 of the frozen manifest file.
+    /// sha256 of the frozen manifest: of `manifest.jsonl` for a job whose frozen manifest is
+    /// one file; of the index (its pages' sha256s, one a line: [`crate::manifest::index_sha256`])
+    /// for a job kept in slices.
     pub manifest_sha256: String,
+    /// The frozen manifest's index pages, in order, when it is kept in slices (one file per
+    /// shard under `manifest/`, each page listing [`crate::manifest::PAGE_SHARDS`] shards'
+    /// slices with their sha256s: docs/FORMAT.md, "The frozen manifest"). Absent for a job made
+    /// before slices, whose frozen manifest is `manifest.jsonl` alone.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub manifest_pages: Option<Vec<crate::manifest::ManifestPage>>,
 }
 
 #[cfg(test)]
@@ -857,6 +865,7 @@ mod tests {
                 items: 1,
                 shards: 1,
                 manifest_sha256: String::new(),
+                manifest_pages: None,
             };
             let text = serde_json::to_vec_pretty(&file).map_err(json)?;
             let back: JobFile = serde_json::from_slice(&text).map_err(json)?;

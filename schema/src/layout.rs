@@ -2,7 +2,13 @@
 //!
 //! ```text
 //! JOB/job.json                          config, fingerprint, counts (written by init)
-//! JOB/manifest.jsonl                    frozen manifest, one FrozenItem per line
+//! JOB/manifest/index-PPPPP.<sha>.tsv     a page of the frozen manifest's index: a line per
+//!                                       shard (its first item, items, slice sha256)
+//! JOB/manifest/part-NNNNN.<sha>.jsonl    a shard's slice of the frozen manifest, one
+//!                                       FrozenItem per line (<sha>: 16 hex digits of the
+//!                                       file's sha256; job.json pins the pages')
+//! JOB/manifest.jsonl                    the frozen manifest in one file, as jobs made before
+//!                                       slices have it (read, never written)
 //! JOB/job.lock                          flock: shared by run/work, exclusive while `add` grows it
 //! JOB/shards/part-NNNNN.parquet         a finished shard
 //! JOB/shards/part-NNNNN.complete.json   its completion record (written last)
@@ -15,6 +21,11 @@
 //! ```
 
 use std::path::{Path, PathBuf};
+
+/// The first 16 hex digits of a sha256, as the frozen manifest's file names carry them.
+fn short(sha256: &str) -> &str {
+    sha256.get(..16).unwrap_or(sha256)
+}
 
 /// The paths of one job folder.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -36,9 +47,37 @@ impl JobLayout {
         self.root.join("job.json")
     }
 
-    /// `manifest.jsonl`.
+    /// `manifest.jsonl`: the frozen manifest of a job made before slices.
     pub fn manifest(&self) -> PathBuf {
         self.root.join("manifest.jsonl")
+    }
+
+    /// `manifest/`: the frozen manifest's slices and index pages.
+    pub fn manifest_dir(&self) -> PathBuf {
+        self.root.join(Self::MANIFEST_DIR)
+    }
+
+    /// The folder name of the frozen manifest's slices, relative to the job.
+    pub const MANIFEST_DIR: &'static str = "manifest";
+
+    /// The name (within `manifest/`) of index page `page` whose bytes have sha256 `sha256`.
+    pub fn page_name(page: u64, sha256: &str) -> String {
+        format!("index-{page:05}.{}.tsv", short(sha256))
+    }
+
+    /// The name (within `manifest/`) of `shard`'s slice whose bytes have sha256 `sha256`.
+    pub fn slice_name(shard: u64, sha256: &str) -> String {
+        format!("{}.{}.jsonl", Self::shard_name(shard), short(sha256))
+    }
+
+    /// Index page `page` of the frozen manifest.
+    pub fn manifest_page(&self, page: u64, sha256: &str) -> PathBuf {
+        self.manifest_dir().join(Self::page_name(page, sha256))
+    }
+
+    /// `shard`'s slice of the frozen manifest.
+    pub fn manifest_slice(&self, shard: u64, sha256: &str) -> PathBuf {
+        self.manifest_dir().join(Self::slice_name(shard, sha256))
     }
 
     /// `shards/`.

@@ -29,7 +29,7 @@ pub use completion::{CompletionRecord, FileStamp};
 pub use config::{AttributeConfig, JobConfig, JobFile, Limits, SampleConfig};
 pub use error::{Result, SchemaError};
 pub use layout::JobLayout;
-pub use manifest::{FrozenItem, ManifestRecord};
+pub use manifest::{FrozenItem, ManifestPage, ManifestRecord, SliceEntry};
 pub use quality::QualityFacts;
 pub use row::{
     AppearanceFacts, AttributeTensors, RowCounts, RowTensors, RowTimings, SampleTensors, ShardRow,

@@ -1,6 +1,8 @@
-//! Manifest records: what a job converts, and the frozen items of a job (`manifest.jsonl` in
-//! its folder: every item with its index and shard). `sparc3d-manifests` reads manifests into
-//! records and freezes them; shard rows are built from frozen items.
+//! Manifest records: what a job converts, and the frozen items of a job (every item with its
+//! index and shard, one JSON line each). A job keeps them in slices, one file per shard, listed
+//! with their sha256s by index pages that `job.json` pins ([`ManifestPage`], [`SliceEntry`]); a
+//! job made before slices keeps them in one file, `manifest.jsonl`. `sparc3d-manifests` reads
+//! manifests into records and freezes them; shard rows are built from frozen items.
 
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -38,4 +40,93 @@ pub struct FrozenItem {
     /// The record, with `uri` made absolute.
     #[serde(flatten)]
     pub record: ManifestRecord,
+}
+
+/// Shards listed by one page of a sliced frozen manifest's index: about 90 KB a page of
+/// 256-item shards, so a task reads its page and its slice, never the whole index (at 10 M
+/// items, 39 pages).
+pub const PAGE_SHARDS: u64 = 1024;
+
+/// One page of a sliced frozen manifest's index, as `job.json` pins it
+/// ([`crate::JobFile::manifest_pages`]): page `p` lists shards `p * PAGE_SHARDS ..`.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ManifestPage {
+    /// Shards the page lists ([`PAGE_SHARDS`] but on the last page).
+    pub shards: u64,
+    /// Items in those shards.
+    pub items: u64,
+    /// sha256 of the page file's bytes.
+    pub sha256: String,
+}
+
+/// One line of an index page: a shard's slice of the frozen manifest.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SliceEntry {
+    /// The shard.
+    pub shard: u64,
+    /// Index of its first item.
+    pub first: u64,
+    /// Its items.
+    pub items: u64,
+    /// sha256 of the slice file's bytes (its items' frozen lines).
+    pub sha256: String,
+}
+
+impl SliceEntry {
+    /// The entry as its page line: `shard first items sha256`, tab-separated, with a newline.
+    pub fn line(&self) -> String {
+        format!(
+            "{}\t{}\t{}\t{}\n",
+            self.shard, self.first, self.items, self.sha256
+        )
+    }
+
+    /// Parses a page line (without its newline); `None` when it is not one.
+    pub fn parse(line: &str) -> Option<Self> {
+        let mut cells = line.split('\t');
+        let entry = Self {
+            shard: cells.next()?.parse().ok()?,
+            first: cells.next()?.parse().ok()?,
+            items: cells.next()?.parse().ok()?,
+            sha256: cells.next()?.to_string(),
+        };
+        let hex = entry.sha256.len() == 64 && entry.sha256.bytes().all(|b| b.is_ascii_hexdigit());
+        (cells.next().is_none() && hex).then_some(entry)
+    }
+}
+
+/// The sha256 a sliced job records as its `manifest_sha256`: of its pages' sha256s, one a line.
+pub fn index_sha256(pages: &[ManifestPage]) -> String {
+    use sha2::{Digest, Sha256};
+    let mut h = Sha256::new();
+    for p in pages {
+        h.update(p.sha256.as_bytes());
+        h.update(b"\n");
+    }
+    crate::hex::hex(&h.finalize())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn page_lines_read_back_and_others_are_refused() {
+        let e = SliceEntry {
+            shard: 7,
+            first: 1792,
+            items: 256,
+            sha256: "ab".repeat(32),
+        };
+        let line = e.line();
+        assert_eq!(SliceEntry::parse(line.trim_end()), Some(e));
+        for bad in [
+            "7\t1792\t256",
+            "7\t1792\t256\tzz",
+            "x\t1\t2\t",
+            "7\t1\t2\tab\textra",
+        ] {
+            assert_eq!(SliceEntry::parse(bad), None, "{bad}");
+        }
+    }
 }

@@ -27,7 +27,7 @@ def kind_of(path):
         return "record"
     if key.endswith(".parquet") or "uploadId=" in path or "uploads" in path.split("?")[-1]:
         return "shard"
-    if key.endswith(("job.json", "manifest.jsonl")):
+    if key.endswith(("job.json", "manifest.jsonl")) or "/manifest/" in key:
         return "job"
     return "list" if "list-type" in path or "prefix=" in path else "other"
 

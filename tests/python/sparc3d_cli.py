@@ -25,3 +25,48 @@ def run(*args, check=True, env=None):
         assert r.returncode == 0, "sparc3d %s failed (exit %d):\n%s" % (
             " ".join(cmd[1:]), r.returncode, r.stderr)
     return r
+
+
+def frozen_records(job):
+    """Every item of a job's frozen manifest as a dict, in order: the slices its index pages
+    list (`manifest/`), or `manifest.jsonl` of a job made before slices."""
+    import json
+    job = pathlib.Path(job)
+    meta = json.loads((job / "job.json").read_text())
+    pages = meta.get("manifest_pages")
+    if pages is None:
+        return [json.loads(l) for l in (job / "manifest.jsonl").read_text().splitlines() if l.strip()]
+    out = []
+    for p, pin in enumerate(pages):
+        page = job / "manifest" / f"index-{p:05d}.{pin['sha256'][:16]}.tsv"
+        for line in page.read_text().splitlines():
+            shard, _, _, sha = line.split("\t")
+            part = job / "manifest" / f"part-{int(shard):05d}.{sha[:16]}.jsonl"
+            out.extend(json.loads(l) for l in part.read_text().splitlines() if l.strip())
+    return out
+
+
+def rewrite_slice(job, shard, change):
+    """Replaces shard `shard`'s slice of a job's frozen manifest with `change(text)` and pins
+    the new bytes as `init` would have (its page, then job.json): a job frozen from other rows,
+    not an edited one."""
+    import hashlib
+    import json
+    job = pathlib.Path(job)
+    meta = json.loads((job / "job.json").read_text())
+    p = shard // 1024
+    pin = meta["manifest_pages"][p]
+    page = job / "manifest" / f"index-{p:05d}.{pin['sha256'][:16]}.tsv"
+    lines = page.read_text().splitlines()
+    s, first, count, sha = lines[shard % 1024].split("\t")
+    text = change((job / "manifest" / f"part-{shard:05d}.{sha[:16]}.jsonl").read_text())
+    new = hashlib.sha256(text.encode()).hexdigest()
+    (job / "manifest" / f"part-{shard:05d}.{new[:16]}.jsonl").write_text(text)
+    lines[shard % 1024] = "\t".join([s, first, count, new])
+    page_text = "\n".join(lines) + "\n"
+    page_sha = hashlib.sha256(page_text.encode()).hexdigest()
+    (job / "manifest" / f"index-{p:05d}.{page_sha[:16]}.tsv").write_text(page_text)
+    pin["sha256"] = page_sha
+    root = hashlib.sha256("".join(q["sha256"] + "\n" for q in meta["manifest_pages"]).encode())
+    meta["manifest_sha256"] = root.hexdigest()
+    (job / "job.json").write_text(json.dumps(meta, indent=2))

@@ -66,7 +66,8 @@ def token(shard):
 def upload(s3, job, prefix):
     """The local job into the bucket as its writers leave it; returns the job URL."""
     s3.put(BUCKET, f"{prefix}/job.json", (job / "job.json").read_bytes())
-    s3.put(BUCKET, f"{prefix}/manifest.jsonl", (job / "manifest.jsonl").read_bytes())
+    for path in sorted((job / "manifest").iterdir()):
+        s3.put(BUCKET, f"{prefix}/manifest/{path.name}", path.read_bytes())
     for path in sorted((job / "shards").glob("part-*.complete.json")):
         record = json.loads(path.read_text())
         n = record["shard"]

@@ -73,9 +73,19 @@ def test_two_inits_at_once_with_different_manifests_never_mix_their_files(tmp_pa
             codes = [p.returncode for p in inits]
             assert sorted(codes) == [0, 1], (codes, errs)
             job = json.loads(get(s3, BUCKET, f"race-{trial}/job.json"))
-            frozen = get(s3, BUCKET, f"race-{trial}/manifest.jsonl")
-            assert job["manifest_sha256"] == hashlib.sha256(frozen).hexdigest(), (trial, errs)
-            assert job["items"] == len(frozen.splitlines()) == [1, 3][codes.index(0)]
+            pages = job["manifest_pages"]
+            root = hashlib.sha256("".join(p["sha256"] + "\n" for p in pages).encode())
+            assert job["manifest_sha256"] == root.hexdigest(), (trial, errs)
+            lines = []
+            for p, pin in enumerate(pages):
+                page = get(s3, BUCKET, f"race-{trial}/manifest/index-{p:05d}.{pin['sha256'][:16]}.tsv")
+                assert hashlib.sha256(page).hexdigest() == pin["sha256"], (trial, errs)
+                for line in page.decode().splitlines():
+                    shard, _, _, sha = line.split("\t")
+                    part = get(s3, BUCKET, f"race-{trial}/manifest/part-{int(shard):05d}.{sha[:16]}.jsonl")
+                    assert hashlib.sha256(part).hexdigest() == sha, (trial, errs)
+                    lines += part.splitlines()
+            assert job["items"] == len(lines) == [1, 3][codes.index(0)]
             loser = errs[codes.index(1)]
             assert url in loser and "another" in loser and "use another prefix" in loser, loser
             st = run("status", url, "--json", env=env_for(s3, tmp_path / "scratch-st"))
@@ -84,25 +94,27 @@ def test_two_inits_at_once_with_different_manifests_never_mix_their_files(tmp_pa
         proxy.close()
 
 
-def test_a_job_of_two_inits_is_said_damaged_with_what_to_do(tmp_path, s3):
-    """Defect 7: a job mixed by two `init`s (as older sparc3d could leave one) failed every
-    command with "…/manifest.jsonl: 3 items, job.json says 1", naming a temporary copy."""
+def test_a_replaced_slice_is_said_damaged_with_what_to_do(tmp_path, s3):
+    """Defect 7 of an earlier round (a job mixed by two `init`s failed every command naming a
+    temporary copy), as slices have it: a slice object replaced after `init` (here by another
+    job's slice of the same shard) is said of the bucket's object, with what to do."""
     url = f"s3://{BUCKET}/mixed"
     env = env_for(s3, tmp_path / "scratch")
     run("init", url, "--manifest", manifest(tmp_path, "one.csv", ["cube.off"]), env=env)
     other = tmp_path / "other"
     run("init", other, "--manifest",
         manifest(tmp_path, "three.csv", ["cube.off", "sphere.obj", "wuson.stl"]))
-    s3.client.put_object(Bucket=BUCKET, Key="mixed/manifest.jsonl",
-                         Body=(other / "manifest.jsonl").read_bytes())
-    for command in (["status", url], ["run", url], ["init", url, "--manifest",
-                                                    tmp_path / "one.csv"]):
+    listed = s3.client.list_objects_v2(Bucket=BUCKET, Prefix="mixed/manifest/part-00000.")
+    key = listed["Contents"][0]["Key"]
+    theirs = next((other / "manifest").glob("part-00000.*.jsonl"))
+    s3.client.put_object(Bucket=BUCKET, Key=key, Body=theirs.read_bytes())
+    for command in (["run", url], ["ls", url]):
         r = run(*command, env=env_for(s3, tmp_path / "scratch-2"), check=False)
         assert r.returncode != 0, command
         said = r.stderr
         assert f"the job at {url} is damaged" in said, said
-        assert f"{url}/manifest.jsonl: 3 items, job.json says 1" in said, said
-        assert "make it again under another prefix" in said, said
+        assert f"{url}/{key[len('mixed/'):]}" in said and "replaced after `init`" in said, said
+        assert "make the job again under another prefix" in said, said
 
 
 @pytest.mark.parametrize("fault", ["fetch", "lease"])

@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from sparc3d_cli import ROOT, run, sparc3d_bin
+from sparc3d_cli import ROOT, frozen_records, run, sparc3d_bin
 
 try:
     import sparc3d_reader as reader
@@ -61,7 +61,7 @@ def job(tmp_path_factory):
 
 def ids_of(job, name):
     """The ids of the job's items whose source file is `name`."""
-    records = [json.loads(line) for line in (job / "manifest.jsonl").read_text().splitlines()]
+    records = frozen_records(job)
     return [r["id"] for r in records if r["uri"].endswith("/" + name)]
 
 
@@ -76,7 +76,7 @@ def items(job, tmp_path_factory):
     """Per item id: its source mesh and its watertight output mesh (source frame)."""
     tmp = tmp_path_factory.mktemp("meshes")
     out = {}
-    for rec in (json.loads(line) for line in (job / "manifest.jsonl").read_text().splitlines()):
+    for rec in frozen_records(job):
         ply = tmp / (rec["id"] + ".ply")
         run("show", job, "--id", rec["id"], "-o", ply)
         out[rec["id"]] = (trimesh.load(rec["uri"], process=False, force="mesh"),

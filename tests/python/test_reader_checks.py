@@ -15,7 +15,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from sparc3d_cli import ROOT, run
+from sparc3d_cli import ROOT, rewrite_slice, run
 
 try:
     import sparc3d_reader as reader
@@ -149,10 +149,8 @@ def test_a_record_of_another_config_is_refused(job):
 def test_rows_that_are_not_the_manifests_items_are_not_read(job):
     # A shard of another job with the same config and item count but other ids, restored with
     # its record: the record matches the file, only the manifest tells.
-    manifest = job / "manifest.jsonl"
-    lines = manifest.read_text().splitlines()
-    lines[4] = lines[4].replace("item04", "other4")
-    manifest.write_text("\n".join(lines) + "\n")
+    # Item 4 is in shard 1 (shards of 3); its slice is replaced and pinned as by another init.
+    rewrite_slice(job, 1, lambda text: text.replace("item04", "other4"))
     for verify in MODES:
         ids, _ = ids_read(job, verify, expect_warning=re.escape("row of item 4 ('item04'): the manifest says id 'other4'"))
         assert ids == IDS[:3] + IDS[6:]

@@ -14,7 +14,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from remote_servers import FaultyServer, MotoS3, clean_env
-from sparc3d_cli import ROOT, run
+from sparc3d_cli import ROOT, frozen_records, run
 
 EXAMPLES = ROOT / "examples"
 GLTF_DATA = ROOT / "sparcubes" / "tests" / "data"
@@ -110,7 +110,7 @@ def test_a_job_over_http_s3_and_local_files_converts_as_its_local_copies(tmp_pat
         assert status(job, env)["ok"] == len(names), run("failures", job, env=env).stdout
         jobs[name] = job
 
-    frozen = [json.loads(l) for l in (jobs["remote"] / "manifest.jsonl").read_text().splitlines()]
+    frozen = frozen_records(jobs["remote"])
     assert [f["uri"] for f in frozen] == remote
     assert [f["id"] for f in frozen] == [sha256(local / n) for n in names]
     a, b = job_rows(jobs["remote"]), job_rows(jobs["local"])

@@ -1,22 +1,21 @@
 //! Whether a job's own files are as `sparc3d init` wrote them. `init` records the config's
-//! fingerprint and the frozen manifest's sha256 in `job.json`; a hand edit of either file (a
-//! resolution, a shard size, a path in `manifest.jsonl`) no longer matches what was recorded,
-//! and a config out of range fails every item. [`problems`] names each such finding with its
-//! file and what differs; [`crate::Job::open`] refuses a job with any, and read-only commands
-//! open it with [`crate::Job::open_read_only`] and say what was found.
+//! fingerprint and the frozen manifest's sha256 in `job.json` (with the sha256 of each index
+//! page of a sliced manifest, each page those of its slices); a hand edit (a resolution, a
+//! shard size, a path in a slice) no longer matches what was recorded, and a config out of
+//! range fails every item. [`job_file_problems`], [`pin_problems`] and
+//! [`whole_manifest_problems`] name each such finding with its file and what differs (a
+//! slice's own is found when it is read: [`crate::frozen::sliced`]); [`crate::Job::open`]
+//! refuses a job with any, and read-only commands open it with
+//! [`crate::Job::open_read_only`] and say what was found.
 
+use crate::frozen::Sliced;
 use crate::store::footer::read_meta;
+use sparc3d_schema::manifest::index_sha256;
 use sparc3d_schema::{meta_keys, FrozenItem, JobConfig, JobFile, JobLayout, SCHEMA_VERSION};
 
-/// What differs between the job's files and what `init` recorded, one line each naming the
-/// file; empty when the job is as `init` wrote it. The job at `layout` was read as `file` (its
-/// `job.json`) and `items`, from `manifest_bytes`, the bytes of its frozen manifest.
-pub fn problems(
-    layout: &JobLayout,
-    file: &JobFile,
-    items: &[FrozenItem],
-    manifest_bytes: &[u8],
-) -> Vec<String> {
+/// What differs between `job.json` (read as `file`) and what `init` recorded, one line each
+/// naming the file; empty when it is as `init` wrote it. Reads no manifest.
+pub fn job_file_problems(layout: &JobLayout, file: &JobFile) -> Vec<String> {
     let mut out = Vec::new();
     if file.schema_version != SCHEMA_VERSION {
         out.push(format!(
@@ -31,6 +30,33 @@ pub fn problems(
     if let Some(p) = fingerprint_problem(layout, file) {
         out.push(p);
     }
+    out
+}
+
+/// What differs between the pages `job.json` pins (`sliced`'s) and its own counts and
+/// `manifest_sha256`. Reads no slice: each is checked when read.
+pub fn pin_problems(file: &JobFile, sliced: &Sliced) -> Vec<String> {
+    let mut out = sliced.pin_problems(file);
+    let root = index_sha256(sliced.pages());
+    if root != file.manifest_sha256 {
+        out.push(format!(
+            "job.json: its manifest_pages give index sha256 {root}, but it records \
+             manifest_sha256 {}: job.json was edited after `sparc3d init`",
+            file.manifest_sha256
+        ));
+    }
+    out
+}
+
+/// What differs between a job's frozen manifest in one file (`manifest.jsonl`, made before
+/// slices) and what `init` recorded: its sha256, the shard count, the shards' layout.
+/// `items` were read from `manifest_bytes`.
+pub fn whole_manifest_problems(
+    file: &JobFile,
+    items: &[FrozenItem],
+    manifest_bytes: &[u8],
+) -> Vec<String> {
+    let mut out = Vec::new();
     let size = u64::from(file.config.shard_size.max(1));
     let shards = items.last().map_or(0, |i| i.shard + 1);
     if file.shards != shards {

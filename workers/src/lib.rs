@@ -1,7 +1,8 @@
 //! Processing of one shard of a sparc3d job: claim it, convert each item in isolation,
 //! checkpoint finished items, and write the Parquet shard atomically.
 //!
-//! Roles, one module each: [`job`] (read a job folder), [`job_files`] (are its files as `init`
+//! Roles, one module each: [`job`] (read a job folder), [`frozen`] (its frozen manifest, in
+//! slices a shard's task reads alone), [`job_files`] (are its files as `init`
 //! wrote them), [`job_lock`] (no frozen manifest changes under a run), [`lease`] (who works on
 //! a shard), [`journal`] (finished items, appended and fsynced), [`source`] (an item's bytes,
 //! from disk or fetched from a URL), [`convert`] (the one function that touches geometry), [`child`] (the isolated
@@ -18,6 +19,7 @@ pub mod convert;
 pub mod error;
 pub mod events;
 pub mod frame;
+pub mod frozen;
 pub mod fsutil;
 mod item_loop;
 pub mod job;

@@ -112,7 +112,7 @@ fn run_leased(
         }
         Completion::Absent => {}
     }
-    let items = job.shard_items(shard);
+    let items = job.shard_items(shard)?;
     // What the earlier holders journalled, read once: this holder writes its own file.
     let earlier = journal::set::read(layout, shard, Some(&fp))?;
     let writer = lease::file_token(owner);
@@ -135,7 +135,7 @@ fn run_leased(
         opts,
         stream: &mut stream,
     };
-    if let LoopEnd::Stopped = run_items(&mut work, &mut journal, items)? {
+    if let LoopEnd::Stopped = run_items(&mut work, &mut journal, &items)? {
         return Ok(ShardOutcome::Stopped);
     }
     (opts.events)(Event::ShardWriting { shard });

@@ -47,13 +47,19 @@ fn job(root: &Path, items: u64) -> Result<Job, Box<dyn std::error::Error>> {
         items: items.len() as u64,
         shards: 1,
         manifest_sha256: String::new(),
+        manifest_pages: None,
         config,
     };
     Ok(Job {
         layout: JobLayout::new(root),
         file,
-        items,
+        manifest: sparc3d_workers::frozen::FrozenManifest::Whole(items),
     })
+}
+
+/// Every item of `job`.
+fn all_items(job: &Job) -> Vec<FrozenItem> {
+    job.load_items().unwrap_or_default()
 }
 
 /// Options whose item worker runs `script` with `sh` (after reading the config and the
@@ -107,7 +113,7 @@ fn a_crashing_item_is_retried_then_recorded_with_its_stderr() -> TestResult {
         .stderr_tail
         .as_deref()
         .is_some_and(|t| t.contains("about to die")));
-    assert_eq!(row.source_sha256, job.items[0].record.sha256);
+    assert_eq!(row.source_sha256, all_items(&job)[0].record.sha256);
     // The journal is gone once the shard is written; the shard checks against its record.
     assert!(!journal::set::exists(&job.layout, 0));
     assert!(matches!(
@@ -147,7 +153,7 @@ fn resume_keeps_finished_items_and_gives_up_on_items_that_kill_their_worker() ->
         JournalState::default(),
     )?;
     let first = ShardRow::failed_item(
-        &job.items[0],
+        &all_items(&job)[0],
         64,
         ErrorClass::Geometry(sparcubes::ErrorClass::ParseError),
         "from the journal".into(),
@@ -265,7 +271,7 @@ fn full_journal(job: &Job, holder: &str) -> Result<Journal, Box<dyn std::error::
         job.fingerprint(),
         JournalState::default(),
     )?;
-    for item in &job.items {
+    for item in &all_items(job) {
         let row = ShardRow::failed_item(
             item,
             64,
@@ -334,7 +340,7 @@ fn a_shard_file_without_its_record_is_replaced_by_the_next_writer() -> TestResul
 /// A failed row of item `index` of `job`, as holder `holder` would journal it.
 fn done_record(job: &Job, index: usize, holder: &str) -> Record {
     let row = ShardRow::failed_item(
-        &job.items[index],
+        &all_items(job)[index],
         64,
         ErrorClass::Geometry(sparcubes::ErrorClass::ParseError),
         holder.into(),

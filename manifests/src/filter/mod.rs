@@ -151,14 +151,21 @@ impl Filter {
             .all(|c| c.holds(&table.cell(row, &c.column)))
     }
 
-    /// The records that pass, in order, and how many were left out. A column that no record
-    /// has is refused, naming the manifest's columns.
-    pub fn apply(&self, records: Vec<RawRecord>) -> Result<(Vec<RawRecord>, usize)> {
-        let table = Records(&records);
+    /// Whether each of `records` passes (a batch of a manifest's rows: every record of one
+    /// manifest has the same columns). A column that the records lack is refused, naming the
+    /// manifest's columns.
+    pub fn keeps_each(&self, records: &[RawRecord]) -> Result<Vec<bool>> {
+        let table = Records(records);
         if !records.is_empty() {
             self.check(&table)?;
         }
-        let keep: Vec<bool> = (0..records.len()).map(|i| self.keeps(&table, i)).collect();
+        Ok((0..records.len()).map(|i| self.keeps(&table, i)).collect())
+    }
+
+    /// The records that pass, in order, and how many were left out. A column that no record
+    /// has is refused, naming the manifest's columns.
+    pub fn apply(&self, records: Vec<RawRecord>) -> Result<(Vec<RawRecord>, usize)> {
+        let keep = self.keeps_each(&records)?;
         let total = records.len();
         let kept: Vec<RawRecord> = records
             .into_iter()

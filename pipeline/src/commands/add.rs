@@ -5,7 +5,7 @@
 
 use crate::flags::source::SourceArgs;
 use crate::job::grow;
-use crate::job::rows::input_records;
+use crate::job::rows::InputRows;
 use anyhow::Result;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -26,8 +26,7 @@ pub struct Args {
 pub fn run(args: Args) -> Result<ExitCode> {
     crate::job::bucket_home::refuse(&args.job, "`add` (growing a job) is not available")?;
     let _lock = grow::lock_for_add(&args.job)?;
-    let records = input_records(&args.input, &args.source)?;
-    let grown = grow::add(&args.job, records)?;
+    let grown = grow::add(&args.job, InputRows::open(&args.input, &args.source)?)?;
     eprintln!("{}", grow::describe(&args.job, &grown));
     if grown.added > 0 {
         eprintln!("next: sparc3d run {}", args.job.display());

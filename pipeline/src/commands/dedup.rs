@@ -109,7 +109,7 @@ fn require_signatures(job: &Job, named: &Path) -> Result<()> {
 /// when the job does not store signatures ([`require_signatures`]).
 pub fn read_signatures(job: &Job, named: &Path) -> Result<JobSignatures> {
     require_signatures(job, named)?;
-    let shards: BTreeSet<u64> = job.items.iter().map(|i| i.shard).collect();
+    let shards: BTreeSet<u64> = (0..job.file.shards).collect();
     let mut out = JobSignatures {
         signed: Vec::new(),
         unsigned: Vec::new(),

@@ -74,19 +74,22 @@ fn frame_parser() -> impl clap::builder::TypedValueParser<Value = Frame> {
 
 /// Takes `--one-per-group`'s `dropped` ids out of the `wanted` ones (every item when none
 /// were named) and says how many it took; an error when nothing is left.
-fn leave_out_near_duplicates<'a>(
-    job: &'a Job,
-    wanted: &mut BTreeSet<&'a str>,
+fn leave_out_near_duplicates(
+    job: &Job,
+    wanted: &mut BTreeSet<String>,
     dropped: &std::collections::HashSet<String>,
 ) -> Result<()> {
     if dropped.is_empty() {
         return Ok(());
     }
     if wanted.is_empty() {
-        *wanted = job.items.iter().map(|i| i.record.id.as_str()).collect();
+        *wanted = job
+            .items()
+            .map(|i| i.map(|i| i.record.id))
+            .collect::<Result<_, _>>()?;
     }
     let asked = wanted.len();
-    wanted.retain(|id| !dropped.contains(*id));
+    wanted.retain(|id| !dropped.contains(id));
     anyhow::ensure!(
         !wanted.is_empty(),
         "every item asked for is a near-duplicate --one-per-group leaves out (nothing written)"
@@ -152,9 +155,9 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
     }
     // Each `--ids` entry names an item as `--id` does elsewhere (whole id, unique prefix or
     // source file); a miss fails before anything is written, with the closest names.
-    let mut wanted: BTreeSet<&str> = BTreeSet::new();
+    let mut wanted: BTreeSet<String> = BTreeSet::new();
     for query in &args.ids {
-        wanted.insert(item_lookup::find(&job, query)?.record.id.as_str());
+        wanted.insert(item_lookup::find(&job, query)?.record.id);
     }
     let filter = RowFilter::optional(&job, args.filter.as_deref())?;
     let dropped = args.dedup.dropped(&job, &named)?;
@@ -248,7 +251,7 @@ fn tally<'a>(texts: impl Iterator<Item = &'a str>) -> BTreeMap<&'a str, usize> {
 
 /// Which ok items an export takes: those `--ids` names (all when empty) that pass `--where`.
 struct Chosen<'a> {
-    ids: &'a BTreeSet<&'a str>,
+    ids: &'a BTreeSet<String>,
     filter: Option<&'a RowFilter>,
 }
 
@@ -344,12 +347,13 @@ fn read_wanted_rows(
     send: &std::sync::mpsc::SyncSender<ShardRow>,
 ) -> Result<u64> {
     let wanted = chosen.ids;
-    let shards: BTreeSet<u64> = job
-        .items
-        .iter()
-        .filter(|i| wanted.is_empty() || wanted.contains(i.record.id.as_str()))
-        .map(|i| i.shard)
-        .collect();
+    let mut shards = BTreeSet::new();
+    for item in job.items() {
+        let item = item?;
+        if wanted.is_empty() || wanted.contains(item.record.id.as_str()) {
+            shards.insert(item.shard);
+        }
+    }
     let columns = if consumer.reads_samples() {
         Columns::All
     } else {
@@ -362,8 +366,8 @@ fn read_wanted_rows(
             let mut keep =
                 (wanted.is_empty() || wanted.contains(row.id.as_str())) && row.tensors.is_some();
             if let (true, Some(filter)) = (keep, chosen.filter) {
-                let item = job.items.get(row.item_index as usize);
-                keep = filter.keeps(&mut row, item)?;
+                let item = job.item(row.item_index)?;
+                keep = filter.keeps(&mut row, item.as_ref())?;
                 filtered_out += u64::from(!keep);
             }
             if keep && !receiver_gone {
@@ -390,9 +394,10 @@ fn export_item(
     let stem = names.stem(row.item_index, &row.id);
     let export = export_row(job, row, consumer, frame, &stem);
     let provenance = job
-        .items
-        .get(row.item_index as usize)
-        .map(|i| i.record.extra.clone())
+        .item(row.item_index)
+        .ok()
+        .flatten()
+        .map(|i| i.record.extra)
         .unwrap_or_default();
     Exported {
         id: row.id.clone(),
@@ -454,9 +459,9 @@ fn export_row(
     };
     let config = &job.file.config;
     // The manifest's sha256, else the one the row recorded of the bytes it converted.
-    let source_sha256 = job
-        .items
-        .get(row.item_index as usize)
+    let frozen = job.item(row.item_index).ok().flatten();
+    let source_sha256 = frozen
+        .as_ref()
         .and_then(|i| i.record.sha256.as_deref())
         .or(row.source_sha256.as_deref());
     let item = Item {

@@ -64,9 +64,8 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
                 attempts: row.attempts,
                 stderr_tail: row.stderr_tail,
                 manifest: job
-                    .items
-                    .get(row.item_index as usize)
-                    .map(|item| item.record.extra.clone())
+                    .item(row.item_index)?
+                    .map(|item| item.record.extra)
                     .unwrap_or_default(),
             };
             let line = if args.json {

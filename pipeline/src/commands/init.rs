@@ -1,5 +1,6 @@
 //! `sparc3d init JOB --manifest M [--for CONSUMER] [--resolution N] [--shard-size S]
-//! [--config job.toml] [--path-column NAME] [--where FILTER]`: freezes the manifest into the job folder (`sparc3d_manifests::freeze`), gives every
+//! [--config job.toml] [--path-column NAME] [--where FILTER]`: freezes the manifest into the job
+//! folder as it reads it (`job/create.rs`: slices of the frozen manifest, one a shard), gives every
 //! item its shard once, and writes the config with its fingerprint. Re-running with another
 //! config is refused, naming the keys; a job whose files were edited since is refused too.
 //! The command only reads its flags: the config, the rows and the job folder (or bucket) are
@@ -9,7 +10,7 @@ use crate::flags::config::ConfigArgs;
 use crate::flags::source::SourceArgs;
 use crate::job::config::build_config;
 use crate::job::create::create;
-use crate::job::rows::read_manifest;
+use crate::job::rows::InputRows;
 use anyhow::Result;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -31,12 +32,20 @@ pub struct Args {
 /// Runs `sparc3d init`.
 pub fn run(args: Args) -> Result<ExitCode> {
     let config = build_config(&args.config)?;
-    let records = read_manifest(&args.manifest, &args.source)?;
-    match sparc3d_bucket::JobHome::parse(&args.job)? {
-        sparc3d_bucket::JobHome::Folder(dir) => create(&dir, records, config)?,
-        sparc3d_bucket::JobHome::Bucket(url) => {
-            crate::job::bucket_home::init(&url, records, config)?
-        }
+    let home = sparc3d_bucket::JobHome::parse(&args.job)?;
+    if args.manifest.is_dir() {
+        anyhow::bail!(
+            "{}: --manifest takes a manifest file (.csv, .jsonl or .parquet); for a folder of \
+             meshes: `sparc3d run {} --job {}`",
+            args.manifest.display(),
+            args.manifest.display(),
+            args.job.display()
+        );
+    }
+    let rows = InputRows::open(&args.manifest, &args.source)?;
+    match home {
+        sparc3d_bucket::JobHome::Folder(dir) => create(&dir, rows, config)?,
+        sparc3d_bucket::JobHome::Bucket(url) => crate::job::bucket_home::init(&url, rows, config)?,
     }
     Ok(ExitCode::SUCCESS)
 }

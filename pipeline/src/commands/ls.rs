@@ -75,9 +75,9 @@ fn shard_statuses(
     };
     let mut out = HashMap::new();
     for mut r in rows {
-        let item = job.items.get(r.item_index as usize);
+        let item = job.item(r.item_index)?;
         let keep = match filter {
-            Some(f) => f.keeps(&mut r, item)?,
+            Some(f) => f.keeps(&mut r, item.as_ref())?,
             None => true,
         };
         let class = r.error_class.map(|c| c.as_str());
@@ -130,12 +130,13 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
     let mut statuses = None;
     let mut loaded = None;
     let mut counts: HashMap<&'static str, u64> = HashMap::new();
-    for item in &job.items {
+    for item in job.items() {
+        let item = item?;
         if loaded != Some(item.shard) {
             statuses = shard_statuses(&job, item.shard, filter.as_ref())?;
             loaded = Some(item.shard);
         }
-        let (status, class, keep) = listed_status(statuses.as_ref(), item, filter.as_ref());
+        let (status, class, keep) = listed_status(statuses.as_ref(), &item, filter.as_ref());
         if !keep {
             left_out.by_filter += 1;
             continue;
@@ -184,7 +185,7 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
     let n = |k: &str| counts.get(k).copied().unwrap_or(0);
     eprintln!(
         "{} items: {} ok, {} failed, {} pending{}",
-        job.items.len() as u64 - left_out.by_filter - left_out.by_group,
+        job.file.items - left_out.by_filter - left_out.by_group,
         n("ok"),
         n("failed"),
         n("pending"),

@@ -80,7 +80,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         }
         Some(id) => {
             let job = crate::job::setup::open_read_only(&args.input)?;
-            let row = item_lookup::row(&job, item_lookup::find(&job, id)?)?;
+            let row = item_lookup::row(&job, &item_lookup::find(&job, id)?)?;
             (
                 preview_row(&row, &options, !args.no_colours)?,
                 format!("item {} ({})", row.id, row.uri),

@@ -105,10 +105,9 @@ fn read_columns(job: &Job, max_failures: usize) -> Result<Columns> {
         rows.sort_by_key(|r| r.item_index);
         for row in rows {
             let extra = job
-                .items
-                .get(row.item_index as usize)
-                .map(|i| &i.record.extra);
-            let extra = extra.cloned().unwrap_or_default();
+                .item(row.item_index)?
+                .map(|i| i.record.extra)
+                .unwrap_or_default();
             add_provenance(&mut c, &extra, row.status);
             add_row(&mut c, row, &extra, max_failures);
         }
@@ -189,7 +188,7 @@ struct Preview {
 }
 
 fn preview(job: &Job, id: &str, options: &CompareOptions) -> Preview {
-    let row = item_lookup::find(job, id).and_then(|item| item_lookup::row(job, item));
+    let row = item_lookup::find(job, id).and_then(|item| item_lookup::row(job, &item));
     let uri = row.as_ref().map(|r| r.uri.clone()).unwrap_or_default();
     let png = row
         .and_then(|r| preview_row(&r, options, true))

@@ -31,7 +31,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
             Some(crate::job::bucket_home::prefix(&url)?),
         ),
     };
-    let job = Job::open(&dir)?;
+    let job = Job::open_checked(&dir)?;
     let class = args.class.as_deref().map(ErrorClass::parse).transpose()?;
     let matches = |r: &ShardRow| {
         r.status == ItemStatus::Failed && (class.is_none() || r.error_class == class)

@@ -74,7 +74,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         &args.source,
     )?;
     let _lock = crate::job::setup::hold_shared(&job_dir)?;
-    let job = Job::open(&job_dir)?;
+    let job = Job::open_checked(&job_dir)?;
     let stop = install_signals()?;
     let ran = run_shards(&args, &job, &job_dir, requested, &stop)?;
     conclude(&args, &job, &job_dir, &stop, &ran)

@@ -33,7 +33,7 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
     let job = crate::job::setup::open_read_only(&args.job)?;
     let item = item_lookup::find(&job, &args.id)?;
     // The shard is hashed against its completion record before its row is trusted.
-    let row = item_lookup::row(&job, item)?;
+    let row = item_lookup::row(&job, &item)?;
     let cubes = item_lookup::cubes(&row)?;
     if let Some(path) = &args.tensors_json {
         let v = serde_json::json!({

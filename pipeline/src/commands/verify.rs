@@ -73,7 +73,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let name = args.job.display().to_string();
     let (report, in_bucket) = match sparc3d_bucket::JobHome::parse(&args.job)? {
         sparc3d_bucket::JobHome::Folder(dir) => {
-            (verify_job(&Job::open(&dir)?, !args.dry_run)?, false)
+            (verify_job(&Job::open_checked(&dir)?, !args.dry_run)?, false)
         }
         sparc3d_bucket::JobHome::Bucket(url) => (verify_bucket(&url, !args.dry_run)?, true),
     };
@@ -183,7 +183,7 @@ fn tally(job: &Job, results: Vec<(u64, Found)>, start: Instant) -> Report {
         seconds: 0.0,
         problems: Vec::new(),
     };
-    let items_of = |shard: u64| job.items.iter().filter(|i| i.shard == shard).count() as u64;
+    let items_of = |shard: u64| job.shard_items(shard).map_or(0, |items| items.len() as u64);
     for (shard, found) in results {
         r.finished += !matches!(found, Found::NotFinished) as u64;
         match found {

@@ -61,6 +61,7 @@ pub fn local_view(job: &Path) -> Result<PathBuf> {
 fn mirrored(url: &RemoteUrl) -> Result<(Prefix<'static>, sparc3d_workers::Job, view::Mirrored)> {
     let prefix = prefix(url)?;
     let (local, _) = view_job(url, &prefix)?;
+    scratch::pull_all_slices(&prefix, &local)?;
     let mirrored = view::mirror(&prefix, &local)?;
     Ok((prefix, local, mirrored))
 }
@@ -86,17 +87,18 @@ pub fn work_copy(url: &RemoteUrl, scratch_base: Option<&Path>) -> Result<sparc3d
 /// `init URL`: the job is made in a fresh local folder as for any job, then published.
 pub fn init(
     url: &RemoteUrl,
-    records: Vec<sparc3d_manifests::RawRecord>,
+    rows: super::rows::InputRows,
     config: sparc3d_schema::JobConfig,
 ) -> Result<()> {
     let prefix = prefix(url)?;
     let staging = scratch::folder(url, None).join("init");
     let _ = std::fs::remove_dir_all(&staging);
     if prefix.get(sparc3d_bucket::keys::JOB_FILE)?.is_some() {
-        scratch::pull_job(&prefix, &staging, true)?;
+        let (job, _) = scratch::pull_job(&prefix, &staging, true)?;
+        scratch::pull_all_slices(&prefix, &job)?;
     }
     let shown = PathBuf::from(url.to_string());
-    super::create::create_named(&staging, &shown, records, config)?;
+    super::create::create_named(&staging, &shown, rows, config)?;
     sparc3d_bucket::publish::publish(&prefix, &staging)?;
     Ok(())
 }

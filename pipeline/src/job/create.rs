@@ -1,12 +1,20 @@
-//! Making a job folder from manifest rows and a config: the frozen manifest, every item's
-//! shard, then `job.json` with the fingerprint (its presence is what makes the folder a job,
-//! [`is_job`]). Making it again with the same config and manifest does nothing; another config
-//! or manifest, or files edited since, are refused.
+//! Making a job folder from a folder's or manifest's rows and a config: the frozen manifest in
+//! slices (streamed: `init` of ten million rows holds a few batches), every item's shard, then
+//! `job.json` with the fingerprint and the index pages' sha256s (its presence is what makes the
+//! folder a job, [`is_job`]). Making it again with the same config and manifest does nothing;
+//! another config or manifest, or files edited since, are refused.
 
 use super::config::check_same_config_of;
+use super::freeze_rows::{freeze_rows, Written};
+use super::rows::InputRows;
 use anyhow::{bail, Result};
-use sparc3d_manifests::RawRecord;
+use sparc3d_manifests::freeze::Freezer;
+use sparc3d_schema::manifest::index_sha256;
 use sparc3d_schema::{JobConfig, JobFile, JobLayout};
+use sparc3d_workers::frozen::lines;
+use sparc3d_workers::frozen::write::SliceWriter;
+use sparc3d_workers::frozen::{FrozenManifest, Sliced};
+use sparc3d_workers::{Job, WorkerError};
 use std::path::Path;
 
 /// Whether `dir` is a job folder (it has its job file).
@@ -14,11 +22,11 @@ pub fn is_job(dir: &Path) -> bool {
     JobLayout::new(dir).job_file().exists()
 }
 
-/// Creates the job folder `job` from manifest records and a config: frozen manifest, shard of
-/// every item, job file. An existing job with the same config and manifest is left as it is;
-/// one with another config or manifest is refused.
-pub fn create(job: &Path, records: Vec<RawRecord>, config: JobConfig) -> Result<()> {
-    create_named(job, job, records, config)
+/// Creates the job folder `job` from the rows of a folder or manifest and a config: the frozen
+/// manifest in slices, the shard of every item, the job file. An existing job with the same
+/// config and manifest is left as it is; one with another config or manifest is refused.
+pub fn create(job: &Path, rows: InputRows, config: JobConfig) -> Result<()> {
+    create_named(job, job, rows, config)
 }
 
 /// [`create`] in the folder `job`, naming the job `shown` in messages (`init` to a bucket
@@ -26,60 +34,30 @@ pub fn create(job: &Path, records: Vec<RawRecord>, config: JobConfig) -> Result<
 pub fn create_named(
     job: &Path,
     shown: &Path,
-    records: Vec<RawRecord>,
+    mut rows: InputRows,
     config: JobConfig,
 ) -> Result<()> {
     let layout = JobLayout::new(job);
-    let items = sparc3d_manifests::freeze::freeze(records, config.shard_size)?;
-    let mut text = String::new();
-    for it in &items {
-        text.push_str(&serde_json::to_string(it)?);
-        text.push('\n');
-    }
-    let manifest_sha256 = {
-        use sha2::{Digest, Sha256};
-        sparc3d_schema::config::hex(&Sha256::digest(text.as_bytes()))
-    };
     if layout.job_file().exists() {
-        let existing = sparc3d_workers::Job::open(&layout.root).map_err(|e| {
-            let e = named_as(e, &layout.root, shown);
-            match frozen_copy_differs(&layout, shown, &text, &manifest_sha256) {
-                Some(line) => anyhow::Error::new(e).context(line),
-                None => e.into(),
-            }
-        })?;
-        check_same_config_of(&existing, &config, shown)?;
-        if existing.file.manifest_sha256 != manifest_sha256 {
-            bail!(
-                "{} is already initialised with a different manifest ({} items, now {}); \
-                 shard assignment never changes: use a new job folder",
-                shown.display(),
-                existing.file.items,
-                items.len()
-            );
-        }
-        eprintln!(
-            "{} is already initialised with this config and manifest; nothing to do",
-            shown.display()
-        );
-        return Ok(());
+        return init_again(&layout, shown, rows, &config);
+    }
+    let writer = SliceWriter::create(&layout, config.shard_size)?;
+    let written = freeze_rows(&mut rows, Freezer::new(), writer)?;
+    if written.items == 0 {
+        bail!("{}: no meshes to convert", shown.display());
     }
     sparc3d_workers::fsutil::create_dir(&layout.shards_dir())?;
     sparc3d_workers::fsutil::create_dir(&layout.state_dir())?;
-    sparc3d_workers::fsutil::write_atomic(
-        &layout.manifest(),
-        text.as_bytes(),
-        "freezing manifest",
-    )?;
-    let shards = (items.len() as u64).div_ceil(config.shard_size.max(1) as u64);
+    let shards = written.pages.iter().map(|p| p.shards).sum();
     let file = JobFile {
         schema_version: sparc3d_schema::SCHEMA_VERSION,
         tool_version: sparc3d_schema::TOOL_VERSION.into(),
         fingerprint: config.fingerprint()?,
         config,
-        items: items.len() as u64,
+        items: written.items,
         shards,
-        manifest_sha256,
+        manifest_sha256: index_sha256(&written.pages),
+        manifest_pages: Some(written.pages),
     };
     // job.json last: its presence is what makes the folder a job.
     sparc3d_workers::job::write_job_file(&layout, &file)?;
@@ -98,52 +76,143 @@ pub fn create_named(
     Ok(())
 }
 
-/// When the job's frozen copy is not what `init` froze (its sha256 is not the one `job.json`
-/// recorded): the first line where it differs from `text`, the manifest given to `init` again
-/// frozen now, for the error that refuses the job. With the manifest the job was made from,
-/// that is the edited line; with another, the first line where the two differ.
-fn frozen_copy_differs(
+/// `init` on a job that exists: the rows are frozen aside (in a staging folder inside the
+/// job, removed after) and compared with the job's frozen manifest. The same config and
+/// manifest do nothing; another config, another manifest, or job files edited since are
+/// refused, naming what differs (for an edited frozen manifest, the first line where it
+/// differs from what this manifest freezes to).
+fn init_again(
     layout: &JobLayout,
     shown: &Path,
-    text: &str,
-    sha256: &str,
-) -> Option<String> {
-    let file: JobFile = sparc3d_workers::fsutil::read_json(&layout.job_file()).ok()?;
-    let frozen = std::fs::read_to_string(layout.manifest()).ok()?;
-    if sparc3d_workers::fsutil::bytes_sha256(frozen.as_bytes()) == file.manifest_sha256 {
-        return None; // the frozen copy is as `init` wrote it: something else was edited
+    mut rows: InputRows,
+    config: &JobConfig,
+) -> Result<()> {
+    let staging = JobLayout::new(layout.root.join(format!(".init-{}", std::process::id())));
+    let result = (|| {
+        let writer = SliceWriter::create(&staging, config.shard_size)?;
+        let written = freeze_rows(&mut rows, Freezer::new(), writer)?;
+        compare_frozen(layout, &staging, written, shown, config)
+    })();
+    let _ = std::fs::remove_dir_all(&staging.root);
+    result
+}
+
+/// The end of [`init_again`]: the job at `layout` against the same rows frozen now into
+/// `staging`.
+fn compare_frozen(
+    layout: &JobLayout,
+    staging: &JobLayout,
+    written: Written,
+    shown: &Path,
+    config: &JobConfig,
+) -> Result<()> {
+    let (existing, mut problems) = Job::open_read_only(&layout.root)?;
+    if let FrozenManifest::Sliced(s) = &existing.manifest {
+        problems.extend(s.problems());
     }
-    let first = frozen
-        .lines()
-        .zip(text.lines())
-        .enumerate()
-        .find(|(_, (a, b))| a != b);
-    let differs = |theirs: &str| match first {
-        Some((n, (now, meant))) => format!("line {}: {now}, where {theirs} {meant}", n + 1),
-        None => format!(
-            "{} lines, where {theirs} {}",
-            frozen.lines().count(),
-            text.lines().count()
-        ),
+    let staged_file = JobFile {
+        items: written.items,
+        shards: written.pages.iter().map(|p| p.shards).sum(),
+        manifest_sha256: index_sha256(&written.pages),
+        manifest_pages: Some(written.pages.clone()),
+        ..existing.file.clone()
     };
-    let copy = shown.join("manifest.jsonl");
-    Some(if file.manifest_sha256 == sha256 {
-        format!(
-            "this manifest is the one {} was made from, but its frozen copy {} was edited \
-             since: {}",
+    let staged = FrozenManifest::Sliced(Sliced::new(staging, &staged_file, written.pages, false));
+    let same_manifest = match &existing.manifest {
+        FrozenManifest::Sliced(s) => Some(s.pages()) == staged_file.manifest_pages.as_deref(),
+        FrozenManifest::Whole(_) => {
+            existing.file.manifest_sha256 == whole_sha256(&staged, staged_file.shards)?
+        }
+    };
+    let theirs = match same_manifest {
+        true => "it froze",
+        false => "this manifest freezes to",
+    };
+    let first = first_difference(&existing, &staged, staged_file.shards, theirs)?;
+    if !problems.is_empty() {
+        let refusal = named_as(
+            WorkerError::EditedJob {
+                root: layout.root.clone(),
+                problems,
+            },
+            &layout.root,
+            shown,
+        );
+        let Some(at) = first else {
+            return Err(refusal.into());
+        };
+        let line = match same_manifest {
+            true => format!(
+                "this manifest is the one {} was made from, but its frozen copy was edited \
+                 since: {at}",
+                shown.display()
+            ),
+            false => format!(
+                "its frozen copy was edited since `init` (and this manifest is not the one {} \
+                 was made from); the frozen copy first differs from this manifest at {at}",
+                shown.display()
+            ),
+        };
+        return Err(anyhow::Error::new(refusal).context(line));
+    }
+    check_same_config_of(&existing, config, shown)?;
+    if first.is_some() {
+        bail!(
+            "{} is already initialised with a different manifest ({} items, now {}); shard \
+             assignment never changes: use a new job folder",
             shown.display(),
-            copy.display(),
-            differs("it froze")
-        )
-    } else {
-        format!(
-            "its frozen copy {} was edited since `init` (and this manifest is not the one {} \
-             was made from); the frozen copy first differs from this manifest at {}",
-            copy.display(),
-            shown.display(),
-            differs("this manifest freezes to")
-        )
-    })
+            existing.file.items,
+            staged_file.items
+        );
+    }
+    eprintln!(
+        "{} is already initialised with this config and manifest; nothing to do",
+        shown.display()
+    );
+    Ok(())
+}
+
+/// The sha256 of `manifest`'s frozen lines in one file, as a job made before slices records
+/// it.
+fn whole_sha256(manifest: &FrozenManifest, shards: u64) -> Result<String> {
+    use sha2::{Digest, Sha256};
+    let mut h = Sha256::new();
+    for shard in 0..shards {
+        h.update(lines::write(&manifest.shard_items(shard)?)?);
+    }
+    Ok(sparc3d_schema::hex::hex(&h.finalize()))
+}
+
+/// The first line where the job's frozen manifest differs from `staged` (`shards` shards), as
+/// `line N: now, where THEIRS meant`; `None` when they are the same.
+fn first_difference(
+    job: &Job,
+    staged: &FrozenManifest,
+    shards: u64,
+    theirs: &str,
+) -> Result<Option<String>> {
+    let (mut now_count, mut meant_count) = (0u64, 0u64);
+    let mut now = job.items();
+    let mut meant = staged.iter(shards);
+    loop {
+        let (a, b) = (now.next().transpose()?, meant.next().transpose()?);
+        now_count += u64::from(a.is_some());
+        meant_count += u64::from(b.is_some());
+        match (a, b) {
+            (None, None) => return Ok(None),
+            (Some(a), Some(b)) if a == b => continue,
+            (Some(a), Some(b)) => {
+                let (a, b) = (serde_json::to_string(&a)?, serde_json::to_string(&b)?);
+                return Ok(Some(format!("line {now_count}: {a}, where {theirs} {b}")));
+            }
+            _ => break,
+        }
+    }
+    now_count += now.count() as u64;
+    meant_count += meant.count() as u64;
+    Ok(Some(format!(
+        "{now_count} lines, where {theirs} {meant_count}"
+    )))
 }
 
 /// `e`, a job's refusal, naming the job `shown` rather than the folder `root` it was checked

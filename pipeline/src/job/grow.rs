@@ -1,20 +1,28 @@
 //! Growing a job (`add`, `run DIR --job JOB`): the items of a folder or manifest that the job
 //! does not have yet (by id) are frozen after its last item, in new shards after its last
-//! shard ([`sparc3d_manifests::freeze::append`]); finished shards, the config and the
-//! fingerprint are never touched. Under the job lock held exclusively, `manifest.jsonl` is
-//! rewritten with the new lines appended, then `job.json` with the new counts and the frozen
-//! manifest's sha256 (both atomically). A crash between the two leaves a manifest whose first
-//! lines are the recorded ones: the next `add` (or `run DIR --job JOB`) finishes it
-//! ([`finish_interrupted`]).
+//! shard ([`sparc3d_manifests::freeze::Freezer::growing`], streamed as `init` streams);
+//! finished shards, the config and the fingerprint are never touched. Under the job lock held
+//! exclusively, the new slices and the new last index page are written beside the job's
+//! (files named by their content, never rewritten), then `job.json` with the new counts and
+//! pages, atomically: a crash before it leaves the job as it was. A job made before slices
+//! has its `manifest.jsonl` carried into slices first; one whose earlier `add` (by a build
+//! before slices) stopped between rewriting `manifest.jsonl` and `job.json` is finished
+//! first ([`finish_interrupted`]).
 
+use super::freeze_rows::freeze_rows;
+use super::rows::InputRows;
 use anyhow::{bail, Context, Result};
-use sparc3d_manifests::freeze::append;
-use sparc3d_manifests::RawRecord;
+use rayon::prelude::*;
+use sparc3d_manifests::freeze::{id_key, Freezer};
+use sparc3d_schema::manifest::index_sha256;
 use sparc3d_schema::{JobFile, JobLayout};
-use sparc3d_workers::fsutil::{bytes_sha256, read_json, write_atomic};
+use sparc3d_workers::frozen::write::SliceWriter;
+use sparc3d_workers::frozen::FrozenManifest;
+use sparc3d_workers::fsutil::{bytes_sha256, read_json};
 use sparc3d_workers::job::{read_frozen_manifest, write_job_file};
 use sparc3d_workers::job_lock::JobLock;
 use sparc3d_workers::Job;
+use std::collections::{BTreeSet, HashSet};
 use std::ops::Range;
 use std::path::Path;
 
@@ -58,38 +66,94 @@ pub fn lock_for_add(root: &Path) -> Result<Option<JobLock>> {
     }
 }
 
-/// Adds the rows of `records` the job at `root` does not have; the caller holds the job lock
-/// exclusively ([`lock_for_add`]).
-pub fn add(root: &Path, records: Vec<RawRecord>) -> Result<Grown> {
+/// Adds the rows of `rows` the job at `root` does not have; the caller holds the job lock
+/// exclusively ([`lock_for_add`]). A job made before slices has its frozen manifest carried
+/// into slices first (its items, shards and fingerprint unchanged).
+pub fn add(root: &Path, mut rows: InputRows) -> Result<Grown> {
     finish_interrupted(root)?;
-    let job = Job::open(root)?;
-    let appended = append(&job.items, records, job.file.config.shard_size)?;
-    let first = job.file.shards;
-    let shards = first..appended.items.last().map_or(first, |i| i.shard + 1);
-    let grown = Grown {
-        added: appended.items.len() as u64,
-        already: appended.already,
-        shards,
+    let mut job = Job::open(root)?;
+    if let FrozenManifest::Whole(items) = &job.manifest {
+        into_slices(&job, items)?;
+        job = Job::open(root)?;
+    }
+    let FrozenManifest::Sliced(sliced) = &job.manifest else {
+        bail!(
+            "{}: its frozen manifest could not be carried into slices",
+            root.display()
+        );
     };
-    if appended.items.is_empty() {
+    let (known, columns) = known_ids(&job)?;
+    let writer = SliceWriter::append(&job.layout, &job.file, sliced)?;
+    let written = freeze_rows(&mut rows, Freezer::growing(known, columns), writer)?;
+    let first = job.file.shards;
+    let shards_now: u64 = written.pages.iter().map(|p| p.shards).sum();
+    let grown = Grown {
+        added: written.frozen.items,
+        already: written.frozen.already as usize,
+        shards: first..shards_now,
+    };
+    if grown.added == 0 {
         return Ok(grown);
     }
-    let layout = &job.layout;
-    let mut text = std::fs::read(layout.manifest())
-        .with_context(|| format!("reading {}", layout.manifest().display()))?;
-    for item in &appended.items {
-        text.extend_from_slice(serde_json::to_string(item)?.as_bytes());
-        text.push(b'\n');
-    }
-    write_atomic(&layout.manifest(), &text, "growing the frozen manifest")?;
     let file = JobFile {
-        items: job.file.items + grown.added,
-        shards: grown.shards.end,
-        manifest_sha256: bytes_sha256(&text),
+        items: written.items,
+        shards: shards_now,
+        manifest_sha256: index_sha256(&written.pages),
+        manifest_pages: Some(written.pages),
         ..job.file
     };
-    write_job_file(layout, &file)?;
+    // job.json last: until it is written, the job is the one it was (the new slices and the
+    // new last page are files it does not pin).
+    write_job_file(&job.layout, &file)?;
     Ok(grown)
+}
+
+/// The keys of the ids of every item of `job` ([`sparc3d_manifests::freeze::id_key`]) and its
+/// provenance columns, every slice read (in parallel) and checked.
+fn known_ids(job: &Job) -> Result<(HashSet<u128>, BTreeSet<String>)> {
+    let per_shard: Vec<(Vec<u128>, Vec<String>)> = (0..job.file.shards)
+        .into_par_iter()
+        .map(|shard| {
+            let items = job.shard_items(shard)?;
+            let keys = items.iter().map(|i| id_key(&i.record.id)).collect();
+            // Every item of a shard comes from one manifest, with the same columns.
+            let columns = items
+                .first()
+                .map(|i| i.record.extra.keys().cloned().collect())
+                .unwrap_or_default();
+            Ok((keys, columns))
+        })
+        .collect::<Result<_>>()?;
+    let mut known = HashSet::with_capacity(job.file.items as usize);
+    let mut columns = BTreeSet::new();
+    for (keys, names) in per_shard {
+        known.extend(keys);
+        columns.extend(names);
+    }
+    Ok((known, columns))
+}
+
+/// Carries the frozen manifest of a job made before slices (`manifest.jsonl`, read as
+/// `items`) into slices and pins them in `job.json`; `manifest.jsonl` is left as it was.
+fn into_slices(job: &Job, items: &[sparc3d_schema::FrozenItem]) -> Result<()> {
+    let mut writer = SliceWriter::create(&job.layout, job.file.config.shard_size)?;
+    if let Err(e) = writer.push_items(items) {
+        writer.abandon();
+        return Err(e.into());
+    }
+    let (pages, _) = writer.finish()?;
+    eprintln!(
+        "{}: frozen manifest carried into {} slices (one a shard, under manifest/)",
+        job.layout.root.display(),
+        job.file.shards
+    );
+    let file = JobFile {
+        manifest_sha256: index_sha256(&pages),
+        manifest_pages: Some(pages),
+        ..job.file.clone()
+    };
+    write_job_file(&job.layout, &file)?;
+    Ok(())
 }
 
 /// Finishes an add that was stopped between rewriting `manifest.jsonl` and `job.json`: when the
@@ -99,6 +163,9 @@ pub fn add(root: &Path, records: Vec<RawRecord>) -> Result<Grown> {
 fn finish_interrupted(root: &Path) -> Result<()> {
     let layout = JobLayout::new(root);
     let file: JobFile = read_json(&layout.job_file())?;
+    if file.manifest_pages.is_some() {
+        return Ok(()); // a sliced job's add writes job.json last and nothing before it
+    }
     let text = std::fs::read(layout.manifest())
         .with_context(|| format!("reading {}", layout.manifest().display()))?;
     let lines = text.split_inclusive(|&b| b == b'\n');

@@ -1,78 +1,183 @@
-//! The rows a job is made or grown from: a manifest read with `--path-column` and `--where`
-//! (saying which column its paths came from and what `--where` left out), or a folder of
-//! meshes scanned as `manifest build` does.
+//! The rows a job is made or grown from, a batch at a time: a manifest read with
+//! `--path-column` and `--where` (saying which column its paths came from and what `--where`
+//! left out), or a folder of meshes scanned as `manifest build` does. A manifest is never held
+//! whole: `init` and `add` of ten million rows read it in batches ([`InputRows`]).
 
 use crate::flags::source::SourceArgs;
 use anyhow::{bail, Result};
 use sparc3d_manifests::filter::Filter;
 use sparc3d_manifests::folder_scan::collect;
-use sparc3d_manifests::table as manifest_io;
+use sparc3d_manifests::path_column::rows_refusal;
+use sparc3d_manifests::stream::RowStream;
 use sparc3d_manifests::RawRecord;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-/// The rows of `input`: a folder scanned as `manifest build` does, or a manifest read as
-/// `init` reads it (with `--path-column` and `--where`).
-pub fn input_records(input: &Path, source: &SourceArgs) -> Result<Vec<RawRecord>> {
-    if !input.is_dir() {
-        return read_manifest(input, source);
-    }
-    let c = collect(input)?;
-    eprintln!(
-        "{}: {} meshes ({} identical duplicates left out, {} unreadable, {} skipped)",
-        input.display(),
-        c.records.len(),
-        c.duplicates,
-        c.unreadable,
-        c.skipped
-    );
-    let records = c.records.into_iter().map(RawRecord::from).collect();
-    select(records, source, input)
+/// Rows handed on at a time: enough to hash files and serialize items in parallel, few enough
+/// to keep memory small (about 40 MB of records).
+pub const BATCH_ROWS: usize = 1 << 16;
+
+/// The rows of a folder or manifest, read a batch at a time, those `--where` leaves out left
+/// out; rows without a readable source are gathered and refused by [`InputRows::finish`].
+pub struct InputRows {
+    input: PathBuf,
+    rows: Rows,
+    filter: Option<(String, Filter)>,
+    bad: Vec<String>,
+    bad_count: u64,
+    kept: u64,
+    left_out: u64,
 }
 
-/// Reads a manifest's rows for a job, saying which column its paths came from, which
-/// provenance columns it keeps and how many rows `--where` left out; an empty manifest (or
-/// one that `--where` empties) is refused.
-pub fn read_manifest(path: &Path, source: &SourceArgs) -> Result<Vec<RawRecord>> {
-    let manifest = manifest_io::read(path, source.path_column.as_deref())?;
-    if manifest.records.is_empty() {
-        bail!("{}: the manifest is empty", path.display());
+/// Where the rows come from.
+enum Rows {
+    /// A folder's scan (its records in memory; numbered from 1).
+    Scanned(std::iter::Enumerate<std::vec::IntoIter<RawRecord>>),
+    /// A manifest, streamed.
+    Manifest(Box<RowStream>),
+}
+
+impl InputRows {
+    /// The rows of `input`: a folder scanned as `manifest build` does, or a manifest read as
+    /// `init` reads it (with `--path-column` and `--where`).
+    pub fn open(input: &Path, source: &SourceArgs) -> Result<Self> {
+        let rows = if input.is_dir() {
+            let c = collect(input)?;
+            eprintln!(
+                "{}: {} meshes ({} identical duplicates left out, {} unreadable, {} skipped)",
+                input.display(),
+                c.records.len(),
+                c.duplicates,
+                c.unreadable,
+                c.skipped
+            );
+            let records: Vec<RawRecord> = c.records.into_iter().map(RawRecord::from).collect();
+            Rows::Scanned(records.into_iter().enumerate())
+        } else {
+            Rows::Manifest(Box::new(open_manifest(input, source)?))
+        };
+        let filter = match &source.filter {
+            Some(text) => Some((text.clone(), Filter::parse(text)?)),
+            None => None,
+        };
+        Ok(Self {
+            input: input.to_path_buf(),
+            rows,
+            filter,
+            bad: Vec::new(),
+            bad_count: 0,
+            kept: 0,
+            left_out: 0,
+        })
     }
-    eprintln!(
-        "{}: {} rows, paths from column {} ({})",
-        path.display(),
-        manifest.records.len(),
-        manifest.path_column.name,
-        manifest.path_column.why
-    );
-    if let Some(first) = manifest.records.first().filter(|r| !r.extra.is_empty()) {
-        let names: Vec<&str> = first.extra.keys().map(String::as_str).collect();
+
+    /// The next rows that pass `--where`, each with its row number; none at the end.
+    pub fn next_batch(&mut self) -> Result<Vec<(u64, RawRecord)>> {
+        loop {
+            let batch = self.read_batch()?;
+            if batch.is_empty() {
+                return Ok(batch);
+            }
+            let batch = self.select(batch)?;
+            if !batch.is_empty() {
+                return Ok(batch);
+            }
+        }
+    }
+
+    fn read_batch(&mut self) -> Result<Vec<(u64, RawRecord)>> {
+        match &mut self.rows {
+            Rows::Scanned(records) => Ok(records
+                .by_ref()
+                .take(BATCH_ROWS)
+                .map(|(i, r)| (i as u64 + 1, r))
+                .collect()),
+            Rows::Manifest(stream) => {
+                let mut out = Vec::new();
+                for (n, row) in stream.next_batch(BATCH_ROWS)? {
+                    match row {
+                        Ok(r) => out.push((n, r)),
+                        Err(why) => {
+                            self.bad_count += 1;
+                            if self.bad.len() < 10 {
+                                self.bad.push(format!("row {n}: {why}"));
+                            }
+                        }
+                    }
+                }
+                Ok(out)
+            }
+        }
+    }
+
+    /// The rows of `batch` that pass `--where` (all without it).
+    fn select(&mut self, batch: Vec<(u64, RawRecord)>) -> Result<Vec<(u64, RawRecord)>> {
+        let Some((_, filter)) = &self.filter else {
+            self.kept += batch.len() as u64;
+            return Ok(batch);
+        };
+        let (numbers, records): (Vec<u64>, Vec<RawRecord>) = batch.into_iter().unzip();
+        let keep = filter.keeps_each(&records)?;
+        let total = keep.len();
+        let kept: Vec<(u64, RawRecord)> = numbers
+            .into_iter()
+            .zip(records)
+            .zip(keep)
+            .filter_map(|(row, k)| k.then_some(row))
+            .collect();
+        self.kept += kept.len() as u64;
+        self.left_out += (total - kept.len()) as u64;
+        Ok(kept)
+    }
+
+    /// After the last batch: refuses a manifest that has no rows, no path column, rows
+    /// without a readable source, or no row that passes `--where`; says which column the
+    /// paths came from, the provenance columns and what `--where` left out.
+    pub fn finish(&self) -> Result<()> {
+        if let Rows::Manifest(stream) = &self.rows {
+            stream.finish()?;
+            let column = stream.path_column();
+            if self.bad_count > 0 {
+                let total = stream.rows_read();
+                return Err(rows_refusal(
+                    &self.input,
+                    column,
+                    &self.bad,
+                    self.bad_count,
+                    total,
+                ));
+            }
+            eprintln!(
+                "{}: {} rows, paths from column {} ({})",
+                self.input.display(),
+                stream.rows_read(),
+                column.name,
+                column.why
+            );
+            if !stream.extra_names().is_empty() {
+                eprintln!(
+                    "{}: provenance columns kept with every item: {}",
+                    self.input.display(),
+                    stream.extra_names().join(", ")
+                );
+            }
+        }
+        let Some((text, _)) = &self.filter else {
+            return Ok(());
+        };
         eprintln!(
-            "{}: provenance columns kept with every item: {}",
-            path.display(),
-            names.join(", ")
+            "{}: --where {text}: {} rows kept, {} left out",
+            self.input.display(),
+            self.kept,
+            self.left_out
         );
+        if self.kept == 0 {
+            bail!("{}: no row passes --where {text}", self.input.display());
+        }
+        Ok(())
     }
-    select(manifest.records, source, path)
 }
 
-/// The rows of `input` (a manifest or a folder) that pass `--where`, saying how many it left
-/// out; all of them without `--where`. Refused when none passes.
-pub fn select(
-    records: Vec<RawRecord>,
-    source: &SourceArgs,
-    input: &Path,
-) -> Result<Vec<RawRecord>> {
-    let Some(text) = &source.filter else {
-        return Ok(records);
-    };
-    let (kept, left_out) = Filter::parse(text)?.apply(records)?;
-    eprintln!(
-        "{}: --where {text}: {} rows kept, {left_out} left out",
-        input.display(),
-        kept.len()
-    );
-    if kept.is_empty() {
-        bail!("{}: no row passes --where {text}", input.display());
-    }
-    Ok(kept)
+/// The manifest at `path` opened with `--path-column`.
+fn open_manifest(path: &Path, source: &SourceArgs) -> Result<RowStream> {
+    RowStream::open(path, source.path_column.as_deref())
 }

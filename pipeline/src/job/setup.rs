@@ -6,11 +6,10 @@
 use super::config::{build_config, check_same_config};
 use super::create::{create, is_job};
 use super::grow;
-use super::rows::input_records;
+use super::rows::InputRows;
 use crate::flags::config::ConfigArgs;
 use crate::flags::source::SourceArgs;
 use anyhow::{bail, Result};
-use sparc3d_manifests::RawRecord;
 use sparc3d_schema::JobLayout;
 use sparc3d_workers::Job;
 use std::path::{Path, PathBuf};
@@ -50,11 +49,7 @@ pub fn job_for_run(
         );
     }
     let config = build_config(flags)?;
-    let records: Vec<RawRecord> = input_records(input, source)?;
-    if records.is_empty() {
-        bail!("{}: no meshes to convert", input.display());
-    }
-    create(out, records, config)?;
+    create(out, InputRows::open(input, source)?, config)?;
     Ok(out.to_path_buf())
 }
 
@@ -68,8 +63,7 @@ fn grow_before_run(input: &Path, out: &Path, source: &SourceArgs) -> Result<()> 
             return Ok(());
         }
     };
-    let records = input_records(input, source)?;
-    let grown = grow::add(out, records)?;
+    let grown = grow::add(out, InputRows::open(input, source)?)?;
     eprintln!("{}; resuming the job", grow::describe(out, &grown));
     Ok(())
 }

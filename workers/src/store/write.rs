@@ -16,7 +16,7 @@ use parquet::file::properties::{EnabledStatistics, WriterProperties};
 use parquet::schema::types::ColumnPath;
 use sha2::{Digest, Sha256};
 use sparc3d_schema::arrow::Sections;
-use sparc3d_schema::{columns, meta_keys, CompletionRecord, ItemStatus, ShardRow};
+use sparc3d_schema::{columns, meta_keys, CompletionRecord, FrozenItem, ItemStatus, ShardRow};
 use std::collections::{BTreeMap, VecDeque};
 use std::fs::File;
 use std::path::{Path, PathBuf};
@@ -157,13 +157,13 @@ impl ShardStream {
     /// Opens the temporary file of `writer` (a name unique per writer) for shard `shard`.
     pub fn create(job: &Job, shard: u64, writer: &str) -> Result<Self> {
         let tmp = job.layout.shard_tmp(shard, writer);
-        let provenance = provenance_names(job, shard);
+        let mut items = job.shard_items(shard)?;
+        let provenance = provenance_names(&items);
         let sections = Sections::of(&job.file.config);
-        let mut items: Vec<u64> = job.shard_items(shard).iter().map(|i| i.index).collect();
-        items.sort_unstable();
+        items.sort_unstable_by_key(|i| i.index);
         let waiting = items
-            .into_iter()
-            .map(|index| (index, item_provenance(job, index)))
+            .iter()
+            .map(|item| (item.index, item_provenance(item)))
             .collect();
         let file = File::create(&tmp).map_err(|e| WorkerError::io("creating shard", &tmp, e))?;
         let mut stream = Self {
@@ -322,20 +322,16 @@ impl Drop for ShardStream {
 
 /// The provenance columns of a shard: those of its items' manifest lines (every item of one
 /// manifest has the same), in name order; none for a manifest without any.
-fn provenance_names(job: &Job, shard: u64) -> Vec<String> {
-    let names: std::collections::BTreeSet<&String> = job
-        .shard_items(shard)
+fn provenance_names(items: &[FrozenItem]) -> Vec<String> {
+    let names: std::collections::BTreeSet<&String> = items
         .iter()
         .flat_map(|item| item.record.extra.keys())
         .collect();
     names.into_iter().cloned().collect()
 }
 
-/// The provenance values of item `index` that are not empty (an empty one is stored as null).
-fn item_provenance(job: &Job, index: u64) -> BTreeMap<String, String> {
-    let Some(item) = job.items.get(index as usize) else {
-        return BTreeMap::new();
-    };
+/// The provenance values of `item` that are not empty (an empty one is stored as null).
+fn item_provenance(item: &FrozenItem) -> BTreeMap<String, String> {
     item.record
         .extra
         .iter()

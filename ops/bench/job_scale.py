@@ -1,0 +1,129 @@
+#!/usr/bin/env python3
+"""What each command of a job costs as the job grows (docs/PERFORMANCE.md, "Jobs of ten
+million items"). Standard library only.
+
+    ops/bench/job_scale.py --bin target/release/sparc3d [--rows 1000,1000000,10000000]
+        [--add 1000000] [--shard-size 256] [--work-dir DIR]
+
+For each N: a synthetic manifest of N rows `id,uri,sha256,license` (`s3://` sources, the shape
+of an Objaverse-XL listing; nothing is fetched), then, each under its own clock and with the
+peak memory of its process (VmHWM, read from /proc while it runs):
+
+- `init JOB --manifest M`;
+- `status JOB`;
+- `ls JOB --where "license = CC-BY"`: time to its first line on stdout, then the whole;
+- `work JOB --shard-index I --events` (I = the middle shard): time to its `shard_started`
+  event (the moment before its first item), peak memory until then, then it is stopped;
+- `add JOB M2` of `--add` new rows (when N > 1,000).
+
+Prints a Markdown table; `--json FILE` keeps the rows.
+"""
+
+import argparse
+import hashlib
+import json
+import os
+import pathlib
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+
+
+def write_manifest(path, rows, start=0):
+    """N rows of id,uri,sha256,license: ids and sha256s made up, licences in four kinds."""
+    licences = ["CC-BY", "CC0", "CC-BY-NC", "MIT"]
+    with open(path, "w") as f:
+        f.write("id,uri,sha256,license\n")
+        for i in range(start, start + rows):
+            sha = hashlib.sha256(str(i).encode()).hexdigest()
+            f.write(f"obj{i:09d},s3://objaverse-xl/{sha[:2]}/{sha}.glb,{sha},{licences[i % 4]}\n")
+
+
+def peak_kb(pid):
+    try:
+        for line in open(f"/proc/{pid}/status"):
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1])
+    except OSError:
+        pass
+    return 0
+
+
+def timed(cmd, until=None, env=None):
+    """Runs `cmd`; (seconds to the end, or to the first stdout line matching `until`, then
+    stopped), (seconds to the first stdout line), peak KB."""
+    t0 = time.monotonic()
+    p = subprocess.Popen([str(c) for c in cmd], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                         text=True, env=env)
+    first = None
+    peak = 0
+    for line in p.stdout:
+        peak = max(peak, peak_kb(p.pid))
+        if first is None:
+            first = time.monotonic() - t0
+        if until is not None and until in line:
+            at = time.monotonic() - t0
+            peak = max(peak, peak_kb(p.pid))
+            p.send_signal(signal.SIGTERM)
+            p.communicate(timeout=60)
+            return at, first, peak
+    # The rest of the run: poll the peak until it ends.
+    while p.poll() is None:
+        peak = max(peak, peak_kb(p.pid))
+        time.sleep(0.02)
+    err = p.stderr.read()
+    if p.returncode != 0:
+        sys.exit(f"{' '.join(map(str, cmd))} exited {p.returncode}: {err[-2000:]}")
+    return time.monotonic() - t0, first, peak
+
+
+def measure(binary, rows, add, shard_size, work):
+    job, m = work / f"job-{rows}", work / f"m-{rows}.csv"
+    shutil.rmtree(job, ignore_errors=True)
+    write_manifest(m, rows)
+    out = {"rows": rows}
+    out["init"] = timed([binary, "init", job, "--manifest", m, "--shard-size", shard_size])
+    out["status"] = timed([binary, "status", job])
+    out["ls_where"] = timed([binary, "ls", job, "--where", "license = CC-BY"])
+    shards = (rows + shard_size - 1) // shard_size
+    env = dict(os.environ, AWS_ACCESS_KEY_ID="x", AWS_SECRET_ACCESS_KEY="x",
+               AWS_ENDPOINT_URL="http://127.0.0.1:9", AWS_ALLOW_HTTP="true")
+    out["work"] = timed([binary, "work", job, "--shard-index", shards // 2, "--events"],
+                        until='"shard_started"', env=env)
+    if add and rows > 1000:
+        m2 = work / f"add-{rows}.csv"
+        write_manifest(m2, add, start=rows)
+        out["add"] = timed([binary, "add", job, m2])
+    m.unlink()
+    return out
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--bin", required=True)
+    ap.add_argument("--rows", default="1000,1000000")
+    ap.add_argument("--add", type=int, default=1000000)
+    ap.add_argument("--shard-size", type=int, default=256)
+    ap.add_argument("--work-dir")
+    ap.add_argument("--json")
+    a = ap.parse_args()
+    work = pathlib.Path(a.work_dir or tempfile.mkdtemp(prefix="sparc3d-scale-"))
+    work.mkdir(parents=True, exist_ok=True)
+    results = [measure(a.bin, int(n), a.add, a.shard_size, work) for n in a.rows.split(",")]
+    print("| rows | init | status | ls --where: first line, all | work: to its first item | add |")
+    print("|---|---|---|---|---|---|")
+    cell = lambda r: f"{r[0]:.2f} s, {r[2] / 1024:.0f} MB"
+    for r in results:
+        ls = r["ls_where"]
+        add = cell(r["add"]) if "add" in r else "—"
+        print(f"| {r['rows']:,} | {cell(r['init'])} | {cell(r['status'])} | "
+              f"{ls[1] or 0:.2f} s, {ls[0]:.2f} s, {ls[2] / 1024:.0f} MB | {cell(r['work'])} | {add} |")
+    if a.json:
+        pathlib.Path(a.json).write_text(json.dumps(results, indent=2))
+
+
+if __name__ == "__main__":
+    main()
