@@ -127,6 +127,8 @@ fn pull_pinned(prefix: &Prefix<'_>, job: &Job, name: &str, sha256: &str) -> Resu
             prefix.url(&key)
         );
     }
+    let dir = job.layout.manifest_dir();
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
     replace(&path, &object.bytes)
 }
 

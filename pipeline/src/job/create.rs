@@ -115,6 +115,7 @@ fn compare_frozen(
         shards: written.pages.iter().map(|p| p.shards).sum(),
         manifest_sha256: index_sha256(&written.pages),
         manifest_pages: Some(written.pages.clone()),
+        config: config.clone(),
         ..existing.file.clone()
     };
     let staged = FrozenManifest::Sliced(Sliced::new(staging, &staged_file, written.pages, false));
