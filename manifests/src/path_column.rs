@@ -2,7 +2,7 @@
 //! "Manifests"), never chosen row by row:
 //!
 //! 1. `--path-column NAME` names it (any column).
-//! 2. Otherwise the candidates are the path-like columns (`uri`, `path`, `local_path`, `file`)
+//! 2. Otherwise the candidates are the path-like columns (`uri`, `path`, `local_path`, `file`, `url`)
 //!    that hold a value in some row. One candidate is the column.
 //! 3. With several, a column whose every value is a URL (`scheme://…`) is left out: a
 //!    manifest with URLs and local copies converts the copies (`--path-column uri` fetches

@@ -4,7 +4,7 @@
 pub use sparc3d_schema::manifest::{FrozenItem, ManifestRecord};
 
 /// Column names accepted for the path of an item, in order of preference.
-pub const PATH_COLUMNS: [&str; 4] = ["uri", "path", "local_path", "file"];
+pub const PATH_COLUMNS: [&str; 5] = ["uri", "path", "local_path", "file", "url"];
 /// Column names accepted for the id of an item, in order of preference.
 pub const ID_COLUMNS: [&str; 2] = ["id", "sha256"];
 /// The columns a manifest row is read into besides its path column; every other column is

@@ -371,3 +371,67 @@ fn parquet_row(batch: &RecordBatch, names: &[String], i: usize) -> BTreeMap<Stri
     }
     m
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn all(stream: &mut RowStream, batch: usize) -> Result<Vec<Row>> {
+        let mut out = Vec::new();
+        loop {
+            let rows = stream.next_batch(batch)?;
+            if rows.is_empty() {
+                return Ok(out);
+            }
+            out.extend(rows);
+        }
+    }
+
+    /// Read in batches of 2, a manifest gives the rows `table::read` gives, numbered; a `url`
+    /// column is the path column without `--path-column`; a header without rows says so.
+    #[test]
+    fn batches_are_the_rows_and_url_is_a_path_column() -> Result<()> {
+        let dir = tempfile::tempdir()?;
+        let csv = dir.path().join("m.csv");
+        std::fs::write(
+            &csv,
+            "url,license\ns3://b/a.glb,cc0\nhttps://h/b.glb,by\n,by\ns3://b/c.glb,\n",
+        )?;
+        let mut stream = RowStream::open(&csv, None)?;
+        assert_eq!(stream.path_column().name, "url");
+        let rows = all(&mut stream, 2)?;
+        stream.finish()?;
+        let numbers: Vec<u64> = rows.iter().map(|(n, _)| *n).collect();
+        assert_eq!(numbers, [1, 2, 3, 4]);
+        assert_eq!(rows[2].1.as_ref().err().map(String::as_str), Some("no url"));
+        let ok: Vec<&RawRecord> = rows.iter().filter_map(|(_, r)| r.as_ref().ok()).collect();
+        assert_eq!(ok[1].uri, "https://h/b.glb");
+        assert_eq!(ok[2].extra.get("license").map(String::as_str), Some(""));
+
+        let jsonl = dir.path().join("m.jsonl");
+        std::fs::write(
+            &jsonl,
+            "{\"uri\":\"a.obj\"}\n\n{\"uri\":\"b.obj\",\"tag\":\"t\"}\n",
+        )?;
+        let mut stream = RowStream::open(&jsonl, None)?;
+        let rows = all(&mut stream, 1)?;
+        assert_eq!(stream.extra_names(), ["tag"]);
+        let tags: Vec<Option<String>> = rows
+            .iter()
+            .map(|(_, r)| r.as_ref().ok().and_then(|r| r.extra.get("tag").cloned()))
+            .collect();
+        assert_eq!(tags, [Some(String::new()), Some("t".into())]);
+
+        let empty = dir.path().join("empty.csv");
+        std::fs::write(&empty, "uri,id\n")?;
+        let mut stream = RowStream::open(&empty, None)?;
+        assert!(all(&mut stream, 10)?.is_empty());
+        let said = stream
+            .finish()
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(said.contains("has no rows"), "{said}");
+        Ok(())
+    }
+}
