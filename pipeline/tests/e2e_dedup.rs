@@ -166,6 +166,59 @@ fn copies_group_with_their_original_and_distinct_shapes_stay_apart() {
     );
     assert!(err.contains("5 items: 5 ok, 0 failed, 0 pending"), "{err}");
     assert!(copies.iter().all(|f| !listed.contains(&id(f))), "{listed}");
+
+    // Issue 64, item 1: with a `--where` that leaves the representative out, its group is
+    // formed among the items that pass: the first copy that passes represents it, and the
+    // group keeps exactly one item instead of none.
+    let not_the_original = format!("id != '{}'", id("a_torus.obj"));
+    let out = sparc3d(&["ls", j, "--where", &not_the_original, "--one-per-group"]);
+    let (listed, err) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    assert!(out.status.success(), "{err}");
+    let kept: Vec<&str> = listed
+        .lines()
+        .filter_map(|l| l.split('\t').next())
+        .collect();
+    assert!(kept.contains(&id("c_torus_moved.ply").as_str()), "{listed}");
+    assert!(!kept.contains(&id("a_torus.obj").as_str()), "{listed}");
+    for dropped in ["e_torus_split.obj", "g_torus_mirrored.stl"] {
+        assert!(!kept.contains(&id(dropped).as_str()), "{dropped}: {listed}");
+    }
+    assert_eq!(
+        kept.len(),
+        5,
+        "the four distinct shapes and one torus: {listed}"
+    );
+    assert!(err.contains("--where id != '"), "{err}");
+    assert!(err.contains("1 items left out"), "{err}");
+    assert!(
+        err.contains("--one-per-group: 2 near-duplicates left out"),
+        "{err}"
+    );
+    // `export` chooses the same: one torus among the items that pass.
+    let filtered = tmp.path().join("export_where");
+    let out = sparc3d(&[
+        "export",
+        j,
+        "--format",
+        "cubvh",
+        "--out",
+        s(&filtered),
+        "--where",
+        &not_the_original,
+        "--one-per-group",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("--one-per-group: 2 near-duplicates left out"),
+        "{err}"
+    );
+    let files = std::fs::read_dir(&filtered).map(|d| d.count()).unwrap_or(0);
+    assert_eq!(files, 5 + 1, "five items and the export's record");
+
     let export = tmp.path().join("export");
     let out = sparc3d(&[
         "export",

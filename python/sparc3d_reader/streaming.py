@@ -15,6 +15,8 @@ from __future__ import annotations
 import bisect
 import dataclasses
 import hashlib
+import numbers
+from collections.abc import Mapping
 from typing import Any, Dict, Iterable, Iterator, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
@@ -250,17 +252,14 @@ class StreamingDatasetBase:
     def load_state_dict(self, state: Dict[str, Any]) -> None:
         """Resumes at a saved position: the next iteration of its epoch yields exactly the
         items not yet yielded then. A ValueError names what differs (seed, rank, world size,
-        filter, the job's items, ...): a state is only valid for the same order."""
-        mine = self._config()
-        for key in _SAME:
-            if state.get(key) != mine[key]:
-                raise ValueError(f"load_state_dict: the state has {key} {state.get(key)!r}, this "
-                                 f"dataset {mine[key]!r}; a state resumes the same order only")
-        consumed = [int(c) for c in state["consumed"]]
+        filter, the job's items, ...) or what is not a position of ours (a key missing, an
+        epoch or a count that is not a whole number 0 or more, no count at all): a state is
+        only valid for the same order, and nothing in it is converted."""
+        epoch, consumed = _checked_state(state, self._config())
         sizes = self.worker_sizes(len(consumed))
         if any(not 0 <= c <= n for c, n in zip(consumed, sizes)):
             raise ValueError(f"load_state_dict: consumed {consumed} is not within {sizes}")
-        self.epoch, self._pending, self._consumed = int(state["epoch"]), consumed, list(consumed)
+        self.epoch, self._pending, self._consumed = epoch, consumed, list(consumed)
 
     def _config(self) -> Dict[str, Any]:
         return {"seed": self.seed, "rank": self.rank, "world_size": self.world_size,
@@ -280,6 +279,63 @@ class StreamingDatasetBase:
         state = self.__dict__.copy()
         state["_file"] = (None, None)
         return state
+
+
+#: The largest epoch or count a state may hold (what a training loop could reach).
+_MOST = 2**63 - 1
+
+
+def _whole(v: Any) -> bool:
+    """A whole number 0..`_MOST` as saved (an int, or a numpy integer): never a bool, a float
+    or a string, which `int()` would turn into another position without a word."""
+    return isinstance(v, numbers.Integral) and not isinstance(v, (bool, np.bool_)) \
+        and 0 <= v <= _MOST
+
+
+def _same_value(saved: Any, mine: Any) -> bool:
+    """`saved` is `mine` as `state_dict` wrote it: equal, and of its kind (True is not seed 1,
+    7.0 is not seed 7, "7" not either)."""
+    if isinstance(mine, bool):
+        return isinstance(saved, (bool, np.bool_)) and bool(saved) == mine
+    if isinstance(mine, int):
+        return isinstance(saved, numbers.Integral) and not isinstance(saved, (bool, np.bool_)) \
+            and int(saved) == mine
+    return type(saved) is type(mine) and saved == mine
+
+
+def _checked_state(state: Any, mine: Dict[str, Any]) -> Tuple[int, List[int]]:
+    """(epoch, consumed per worker) of a state `state_dict()` returned for a dataset with
+    config `mine`; a ValueError naming what is missing, differs or is not a position."""
+    said = "load_state_dict: "
+    if not isinstance(state, Mapping):
+        raise ValueError(f"{said}a state is the dict state_dict() returned, got "
+                         f"{type(state).__name__} {_short(state)}")
+    missing = [k for k in ("epoch", "consumed", *_SAME) if k not in state]
+    if missing:
+        raise ValueError(f"{said}the state has no {', '.join(missing)} (it holds "
+                         f"{', '.join(map(str, state)) or 'nothing'}): not a state that "
+                         "StreamingDataset.state_dict() returned")
+    for key in _SAME:
+        if not _same_value(state[key], mine[key]):
+            raise ValueError(f"{said}the state has {key} {_short(state[key])}, this dataset "
+                             f"{mine[key]!r}; a state resumes the same order only")
+    epoch = state["epoch"]
+    if not _whole(epoch):
+        raise ValueError(f"{said}the state has epoch {_short(epoch)}: an epoch is a whole "
+                         "number 0 or more")
+    consumed = state["consumed"]
+    if not isinstance(consumed, (list, tuple)) or not consumed \
+            or not all(_whole(c) for c in consumed):
+        raise ValueError(f"{said}the state has consumed {_short(consumed)}: it is a list of "
+                         "whole numbers 0 or more, the items received from each DataLoader "
+                         "worker's share (one for num_workers=0)")
+    return int(epoch), [int(c) for c in consumed]
+
+
+def _short(v: Any) -> str:
+    """`repr(v)`, cut to 80 characters (a state may hold anything)."""
+    r = repr(v)
+    return r if len(r) <= 80 else r[:77] + "..."
 
 
 def _runs(blocks: np.ndarray, rows: np.ndarray) -> Iterator[Tuple[int, int]]:

@@ -5,6 +5,7 @@
 //! ([`dropped_ids`]).
 
 use crate::near_duplicates::{groups, Group};
+use crate::row_filter::RowFilter;
 use anyhow::{Context, Result};
 use serde::Serialize;
 use sparc3d_schema::ItemStatus;
@@ -45,7 +46,8 @@ pub struct Threshold {
 #[derive(Debug, Clone, Copy, clap::Args)]
 pub struct OnePerGroup {
     /// Keep one item per near-duplicate group, its representative (`sparc3d dedup` lists
-    /// the groups); items without a shape signature are kept.
+    /// the groups; with `--where`, the groups of the items that pass, so every group with a
+    /// member that passes keeps one); items without a shape signature are kept.
     #[arg(long)]
     pub one_per_group: bool,
     /// `--one-per-group`'s threshold: largest signature distance from a representative.
@@ -55,10 +57,16 @@ pub struct OnePerGroup {
 
 impl OnePerGroup {
     /// The ids to leave out: none without `--one-per-group`; an error when the job (`named`
-    /// as given) stores no signatures.
-    pub fn dropped(&self, job: &Job, named: &Path) -> Result<HashSet<String>> {
+    /// as given) stores no signatures. With a `--where` `filter`, the groups are those of the
+    /// items it keeps, so each group with a member that passes keeps one of them.
+    pub fn dropped(
+        &self,
+        job: &Job,
+        named: &Path,
+        filter: Option<&RowFilter>,
+    ) -> Result<HashSet<String>> {
         match self.one_per_group {
-            true => dropped_ids(job, named, self.threshold),
+            true => dropped_ids(job, named, self.threshold, filter),
             false => Ok(HashSet::new()),
         }
     }
@@ -105,9 +113,14 @@ fn require_signatures(job: &Job, named: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Reads every finished or running shard's ok rows (without their sample columns); an error
-/// when the job does not store signatures ([`require_signatures`]).
-pub fn read_signatures(job: &Job, named: &Path) -> Result<JobSignatures> {
+/// Reads every finished or running shard's ok rows (without their sample columns) that
+/// `filter` keeps (every one without it); an error when the job does not store signatures
+/// ([`require_signatures`]).
+pub fn read_signatures(
+    job: &Job,
+    named: &Path,
+    filter: Option<&RowFilter>,
+) -> Result<JobSignatures> {
     require_signatures(job, named)?;
     let shards: BTreeSet<u64> = (0..job.file.shards).collect();
     let mut out = JobSignatures {
@@ -115,21 +128,34 @@ pub fn read_signatures(job: &Job, named: &Path) -> Result<JobSignatures> {
         unsigned: Vec::new(),
     };
     for shard in shards {
-        for_each_shard_row(job, shard, Check::Quick, Columns::WithoutSamples, |row| {
-            if row.status != ItemStatus::Ok {
-                return Ok(());
-            }
-            match row.shape_signature {
-                Some(signature) => out.signed.push(Signed {
-                    index: row.item_index,
-                    id: row.id,
-                    uri: row.uri,
-                    signature,
-                }),
-                None => out.unsigned.push(row.id),
-            }
-            Ok(())
-        })
+        for_each_shard_row(
+            job,
+            shard,
+            Check::Quick,
+            Columns::WithoutSamples,
+            |mut row| {
+                if row.status != ItemStatus::Ok {
+                    return Ok(());
+                }
+                if let Some(f) = filter {
+                    // A representative the filter leaves out would take its group with it.
+                    let item = job.items.get(row.item_index as usize);
+                    if !f.keeps(&mut row, item)? {
+                        return Ok(());
+                    }
+                }
+                match row.shape_signature {
+                    Some(signature) => out.signed.push(Signed {
+                        index: row.item_index,
+                        id: row.id,
+                        uri: row.uri,
+                        signature,
+                    }),
+                    None => out.unsigned.push(row.id),
+                }
+                Ok(())
+            },
+        )
         .with_context(|| format!("reading shard {shard}"))?;
     }
     out.signed.sort_by_key(|s| s.index);
@@ -142,10 +168,16 @@ pub fn group(signed: &[Signed], threshold: f64) -> Vec<Group> {
     groups(&signatures, threshold)
 }
 
-/// The ids `--one-per-group` leaves out: every group member but its representative. Items
-/// without a signature are kept (said on stderr).
-pub fn dropped_ids(job: &Job, named: &Path, threshold: f64) -> Result<HashSet<String>> {
-    let read = read_signatures(job, named)?;
+/// The ids `--one-per-group` leaves out: every group member but its representative, the
+/// groups formed among the items `filter` keeps (its representative is the lowest item index
+/// that passes). Items without a signature are kept (said on stderr).
+pub fn dropped_ids(
+    job: &Job,
+    named: &Path,
+    threshold: f64,
+    filter: Option<&RowFilter>,
+) -> Result<HashSet<String>> {
+    let read = read_signatures(job, named, filter)?;
     warn_unsigned(&read);
     let groups = group(&read.signed, threshold);
     Ok(groups
@@ -196,7 +228,7 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
     let named = args.job.clone();
     args.job = crate::job::bucket_home::local_view(&args.job)?;
     let job = crate::job::setup::open_read_only(&args.job)?;
-    let read = read_signatures(&job, &named)?;
+    let read = read_signatures(&job, &named, None)?;
     warn_unsigned(&read);
     let threshold = args.threshold.value;
     let found = group(&read.signed, threshold);

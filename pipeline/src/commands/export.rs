@@ -160,7 +160,7 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
         wanted.insert(item_lookup::find(&job, query)?.record.id);
     }
     let filter = RowFilter::optional(&job, args.filter.as_deref())?;
-    let dropped = args.dedup.dropped(&job, &named)?;
+    let dropped = args.dedup.dropped(&job, &named, filter.as_ref())?;
     leave_out_near_duplicates(&job, &mut wanted, &dropped)?;
     refuse_a_folder_that_is_not_an_export(&args.out)?;
     let staging = Staging::create(&args.out)?;

@@ -124,7 +124,7 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
     args.job = crate::job::bucket_home::local_view(&args.job)?;
     let job = crate::job::setup::open_read_only(&args.job)?;
     let filter = RowFilter::optional(&job, args.filter.as_deref())?;
-    let dropped = args.dedup.dropped(&job, &named)?;
+    let dropped = args.dedup.dropped(&job, &named, filter.as_ref())?;
     let mut left_out = LeftOut::default();
     let mut out = std::io::stdout().lock();
     let mut statuses = None;
