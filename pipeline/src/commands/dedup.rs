@@ -139,8 +139,8 @@ pub fn read_signatures(
                 }
                 if let Some(f) = filter {
                     // A representative the filter leaves out would take its group with it.
-                    let item = job.items.get(row.item_index as usize);
-                    if !f.keeps(&mut row, item)? {
+                    let item = job.item(row.item_index)?;
+                    if !f.keeps(&mut row, item.as_ref())? {
                         return Ok(());
                     }
                 }
