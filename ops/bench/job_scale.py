@@ -53,31 +53,30 @@ def peak_kb(pid):
 
 
 def timed(cmd, until=None, env=None):
-    """Runs `cmd`; (seconds to the end, or to the first stdout line matching `until`, then
-    stopped), (seconds to the first stdout line), peak KB."""
+    """Runs `cmd`; (seconds to the end, or to the first stdout line holding `until`, then
+    stopped), (seconds to the first stdout line), peak KB (the process's maximum resident set
+    from wait4, or VmHWM when it was stopped)."""
     t0 = time.monotonic()
     p = subprocess.Popen([str(c) for c in cmd], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                          text=True, env=env)
     first = None
-    peak = 0
     for line in p.stdout:
-        peak = max(peak, peak_kb(p.pid))
         if first is None:
             first = time.monotonic() - t0
         if until is not None and until in line:
             at = time.monotonic() - t0
-            peak = max(peak, peak_kb(p.pid))
+            peak = peak_kb(p.pid)
             p.send_signal(signal.SIGTERM)
             p.communicate(timeout=60)
             return at, first, peak
-    # The rest of the run: poll the peak until it ends.
-    while p.poll() is None:
-        peak = max(peak, peak_kb(p.pid))
-        time.sleep(0.02)
     err = p.stderr.read()
-    if p.returncode != 0:
-        sys.exit(f"{' '.join(map(str, cmd))} exited {p.returncode}: {err[-2000:]}")
-    return time.monotonic() - t0, first, peak
+    _, status, usage = os.wait4(p.pid, 0)
+    end = time.monotonic() - t0
+    code = os.waitstatus_to_exitcode(status)
+    p.returncode = code
+    if code != 0:
+        sys.exit(f"{' '.join(map(str, cmd))} exited {code}: {err[-2000:]}")
+    return end, first, usage.ru_maxrss
 
 
 def measure(binary, rows, add, shard_size, work):

@@ -13,7 +13,7 @@ use super::freeze_rows::freeze_rows;
 use super::rows::InputRows;
 use anyhow::{bail, Context, Result};
 use rayon::prelude::*;
-use sparc3d_manifests::freeze::{id_key, Freezer};
+use sparc3d_manifests::freeze::{id_key, Freezer, IdKey};
 use sparc3d_schema::manifest::index_sha256;
 use sparc3d_schema::{JobFile, JobLayout};
 use sparc3d_workers::frozen::write::SliceWriter;
@@ -110,8 +110,8 @@ pub fn add(root: &Path, mut rows: InputRows) -> Result<Grown> {
 
 /// The keys of the ids of every item of `job` ([`sparc3d_manifests::freeze::id_key`]) and its
 /// provenance columns, every slice read (in parallel) and checked.
-fn known_ids(job: &Job) -> Result<(HashSet<u128>, BTreeSet<String>)> {
-    let per_shard: Vec<(Vec<u128>, Vec<String>)> = (0..job.file.shards)
+fn known_ids(job: &Job) -> Result<(HashSet<IdKey>, BTreeSet<String>)> {
+    let per_shard: Vec<(Vec<IdKey>, Vec<String>)> = (0..job.file.shards)
         .into_par_iter()
         .map(|shard| {
             let items = job.shard_items(shard)?;
