@@ -1,11 +1,12 @@
 //! A manifest's rows frozen into a job's items (`sparc3d init`): every row's sha256 well formed,
 //! every id known (a row with neither id nor sha256 is identified by its file's sha256, hashed
-//! here), ids unique, and each item's shard. Problems are named by row, the first few in full
-//! and the rest counted. [`Freezer`] does it a batch of rows at a time (a job's frozen
-//! manifest is written as it goes); [`freeze`] and [`append`] (the rows a growing job does not
-//! have yet, `sparc3d add`, into new shards after its last one) in memory.
+//! here), ids unique. Problems are named by row, the first few in full and the rest counted.
+//! [`Freezer`] does it a batch of rows at a time (a job's frozen manifest is written as it
+//! goes, each item's shard given by the writer: `sparc3d_workers::frozen::write`); growing a
+//! job (`sparc3d add`), it leaves out the rows whose id the job has.
 
-use crate::record::{FrozenItem, ManifestRecord};
+use crate::problems::Problems;
+use crate::record::ManifestRecord;
 use crate::table::RawRecord;
 use anyhow::{bail, Result};
 use rayon::prelude::*;
@@ -56,34 +57,6 @@ pub struct Freezer {
     unchecked: u64,
 }
 
-/// Problems of one kind: the first few in full, and how many.
-#[derive(Debug, Default)]
-struct Problems {
-    listed: Vec<String>,
-    count: u64,
-}
-
-impl Problems {
-    fn add(&mut self, what: impl FnOnce() -> String, keep: usize) {
-        self.count += 1;
-        if self.listed.len() < keep {
-            self.listed.push(what());
-        }
-    }
-
-    /// The first [`LISTED`] in full and the rest counted.
-    fn listing(&self) -> String {
-        let mut text = self.listed.join("; ");
-        if self.count > self.listed.len() as u64 {
-            text.push_str(&format!(
-                "; and {} more",
-                self.count - self.listed.len() as u64
-            ));
-        }
-        text
-    }
-}
-
 /// What a freeze did, once [`Freezer::finish`] found nothing wrong.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Frozen {
@@ -114,7 +87,7 @@ impl Freezer {
 
     /// Whether a problem was found: the freeze will be refused.
     pub fn failed(&self) -> bool {
-        self.bad_sha.count + self.unreadable.count + self.duplicates.count > 0
+        self.bad_sha.count() + self.unreadable.count() + self.duplicates.count() > 0
     }
 
     /// Freezes `rows` (each with its row number in the manifest): the records of the new
@@ -126,7 +99,7 @@ impl Freezer {
                 self.bad_sha.add(|| format!("row {n}: {sha:?}"), LISTED);
             }
         }
-        if self.bad_sha.count > 0 {
+        if self.bad_sha.count() > 0 {
             return Vec::new();
         }
         let identified: Vec<(u64, Result<ManifestRecord, String>)> = rows
@@ -171,28 +144,28 @@ impl Freezer {
     /// Refuses the freeze if any row had a problem, naming them; otherwise what was frozen,
     /// saying how many items have no sha256 to check their file against.
     pub fn finish(self) -> Result<Frozen> {
-        if self.bad_sha.count > 0 {
+        if self.bad_sha.count() > 0 {
             bail!(
                 "{} rows have a sha256 that is not 64 hex digits (a file's bytes are checked \
                  against it before they are converted): {}",
-                self.bad_sha.count,
+                self.bad_sha.count(),
                 self.bad_sha.listing()
             );
         }
-        if self.unreadable.count > 0 {
+        if self.unreadable.count() > 0 {
             bail!(
                 "{} of {} files could not be hashed for their ids (a row without id or sha256 \
                  is identified by its file's sha256): {}",
-                self.unreadable.count,
+                self.unreadable.count(),
                 self.rows,
                 self.unreadable.listing()
             );
         }
-        if self.duplicates.count > 0 {
+        if self.duplicates.count() > 0 {
             bail!(
                 "the manifest has {} duplicate ids, e.g. {}; ids must be unique",
-                self.duplicates.count,
-                self.duplicates.listed.join(", ")
+                self.duplicates.count(),
+                self.duplicates.listed().join(", ")
             );
         }
         note_unchecked(self.unchecked);
@@ -202,53 +175,6 @@ impl Freezer {
             already: self.already,
         })
     }
-}
-
-/// The rows' items in order, each with its index and shard (`index / shard_size`), in memory
-/// (a job freezes its rows a batch at a time with [`Freezer`]).
-pub fn freeze(records: Vec<RawRecord>, shard_size: u32) -> Result<Vec<FrozenItem>> {
-    let mut freezer = Freezer::new();
-    let rows = records.into_iter().enumerate();
-    let kept = freezer.batch(rows.map(|(i, r)| (i as u64 + 1, r)).collect());
-    freezer.finish()?;
-    Ok(assign(kept, shard_size, (0, 0)))
-}
-
-/// The rows of a growing job's new manifest (or folder) that it does not have yet.
-#[derive(Debug)]
-pub struct Appended {
-    /// The new items, indexed after the job's last item, in new shards after its last shard.
-    pub items: Vec<FrozenItem>,
-    /// Rows whose id the job has already (left out).
-    pub already: usize,
-}
-
-/// Freezes the rows whose id is not among `existing` (a job's items, in order) as items after
-/// them, in memory: indices from `existing.len()`, shards from the one after the last existing
-/// item's, so the job's finished shards are never touched (a job grows a batch at a time with
-/// [`Freezer::growing`]).
-pub fn append(
-    existing: &[FrozenItem],
-    records: Vec<RawRecord>,
-    shard_size: u32,
-) -> Result<Appended> {
-    let known = existing.iter().map(|i| id_key(&i.record.id)).collect();
-    let columns = existing
-        .iter()
-        .flat_map(|i| i.record.extra.keys().cloned())
-        .collect();
-    let mut freezer = Freezer::growing(known, columns);
-    let rows = records.into_iter().enumerate();
-    let kept = freezer.batch(rows.map(|(i, r)| (i as u64 + 1, r)).collect());
-    let frozen = freezer.finish()?;
-    let start = (
-        existing.len() as u64,
-        existing.last().map_or(0, |i| i.shard + 1),
-    );
-    Ok(Appended {
-        items: assign(kept, shard_size, start),
-        already: frozen.already as usize,
-    })
 }
 
 /// Says how many items have no sha256 to check their file against before it is converted.
@@ -288,21 +214,6 @@ fn identify(r: RawRecord) -> Result<ManifestRecord> {
     })
 }
 
-/// The records as items with their index and shard, numbered from `start` (first index, first
-/// shard): the k-th item gets index `start.0 + k` and shard `start.1 + k / shard_size`.
-fn assign(records: Vec<ManifestRecord>, shard_size: u32, start: (u64, u64)) -> Vec<FrozenItem> {
-    let size = u64::from(shard_size.max(1));
-    records
-        .into_iter()
-        .enumerate()
-        .map(|(k, record)| FrozenItem {
-            index: start.0 + k as u64,
-            shard: start.1 + k as u64 / size,
-            record,
-        })
-        .collect()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -319,38 +230,42 @@ mod tests {
         }
     }
 
+    /// Rows of a growing job: those with a known id left out and counted, the job's
+    /// provenance columns given to the new ones, a repeated id refused naming both rows.
     #[test]
-    fn appended_items_follow_in_new_shards_and_skip_known_ids() -> Result<()> {
-        let first = freeze(
-            vec![row("a", Some("cc0")), row("b", None), row("c", None)],
-            2,
-        )?;
-        let shards: Vec<u64> = first.iter().map(|i| i.shard).collect();
-        assert_eq!(shards, [0, 0, 1]);
-        let more = vec![
-            row("b", None),
-            row("d", None),
-            row("e", None),
-            row("f", None),
-        ];
-        let added = append(&first, more, 2)?;
-        assert_eq!(added.already, 1);
-        let placed: Vec<(u64, u64)> = added.items.iter().map(|i| (i.index, i.shard)).collect();
-        assert_eq!(
-            placed,
-            [(3, 2), (4, 2), (5, 3)],
-            "after shard 1, never into it"
+    fn a_growing_freeze_skips_known_ids_and_refuses_repeats() -> Result<()> {
+        let mut first = Freezer::new();
+        let records = first.batch(
+            [row("a", Some("cc0")), row("b", None), row("c", None)]
+                .into_iter()
+                .enumerate()
+                .map(|(i, r)| (i as u64 + 1, r))
+                .collect(),
         );
-        assert_eq!(
-            added.items[0]
-                .record
-                .extra
-                .get("license")
-                .map(String::as_str),
-            Some("")
+        assert_eq!(first.finish()?.items, 3);
+        let known: HashSet<IdKey> = records.iter().map(|r| id_key(&r.id)).collect();
+        let columns: BTreeSet<String> = ["license".to_string()].into();
+        let grow = |rows: Vec<RawRecord>| {
+            let mut f = Freezer::growing(known.clone(), columns.clone());
+            let kept = f.batch(rows.into_iter().zip(1..).map(|(r, n)| (n, r)).collect());
+            f.finish().map(|frozen| (kept, frozen))
+        };
+        let (kept, frozen) = grow(vec![row("b", None), row("d", None), row("e", None)])?;
+        assert_eq!((frozen.items, frozen.already), (2, 1));
+        let ids: Vec<&str> = kept.iter().map(|r| r.id.as_str()).collect();
+        assert_eq!(ids, ["d", "e"]);
+        assert_eq!(kept[0].extra.get("license").map(String::as_str), Some(""));
+        let refused = grow(vec![row("x", None), row("x", None)])
+            .err()
+            .map(|e| e.to_string());
+        assert!(
+            refused
+                .as_deref()
+                .is_some_and(|e| e.contains("x (rows 1 and 2)")),
+            "{refused:?}"
         );
-        assert!(append(&first, vec![row("x", None), row("x", None)], 2).is_err());
-        assert!(append(&first, vec![row("a", None)], 2)?.items.is_empty());
+        let (kept, frozen) = grow(vec![row("a", None)])?;
+        assert!(kept.is_empty() && frozen.already == 1);
         Ok(())
     }
 }

@@ -20,6 +20,7 @@ pub mod folder_scan;
 pub mod freeze;
 pub mod hash;
 pub mod path_column;
+pub mod problems;
 pub mod record;
 pub mod stream;
 pub mod table;

@@ -14,6 +14,7 @@
 //! only in another path-like column) or with a URL no worker could read (an unknown scheme,
 //! credentials in it, ...) is refused, naming the row.
 
+use crate::problems::Problems;
 use crate::record::PATH_COLUMNS;
 use anyhow::{bail, Result};
 use std::collections::BTreeMap;
@@ -173,22 +174,29 @@ pub fn row_problem(row: &BTreeMap<String, String>, column: &PathColumn) -> Optio
     parsed.err().map(|e| format!("{}: {e}", column.name))
 }
 
-/// The refusal of a manifest whose rows `bad` (the first few, as `row N: why`; `count` in
-/// all, of `total`) have no readable source in `column`.
+/// Rows without a readable source named in full by [`rows_refusal`]; the rest are counted.
+pub const LISTED_ROWS: usize = 10;
+
+/// The refusal of a manifest whose rows `bad` (as `row N: why`, of `total` rows) have no
+/// readable source in `column`.
 pub fn rows_refusal(
     source: &Path,
     column: &PathColumn,
-    bad: &[String],
-    count: u64,
+    bad: &Problems,
     total: u64,
 ) -> anyhow::Error {
     anyhow::anyhow!(
-        "{}: {count} of {total} rows have no readable source in column {} ({}): {}{}",
+        "{}: {} of {total} rows have no readable source in column {} ({}): {}{}",
         source.display(),
+        bad.count(),
         column.name,
         column.why,
-        bad.iter().take(10).cloned().collect::<Vec<_>>().join("; "),
-        if count > 10 { "; …" } else { "" }
+        bad.listed().join("; "),
+        if bad.count() > LISTED_ROWS as u64 {
+            "; …"
+        } else {
+            ""
+        }
     )
 }
 
@@ -199,21 +207,16 @@ pub fn check_rows(
     column: &PathColumn,
     source: &Path,
 ) -> Result<()> {
-    let bad: Vec<String> = rows
-        .iter()
-        .enumerate()
-        .filter_map(|(n, row)| Some(format!("row {}: {}", n + 1, row_problem(row, column)?)))
-        .collect();
-    if bad.is_empty() {
+    let mut bad = Problems::default();
+    for (n, row) in rows.iter().enumerate() {
+        if let Some(why) = row_problem(row, column) {
+            bad.add(|| format!("row {}: {why}", n + 1), LISTED_ROWS);
+        }
+    }
+    if bad.count() == 0 {
         return Ok(());
     }
-    Err(rows_refusal(
-        source,
-        column,
-        &bad,
-        bad.len() as u64,
-        rows.len() as u64,
-    ))
+    Err(rows_refusal(source, column, &bad, rows.len() as u64))
 }
 
 #[cfg(test)]

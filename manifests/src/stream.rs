@@ -6,7 +6,8 @@
 //! A JSONL or Parquet manifest's columns are those some row has a value in, and every item
 //! carries every column, so a first pass finds them all.
 
-use crate::path_column::{self, PathColumn, ValueSurvey};
+use crate::path_column::{self, PathColumn, ValueSurvey, LISTED_ROWS};
+use crate::problems::Problems;
 use crate::record::{KNOWN_COLUMNS, PATH_COLUMNS};
 use crate::table::{ext, number_at, string_at, RawRecord};
 use anyhow::{bail, Context, Result};
@@ -17,9 +18,8 @@ use std::fs::File;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 
-/// One row read: its number in the manifest (1-based) and its record, or why it has no
-/// readable source.
-pub type Row = (u64, std::result::Result<RawRecord, String>);
+/// One row read: its number in the manifest (1-based) and its record.
+pub type Row = (u64, RawRecord);
 
 /// A manifest opened for reading a batch of rows at a time.
 pub struct RowStream {
@@ -31,6 +31,8 @@ pub struct RowStream {
     unproven: bool,
     extra_names: Vec<String>,
     read: u64,
+    /// The rows without a readable source, refused by [`RowStream::finish`].
+    bad: Problems,
 }
 
 impl RowStream {
@@ -76,6 +78,7 @@ impl RowStream {
             unproven,
             extra_names,
             read: 0,
+            bad: Problems::default(),
         })
     }
 
@@ -94,24 +97,36 @@ impl RowStream {
         self.read
     }
 
-    /// The next rows, at most `max` of them; none at the end of the manifest.
+    /// The next rows with a readable source, out of at most `max` read; none at the end of the
+    /// manifest. The others are gathered for [`RowStream::finish`] to refuse.
     pub fn next_batch(&mut self, max: usize) -> Result<Vec<Row>> {
         let mut out = Vec::with_capacity(max.min(1 << 16));
-        while out.len() < max {
-            let Some(row) = self.rows.next_row(&self.path)? else {
-                break;
-            };
-            self.read += 1;
-            if self.unproven && row.get(&self.column.name).is_some_and(|v| !v.is_empty()) {
-                self.unproven = false;
+        // Rows are read until some have a source or the manifest ends: an empty batch is the
+        // end, never a stretch of bad rows.
+        while out.is_empty() {
+            let mut seen = 0;
+            while seen < max.max(1) {
+                let Some(row) = self.rows.next_row(&self.path)? else {
+                    return Ok(out);
+                };
+                seen += 1;
+                self.read += 1;
+                if self.unproven && row.get(&self.column.name).is_some_and(|v| !v.is_empty()) {
+                    self.unproven = false;
+                }
+                let n = self.read;
+                match self.record(row) {
+                    Ok(record) => out.push((n, record)),
+                    Err(why) => self.bad.add(|| format!("row {n}: {why}"), LISTED_ROWS),
+                }
             }
-            out.push((self.read, self.record(row)));
         }
         Ok(out)
     }
 
-    /// What the whole manifest, read to its end, says against itself: no rows at all, or a
-    /// path column chosen from the header that no row has a value in.
+    /// What the whole manifest, read to its end, says against itself: no rows at all, a path
+    /// column chosen from the header that no row has a value in, or rows without a readable
+    /// source in it (the first few named).
     pub fn finish(&self) -> Result<()> {
         if self.read == 0 {
             bail!(
@@ -126,6 +141,12 @@ impl RowStream {
                 true => path_column::no_value_in(&self.column.name, &self.path),
                 false => path_column::no_path_column(&self.path),
             });
+        }
+        if self.bad.count() > 0 {
+            let (column, total) = (&self.column, self.read);
+            return Err(path_column::rows_refusal(
+                &self.path, column, &self.bad, total,
+            ));
         }
         Ok(())
     }
@@ -400,13 +421,19 @@ mod tests {
         let mut stream = RowStream::open(&csv, None)?;
         assert_eq!(stream.path_column().name, "url");
         let rows = all(&mut stream, 2)?;
-        stream.finish()?;
         let numbers: Vec<u64> = rows.iter().map(|(n, _)| *n).collect();
-        assert_eq!(numbers, [1, 2, 3, 4]);
-        assert_eq!(rows[2].1.as_ref().err().map(String::as_str), Some("no url"));
-        let ok: Vec<&RawRecord> = rows.iter().filter_map(|(_, r)| r.as_ref().ok()).collect();
-        assert_eq!(ok[1].uri, "https://h/b.glb");
-        assert_eq!(ok[2].extra.get("license").map(String::as_str), Some(""));
+        assert_eq!(numbers, [1, 2, 4], "row 3 has no source");
+        let said = stream
+            .finish()
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(
+            said.contains("1 of 4 rows") && said.contains("row 3: no url"),
+            "{said}"
+        );
+        assert_eq!(rows[1].1.uri, "https://h/b.glb");
+        assert_eq!(rows[2].1.extra.get("license").map(String::as_str), Some(""));
 
         let jsonl = dir.path().join("m.jsonl");
         std::fs::write(
@@ -418,7 +445,7 @@ mod tests {
         assert_eq!(stream.extra_names(), ["tag"]);
         let tags: Vec<Option<String>> = rows
             .iter()
-            .map(|(_, r)| r.as_ref().ok().and_then(|r| r.extra.get("tag").cloned()))
+            .map(|(_, r)| r.extra.get("tag").cloned())
             .collect();
         assert_eq!(tags, [Some(String::new()), Some("t".into())]);
 

@@ -114,33 +114,15 @@ pub(crate) fn number_at(col: &dyn Array, i: usize) -> Option<String> {
 pub fn read(path: &Path, path_column: Option<&str>) -> Result<Manifest> {
     let mut stream = crate::stream::RowStream::open(path, path_column)?;
     let mut records = Vec::new();
-    let mut bad = Vec::new();
-    let mut bad_count = 0u64;
     loop {
         let batch = stream.next_batch(1 << 16)?;
         if batch.is_empty() {
             break;
         }
-        for (row, record) in batch {
-            match record {
-                Ok(r) => records.push(r),
-                Err(why) => {
-                    bad_count += 1;
-                    if bad.len() < 10 {
-                        bad.push(format!("row {row}: {why}"));
-                    }
-                }
-            }
-        }
+        records.extend(batch.into_iter().map(|(_, r)| r));
     }
     stream.finish()?;
     let column = stream.path_column().clone();
-    if bad_count > 0 {
-        let total = stream.rows_read();
-        return Err(crate::path_column::rows_refusal(
-            path, &column, &bad, bad_count, total,
-        ));
-    }
     Ok(Manifest {
         records,
         path_column: column,

@@ -102,9 +102,10 @@ fn describe(item: &FrozenItem) -> String {
 fn suggestions(job: &Job, query: &str) -> String {
     let q = query.to_lowercase();
     let limit = (q.chars().count() / 3).max(2);
-    let items: Vec<FrozenItem> = job.items().filter_map(|i| i.ok()).collect();
-    let mut near: Vec<(usize, &FrozenItem)> = items
-        .iter()
+    // Streamed a slice at a time: only the near items are kept, never the whole manifest.
+    let mut near: Vec<(usize, FrozenItem)> = job
+        .items()
+        .filter_map(|i| i.ok())
         .filter_map(|i| {
             let id: String = i
                 .record

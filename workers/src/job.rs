@@ -119,11 +119,6 @@ impl Job {
         self.manifest.iter(self.file.shards)
     }
 
-    /// Every item, in order, in memory (for commands that need them all at once).
-    pub fn load_items(&self) -> Result<Vec<FrozenItem>> {
-        self.manifest.load_all(self.file.shards)
-    }
-
     /// The job's fingerprint.
     pub fn fingerprint(&self) -> &str {
         &self.file.fingerprint

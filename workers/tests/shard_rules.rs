@@ -59,7 +59,7 @@ fn job(root: &Path, items: u64) -> Result<Job, Box<dyn std::error::Error>> {
 
 /// Every item of `job`.
 fn all_items(job: &Job) -> Vec<FrozenItem> {
-    job.load_items().unwrap_or_default()
+    job.items().collect::<Result<_, _>>().unwrap_or_default()
 }
 
 /// Options whose item worker runs `script` with `sh` (after reading the config and the

@@ -7,7 +7,6 @@ use crate::flags::source::SourceArgs;
 use anyhow::{bail, Result};
 use sparc3d_manifests::filter::Filter;
 use sparc3d_manifests::folder_scan::collect;
-use sparc3d_manifests::path_column::rows_refusal;
 use sparc3d_manifests::stream::RowStream;
 use sparc3d_manifests::RawRecord;
 use std::path::{Path, PathBuf};
@@ -17,13 +16,12 @@ use std::path::{Path, PathBuf};
 pub const BATCH_ROWS: usize = 1 << 16;
 
 /// The rows of a folder or manifest, read a batch at a time, those `--where` leaves out left
-/// out; rows without a readable source are gathered and refused by [`InputRows::finish`].
+/// out; rows without a readable source are refused by [`InputRows::finish`] (the stream
+/// gathers them).
 pub struct InputRows {
     input: PathBuf,
     rows: Rows,
     filter: Option<(String, Filter)>,
-    bad: Vec<String>,
-    bad_count: u64,
     kept: u64,
     left_out: u64,
 }
@@ -63,8 +61,6 @@ impl InputRows {
             input: input.to_path_buf(),
             rows,
             filter,
-            bad: Vec::new(),
-            bad_count: 0,
             kept: 0,
             left_out: 0,
         })
@@ -91,21 +87,7 @@ impl InputRows {
                 .take(BATCH_ROWS)
                 .map(|(i, r)| (i as u64 + 1, r))
                 .collect()),
-            Rows::Manifest(stream) => {
-                let mut out = Vec::new();
-                for (n, row) in stream.next_batch(BATCH_ROWS)? {
-                    match row {
-                        Ok(r) => out.push((n, r)),
-                        Err(why) => {
-                            self.bad_count += 1;
-                            if self.bad.len() < 10 {
-                                self.bad.push(format!("row {n}: {why}"));
-                            }
-                        }
-                    }
-                }
-                Ok(out)
-            }
+            Rows::Manifest(stream) => stream.next_batch(BATCH_ROWS),
         }
     }
 
@@ -136,16 +118,6 @@ impl InputRows {
         if let Rows::Manifest(stream) = &self.rows {
             stream.finish()?;
             let column = stream.path_column();
-            if self.bad_count > 0 {
-                let total = stream.rows_read();
-                return Err(rows_refusal(
-                    &self.input,
-                    column,
-                    &self.bad,
-                    self.bad_count,
-                    total,
-                ));
-            }
             eprintln!(
                 "{}: {} rows, paths from column {} ({})",
                 self.input.display(),

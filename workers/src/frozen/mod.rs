@@ -51,14 +51,6 @@ impl FrozenManifest {
             buffer: Vec::new().into_iter(),
         }
     }
-
-    /// Every item, in order, in memory: for the commands that need them all at once.
-    pub fn load_all(&self, shards: u64) -> Result<Vec<FrozenItem>> {
-        match self {
-            Self::Whole(items) => Ok(items.clone()),
-            Self::Sliced(_) => self.iter(shards).collect(),
-        }
-    }
 }
 
 /// Every item of a frozen manifest, in order, a shard's slice at a time

@@ -150,22 +150,26 @@ impl Sliced {
         Ok(found)
     }
 
-    /// Every page and slice checked against what pins it, reading each once: what differs,
-    /// one line each (empty when the frozen manifest is as `init` and `add` wrote it).
+    /// Every page and slice checked against what pins it, reading each once (in parallel):
+    /// what differs, one line each, the first 10 by shard (empty when the frozen manifest is
+    /// as `init` and `add` wrote it).
     pub fn problems(&self) -> Vec<String> {
-        let mut out = Vec::new();
-        for shard in 0..self.shards {
-            let found = self.strictly(|s| s.shard_items(shard));
-            if let Err(e) = found {
-                out.push(match e {
-                    WorkerError::EditedJob { problems, .. } => problems.join("; "),
-                    other => other.to_string(),
-                });
-                if out.len() >= 10 {
-                    out.push("(the first 10 problems; there may be more)".into());
-                    break;
-                }
-            }
+        use rayon::prelude::*;
+        let found: Vec<String> = self
+            .strictly(|s| {
+                Ok((0..s.shards)
+                    .into_par_iter()
+                    .filter_map(|shard| s.shard_items(shard).err())
+                    .map(|e| match e {
+                        WorkerError::EditedJob { problems, .. } => problems.join("; "),
+                        other => other.to_string(),
+                    })
+                    .collect())
+            })
+            .unwrap_or_default();
+        let mut out: Vec<String> = found.iter().take(10).cloned().collect();
+        if found.len() > 10 {
+            out.push(format!("(and {} more)", found.len() - 10));
         }
         out
     }
@@ -176,15 +180,11 @@ impl Sliced {
             return f(self);
         }
         let strict = Self {
-            layout: self.layout.clone(),
-            pages: self.pages.clone(),
-            page_first: self.page_first.clone(),
-            shards: self.shards,
-            shard_size: self.shard_size,
             strict: true,
             loaded: self.pages.iter().map(|_| OnceLock::new()).collect(),
             warned: Arc::default(),
             last_slice: Arc::default(),
+            ..self.clone()
         };
         f(&strict)
     }
