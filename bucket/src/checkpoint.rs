@@ -15,14 +15,18 @@
 
 use crate::keys;
 use crate::lease::BucketLease;
+use crate::listing::JobListing;
 use anyhow::Context;
+use sparc3d_schema::JobLayout;
+use sparc3d_sources::list::Listed;
 use sparc3d_sources::objects::{Prefix, WriteMode, Written};
 use sparc3d_workers::frame::{self, ReadFrame, Record};
 use sparc3d_workers::journal::{self, Journal};
 use sparc3d_workers::Job;
 use sparc3d_workers::WorkerError;
+use std::collections::BTreeSet;
 use std::io::{BufReader, Read, Seek, SeekFrom};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -144,45 +148,104 @@ impl Checkpoints {
 
 /// Makes the scratch copy's journals of `shard` the shard's checkpoints in the bucket: what
 /// the earlier holders finished, as journals of earlier holders. A checkpoint is written once
-/// under a name of its own and never changed, so one already here with its size is kept
-/// (`status` fetches only the new ones); any other journal here goes.
+/// under a name of its own and never changed, so one already here with its size is kept; any
+/// other journal here goes.
 pub(crate) fn pull_checkpoints(prefix: &Prefix<'_>, job: &Job, shard: u64) -> anyhow::Result<()> {
-    let layout = &job.layout;
     let found = prefix
         .list(&keys::journals(shard))
         .with_context(|| format!("listing the checkpoints of shard {shard}"))?;
-    let wanted: Vec<(String, String, u64)> = found
-        .iter()
-        .map(|l| {
-            let key = prefix.relative_key(l);
-            let name = key.rsplit('/').next().unwrap_or_default().to_string();
-            (key, name, l.size)
-        })
-        .filter(|(_, name, _)| name.ends_with(".journal"))
+    let wanted: Vec<(String, Listed)> = found
+        .into_iter()
+        .map(|l| (prefix.relative_key(&l), l))
+        .filter(|(key, _)| key.ends_with(".journal"))
         .collect();
-    let dir = layout.journals_dir(shard);
+    for (key, local) in keep_only(job, shard, &wanted)? {
+        download(prefix, &key, &local)?;
+    }
+    Ok(())
+}
+
+/// [`pull_checkpoints`] for every shard at once from one listing of the job (`status`): the
+/// local journals of each shard that `unfinished` says is not done become the checkpoints
+/// `listing` shows (only the new ones downloaded, [`crate::parallel::IN_FLIGHT`] at a time);
+/// those of the other shards go.
+pub(crate) fn sync_checkpoints(
+    prefix: &Prefix<'_>,
+    job: &Job,
+    listing: &JobListing,
+    unfinished: &dyn Fn(&u64) -> bool,
+) -> anyhow::Result<()> {
+    let mut shards = local_journal_shards(&job.layout)?;
+    shards.extend(listing.journal_shards());
+    let mut downloads = Vec::new();
+    for shard in shards.into_iter().filter(|s| *s < job.file.shards) {
+        let wanted = if unfinished(&shard) {
+            listing.journals(shard)
+        } else {
+            &[]
+        };
+        downloads.extend(keep_only(job, shard, wanted)?);
+    }
+    crate::parallel::each(&downloads, crate::parallel::IN_FLIGHT, |(key, local)| {
+        download(prefix, key, local)
+    })?;
+    Ok(())
+}
+
+/// The shards whose journals folder is in the local copy.
+fn local_journal_shards(layout: &JobLayout) -> anyhow::Result<BTreeSet<u64>> {
+    let dir = layout.state_dir();
+    let entries = match std::fs::read_dir(&dir) {
+        Ok(entries) => entries,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(BTreeSet::new()),
+        Err(e) => return Err(e).with_context(|| format!("listing {}", dir.display())),
+    };
+    let mut shards = BTreeSet::new();
+    for entry in entries {
+        let entry = entry.with_context(|| format!("listing {}", dir.display()))?;
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if let Some(shard) = keys::shard_of(&name).filter(|_| name.ends_with(".journals")) {
+            shards.insert(shard);
+        }
+    }
+    Ok(shards)
+}
+
+/// Removes `shard`'s local journals that are not among `wanted` (by name and size); the
+/// checkpoints of `wanted` not here yet, as (key, local path) to download.
+fn keep_only(
+    job: &Job,
+    shard: u64,
+    wanted: &[(String, Listed)],
+) -> anyhow::Result<Vec<(String, PathBuf)>> {
+    let layout = &job.layout;
+    let name_of = |key: &str| key.rsplit('/').next().unwrap_or_default().to_string();
     for path in journal::set::paths(layout, shard)? {
         let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
         let size = std::fs::metadata(&path).map(|m| m.len()).ok();
         let keep = wanted
             .iter()
-            .any(|(_, n, s)| Some(n) == name.as_ref() && Some(*s) == size);
+            .any(|(key, l)| Some(name_of(key)) == name && Some(l.size) == size);
         if !keep {
             std::fs::remove_file(&path).with_context(|| format!("removing {}", path.display()))?;
         }
     }
+    let dir = layout.journals_dir(shard);
     if wanted.is_empty() {
-        return Ok(());
+        let _ = std::fs::remove_dir(&dir);
+        return Ok(Vec::new());
     }
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-    for (key, name, _) in wanted {
-        let local = dir.join(&name);
-        if local.exists() {
-            continue;
-        }
-        prefix
-            .download(&key, &local)
-            .with_context(|| format!("fetching checkpoint {key}"))?;
-    }
+    Ok(wanted
+        .iter()
+        .map(|(key, _)| (key.clone(), dir.join(name_of(key))))
+        .filter(|(_, local)| !local.exists())
+        .collect())
+}
+
+fn download(prefix: &Prefix<'_>, key: &str, local: &Path) -> anyhow::Result<()> {
+    prefix
+        .download(key, local)
+        .with_context(|| format!("fetching checkpoint {key}"))?;
     Ok(())
 }

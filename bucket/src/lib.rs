@@ -5,7 +5,9 @@
 //! progress as checkpoint objects ([`checkpoint`]) and the finished shard under a name of its
 //! own, committed by creating the completion record that names it ([`commit`]). `init`
 //! uploads a job made locally ([`publish`]); the read-only commands read a local view
-//! ([`view`]) kept in a scratch folder per job URL ([`scratch`]), trusted only while the
+//! ([`view`]) from one listing of the job ([`listing`]) and the records it shows
+//! ([`records`]), requests a few at a time ([`parallel`]), kept in a scratch folder per job
+//! URL ([`scratch`]), trusted only while the
 //! bucket still holds the objects it was copied from ([`integrity`]); `verify` hashes the
 //! objects in the bucket ([`verify`]).
 //!
@@ -19,8 +21,11 @@ pub mod home;
 pub mod integrity;
 pub mod keys;
 pub mod lease;
+pub mod listing;
+pub mod parallel;
 pub mod publish;
 pub mod quarantine;
+pub mod records;
 pub mod retry;
 pub mod scratch;
 pub mod verify;

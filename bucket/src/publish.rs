@@ -69,39 +69,19 @@ fn upload_slices(prefix: &Prefix<'_>, dir: &Path) -> Result<()> {
         }
     }
     names.sort();
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    let upload = || -> Result<()> {
-        loop {
-            let at = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-            let Some(name) = names.get(at) else {
-                return Ok(());
-            };
-            let path = dir.join(name);
-            let bytes =
-                std::fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
-            let key = keys::manifest_file(name);
-            create(prefix, &key, bytes, |_| {
-                Err(anyhow::anyhow!(
-                    "{}: another object is there under this name, which a frozen manifest's \
-                     file of these bytes alone should have; delete it and run `init` again",
-                    prefix.url(&key)
-                ))
-            })?;
-        }
-    };
-    std::thread::scope(|scope| {
-        let workers: Vec<_> = (0..UPLOADS_IN_FLIGHT)
-            .map(|_| scope.spawn(upload))
-            .collect();
-        workers
-            .into_iter()
-            .map(|w| {
-                w.join()
-                    .unwrap_or_else(|_| Err(anyhow::anyhow!("an upload stopped")))
-            })
-            .collect::<Result<Vec<()>>>()
-            .map(|_| ())
-    })
+    crate::parallel::each(&names, UPLOADS_IN_FLIGHT, |name| {
+        let path = dir.join(name);
+        let bytes = std::fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
+        let key = keys::manifest_file(name);
+        create(prefix, &key, bytes, |_| {
+            Err(anyhow::anyhow!(
+                "{}: another object is there under this name, which a frozen manifest's \
+                 file of these bytes alone should have; delete it and run `init` again",
+                prefix.url(&key)
+            ))
+        })
+    })?;
+    Ok(())
 }
 
 /// Creates `key` with `bytes` unless an object is there; one with the same bytes is as good

@@ -73,20 +73,37 @@ pub fn pull_slices(prefix: &Prefix<'_>, job: &Job, shards: &[u64]) -> Result<()>
     let FrozenManifest::Sliced(sliced) = &job.manifest else {
         return Ok(());
     };
-    let mut pages_pulled = std::collections::BTreeSet::new();
-    for &shard in shards.iter().filter(|&&s| s < job.file.shards) {
-        let page = shard / PAGE_SHARDS;
-        if pages_pulled.insert(page) {
+    let shards: Vec<u64> = shards
+        .iter()
+        .copied()
+        .filter(|&s| s < job.file.shards)
+        .collect();
+    let mut pages: Vec<u64> = shards.iter().map(|s| s / PAGE_SHARDS).collect();
+    pages.sort_unstable();
+    pages.dedup();
+    let pinned_pages: Vec<(String, String)> = pages
+        .iter()
+        .map(|&page| {
             let pin = &sliced.pages()[page as usize];
-            let name = JobLayout::page_name(page, &pin.sha256);
-            pull_pinned(prefix, job, &name, &pin.sha256)?;
-        }
+            (JobLayout::page_name(page, &pin.sha256), pin.sha256.clone())
+        })
+        .collect();
+    pull_each_pinned(prefix, job, &pinned_pages)?;
+    let mut slices = Vec::with_capacity(shards.len());
+    for shard in shards {
         let entry = sliced
             .entry(shard)
             .map_err(|e| damaged(prefix, &job.layout.root, e))?;
-        let name = JobLayout::slice_name(shard, &entry.sha256);
-        pull_pinned(prefix, job, &name, &entry.sha256)?;
+        slices.push((JobLayout::slice_name(shard, &entry.sha256), entry.sha256));
     }
+    pull_each_pinned(prefix, job, &slices)
+}
+
+/// [`pull_pinned`] for each `(name, sha256)`, [`crate::parallel::IN_FLIGHT`] at a time.
+fn pull_each_pinned(prefix: &Prefix<'_>, job: &Job, files: &[(String, String)]) -> Result<()> {
+    crate::parallel::each(files, crate::parallel::IN_FLIGHT, |(name, sha256)| {
+        pull_pinned(prefix, job, name, sha256)
+    })?;
     Ok(())
 }
 

@@ -1,10 +1,12 @@
 //! What the read-only commands see of a job whose home is a bucket.
 //!
-//! - [`shard_states`]: each shard's state from one listing of `shards/` and the leases: done
-//!   (a record whose object is there as recorded: its size, and its ETag when the record has
-//!   one), running (a live lease), pending, or damaged (a record whose object is missing, of
-//!   another size or replaced: [`crate::integrity::object_mismatch`]); the checkpoints of the
-//!   unfinished shards are brought into the local copy, so that `status` counts their items.
+//! - [`shard_states`]: each shard's state from one listing of the job ([`JobListing`]) and
+//!   the records, leases and checkpoints it shows: done (a record whose object is there as
+//!   recorded: its size, and its ETag when the record has one), running (a live lease),
+//!   pending, or damaged (a record whose object is missing, of another size or replaced:
+//!   [`crate::integrity::object_mismatch`]); the checkpoints of the unfinished shards are
+//!   brought into the local copy, so that `status` counts their items. A shard with nothing in
+//!   the bucket costs no request.
 //! - [`mirror`]: a job folder made of the bucket's finished shards, for `ls`, `failures`,
 //!   `inspect`, `show`, `export`, `report`, `validate`, `eval` and `retry`, each downloaded
 //!   once and hashed on the way, and kept only while the listing shows the object it was
@@ -13,9 +15,10 @@
 //!   those commands report the shard as damaged, as they would on disk. (`verify` reads the
 //!   bucket itself: [`crate::verify`].)
 
-use crate::commit::read_record;
 use crate::integrity::object_mismatch;
 use crate::keys::{self, object_name};
+use crate::listing::JobListing;
+use crate::parallel::{self, IN_FLIGHT};
 use anyhow::{Context, Result};
 use sparc3d_schema::CompletionRecord;
 use sparc3d_sources::list::Listed;
@@ -25,57 +28,44 @@ use sparc3d_workers::store::state::ShardState;
 use sparc3d_workers::Job;
 use std::collections::BTreeMap;
 
-/// The objects under `shards/`, by name, as listed (size and ETag).
-fn shard_objects(prefix: &Prefix<'_>) -> Result<BTreeMap<String, Listed>> {
-    let found = prefix
-        .list(keys::SHARDS)
-        .with_context(|| format!("listing {}", prefix.url(keys::SHARDS)))?;
-    Ok(found
-        .into_iter()
-        .map(|l| {
-            let key = prefix.relative_key(&l);
-            (key.trim_start_matches(keys::SHARDS).to_string(), l)
+/// Every shard's state, and the checkpoints of the unfinished ones brought into `job`'s
+/// folder (the local copy made by [`crate::scratch::pull_job`]). One listing of the job
+/// ([`JobListing`]), then reads of only what it shows: the records not read before
+/// ([`crate::records`]), the leases and the new checkpoints of unfinished shards, each
+/// [`IN_FLIGHT`] at a time.
+pub fn shard_states(prefix: &Prefix<'_>, job: &Job) -> Result<Vec<ShardState>> {
+    let listing = JobListing::read(prefix)?;
+    let records = crate::records::read(prefix, &job.layout.root, &listing)?;
+    let unfinished = |shard: &u64| !records.contains_key(shard);
+    crate::checkpoint::sync_checkpoints(prefix, job, &listing, &unfinished)?;
+    let leased: Vec<u64> = (0..job.file.shards)
+        .filter(|s| unfinished(s) && listing.lease(*s).is_some())
+        .collect();
+    let leases = parallel::each(&leased, IN_FLIGHT, |&s| crate::lease::read(prefix, s))?;
+    let mut leases: BTreeMap<u64, _> = leased.into_iter().zip(leases).collect();
+    let now = sparc3d_workers::now();
+    let objects = listing.shard_objects();
+    Ok((0..job.file.shards)
+        .map(|shard| match records.get(&shard) {
+            Some(record) => finished_state(shard, record, objects),
+            None => match leases.remove(&shard).flatten() {
+                Some(lease) if now <= lease.expires_at => ShardState::Running(lease),
+                _ => ShardState::Pending,
+            },
         })
         .collect())
 }
 
-/// Every shard's state, and the checkpoints of the unfinished ones brought into `job`'s
-/// folder (the local copy made by [`crate::scratch::pull_job`]).
-pub fn shard_states(prefix: &Prefix<'_>, job: &Job) -> Result<Vec<ShardState>> {
-    let objects = shard_objects(prefix)?;
-    let mut states = Vec::new();
-    for shard in 0..job.file.shards {
-        let state = match objects.contains_key(&keys::record(shard)[keys::SHARDS.len()..]) {
-            true => finished_state(prefix, shard, &objects)?,
-            false => unfinished_state(prefix, job, shard)?,
-        };
-        states.push(state);
-    }
-    Ok(states)
-}
-
 fn finished_state(
-    prefix: &Prefix<'_>,
     shard: u64,
+    record: &CompletionRecord,
     objects: &BTreeMap<String, Listed>,
-) -> Result<ShardState> {
-    let Some(record) = read_record(prefix, shard)? else {
-        return Ok(ShardState::Pending);
-    };
-    let found = objects.get(&object_name(shard, &record));
-    Ok(match object_mismatch(shard, &record, found) {
-        None => ShardState::Done(record),
+) -> ShardState {
+    let found = objects.get(&object_name(shard, record));
+    match object_mismatch(shard, record, found) {
+        None => ShardState::Done(record.clone()),
         Some(why) => ShardState::Damaged(why),
-    })
-}
-
-fn unfinished_state(prefix: &Prefix<'_>, job: &Job, shard: u64) -> Result<ShardState> {
-    crate::checkpoint::pull_checkpoints(prefix, job, shard)?;
-    let now = sparc3d_workers::now();
-    Ok(match crate::lease::read(prefix, shard)? {
-        Some(lease) if now <= lease.expires_at => ShardState::Running(lease),
-        _ => ShardState::Pending,
-    })
+    }
 }
 
 /// The most bytes [`mirror`] downloads in one call unless `SPARC3D_VIEW_MAX_BYTES` says
@@ -104,37 +94,52 @@ pub fn mirror(prefix: &Prefix<'_>, job: &Job) -> Result<Mirrored> {
     let layout = &job.layout;
     std::fs::create_dir_all(layout.shards_dir())
         .with_context(|| format!("creating {}", layout.shards_dir().display()))?;
-    let objects = shard_objects(prefix)?;
+    let listing = JobListing::read(prefix)?;
+    let records = crate::records::read(prefix, &layout.root, &listing)?;
+    let objects = listing.shard_objects();
     let mut todo = Vec::new();
     let mut damaged = Vec::new();
     for shard in 0..job.file.shards {
-        let Some(record) = read_record(prefix, shard)? else {
-            let _ = std::fs::remove_file(layout.completion(shard));
-            let _ = std::fs::remove_file(layout.shard_file(shard));
+        let Some(record) = records.get(&shard) else {
+            forget_local(job, shard);
             continue;
         };
-        let listed = objects.get(&object_name(shard, &record));
-        if let Some(why) = object_mismatch(shard, &record, listed) {
+        let listed = objects.get(&object_name(shard, record));
+        if let Some(why) = object_mismatch(shard, record, listed) {
             damaged.push((shard, why));
         }
         match listed {
-            None => without_object(job, shard, &record)?,
-            Some(l) if kept(job, shard, &record, l) => {}
-            Some(_) => todo.push((shard, record)),
+            None => without_object(job, shard, record)?,
+            Some(l) if kept(job, shard, record, l) => {}
+            Some(_) => todo.push((shard, record.clone())),
         }
     }
     check_size(prefix, &todo)?;
     let fetched = todo.len() as u64;
-    for (shard, record) in todo {
-        if !fetch(prefix, job, shard, &record)? {
-            let name = object_name(shard, &record);
+    let got = parallel::each(&todo, IN_FLIGHT, |(shard, record)| {
+        fetch(prefix, job, *shard, record)
+    })?;
+    for ((shard, record), there) in todo.iter().zip(got) {
+        if !there {
+            let name = object_name(*shard, record);
             damaged.push((
-                shard,
+                *shard,
                 format!("its object shards/{name} is missing from the bucket"),
             ));
         }
     }
+    damaged.sort();
     Ok(Mirrored { fetched, damaged })
+}
+
+/// Removes the local copy's record and file of `shard`, which the bucket has not finished.
+fn forget_local(job: &Job, shard: u64) {
+    let layout = &job.layout;
+    for path in [layout.completion(shard), layout.shard_file(shard)] {
+        if path.exists() {
+            let _ = std::fs::remove_file(path);
+        }
+    }
 }
 
 /// The bucket's `record` as the local copy holds it: no object name (the file is

@@ -3,7 +3,7 @@
 million items"). Standard library only.
 
     ops/bench/job_scale.py --bin target/release/sparc3d [--rows 1000,1000000,10000000]
-        [--add 1000000] [--shard-size 256] [--work-dir DIR]
+        [--add 1000000] [--shard-size 256] [--work-dir DIR] [--bucket-rows 1000,1000000]
 
 For each N: a synthetic manifest of N rows `id,uri,sha256,license` (`s3://` sources, the shape
 of an Objaverse-XL listing; nothing is fetched), then, each under its own clock and with the
@@ -16,7 +16,13 @@ peak memory of its process (VmHWM, read from /proc while it runs):
   event (the moment before its first item), peak memory until then, then it is stopped;
 - `add JOB M2` of `--add` new rows (when N > 1,000).
 
-Prints a Markdown table; `--json FILE` keeps the rows.
+With `--bucket-rows`, the same commands (but `add`, which a bucket job refuses) on a job whose
+home is a bucket of moto's S3 server on loopback (`pip install 'moto[server]'`), behind the
+tests' counting proxy (tests/python/s3_proxy.py): each command's requests and the bytes of
+their bodies, up and down, beside its time and memory. `ls` reads a local copy of the
+finished shards and the whole frozen manifest (every slice, downloaded once).
+
+Prints Markdown tables; `--json FILE` keeps the rows.
 """
 
 import argparse
@@ -100,6 +106,59 @@ def measure(binary, rows, add, shard_size, work):
     return out
 
 
+def measure_bucket(binary, rows, shard_size, work):
+    """The commands of `measure` on a bucket job of `rows` rows: (seconds, first line, peak
+    KB, requests, bytes up, bytes down) each."""
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "tests" / "python"))
+    from remote_servers import MotoS3, clean_env
+    from s3_proxy import S3Proxy
+
+    m = work / f"m-{rows}.csv"
+    write_manifest(m, rows)
+    s3 = MotoS3()
+    s3.client.create_bucket(Bucket="scale")
+    proxy = S3Proxy(s3.port)
+    scratch = work / f"scratch-{rows}"
+    shutil.rmtree(scratch, ignore_errors=True)
+    env = clean_env({**s3.env, "AWS_ENDPOINT_URL": proxy.endpoint,
+                     "SPARC3D_SCRATCH": str(scratch)})
+    url = f"s3://scale/job-{rows}"
+    shards = (rows + shard_size - 1) // shard_size
+    out = {"rows": rows}
+
+    def step(name, cmd, until=None):
+        proxy.reset()
+        seconds, first, peak = timed([binary, *cmd], until=until, env=env)
+        with proxy.lock:
+            requests = sum(proxy.counts.values())
+            out[name] = (seconds, first, peak, requests, proxy.bytes_up, proxy.bytes_down)
+
+    try:
+        step("init", ["init", url, "--manifest", m, "--shard-size", shard_size])
+        step("status", ["status", url])
+        step("status_again", ["status", url])
+        step("work", ["work", url, "--shard-index", shards // 2, "--events"],
+             until='"shard_started"')
+        step("ls_where", ["ls", url, "--where", "license = CC-BY"])
+    finally:
+        proxy.close()
+        s3.close()
+        m.unlink()
+    return out
+
+
+def bucket_table(results):
+    print("\n| rows (bucket) | command | time | peak memory | requests | bytes up, down |")
+    print("|---|---|---|---|---|---|")
+    names = [("init", "init"), ("status", "status"), ("status_again", "status again"),
+             ("work", "work: to its first item"), ("ls_where", "ls --where (all)")]
+    for r in results:
+        for key, label in names:
+            t, _, peak, n, up, down = r[key]
+            print(f"| {r['rows']:,} | {label} | {t:.2f} s | {peak / 1024:.0f} MB | {n:,} | "
+                  f"{up / 1e6:.2f} MB, {down / 1e6:.2f} MB |")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--bin", required=True)
@@ -107,11 +166,12 @@ def main():
     ap.add_argument("--add", type=int, default=1000000)
     ap.add_argument("--shard-size", type=int, default=256)
     ap.add_argument("--work-dir")
+    ap.add_argument("--bucket-rows", default="")
     ap.add_argument("--json")
     a = ap.parse_args()
     work = pathlib.Path(a.work_dir or tempfile.mkdtemp(prefix="sparc3d-scale-"))
     work.mkdir(parents=True, exist_ok=True)
-    results = [measure(a.bin, int(n), a.add, a.shard_size, work) for n in a.rows.split(",")]
+    results = [measure(a.bin, int(n), a.add, a.shard_size, work) for n in a.rows.split(",") if n]
     print("| rows | init | status | ls --where: first line, all | work: to its first item | add |")
     print("|---|---|---|---|---|---|")
     cell = lambda r: f"{r[0]:.2f} s, {r[2] / 1024:.0f} MB"
@@ -120,8 +180,13 @@ def main():
         add = cell(r["add"]) if "add" in r else "—"
         print(f"| {r['rows']:,} | {cell(r['init'])} | {cell(r['status'])} | "
               f"{ls[1] or 0:.2f} s, {ls[0]:.2f} s, {ls[2] / 1024:.0f} MB | {cell(r['work'])} | {add} |")
+    bucket = [measure_bucket(a.bin, int(n), a.shard_size, work)
+              for n in a.bucket_rows.split(",") if n]
+    if bucket:
+        bucket_table(bucket)
     if a.json:
-        pathlib.Path(a.json).write_text(json.dumps(results, indent=2))
+        pathlib.Path(a.json).write_text(json.dumps({"folder": results, "bucket": bucket},
+                                                   indent=2))
 
 
 if __name__ == "__main__":

@@ -377,6 +377,37 @@ impl<'f> Prefix<'f> {
         })
     }
 
+    /// Every object of this prefix whose key sorts after `key` (relative to this prefix), in
+    /// one listing that starts there (S3's start-after): the keys before it are not listed,
+    /// so a job's `shards/` and `state/` are read without its `manifest/`. A failure at any
+    /// page is an error naming how many objects had been listed; nothing is returned.
+    pub fn list_from(&self, key: &str) -> Result<Vec<Listed>, FetchError> {
+        let folder = crate::fetch::object_path(&self.root);
+        let offset = self.path(key);
+        self.fetcher.block_on(async {
+            let mut stream = self.store.list_with_offset(Some(&folder), &offset);
+            let mut out = Vec::new();
+            while let Some(meta) = stream.next().await {
+                let meta = meta.map_err(|e| {
+                    let mut err = self.error(key, &e);
+                    err.message = format!(
+                        "the listing failed after {} objects: {}",
+                        out.len(),
+                        err.message
+                    );
+                    err
+                })?;
+                out.push(Listed {
+                    url: self.root.with_key(meta.location.as_ref()),
+                    size: meta.size,
+                    etag: meta.e_tag.as_deref().map(bare_etag),
+                });
+            }
+            out.sort_by_key(|l| l.url.key());
+            Ok(out)
+        })
+    }
+
     /// The key of `listed` relative to this prefix.
     pub fn relative_key(&self, listed: &Listed) -> String {
         let base = self.root.key();

@@ -56,7 +56,7 @@ class Handler(http.server.BaseHTTPRequestHandler):
             self.connection.shutdown(2)
             return
         body = self.rfile.read(length) if length else None
-        proxy.count(self.command, self.path)
+        proxy.count(self.command, self.path, length)
         if fault and fault[0] == "status":
             payload = (b"<?xml version=\"1.0\"?><Error><Code>SlowDown</Code>"
                        b"<Message>Please reduce your request rate.</Message></Error>")
@@ -71,6 +71,7 @@ class Handler(http.server.BaseHTTPRequestHandler):
         conn.request(self.command, self.path, body=body, headers=headers)
         r = conn.getresponse()
         data = r.read()
+        proxy.count_down(self.command, self.path, len(data))
         self.send_response(r.status)
         for k, v in r.getheaders():
             if k.lower() not in ("transfer-encoding", "connection", "content-length"):
@@ -95,6 +96,8 @@ class S3Proxy:
         self.upstream_port = upstream_port
         self.lock = threading.Lock()
         self.counts = {}
+        self.bytes_up = 0
+        self.bytes_down = 0
         self.faults = []
         self.down_until = 0.0
         self.refused = 0
@@ -104,10 +107,16 @@ class S3Proxy:
         self.endpoint = "http://127.0.0.1:%d" % self.server.server_address[1]
         threading.Thread(target=self.server.serve_forever, daemon=True).start()
 
-    def count(self, method, path):
+    def count(self, method, path, sent=0):
         with self.lock:
             key = (method, kind_of(path))
             self.counts[key] = self.counts.get(key, 0) + 1
+            self.bytes_up += sent
+
+    def count_down(self, method, path, received):
+        """Bytes of a response's body (`bytes_down`; `bytes_up` counts requests' bodies)."""
+        with self.lock:
+            self.bytes_down += received
 
     def add_fault(self, method, key_part, action, times, skip=0):
         with self.lock:
@@ -137,6 +146,7 @@ class S3Proxy:
     def reset(self):
         with self.lock:
             self.counts, self.faults = {}, []
+            self.bytes_up = self.bytes_down = 0
             self.down_until, self.refused = 0.0, 0
 
     def close(self):

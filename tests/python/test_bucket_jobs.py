@@ -107,6 +107,51 @@ def wait_for(predicate, seconds, what):
         time.sleep(0.05)
 
 
+def test_status_lists_the_job_once_and_reads_only_what_the_listing_shows(tmp_path, s3):
+    """Issue 60: `status` of a bucket job is one listing of its prefix (from `shards/` on, so
+    not the frozen manifest's files) and reads of what it shows: each record not read before
+    and each lease of an unfinished shard. Before, every shard cost a lease GET and a listing
+    of its checkpoints, and every finished one a record GET on every call."""
+    rows = tmp_path / "many.jsonl"
+    mesh = EXAMPLES / "cube.off"
+    rows.write_text("".join(json.dumps({"id": f"cube-{i:03d}", "path": str(mesh)}) + "\n"
+                            for i in range(120)))
+    url = f"s3://{BUCKET}/scale"
+    run("init", url, "--manifest", rows, "--resolution", 32, "--shard-size", 1,
+        env=env_for(s3, tmp_path / "scratch-init"))
+    proxy = S3Proxy(s3.port)
+    env = clean_env({**s3.env, "AWS_ENDPOINT_URL": proxy.endpoint,
+                     "SPARC3D_SCRATCH": str(tmp_path / "scratch-status")})
+
+    def status():
+        proxy.reset()
+        summary = json.loads(run("status", url, "--json", env=env).stdout)
+        counts = {f"{m} {k}": n for (m, k), n in proxy.counts.items()}
+        return summary, counts
+
+    try:
+        summary, counts = status()
+        assert (summary["shards"], summary["shards_pending"]) == (120, 120), summary
+        assert counts == {"GET job": 1, "GET list": 1}, counts
+        for shard in (3, 7):
+            run("work", url, "--shard-index", shard, env=env_for(s3, tmp_path / "scratch-w"))
+        now = time.time()
+        for shard, expires in ((9, now + 600), (11, now - 600)):
+            lease = {"owner": f"elsewhere:1:{shard}", "host": "elsewhere", "pid": 1,
+                     "heartbeat_at": now - 1, "expires_at": expires, "acquired_at": now - 1}
+            s3.client.put_object(Bucket=BUCKET, Key=f"scale/state/part-{shard:05d}.lease",
+                                 Body=json.dumps(lease).encode())
+        summary, counts = status()
+        assert (summary["shards_done"], summary["shards_running"], summary["ok"]) == (2, 1, 2)
+        assert counts == {"GET job": 1, "GET list": 1, "GET record": 2, "GET lease": 2}, counts
+        # Records are written once: a later status reads only what is new.
+        summary, counts = status()
+        assert (summary["shards_done"], summary["shards_running"]) == (2, 1), summary
+        assert counts == {"GET job": 1, "GET list": 1, "GET lease": 2}, counts
+    finally:
+        proxy.close()
+
+
 def test_a_worker_killed_mid_shard_loses_no_checkpointed_item(tmp_path, s3):
     local, url = make_jobs(tmp_path, s3, "kill", 256, 5)
     run("run", local, "--workers", "1")
