@@ -22,7 +22,8 @@ tests' counting proxy (tests/python/s3_proxy.py): each command's requests and th
 their bodies, up and down, beside its time and memory. `ls` reads a local copy of the
 finished shards and the whole frozen manifest (every slice, downloaded once).
 
-Prints Markdown tables; `--json FILE` keeps the rows.
+Then `failures`, `verify`, `retry`, `report` and `submit slurm --dry-run` of the same job,
+each alone (a table of their own). Prints Markdown tables; `--json FILE` keeps the rows.
 """
 
 import argparse
@@ -85,6 +86,17 @@ def timed(cmd, until=None, env=None):
     return end, first, usage.ru_maxrss
 
 
+# The other commands that read a whole job, each timed alone on the job before any shard is
+# converted: what they cost of the job's size, not of its results.
+SUMMARIES = [
+    ("failures", lambda job, work: ["failures", job]),
+    ("verify", lambda job, work: ["verify", job]),
+    ("retry", lambda job, work: ["retry", job]),
+    ("report", lambda job, work: ["report", job, "-o", work / "report"]),
+    ("submit", lambda job, work: ["submit", "slurm", job, "--dry-run"]),
+]
+
+
 def measure(binary, rows, add, shard_size, work):
     job, m = work / f"job-{rows}", work / f"m-{rows}.csv"
     shutil.rmtree(job, ignore_errors=True)
@@ -93,6 +105,8 @@ def measure(binary, rows, add, shard_size, work):
     out["init"] = timed([binary, "init", job, "--manifest", m, "--shard-size", shard_size])
     out["status"] = timed([binary, "status", job])
     out["ls_where"] = timed([binary, "ls", job, "--where", "license = CC-BY"])
+    for name, cmd in SUMMARIES:
+        out[name] = timed([binary, *cmd(job, work)])
     shards = (rows + shard_size - 1) // shard_size
     env = dict(os.environ, AWS_ACCESS_KEY_ID="x", AWS_SECRET_ACCESS_KEY="x",
                AWS_ENDPOINT_URL="http://127.0.0.1:9", AWS_ALLOW_HTTP="true")
@@ -180,6 +194,10 @@ def main():
         add = cell(r["add"]) if "add" in r else "—"
         print(f"| {r['rows']:,} | {cell(r['init'])} | {cell(r['status'])} | "
               f"{ls[1] or 0:.2f} s, {ls[0]:.2f} s, {ls[2] / 1024:.0f} MB | {cell(r['work'])} | {add} |")
+    print("\n| rows | " + " | ".join(name for name, _ in SUMMARIES) + " |")
+    print("|---|" + "---|" * len(SUMMARIES))
+    for r in results:
+        print(f"| {r['rows']:,} | " + " | ".join(cell(r[name]) for name, _ in SUMMARIES) + " |")
     bucket = [measure_bucket(a.bin, int(n), a.shard_size, work)
               for n in a.bucket_rows.split(",") if n]
     if bucket:

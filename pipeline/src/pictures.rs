@@ -77,7 +77,7 @@ pub fn preview_row(row: &ShardRow, options: &CompareOptions, colours: bool) -> R
 
 /// The appearance when it carries colours to show (materials, textures or vertex colours);
 /// none, with a note naming `what`, when it could not be read.
-fn coloured(read: Result<Appearance>, what: &str) -> Option<Appearance> {
+pub(crate) fn coloured(read: Result<Appearance>, what: &str) -> Option<Appearance> {
     match read {
         Ok(a) => {
             let f = &a.facts;
@@ -137,7 +137,7 @@ fn draw(
 }
 
 /// The appearance of the mesh file at `path`, its images and material libraries beside it.
-fn appearance_of_file(path: &Path) -> Result<Appearance> {
+pub(crate) fn appearance_of_file(path: &Path) -> Result<Appearance> {
     let bytes =
         sparcubes::io::read_source(path).with_context(|| format!("reading {}", path.display()))?;
     sparcubes::materials::read(&bytes, path, sparcubes::io::Buffers::Folder)

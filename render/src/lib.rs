@@ -19,6 +19,7 @@
 //! writes the picture as PNG.
 #![deny(missing_docs)]
 
+pub mod cond;
 pub mod label;
 pub mod paint;
 

@@ -18,6 +18,7 @@ pub mod item_worker;
 pub mod ls;
 pub mod manifest;
 pub mod preview;
+pub mod render;
 pub mod report;
 pub mod retry;
 pub mod run;
@@ -97,6 +98,9 @@ enum Command {
     Validate(validate::Args),
     /// Render a mesh (or a job's item) and its converted output side by side to a PNG.
     Preview(preview::Args),
+    /// Render a mesh's condition views as TRELLIS or TRELLIS.2 lays them out (RGBA PNGs and
+    /// transforms.json), on the CPU.
+    Render(render::Args),
     /// Write one static HTML page about a job: status, histograms, previews, failures.
     Report(report::Args),
     /// Benchmark conversion over a folder or manifest: time per stage, peak memory, size.
@@ -135,6 +139,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Verify(args) => verify::run(args),
         Command::Validate(args) => validate::run(args),
         Command::Preview(args) => preview::run(args),
+        Command::Render(args) => render::run(args),
         Command::Report(args) => report::run(args),
         Command::Bench(args) => bench::run(args),
         Command::BenchDedup(args) => bench_dedup::run(args),

@@ -1,0 +1,118 @@
+//! `sparc3d render MESH -o DIR [--for trellis|trellis2]`: the condition views of one asset as
+//! the consumer's own Blender script would lay them out (`000.png …` RGBA and
+//! `transforms.json`), traced on the CPU (`sparc3d_render::cond`, docs/RENDERS.md). The
+//! cameras' random draws are seeded from the file's sha256 (and `--seed`), so the same file
+//! gives the same bytes.
+
+use anyhow::{bail, Context, Result};
+use sparc3d_render::cond::{self, Placement, Recipe, Request, Surface};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// Arguments of `sparc3d render`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// A mesh (OBJ, PLY, STL, OFF, glTF, GLB).
+    pub input: PathBuf,
+    /// Folder to write the views and `transforms.json` into (made if missing).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Whose cameras, view count, size and lights: `trellis` (24 views, three lights) or
+    /// `trellis2` (16 views, a white world and random point lights).
+    #[arg(long = "for", default_value = "trellis2", value_parser = parse_recipe)]
+    pub recipe: Recipe,
+    /// Views (default: the recipe's).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=256))]
+    pub views: Option<u32>,
+    /// Side of a view in pixels (default: the recipe's, 1024).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(16..=4096))]
+    pub size: Option<u32>,
+    /// Mixed into the seed the file's sha256 gives: another set of random views.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Draw the plain grey surface even when the source has colours.
+    #[arg(long)]
+    pub no_colours: bool,
+}
+
+fn parse_recipe(name: &str) -> std::result::Result<Recipe, String> {
+    Recipe::named(name).ok_or_else(|| {
+        let known: Vec<&str> = Recipe::ALL.iter().map(|(n, _)| *n).collect();
+        format!("no render recipe {name:?}: one of {}", known.join(", "))
+    })
+}
+
+/// The seed of a source: the first 8 bytes of its sha256, mixed with `extra`.
+pub fn item_seed(bytes: &[u8], extra: u64) -> u64 {
+    use sha2::{Digest, Sha256};
+    let digest = Sha256::digest(bytes);
+    let mut first = [0u8; 8];
+    first.copy_from_slice(&digest[..8]);
+    u64::from_le_bytes(first) ^ extra.wrapping_mul(0x9E37_79B9_7F4A_7C15)
+}
+
+/// Runs `sparc3d render`.
+pub fn run(args: Args) -> Result<ExitCode> {
+    let path = &args.input;
+    let bytes =
+        sparcubes::io::read_source(path).with_context(|| format!("reading {}", path.display()))?;
+    let mesh = sparcubes::io::load(path)
+        .with_context(|| format!("loading {}", path.display()))?
+        .mesh;
+    if mesh.triangles.is_empty() {
+        bail!(
+            "{}: the mesh has no triangles: nothing to render",
+            path.display()
+        );
+    }
+    let appearance = match args.no_colours {
+        true => None,
+        false => crate::pictures::coloured(
+            crate::pictures::appearance_of_file(path),
+            &path.display().to_string(),
+        ),
+    };
+    let placement = Placement::of(&mesh.positions);
+    let surface = Surface::new(&mesh, appearance.as_ref(), &placement);
+    let request = Request {
+        recipe: args.recipe,
+        views: args.views,
+        size: args.size,
+        seed: item_seed(&bytes, args.seed),
+    };
+    let views = cond::render_views(&surface, &request);
+    write(&args.output, &placement, &views)?;
+    let seconds: Vec<f64> = views.iter().map(|v| v.seconds).collect();
+    let total: f64 = seconds.iter().sum();
+    let empty = views
+        .iter()
+        .filter(|v| v.image.rgba.chunks(4).all(|p| p[3] == 0))
+        .count();
+    eprintln!(
+        "{}: {} views of {}² in {:.2} s ({:.3} s a view) written to {}",
+        path.display(),
+        views.len(),
+        views.first().map_or(0, |v| v.image.size),
+        total,
+        total / views.len().max(1) as f64,
+        args.output.display()
+    );
+    if empty > 0 {
+        bail!("{}: {empty} views see nothing of the asset", path.display());
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Writes `NNN.png` for each view and `transforms.json`, each file atomically.
+fn write(dir: &std::path::Path, placement: &Placement, views: &[cond::RenderedView]) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    for (i, v) in views.iter().enumerate() {
+        let png = v.image.encode_png().context("encoding PNG")?;
+        let file = dir.join(format!("{i:03}.png"));
+        sparc3d_workers::fsutil::write_atomic(&file, &png, "writing a view")?;
+    }
+    let transforms = cond::transforms_json(placement, views);
+    let file = dir.join("transforms.json");
+    sparc3d_workers::fsutil::write_atomic(&file, transforms.as_bytes(), "writing transforms.json")?;
+    Ok(())
+}
