@@ -15,6 +15,7 @@
 //! linear for data), their decoding is [`crate::attributes`]' job when sampled.
 
 mod gltf;
+mod gltf_check;
 pub mod image;
 mod mtl;
 mod obj;
