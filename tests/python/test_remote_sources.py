@@ -333,3 +333,56 @@ def test_bodies_without_a_length_gzip_and_an_unasked_part(tmp_path, web):
     for n, r in ok.items():
         assert r["source_sha256"] == sha256(root / n), n
     assert server.hits["/cube_binary.ply"] == 1  # a 206 is refused, not retried
+
+
+def png_bytes(rgba, size=4):
+    """A `size` × `size` PNG of one colour."""
+    import struct
+    import zlib
+
+    def chunk(kind, data):
+        return (struct.pack(">I", len(data)) + kind + data
+                + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF))
+    rows = b"".join(b"\0" + bytes(rgba) * size for _ in range(size))
+    header = struct.pack(">IIBBBBB", size, size, 8, 6, 0, 0, 0)
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header)
+            + chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b""))
+
+
+def test_a_texture_or_material_library_that_fails_to_download_is_a_fetch_row(tmp_path, web):
+    """Issue 64 item 2: a file beside a remote mesh that its appearance reads and that cannot
+    be downloaded fails the item as `fetch` (before: an `ok` row without that appearance, and
+    nothing for `retry --class fetch`); once it can be fetched, retry converts it with it."""
+    server, root = web
+    sphere = (EXAMPLES / "sphere.obj").read_text()
+    for name in ["a", "b"]:
+        text = sphere.replace("mtllib textured_sphere_smooth.mtl", "mtllib %s.mtl" % name)
+        (root / ("%s.obj" % name)).write_text(text.replace("usemtl None", "usemtl red"))
+        (root / ("%s.mtl" % name)).write_text("newmtl red\nKd 1 1 1\nmap_Kd %s.png\n" % name)
+        (root / ("%s.png" % name)).write_bytes(png_bytes([255, 0, 0, 255]))
+    server.faults.update({
+        "/a.mtl": ("status", 503, None),  # the material library: a 503 storm
+        "/b.png": ("status", 503, None),  # the texture its library names: a 503 storm
+    })
+    rows = [[server.url + "/a.obj"], [server.url + "/b.obj"]]
+    m = write_manifest(tmp_path / "m.csv", rows)
+    config = tmp_path / "attributes.toml"
+    config.write_text("[attributes]\nenabled = true\n")
+    env = clean_env(FAST)
+    job = tmp_path / "job"
+    run("init", job, "--manifest", m, "--resolution", 32, "--config", config, env=env)
+    r = run("run", job, "--workers", 1, env=env, check=False)
+    assert status(job, env)["ok"] == 0, r.stderr
+    lines = [l for l in run("failures", job, env=env).stdout.splitlines() if l.strip()]
+    assert len(lines) == 2, lines
+    for line, file in zip(sorted(lines, key=lambda l: "/b.obj" in l), ["/a.mtl", "/b.png"]):
+        assert line.split("\t")[0] == "fetch", line
+        assert server.url + file in line and "503" in line, line
+
+    server.faults.clear()
+    run("retry", job, "--class", "fetch", env=env)
+    run("run", job, "--workers", 1, env=env)
+    assert status(job, env)["ok"] == 2, run("failures", job, env=env).stdout
+    table = job_rows(job)
+    assert table.column("textures").to_pylist() == [1, 1]
+    assert table.column("appearance_not_read").to_pylist() == ["", ""]
