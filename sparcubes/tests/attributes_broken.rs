@@ -205,3 +205,34 @@ fn indices_of_a_float_type_keep_the_shape_and_name_the_appearance_not_read() -> 
     assert!(app.surface.triangles.is_empty());
     Ok(())
 }
+
+#[test]
+fn a_texture_on_a_coordinate_set_that_is_not_read_is_named_and_not_counted() -> TestResult {
+    let dir = tempfile::tempdir()?;
+    // texCoord 9 (TEXCOORD_9 is never read), and texCoord 1 on a primitive with set 0 alone.
+    for (set, name) in [(9, "TEXCOORD_9"), (1, "TEXCOORD_1")] {
+        let text = quad(|_, _, rest| {
+            rest["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"]["texCoord"] =
+                json!(set);
+        });
+        let app = convert(&write(dir.path(), &format!("set{set}.gltf"), &text))?;
+        assert_named(&app, &[name]);
+        assert_eq!(app.facts.textures, 0, "set {set}");
+        assert!(!app.facts.textured(), "set {set}");
+    }
+    Ok(())
+}
+
+#[test]
+fn coordinates_past_their_buffer_view_are_named_and_the_texture_not_counted() -> TestResult {
+    let dir = tempfile::tempdir()?;
+    let text = quad(|doc, _, _| {
+        // TEXCOORD_0's view holds 4 coordinates; its accessor claims 8.
+        doc.accessors[1]["count"] = json!(8);
+    });
+    let app = convert(&write(dir.path(), "past.gltf", &text))?;
+    assert_named(&app, &["TEXCOORD_0", "run past its buffer view"]);
+    assert_named(&app, &["has no TEXCOORD_0", "not sampled"]);
+    assert!(!app.facts.textured());
+    Ok(())
+}

@@ -4,7 +4,8 @@
 //!
 //! Read: `baseColorFactor` and `baseColorTexture`, `metallicFactor`, `roughnessFactor` and
 //! `metallicRoughnessTexture` (metallic in blue, roughness in green, glTF 2.0 §3.9.2),
-//! `alphaMode` and `alphaCutoff`, each texture's `texCoord`, sampler wrap modes and
+//! `alphaMode` and `alphaCutoff`, each texture's `texCoord` (0 or 1; a texture on another set
+//! is named as not read), sampler wrap modes and
 //! magnification filter, and `KHR_texture_transform` (parsed from the JSON itself, so the
 //! shape's reader is unchanged). Images are PNG or JPEG, in a buffer view, a `data:` URI or a
 //! file beside the glTF file. Named as not read: every material extension
@@ -89,12 +90,24 @@ fn material(m: &gltf::Material, json: &Value, facts: &mut super::Facts) -> Mater
     }
     let pbr = m.pbr_metallic_roughness();
     let raw_pbr = &raw["pbrMetallicRoughness"];
+    let mut read_set = |t: TextureRef, key: &str| {
+        if t.set <= 1 {
+            return Some(t);
+        }
+        facts.skip(format!(
+            "{label}: {key} reads TEXCOORD_{} (only TEXCOORD_0 and TEXCOORD_1 are read)",
+            t.set
+        ));
+        None
+    };
     let base = pbr
         .base_color_texture()
-        .map(|t| texture_ref(&t, &raw_pbr["baseColorTexture"]));
+        .map(|t| texture_ref(&t, &raw_pbr["baseColorTexture"]))
+        .and_then(|t| read_set(t, "baseColorTexture"));
     let mr = pbr
         .metallic_roughness_texture()
-        .map(|t| texture_ref(&t, &raw_pbr["metallicRoughnessTexture"]));
+        .map(|t| texture_ref(&t, &raw_pbr["metallicRoughnessTexture"]))
+        .and_then(|t| read_set(t, "metallicRoughnessTexture"));
     Material {
         name: name.unwrap_or(&label).to_string(),
         base_color: pbr.base_color_factor(),
