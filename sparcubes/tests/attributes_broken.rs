@@ -236,3 +236,35 @@ fn coordinates_past_their_buffer_view_are_named_and_the_texture_not_counted() ->
     assert!(!app.facts.textured());
     Ok(())
 }
+
+#[test]
+fn an_image_named_by_many_entries_is_decoded_once_and_unsampled_ones_not_at_all() -> TestResult {
+    let dir = tempfile::tempdir()?;
+    std::fs::write(dir.path().join("t.png"), red_png())?;
+    let text = quad(|_, _, rest| {
+        // Twelve entries of one file (as `./t.png` and `t.png`), and one of a file that is
+        // not there, read only by a material no triangle uses.
+        let mut images: Vec<Value> = (0..12)
+            .map(|i| json!({"uri": if i % 2 == 0 { "t.png" } else { "./t.png" }}))
+            .collect();
+        images.push(json!({"uri": "absent.png"}));
+        rest["images"] = json!(images);
+        rest["textures"] = json!((0..13).map(|i| json!({"source": i})).collect::<Vec<_>>());
+        rest["materials"] = json!([
+            {"pbrMetallicRoughness": {"baseColorTexture": {"index": 3},
+                                      "metallicRoughnessTexture": {"index": 8}}},
+            {"pbrMetallicRoughness": {"baseColorTexture": {"index": 12}}},
+        ]);
+    });
+    let app = convert(&write(dir.path(), "twelve.gltf", &text))?;
+    let decoded = app.images.iter().filter(|i| i.is_some()).count();
+    assert_eq!(decoded, 1, "{} images decoded", decoded);
+    assert_eq!(app.facts.textures, 1);
+    assert!(app.facts.not_read.is_empty(), "{:?}", app.facts.not_read);
+    // Both of the material's textures read the one decoded image.
+    let m = &app.materials[0];
+    let base = m.base_color_map.map(|t| t.image);
+    let mr = m.roughness_map.map(|t| t.texture.image);
+    assert!(base.is_some() && base == mr, "{base:?} {mr:?}");
+    Ok(())
+}

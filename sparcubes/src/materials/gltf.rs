@@ -13,13 +13,11 @@
 //! textures, images in other formats or that fail to decode or have no source, and accessors
 //! the `gltf` crate's readers cannot read (checked first: [`gltf_check`]).
 
-use super::gltf_check;
-use super::image::{self, Image};
+use super::{gltf_check, gltf_images};
 use super::{sibling, AlphaMode, Appearance, Material, ScalarMap, TextureRef, Wrap};
 use crate::error::Result;
 use crate::io::gltf::{for_each_primitive, load_buffers, open, transform};
 use crate::io::Buffers;
-use base64::Engine as _;
 use gltf::texture::WrappingMode;
 use serde_json::Value;
 use std::path::Path;
@@ -33,16 +31,13 @@ pub(crate) fn read(bytes: &[u8], path: &Path, external: Buffers) -> Result<Appea
         .materials()
         .map(|m| material(&m, &json, &mut out.facts))
         .collect();
-    out.images = (0..doc.images().len())
-        .map(|i| decode_image(&doc, i, &buffers, path, external, &mut out.facts))
-        .collect();
-    let Some(scene) = doc.default_scene().or_else(|| doc.scenes().next()) else {
-        return Ok(out);
-    };
-    for_each_primitive(&scene, path, |prim, mesh, world| {
-        primitive(prim, mesh, world, &buffers, &mut out);
-        Ok(())
-    })?;
+    if let Some(scene) = doc.default_scene().or_else(|| doc.scenes().next()) {
+        for_each_primitive(&scene, path, |prim, mesh, world| {
+            primitive(prim, mesh, world, &buffers, &mut out);
+            Ok(())
+        })?;
+    }
+    gltf_images::decode_sampled(&doc, &buffers, path, external, &mut out);
     Ok(out)
 }
 
@@ -166,67 +161,6 @@ fn texture_ref(info: &gltf::texture::Info, raw: &Value) -> TextureRef {
         }
     }
     out
-}
-
-/// The bytes of an image: a buffer view, a `data:` URI or a file beside the glTF file. Read
-/// from the document's JSON, not through `gltf::Image::source`, which panics on an image with
-/// neither a `uri` nor a `bufferView`, or with a `bufferView` but no `mimeType` (issue 61);
-/// the format is told by its signature either way ([`image::decode`]).
-fn image_bytes(
-    doc: &gltf::Gltf,
-    index: usize,
-    buffers: &[Vec<u8>],
-    path: &Path,
-    external: Buffers,
-) -> std::result::Result<Vec<u8>, String> {
-    let raw = doc.as_json().images.get(index).ok_or("it is missing")?;
-    if let Some(view) = raw.buffer_view {
-        let view = doc
-            .views()
-            .nth(view.value())
-            .ok_or("its buffer view is missing")?;
-        let data = buffers
-            .get(view.buffer().index())
-            .ok_or("its buffer is missing")?;
-        let end = view.offset().checked_add(view.length());
-        return end
-            .and_then(|e| data.get(view.offset()..e))
-            .map(<[u8]>::to_vec)
-            .ok_or_else(|| "its buffer view runs past its buffer".to_string());
-    }
-    let uri = raw
-        .uri
-        .as_deref()
-        .ok_or("it has neither a `uri` nor a `bufferView`")?;
-    if let Some(rest) = uri.strip_prefix("data:") {
-        let (_, payload) = rest
-            .split_once(";base64,")
-            .ok_or("only base64 data URIs are read")?;
-        return base64::engine::general_purpose::STANDARD
-            .decode(payload.trim())
-            .map_err(|e| format!("bad base64: {e}"));
-    }
-    let name = crate::io::gltf::percent_decode(uri).ok_or("bad percent-encoding")?;
-    sibling::read(&name, path, external).map_err(|e| format!("`{}`: {e}", sibling::clip(&name)))
-}
-
-/// Decodes image `index`; one that cannot be read is `None` and named in `facts`.
-fn decode_image(
-    doc: &gltf::Gltf,
-    index: usize,
-    buffers: &[Vec<u8>],
-    path: &Path,
-    external: Buffers,
-    facts: &mut super::Facts,
-) -> Option<Image> {
-    let decoded = image_bytes(doc, index, buffers, path, external).and_then(|b| image::decode(&b));
-    match decoded {
-        Ok(image) => Some(image),
-        Err(why) => {
-            facts.skip(format!("image {index}: {why}"));
-            None
-        }
-    }
 }
 
 /// The accessor of `semantic` in `prim`, when it has one the `gltf` crate can read as one of

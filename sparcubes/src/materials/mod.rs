@@ -16,6 +16,7 @@
 
 mod gltf;
 mod gltf_check;
+mod gltf_images;
 pub mod image;
 mod mtl;
 mod obj;
@@ -276,8 +277,8 @@ pub struct Appearance {
 
 impl Appearance {
     /// Settles what the readers left open: a default material for triangles without one,
-    /// channels padded to every triangle, textures whose image failed dropped from their
-    /// materials, triangles with a bad index dropped, and the facts counted and sorted.
+    /// channels padded to every triangle, the facts counted and sorted, then textures whose
+    /// image failed (or was not decoded, as nothing samples it) dropped from their materials.
     fn finish(mut self) -> Self {
         let n = self.surface.triangles.len();
         let default = self.materials.len() as u32;
@@ -290,10 +291,12 @@ impl Appearance {
             uv.finish(n);
         }
         self.surface.color.finish(n);
+        // Counted first: a texture that is not sampled has no image decoded either, and is
+        // named as not sampled before it is dropped.
+        self.count_facts(colored);
         for m in &mut self.materials {
             drop_missing_textures(m, &self.images);
         }
-        self.count_facts(colored);
         self
     }
 
@@ -308,7 +311,10 @@ impl Appearance {
             let Some(has) = has else { continue };
             for t in m.textures() {
                 if has[t.set.min(1)] {
-                    images.push(t.image);
+                    // An image that failed to decode is named where it failed.
+                    if self.images.get(t.image).is_some_and(Option::is_some) {
+                        images.push(t.image);
+                    }
                 } else {
                     self.facts.skip(format!(
                         "material `{}`: its texture of image {} has no TEXCOORD_{} on its \
@@ -349,7 +355,7 @@ impl Appearance {
 
     /// For each material, `None` when no triangle uses it, else whether any of its triangles
     /// has texture coordinates of set 0 and of set 1.
-    fn coordinate_sets(&self) -> Vec<Option<[bool; 2]>> {
+    pub(crate) fn coordinate_sets(&self) -> Vec<Option<[bool; 2]>> {
         let mut sets = vec![None; self.materials.len()];
         for (t, &m) in self.surface.material.iter().enumerate() {
             if let Some(s) = sets.get_mut(m as usize) {
