@@ -386,3 +386,41 @@ def test_a_texture_or_material_library_that_fails_to_download_is_a_fetch_row(tmp
     table = job_rows(job)
     assert table.column("textures").to_pylist() == [1, 1]
     assert table.column("appearance_not_read").to_pylist() == ["", ""]
+
+
+def test_a_texture_over_the_byte_cap_is_named_in_an_ok_row(tmp_path, web):
+    """A texture beside a remote mesh that is over the byte cap is not retried: the item is
+    `ok`, the texture named in `appearance_not_read` with the cap."""
+    server, root = web
+    sphere = (EXAMPLES / "sphere.obj").read_text()
+    (root / "c.obj").write_text(sphere.replace(
+        "mtllib textured_sphere_smooth.mtl", "mtllib c.mtl").replace("usemtl None", "usemtl red"))
+    (root / "c.mtl").write_text("newmtl red\nKd 1 1 1\nmap_Kd c.png\n")
+    # Incompressible pixels: the PNG is larger than the cap, the mesh is not.
+    (root / "c.png").write_bytes(big_png(300))
+    assert (root / "c.png").stat().st_size > 200_000 > (root / "c.obj").stat().st_size
+    m = write_manifest(tmp_path / "m.csv", [[server.url + "/c.obj"]])
+    config = tmp_path / "attributes.toml"
+    config.write_text("[attributes]\nenabled = true\n")
+    env = clean_env({**FAST, "SPARC3D_FETCH_MAX_BYTES": "200000"})
+    job = tmp_path / "job"
+    run("init", job, "--manifest", m, "--resolution", 32, "--config", config, env=env)
+    run("run", job, "--workers", 1, env=env)
+    assert status(job, env)["ok"] == 1, run("failures", job, env=env).stdout
+    not_read = job_rows(job).column("appearance_not_read").to_pylist()[0]
+    assert "c.png" in not_read and "200000" in not_read, not_read
+
+
+def big_png(size):
+    """A `size` × `size` PNG of random pixels (it does not compress)."""
+    import os
+    import struct
+    import zlib
+
+    def chunk(kind, data):
+        return (struct.pack(">I", len(data)) + kind + data
+                + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF))
+    rows = b"".join(b"\0" + os.urandom(4 * size) for _ in range(size))
+    header = struct.pack(">IIBBBBB", size, size, 8, 6, 0, 0, 0)
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header)
+            + chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b""))
