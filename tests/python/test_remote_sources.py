@@ -424,3 +424,19 @@ def big_png(size):
     header = struct.pack(">IIBBBBB", size, size, 8, 6, 0, 0, 0)
     return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header)
             + chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b""))
+
+
+def test_an_endless_body_without_a_length_is_too_large_at_the_cap(tmp_path, web):
+    """Issue 64 item 8: a body with no Content-Length that never ends stops at the byte cap
+    as `too_large`, within the item's memory (here a cap of 1 GiB under 1.5 GiB of item
+    memory; before, the growing buffer passed the memory limit and the item crashed)."""
+    server, root = web
+    server.faults["/endless.obj"] = ("endless",)
+    m = write_manifest(tmp_path / "m.csv", [["a", server.url + "/endless.obj"]], ("id", "uri"))
+    env = clean_env({**FAST, "SPARC3D_FETCH_MAX_BYTES": str(1 << 30)})
+    job = tmp_path / "job"
+    run("init", job, "--manifest", m, "--resolution", 16, env=env)
+    run("run", job, "--workers", 1, "--item-memory", "1536M", env=env, check=False)
+    lines = [l for l in run("failures", job, env=env).stdout.splitlines() if l.strip()]
+    assert len(lines) == 1 and lines[0].startswith("too_large\t"), lines
+    assert "1073741824" in lines[0], lines
