@@ -61,6 +61,15 @@ impl Preset {
                  trellis2@1024 (the job converts at G + 6 and the export cuts the 3 free cells \
                  of each side off)"
             ))),
+            (Consumer::Trellis2, Some(g)) if g > trellis2::MAX_GRID => {
+                Err(Error::Invalid(format!(
+                "--for {text}: TRELLIS.2's grid is at most {} here (the job converts at G + 6, \
+                 and the largest resolution is {}); use trellis2@{} or a smaller grid",
+                trellis2::MAX_GRID,
+                sparcubes::params::MAX_RESOLUTION,
+                trellis2::MAX_GRID
+            )))
+            }
             (Consumer::Trellis2 | Consumer::Direct3dS2, _) | (_, None) => Ok(preset),
             (_, Some(_)) => Err(Error::Invalid(format!(
                 "--for {text}: {name} has no grid to name; use --for {name}"
@@ -202,6 +211,9 @@ mod tests {
             ("trellis2", "trellis2@512"),
             ("trellis2@abc", "not a grid size"),
             ("trellis2@4", "not a grid size"),
+            // Converted at G + 6: past 4090 no job could be made (issue 64 item 10).
+            ("trellis2@4091", "at most 4090"),
+            ("trellis2@4096", "at most 4090"),
             ("dora@512", "no grid"),
             ("cubvh", "any job"),
             ("nerf", "trellis2@G"),
@@ -220,5 +232,31 @@ mod tests {
         let v = s.unwrap_or_default();
         assert_eq!(v["params"]["resolution"], 70);
         assert!(v.get("samples").is_none());
+    }
+
+    #[test]
+    fn the_largest_trellis2_grid_makes_a_job_of_the_largest_resolution() {
+        let p = Preset::parse("trellis2@4090").map(|p| p.settings().resolution);
+        assert!(
+            matches!(p, Ok(Some(sparcubes::params::MAX_RESOLUTION))),
+            "{p:?}"
+        );
+    }
+
+    #[test]
+    fn a_trellis2_preset_with_another_span_is_advised_its_own_grid() {
+        let (resolution, _) = trellis2::job_for_grid(48);
+        let mut p = Params::with_resolution(resolution);
+        p.object_span = Some(0.8);
+        let line = trellis2::preset_misfit(48, &p).unwrap_or_default();
+        assert!(
+            line.contains("grid of 48") && !line.contains("54"),
+            "{line}"
+        );
+        // The preset's own span, or another resolution: nothing to say here.
+        p.object_span = Some(trellis2::span_for(48));
+        assert_eq!(trellis2::preset_misfit(48, &p), None);
+        let other = Params::with_resolution(64);
+        assert_eq!(trellis2::preset_misfit(48, &other), None);
     }
 }

@@ -147,10 +147,33 @@ pub fn span_for(size: u32) -> f64 {
     (OBJECT_SPAN * size as f64 - 2.0 * ROOM_CELLS) / (size + 2 * FREE_CELLS) as f64
 }
 
+/// The largest grid `--for trellis2@G` takes: its job converts at `G + 6`, at most the
+/// largest resolution.
+pub const MAX_GRID: u32 = sparcubes::params::MAX_RESOLUTION - 2 * FREE_CELLS;
+
 /// The `(resolution, object_span)` of a job whose export is TRELLIS.2's grid of `size`
 /// exactly: `size + 6` and [`span_for`] (what `--for trellis2@size` sets).
 pub fn job_for_grid(size: u32) -> (u32, f64) {
     (size + 2 * FREE_CELLS, span_for(size))
+}
+
+/// What a job made with `--for trellis2@grid` lacks for TRELLIS.2's frame when a config key
+/// or flag changed its span but not its resolution: the preset's own grid, not one from the
+/// job's resolution as [`check`] would advise (issue 64 item 10: `trellis2@48` with another
+/// `object_span` was told to use `trellis2@54`); `None` when the resolution was changed too,
+/// or nothing was.
+pub fn preset_misfit(grid: u32, params: &Params) -> Option<String> {
+    let (resolution, span) = job_for_grid(grid);
+    if params.resolution != resolution || Trellis2Grid::of(resolution, params.span()).is_exact() {
+        return None;
+    }
+    Some(format!(
+        "params.object_span = {} replaces the preset's {span} (TRELLIS.2's grid of {grid} \
+         exactly), so the export in TRELLIS.2's frame refuses this job: leave object_span out of \
+         the config (the preset sets it), or export with --frame normalized to write the job's \
+         own grid as it is",
+        params.span()
+    ))
 }
 
 /// In TRELLIS.2's frame (`Frame::Consumer`, the default): nothing for a job made for it

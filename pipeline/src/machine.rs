@@ -40,29 +40,39 @@ pub struct RunPlan {
     pub why: String,
 }
 
-/// The plan for `--workers requested` (or `auto`: `None`) on `cores` cores with `memory`
-/// bytes available and items limited to `item_memory` bytes each (0: no limit): as many
-/// workers as cores, but no more than the memory holds at the item limit each, and the cores
-/// divided among them as threads. `env_threads` (`RAYON_NUM_THREADS`) wins for the threads.
-pub fn plan(
-    requested: Option<usize>,
-    cores: usize,
-    memory: Option<u64>,
-    item_memory: u64,
-    env_threads: Option<usize>,
-) -> RunPlan {
-    let cores = cores.max(1);
-    let fits = match (memory, item_memory) {
-        (Some(m), l) if l > 0 => Some(((m / l) as usize).max(1)),
+/// What a run has to do and where: `items` left to convert, on `cores` cores with `memory`
+/// bytes available, items limited to `item_memory` bytes each (0: no limit).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Machine {
+    /// Items left to convert.
+    pub items: u64,
+    /// Cores of this process.
+    pub cores: usize,
+    /// Memory available, when known.
+    pub memory: Option<u64>,
+    /// The item memory limit (0: none).
+    pub item_memory: u64,
+}
+
+/// The plan for `--workers requested` (or `auto`: `None`) on `m`: as many workers as cores,
+/// but no more than the memory holds at the item limit each, and the cores divided among them
+/// as threads. `env_threads` (`RAYON_NUM_THREADS`) wins for the threads. A number asked for
+/// is taken up to what can run at once: the items left and what the memory holds (issue 64
+/// item 5: `--workers 10000` on a 10-item job started thousands of lanes and stalled), and
+/// the plan says what it took.
+pub fn plan(requested: Option<usize>, m: Machine, env_threads: Option<usize>) -> RunPlan {
+    let cores = m.cores.max(1);
+    let fits = match (m.memory, m.item_memory) {
+        (Some(mem), l) if l > 0 => Some(((mem / l) as usize).max(1)),
         _ => None,
     };
     let (workers, mut why) = match (requested, fits) {
-        (Some(n), _) => (n.max(1), format!("{} workers", n.max(1))),
+        (Some(n), _) => asked(n, m, fits),
         (None, Some(f)) if f < cores => (
             f,
             format!(
                 "{f} workers (auto: {cores} cores, but memory for {f} items at the {} item limit)",
-                crate::units::format_size(item_memory)
+                crate::units::format_size(m.item_memory)
             ),
         ),
         (None, _) => (cores, format!("{cores} workers (auto: {cores} cores)")),
@@ -85,6 +95,34 @@ pub fn plan(
     }
 }
 
+/// `n` workers asked for, taken up to the items left (`m.items`) and what the memory holds
+/// (`fits`), with what was taken and why.
+fn asked(n: usize, m: Machine, fits: Option<usize>) -> (usize, String) {
+    let n = n.max(1);
+    let items = usize::try_from(m.items).unwrap_or(usize::MAX).max(1);
+    let mut taken = n;
+    let mut reasons: Vec<String> = Vec::new();
+    if items < taken {
+        taken = items;
+        reasons.push(format!("{items} item{} left", plural(items)));
+    }
+    if let Some(f) = fits.filter(|&f| f < taken) {
+        taken = f;
+        reasons.push(format!(
+            "memory for {f} item{} at the {} item limit",
+            plural(f),
+            crate::units::format_size(m.item_memory)
+        ));
+    }
+    match reasons.is_empty() {
+        true => (n, format!("{n} workers")),
+        false => (
+            taken,
+            format!("{taken} workers ({n} asked: {})", reasons.join(", ")),
+        ),
+    }
+}
+
 fn plural(n: usize) -> &'static str {
     if n == 1 {
         ""
@@ -98,6 +136,23 @@ mod tests {
     use super::*;
 
     const G: u64 = 1 << 30;
+
+    /// `plan` on a machine of `cores` cores with `memory` and an item limit, many items left.
+    fn plan(
+        requested: Option<usize>,
+        cores: usize,
+        memory: Option<u64>,
+        item_memory: u64,
+        env_threads: Option<usize>,
+    ) -> RunPlan {
+        let m = Machine {
+            items: 1 << 40,
+            cores,
+            memory,
+            item_memory,
+        };
+        super::plan(requested, m, env_threads)
+    }
 
     #[test]
     fn auto_takes_every_core_while_memory_allows() {
@@ -119,10 +174,38 @@ mod tests {
 
     #[test]
     fn asked_workers_and_the_environments_threads_win() {
-        let p = plan(Some(3), 8, Some(G), 8 * G, None);
+        let p = plan(Some(3), 8, None, 8 * G, None);
         assert_eq!((p.workers, p.threads), (3, 2));
         let p = plan(Some(0), 8, None, 0, Some(4));
         assert_eq!((p.workers, p.threads), (1, 0));
         assert!(p.why.ends_with("from RAYON_NUM_THREADS"), "{}", p.why);
+    }
+
+    #[test]
+    fn workers_asked_past_the_items_or_the_memory_are_taken_as_many_as_run() {
+        let m = Machine {
+            items: 10,
+            cores: 2,
+            memory: Some(64 * G),
+            item_memory: 8 * G,
+        };
+        let p = super::plan(Some(10_000), m, None);
+        assert_eq!((p.workers, p.threads), (8, 1));
+        assert_eq!(
+            p.why,
+            "8 workers (10000 asked: 10 items left, memory for 8 items at the 8G item limit), \
+             1 thread per conversion"
+        );
+        let p = super::plan(Some(1000), Machine { memory: None, ..m }, None);
+        assert!(
+            p.why.starts_with("10 workers (1000 asked: 10 items left)"),
+            "{}",
+            p.why
+        );
+        // What can run is taken as asked.
+        assert_eq!(
+            super::plan(Some(4), m, None).why,
+            "4 workers, 1 thread per conversion"
+        );
     }
 }

@@ -254,3 +254,46 @@ fn run_with_job_takes_a_preset_and_refuses_it_for_a_job_made_otherwise() {
         "{said}"
     );
 }
+
+/// Issue 64 item 10: a TRELLIS.2 grid past the largest is refused at the preset check with
+/// its reason (before: `trellis2@4091`..`@4096` passed it and failed as "invalid job config:
+/// invalid job config: …"); a config error is said once; a preset whose span a config file
+/// changed is advised its own grid, not one from its resolution.
+#[test]
+fn presets_and_config_errors_are_refused_and_advised_plainly() {
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let m = manifest(dir.path());
+    for grid in ["trellis2@4091", "trellis2@4096"] {
+        let job = dir.path().join(grid);
+        let init = sparc3d(&["init", s(&job), "--manifest", s(&m), "--for", grid]);
+        let said = String::from_utf8_lossy(&init.stderr);
+        assert!(!init.status.success(), "{said}");
+        assert!(
+            said.contains(&format!("--for {grid}")) && said.contains("at most 4090"),
+            "{said}"
+        );
+        assert!(!said.contains("invalid job config"), "{said}");
+    }
+    let job = dir.path().join("big");
+    let init = sparc3d(&["init", s(&job), "--manifest", s(&m), "--resolution", "5000"]);
+    let said = String::from_utf8_lossy(&init.stderr);
+    assert!(!init.status.success(), "{said}");
+    assert_eq!(said.matches("invalid job config").count(), 1, "{said}");
+    let span = dir.path().join("span.toml");
+    std::fs::write(&span, "[params]\nobject_span = 0.8\n").unwrap_or_else(|e| panic!("{e}"));
+    let job = dir.path().join("span");
+    let init = sparc3d(&[
+        "init",
+        s(&job),
+        "--manifest",
+        s(&m),
+        "--for",
+        "trellis2@48",
+        "--config",
+        s(&span),
+    ]);
+    let said = String::from_utf8_lossy(&init.stderr);
+    assert!(init.status.success(), "{said}");
+    assert!(said.contains("grid of 48 exactly"), "{said}");
+    assert!(!said.contains("trellis2@54"), "{said}");
+}

@@ -502,3 +502,60 @@ fn export_hashes_each_shard_it_reads_even_under_an_unchanged_stamp() {
     ]);
     assert!(out_dir.join("mesh_dumps").is_dir());
 }
+
+/// The pid of a process that has exited (and been reaped).
+fn dead_pid() -> u32 {
+    let mut child = std::process::Command::new("true")
+        .spawn()
+        .unwrap_or_else(|e| panic!("{e}"));
+    let pid = child.id();
+    child.wait().unwrap_or_else(|e| panic!("{e}"));
+    pid
+}
+
+/// Issue 64 item 7: the `.DIR.partial-PID` and `.DIR.old-PID` folders that exports killed with
+/// `kill -9` left are cleared by the next export of DIR; one killed between its two renames
+/// (DIR moved aside, nothing in its place) gets the earlier export back, even when the next
+/// export then fails; an export over an earlier one leaves nothing beside it.
+#[test]
+fn exports_clear_what_killed_exports_left_and_restore_one_moved_aside() {
+    let tmp = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let job = finished_job(tmp.path());
+    let out = tmp.path().join("export");
+    let export = |extra: &[&str]| {
+        let mut args = vec!["export", s(&job), "--format", "cubvh", "--out", s(&out)];
+        args.extend_from_slice(extra);
+        sparc3d(&args)
+    };
+    let beside = || -> Vec<String> {
+        let entries = std::fs::read_dir(tmp.path()).unwrap_or_else(|e| panic!("{e}"));
+        let mut names: Vec<String> = entries
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .filter(|n| n.starts_with(".export."))
+            .collect();
+        names.sort();
+        names
+    };
+    assert!(export(&[]).status.success());
+    let record = out.join(".sparc3d-export.json");
+    assert!(record.is_file());
+    // Debris of two killed exports.
+    let pid = dead_pid();
+    for kind in ["partial", "old"] {
+        let dir = tmp.path().join(format!(".export.{kind}-{pid}"));
+        std::fs::create_dir_all(dir.join("items")).unwrap_or_else(|e| panic!("{e}"));
+        std::fs::write(dir.join("items/half"), b"x").unwrap_or_else(|e| panic!("{e}"));
+    }
+    let again = export(&[]);
+    assert!(again.status.success(), "{}", stderr(&again));
+    assert_eq!(beside(), Vec::<String>::new(), "{}", stderr(&again));
+    assert!(record.is_file());
+    // Killed between the renames: the export moved aside, nothing at DIR.
+    let aside = tmp.path().join(format!(".export.old-{pid}"));
+    std::fs::rename(&out, &aside).unwrap_or_else(|e| panic!("{e}"));
+    let failed = export(&["--ids", "no-such-item"]);
+    assert!(!failed.status.success());
+    assert!(record.is_file(), "{}", stderr(&failed));
+    assert_eq!(beside(), Vec::<String>::new());
+}

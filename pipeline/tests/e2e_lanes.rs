@@ -125,3 +125,32 @@ fn a_shard_stopped_and_killed_mid_way_on_three_workers_resumes_to_the_same_diges
     assert_each_item_once(&b);
     assert_eq!(digest(&a), digest(&b));
 }
+
+/// Issue 64 item 5: `run --workers 10000` on a 12-item job takes at most as many workers as
+/// there are items, says so on stderr, and converts the job (before: thousands of lanes, a
+/// stall).
+#[test]
+fn workers_asked_past_the_items_are_taken_at_most_as_many_as_there_are_items() {
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let manifest = twelve_mesh_manifest(dir.path());
+    let job = dir.path().join("job");
+    ok(&[
+        "init",
+        s(&job),
+        "--manifest",
+        s(&manifest),
+        "--resolution",
+        "16",
+    ]);
+    let run = sparc3d(&["run", s(&job), "--workers", "10000"]);
+    let said = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{said}");
+    assert!(said.contains("(10000 asked: 12 items left"), "{said}");
+    // The manifest holds one item that fails by design: every item has its row.
+    let st = status(&job);
+    assert_eq!(
+        st["ok"].as_u64().unwrap_or(0) + st["failed"].as_u64().unwrap_or(0),
+        12,
+        "{st}"
+    );
+}

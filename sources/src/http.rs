@@ -204,6 +204,10 @@ fn content_length(headers: &HeaderMap) -> Option<u64> {
 }
 
 /// The body as it came, at most `cap` bytes; with a Content-Length, exactly that many.
+/// Without one its chunks are kept as they came and joined once it ends, so that a body
+/// that never ends holds about `cap` bytes when it is refused (issue 64 item 8: a growing
+/// buffer doubled past the item's memory limit and the item died as `out_of_memory` before
+/// the cap said `too_large`).
 async fn read_body(
     url: &RemoteUrl,
     mut response: reqwest::Response,
@@ -213,10 +217,12 @@ async fn read_body(
     let name = url.to_string();
     let reserve = announced.unwrap_or(0).min(cap).min(PREALLOCATE_AT_MOST);
     let mut bytes = Vec::with_capacity(reserve as usize);
+    let mut chunks = Vec::new();
+    let mut len = 0u64;
     let of = announced.map_or(String::new(), |n| format!(" of {n}"));
     loop {
         let chunk = response.chunk().await.map_err(|e| {
-            let where_ = format!("the body broke off after {}{of} bytes", bytes.len());
+            let where_ = format!("the body broke off after {len}{of} bytes");
             let mut failed = transport(&name, &e, &where_);
             if failed.error.kind == FetchErrorKind::Other {
                 failed.error.kind = FetchErrorKind::Truncated;
@@ -224,14 +230,24 @@ async fn read_body(
             failed
         })?;
         let Some(chunk) = chunk else { break };
-        if (bytes.len() + chunk.len()) as u64 > cap {
+        len += chunk.len() as u64;
+        if len > cap {
             return Err(Failed::fatal(too_large(
                 url,
                 format!("more than {cap}"),
                 cap,
             )));
         }
-        bytes.extend_from_slice(&chunk);
+        match announced {
+            Some(_) => bytes.extend_from_slice(&chunk),
+            None => chunks.push(chunk),
+        }
+    }
+    if announced.is_none() {
+        bytes = Vec::with_capacity(len as usize);
+        for chunk in chunks {
+            bytes.extend_from_slice(&chunk);
+        }
     }
     match announced {
         Some(size) if size != bytes.len() as u64 => Err(Failed::new(

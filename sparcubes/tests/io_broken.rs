@@ -655,3 +655,48 @@ fn gltf_buffers_through_a_reader_get_only_checked_relative_paths() {
         "{e}"
     );
 }
+
+/// Issue 64 item 10: the PLY parser's causes come out in words, never as Rust debug text
+/// (`ParseIntError { kind: PosOverflow }`, a grammar error's struct).
+#[test]
+fn ply_errors_say_their_cause_in_words_never_in_rust_debug_text() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let head = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+                property float z\nelement face 1\nproperty list uchar int vertex_indices\n\
+                end_header\n";
+    let cases = [
+        (
+            "overflow.ply",
+            format!("{head}0 0 0\n1 0 0\n0 1 0\n3 0 1 99999999999\n"),
+            "element at index 2: a number too large for its type",
+        ),
+        (
+            "word.ply",
+            format!("{head}0 0 0\n1 0 0\nzero 1 0\n3 0 1 2\n"),
+            "String: 'zero 1 0'",
+        ),
+        (
+            "grammar.ply",
+            head.replace("element vertex 3", "element vertex three"),
+            "PLY grammar",
+        ),
+    ];
+    for (name, text, words) in cases {
+        let e = expect_err(
+            &write(dir.path(), name, text.as_bytes()),
+            ErrorClass::ParseError,
+        );
+        let message = e.to_string();
+        assert!(message.contains(words), "{name}: {message}");
+        for debug in [
+            "{",
+            "Error {",
+            "kind:",
+            "ParseIntError",
+            "ParseFloatError",
+            "\n",
+        ] {
+            assert!(!message.contains(debug), "{name}: {debug:?} in {message}");
+        }
+    }
+}

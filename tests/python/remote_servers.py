@@ -82,6 +82,18 @@ class FaultyHandler(http.server.SimpleHTTPRequestHandler):
             self.send_header("Content-Length", str(len(body)))
             self.end_headers()
             self.wfile.write(body)
+        elif kind == "endless":
+            # No length, no chunks, no end: lines of a mesh until the client hangs up.
+            self.protocol_version = "HTTP/1.0"
+            self.send_response(200)
+            self.end_headers()
+            line = b"v 0 0 0\n" * 65536
+            try:
+                while True:
+                    self.wfile.write(line)
+            except OSError:
+                pass
+            self.close_connection = True
         elif kind in ("chunked", "close", "encoded", "partial"):
             data = (pathlib.Path(self.server.root) / path.lstrip("/")).read_bytes()
             self.send_shaped(kind, fault, data)

@@ -333,3 +333,110 @@ def test_bodies_without_a_length_gzip_and_an_unasked_part(tmp_path, web):
     for n, r in ok.items():
         assert r["source_sha256"] == sha256(root / n), n
     assert server.hits["/cube_binary.ply"] == 1  # a 206 is refused, not retried
+
+
+def png_bytes(rgba, size=4):
+    """A `size` × `size` PNG of one colour."""
+    import struct
+    import zlib
+
+    def chunk(kind, data):
+        return (struct.pack(">I", len(data)) + kind + data
+                + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF))
+    rows = b"".join(b"\0" + bytes(rgba) * size for _ in range(size))
+    header = struct.pack(">IIBBBBB", size, size, 8, 6, 0, 0, 0)
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header)
+            + chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b""))
+
+
+def test_a_texture_or_material_library_that_fails_to_download_is_a_fetch_row(tmp_path, web):
+    """Issue 64 item 2: a file beside a remote mesh that its appearance reads and that cannot
+    be downloaded fails the item as `fetch` (before: an `ok` row without that appearance, and
+    nothing for `retry --class fetch`); once it can be fetched, retry converts it with it."""
+    server, root = web
+    sphere = (EXAMPLES / "sphere.obj").read_text()
+    for name in ["a", "b"]:
+        text = sphere.replace("mtllib textured_sphere_smooth.mtl", "mtllib %s.mtl" % name)
+        (root / ("%s.obj" % name)).write_text(text.replace("usemtl None", "usemtl red"))
+        (root / ("%s.mtl" % name)).write_text("newmtl red\nKd 1 1 1\nmap_Kd %s.png\n" % name)
+        (root / ("%s.png" % name)).write_bytes(png_bytes([255, 0, 0, 255]))
+    server.faults.update({
+        "/a.mtl": ("status", 503, None),  # the material library: a 503 storm
+        "/b.png": ("status", 503, None),  # the texture its library names: a 503 storm
+    })
+    rows = [[server.url + "/a.obj"], [server.url + "/b.obj"]]
+    m = write_manifest(tmp_path / "m.csv", rows)
+    config = tmp_path / "attributes.toml"
+    config.write_text("[attributes]\nenabled = true\n")
+    env = clean_env(FAST)
+    job = tmp_path / "job"
+    run("init", job, "--manifest", m, "--resolution", 32, "--config", config, env=env)
+    r = run("run", job, "--workers", 1, env=env, check=False)
+    assert status(job, env)["ok"] == 0, r.stderr
+    lines = [l for l in run("failures", job, env=env).stdout.splitlines() if l.strip()]
+    assert len(lines) == 2, lines
+    for line, file in zip(sorted(lines, key=lambda l: "/b.obj" in l), ["/a.mtl", "/b.png"]):
+        assert line.split("\t")[0] == "fetch", line
+        assert server.url + file in line and "503" in line, line
+
+    server.faults.clear()
+    run("retry", job, "--class", "fetch", env=env)
+    run("run", job, "--workers", 1, env=env)
+    assert status(job, env)["ok"] == 2, run("failures", job, env=env).stdout
+    table = job_rows(job)
+    assert table.column("textures").to_pylist() == [1, 1]
+    assert table.column("appearance_not_read").to_pylist() == ["", ""]
+
+
+def test_a_texture_over_the_byte_cap_is_named_in_an_ok_row(tmp_path, web):
+    """A texture beside a remote mesh that is over the byte cap is not retried: the item is
+    `ok`, the texture named in `appearance_not_read` with the cap."""
+    server, root = web
+    sphere = (EXAMPLES / "sphere.obj").read_text()
+    (root / "c.obj").write_text(sphere.replace(
+        "mtllib textured_sphere_smooth.mtl", "mtllib c.mtl").replace("usemtl None", "usemtl red"))
+    (root / "c.mtl").write_text("newmtl red\nKd 1 1 1\nmap_Kd c.png\n")
+    # Incompressible pixels: the PNG is larger than the cap, the mesh is not.
+    (root / "c.png").write_bytes(big_png(300))
+    assert (root / "c.png").stat().st_size > 200_000 > (root / "c.obj").stat().st_size
+    m = write_manifest(tmp_path / "m.csv", [[server.url + "/c.obj"]])
+    config = tmp_path / "attributes.toml"
+    config.write_text("[attributes]\nenabled = true\n")
+    env = clean_env({**FAST, "SPARC3D_FETCH_MAX_BYTES": "200000"})
+    job = tmp_path / "job"
+    run("init", job, "--manifest", m, "--resolution", 32, "--config", config, env=env)
+    run("run", job, "--workers", 1, env=env)
+    assert status(job, env)["ok"] == 1, run("failures", job, env=env).stdout
+    not_read = job_rows(job).column("appearance_not_read").to_pylist()[0]
+    assert "c.png" in not_read and "200000" in not_read, not_read
+
+
+def big_png(size):
+    """A `size` × `size` PNG of random pixels (it does not compress)."""
+    import os
+    import struct
+    import zlib
+
+    def chunk(kind, data):
+        return (struct.pack(">I", len(data)) + kind + data
+                + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF))
+    rows = b"".join(b"\0" + os.urandom(4 * size) for _ in range(size))
+    header = struct.pack(">IIBBBBB", size, size, 8, 6, 0, 0, 0)
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header)
+            + chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b""))
+
+
+def test_an_endless_body_without_a_length_is_too_large_at_the_cap(tmp_path, web):
+    """Issue 64 item 8: a body with no Content-Length that never ends stops at the byte cap
+    as `too_large`, within the item's memory (here a cap of 1 GiB under 1.5 GiB of item
+    memory; before, the growing buffer passed the memory limit and the item crashed)."""
+    server, root = web
+    server.faults["/endless.obj"] = ("endless",)
+    m = write_manifest(tmp_path / "m.csv", [["a", server.url + "/endless.obj"]], ("id", "uri"))
+    env = clean_env({**FAST, "SPARC3D_FETCH_MAX_BYTES": str(1 << 30)})
+    job = tmp_path / "job"
+    run("init", job, "--manifest", m, "--resolution", 16, env=env)
+    run("run", job, "--workers", 1, "--item-memory", "1536M", env=env, check=False)
+    lines = [l for l in run("failures", job, env=env).stdout.splitlines() if l.strip()]
+    assert len(lines) == 1 and lines[0].startswith("too_large\t"), lines
+    assert "1073741824" in lines[0], lines

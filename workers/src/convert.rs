@@ -454,6 +454,11 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
             return row;
         }
     };
+    if let Some(message) = appearance_not_fetched(remote_buffers.as_ref(), item) {
+        let mut row = failed(ErrorClass::Fetch, message, 0.0);
+        row.timings = done.seconds.timings;
+        return row;
+    }
     let cubes = &done.conversion.cubes;
     let stats = &done.conversion.stats;
     ShardRow {
@@ -485,6 +490,26 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
         quality: done.quality,
         shape_signature: done.signature,
     }
+}
+
+/// Why an item that converted is a `fetch` failure all the same: a file beside its remote
+/// source that its appearance reads (a texture, an OBJ's material library) could not be
+/// downloaded, as a glTF buffer that cannot be is (issue 64 item 2), so that `retry --class
+/// fetch` queues it rather than an `ok` row without that appearance. A file over the byte cap
+/// is not retried: it stays named in the row's `appearance_not_read`.
+fn appearance_not_fetched(
+    buffers: Option<&crate::source::RemoteBuffers>,
+    item: &FrozenItem,
+) -> Option<String> {
+    let e = buffers?.failure()?;
+    if e.kind == sparc3d_sources::FetchErrorKind::TooLarge {
+        return None;
+    }
+    Some(format!(
+        "{}: a file its appearance reads could not be downloaded: {e}; its shape converted, \
+         and `sparc3d retry JOB --class fetch` converts it again once the file can be fetched",
+        item.record.uri
+    ))
 }
 
 /// Refuses bytes whose sha256 (`found`) is not the one the item was frozen with: the file

@@ -106,6 +106,7 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
     // Messages name the job as given (a URL), not its local view.
     let named = args.job.clone();
     args.job = crate::job::bucket_home::local_view(&args.job)?;
+    super::export_debris::clear(&args.out, EXPORT_RECORD)?;
     let job = Job::open(&args.job)?;
     let consumer = args.format;
     let frame = args.frame.unwrap_or(consumer.frames()[0]);
@@ -601,12 +602,22 @@ impl Staging {
         let _ = std::fs::remove_dir_all(&self.dir);
     }
 
-    /// Moves the finished export to `out`: an earlier export there is moved aside first and
-    /// removed after, so `out` is always a whole export.
+    /// Moves the finished export to `out`: swapped with an earlier export there in one step
+    /// (which is then removed from the staging folder's name), or where the file system
+    /// cannot, the earlier one moved aside first and removed after; `out` is always a whole
+    /// export.
     fn move_to(self, out: &Path) -> Result<()> {
         sync_tree(&self.dir)?;
         let old = sibling(out, "old")?;
         let replaced = out.exists();
+        if replaced && super::export_debris::exchange(&self.dir, out)? {
+            if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+                sparc3d_workers::fsutil::sync_dir(parent)?;
+            }
+            return std::fs::remove_dir_all(&self.dir).with_context(|| {
+                format!("removing the earlier export from {}", self.dir.display())
+            });
+        }
         if replaced {
             if old.exists() {
                 std::fs::remove_dir_all(&old)

@@ -46,6 +46,8 @@ pub struct Args {
     /// Items converted at once (`auto`, the default: one per core, as far as memory holds
     /// items at their memory limit). A shard's items are spread over several workers' lanes
     /// when there are fewer shards than workers; the shards written are the same for any N.
+    /// An N past the items left or what the memory holds at the item limit is taken as that
+    /// many, and the run's first line says what was taken and why.
     #[arg(long, value_name = "N|auto", value_parser = parse_workers)]
     pub workers: Option<usize>,
     /// Seconds between progress lines when not on a terminal.
@@ -97,17 +99,17 @@ fn run_shards(
     requested: Option<usize>,
     stop: &Stop,
 ) -> Result<Ran> {
-    let plan = crate::machine::plan(
-        requested,
-        crate::machine::cores(),
-        crate::machine::available_memory(),
-        args.limits.apply(job.file.config.limits).item_memory_bytes,
-        crate::machine::threads_from_env(),
-    );
-    let workers = plan.workers;
     let start = Instant::now();
     let states = shard_states(job, Check::Quick)?;
     let before = summarize_states(job, &states);
+    let machine = crate::machine::Machine {
+        items: before.pending,
+        cores: crate::machine::cores(),
+        memory: crate::machine::available_memory(),
+        item_memory: args.limits.apply(job.file.config.limits).item_memory_bytes,
+    };
+    let plan = crate::machine::plan(requested, machine, crate::machine::threads_from_env());
+    let workers = plan.workers;
     let mut progress = Progress::new(
         job.file.items,
         before.ok,

@@ -33,7 +33,8 @@ pub fn build_config(args: &ConfigArgs) -> Result<JobConfig> {
         config.shard_size = s;
     }
     config.preset = preset.map(|p| p.name());
-    config.validate().context("invalid job config")?;
+    // Its errors already begin "invalid job config:".
+    config.validate()?;
     if let Some(p) = preset {
         warn_misfit(p, &config);
     }
@@ -89,7 +90,16 @@ fn warn_misfit(preset: Preset, config: &JobConfig) {
     let samples = &config.samples;
     let mut lines = consumer.missing(samples.enabled.then_some(&samples.params));
     let check = consumer.check(&config.params, sparc3d_formats::Frame::Consumer);
-    lines.extend(check.required);
+    let own_grid = match (consumer, preset.grid) {
+        (sparc3d_formats::Consumer::Trellis2, Some(g)) => {
+            sparc3d_formats::trellis2::preset_misfit(g, &config.params)
+        }
+        _ => None,
+    };
+    match own_grid {
+        Some(line) => lines.push(line),
+        None => lines.extend(check.required),
+    }
     lines.extend(check.warnings);
     for line in lines {
         eprintln!("warning: --for {}: {line}", preset.name());

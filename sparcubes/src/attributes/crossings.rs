@@ -136,7 +136,7 @@ impl Crossings {
     /// nor where they would sort into too many columns (with room for the two slices
     /// [`Crossings::cover`] may add).
     pub fn worth_sorting_for(&self, queries: usize) -> bool {
-        let xs = (self.xs.0 - 1, self.xs.1 + 1);
+        let xs = (self.xs.0.saturating_sub(1), self.xs.1.saturating_add(1));
         self.hits.len() < WORTH * queries && self.columns(xs).is_some()
     }
 
@@ -144,8 +144,11 @@ impl Crossings {
     /// more than the crossings may bring.
     fn columns(&self, xs: (i64, i64)) -> Option<usize> {
         let n = self.hits.len();
-        let nx = usize::try_from(xs.1 - xs.0 + 1).ok()?;
-        let ny = usize::try_from(self.ys.1 - self.ys.0 + 1).ok()?;
+        // Checked: before any crossing is recorded `ys` is (i64::MAX, i64::MIN), no columns
+        // (a part none of whose triangles has a piece, as when a surface has none at all).
+        let span = |(a, b): (i64, i64)| usize::try_from(b.checked_sub(a)?.checked_add(1)?).ok();
+        let nx = span(xs)?;
+        let ny = span(self.ys)?;
         let columns = nx.checked_mul(ny)?;
         let allowed = n.saturating_mul(COLUMNS_PER_CROSSING) + SPARE_COLUMNS;
         (columns <= allowed && n < u32::MAX as usize).then_some(columns)

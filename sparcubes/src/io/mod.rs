@@ -18,6 +18,7 @@ pub(crate) mod gltf;
 mod obj;
 mod off;
 mod ply;
+mod ply_error;
 mod stl;
 mod write;
 
@@ -484,4 +485,9 @@ pub fn save_pending(
     path: &Path,
 ) -> Result<PendingSave> {
     write::save_pending(mesh, colours, path)
+}
+
+/// A PLY parser error in words, without Rust debug notation ([`ply_error::plain`]).
+pub(crate) fn plain_ply_error(text: &str) -> String {
+    ply_error::plain(text)
 }

@@ -84,9 +84,12 @@ fn payload_start(bytes: &[u8]) -> Option<usize> {
 
 pub(crate) fn read(bytes: &[u8], path: &Path, stats: &mut LoadStats) -> Result<TriMesh> {
     let parser = Parser::<Elem>::new();
-    let header = parser
-        .read_ply_header(&mut &bytes[..])
-        .map_err(|e| parse_err(path, format!("PLY header: {e}")))?;
+    let header = parser.read_ply_header(&mut &bytes[..]).map_err(|e| {
+        parse_err(
+            path,
+            format!("PLY header: {}", super::plain_ply_error(&e.to_string())),
+        )
+    })?;
     let start = payload_start(bytes).ok_or_else(|| parse_err(path, "PLY: no `end_header` line"))?;
     let payload = bytes.len() - start;
 
@@ -133,9 +136,12 @@ pub(crate) fn read(bytes: &[u8], path: &Path, stats: &mut LoadStats) -> Result<T
         });
     }
 
-    let ply = parser
-        .read_ply(&mut &bytes[..])
-        .map_err(|e| parse_err(path, format!("PLY: {e}")))?;
+    let ply = parser.read_ply(&mut &bytes[..]).map_err(|e| {
+        parse_err(
+            path,
+            format!("PLY: {}", super::plain_ply_error(&e.to_string())),
+        )
+    })?;
     let mut mesh = TriMesh::default();
     if let Some(vs) = ply.payload.get("vertex") {
         mesh.positions = vs.iter().map(|v| v.xyz).collect();

@@ -4,19 +4,20 @@
 //!
 //! Read: `baseColorFactor` and `baseColorTexture`, `metallicFactor`, `roughnessFactor` and
 //! `metallicRoughnessTexture` (metallic in blue, roughness in green, glTF 2.0 §3.9.2),
-//! `alphaMode` and `alphaCutoff`, each texture's `texCoord`, sampler wrap modes and
+//! `alphaMode` and `alphaCutoff`, each texture's `texCoord` (0 or 1; a texture on another set
+//! is named as not read), sampler wrap modes and
 //! magnification filter, and `KHR_texture_transform` (parsed from the JSON itself, so the
 //! shape's reader is unchanged). Images are PNG or JPEG, in a buffer view, a `data:` URI or a
 //! file beside the glTF file. Named as not read: every material extension
 //! (`KHR_materials_*`, specular-glossiness among them), emissive, normal and occlusion
-//! textures, images in other formats or that fail to decode.
+//! textures, images in other formats or that fail to decode or have no source, and accessors
+//! the `gltf` crate's readers cannot read (checked first: [`gltf_check`]).
 
-use super::image::{self, Image};
+use super::{gltf_check, gltf_images};
 use super::{sibling, AlphaMode, Appearance, Material, ScalarMap, TextureRef, Wrap};
 use crate::error::Result;
 use crate::io::gltf::{for_each_primitive, load_buffers, open, transform};
-use crate::io::{parse_err, Buffers};
-use base64::Engine as _;
+use crate::io::Buffers;
 use gltf::texture::WrappingMode;
 use serde_json::Value;
 use std::path::Path;
@@ -30,16 +31,13 @@ pub(crate) fn read(bytes: &[u8], path: &Path, external: Buffers) -> Result<Appea
         .materials()
         .map(|m| material(&m, &json, &mut out.facts))
         .collect();
-    out.images = doc
-        .images()
-        .map(|im| decode_image(&im, &buffers, path, external, &mut out.facts))
-        .collect();
-    let Some(scene) = doc.default_scene().or_else(|| doc.scenes().next()) else {
-        return Ok(out);
-    };
-    for_each_primitive(&scene, path, |prim, _, world| {
-        primitive(prim, world, &buffers, path, &mut out)
-    })?;
+    if let Some(scene) = doc.default_scene().or_else(|| doc.scenes().next()) {
+        for_each_primitive(&scene, path, |prim, mesh, world| {
+            primitive(prim, mesh, world, &buffers, &mut out);
+            Ok(())
+        })?;
+    }
+    gltf_images::decode_sampled(&doc, &buffers, path, external, &mut out);
     Ok(out)
 }
 
@@ -87,12 +85,24 @@ fn material(m: &gltf::Material, json: &Value, facts: &mut super::Facts) -> Mater
     }
     let pbr = m.pbr_metallic_roughness();
     let raw_pbr = &raw["pbrMetallicRoughness"];
+    let mut read_set = |t: TextureRef, key: &str| {
+        if t.set <= 1 {
+            return Some(t);
+        }
+        facts.skip(format!(
+            "{label}: {key} reads TEXCOORD_{} (only TEXCOORD_0 and TEXCOORD_1 are read)",
+            t.set
+        ));
+        None
+    };
     let base = pbr
         .base_color_texture()
-        .map(|t| texture_ref(&t, &raw_pbr["baseColorTexture"]));
+        .map(|t| texture_ref(&t, &raw_pbr["baseColorTexture"]))
+        .and_then(|t| read_set(t, "baseColorTexture"));
     let mr = pbr
         .metallic_roughness_texture()
-        .map(|t| texture_ref(&t, &raw_pbr["metallicRoughnessTexture"]));
+        .map(|t| texture_ref(&t, &raw_pbr["metallicRoughnessTexture"]))
+        .and_then(|t| read_set(t, "metallicRoughnessTexture"));
     Material {
         name: name.unwrap_or(&label).to_string(),
         base_color: pbr.base_color_factor(),
@@ -153,76 +163,117 @@ fn texture_ref(info: &gltf::texture::Info, raw: &Value) -> TextureRef {
     out
 }
 
-/// The bytes of an image: a buffer view, a `data:` URI or a file beside the glTF file.
-fn image_bytes(
-    im: &gltf::Image,
+/// The accessor of `semantic` in `prim`, when it has one the `gltf` crate can read as one of
+/// `allowed` ([`gltf_check`]); one it cannot is named in `facts` as `label: NAME not read`.
+fn checked<'a>(
+    prim: &gltf::Primitive<'a>,
+    semantic: gltf::Semantic,
+    allowed: &[gltf_check::Kind],
     buffers: &[Vec<u8>],
-    path: &Path,
-    external: Buffers,
-) -> std::result::Result<Vec<u8>, String> {
-    match im.source() {
-        gltf::image::Source::View { view, .. } => {
-            let data = buffers
-                .get(view.buffer().index())
-                .ok_or("its buffer is missing")?;
-            let end = view.offset().checked_add(view.length());
-            end.and_then(|e| data.get(view.offset()..e))
-                .map(<[u8]>::to_vec)
-                .ok_or_else(|| "its buffer view runs past its buffer".to_string())
-        }
-        gltf::image::Source::Uri { uri, .. } => {
-            if let Some(rest) = uri.strip_prefix("data:") {
-                let (_, payload) = rest
-                    .split_once(";base64,")
-                    .ok_or("only base64 data URIs are read")?;
-                return base64::engine::general_purpose::STANDARD
-                    .decode(payload.trim())
-                    .map_err(|e| format!("bad base64: {e}"));
-            }
-            let name = crate::io::gltf::percent_decode(uri).ok_or("bad percent-encoding")?;
-            sibling::read(&name, path, external)
-                .map_err(|e| format!("`{}`: {e}", sibling::clip(&name)))
-        }
-    }
-}
-
-/// Decodes an image; one that cannot be read is `None` and named in `facts`.
-fn decode_image(
-    im: &gltf::Image,
-    buffers: &[Vec<u8>],
-    path: &Path,
-    external: Buffers,
+    label: &str,
     facts: &mut super::Facts,
-) -> Option<Image> {
-    let decoded = image_bytes(im, buffers, path, external).and_then(|b| image::decode(&b));
-    match decoded {
-        Ok(image) => Some(image),
-        Err(why) => {
-            facts.skip(format!("image {}: {why}", im.index()));
+) -> Option<gltf::Accessor<'a>> {
+    let acc = prim.get(&semantic)?;
+    match gltf_check::unreadable(&acc, allowed, buffers) {
+        None => Some(acc),
+        Some(why) => {
+            facts.skip(format!(
+                "{label}: {} not read ({why})",
+                semantic_name(&semantic)
+            ));
             None
         }
     }
 }
 
-/// Appends one primitive's triangles with their corners' texture coordinates and colours.
+/// A semantic's name in the file, `TEXCOORD_0`.
+fn semantic_name(semantic: &gltf::Semantic) -> String {
+    match semantic {
+        gltf::Semantic::Positions => "POSITION".into(),
+        gltf::Semantic::TexCoords(s) => format!("TEXCOORD_{s}"),
+        gltf::Semantic::Colors(s) => format!("COLOR_{s}"),
+        _ => "an attribute".into(),
+    }
+}
+
+/// The values of a per-vertex attribute read by `read`, kept when there is one per vertex
+/// (`n`); one of another count is named in `facts`.
+fn per_vertex<T>(
+    values: Option<Vec<T>>,
+    n: usize,
+    what: &str,
+    label: &str,
+    facts: &mut super::Facts,
+) -> Option<Vec<T>> {
+    let v = values?;
+    if v.len() == n {
+        return Some(v);
+    }
+    facts.skip(format!(
+        "{label}: {what} not read ({} values for {n} vertices)",
+        v.len()
+    ));
+    None
+}
+
+/// The primitive's indices, or every vertex in order when it has none; `None` (named in
+/// `facts`) when they cannot be read.
+fn indices(
+    prim: &gltf::Primitive,
+    buffers: &[Vec<u8>],
+    n: usize,
+    label: &str,
+    facts: &mut super::Facts,
+) -> Option<Vec<u32>> {
+    let Some(acc) = prim.indices() else {
+        return Some((0..n as u32).collect());
+    };
+    if let Some(why) = gltf_check::unreadable(&acc, gltf_check::INDICES, buffers) {
+        facts.skip(format!(
+            "{label}: its indices cannot be read ({why}): its appearance is not read"
+        ));
+        return None;
+    }
+    let reader = prim.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
+    let read = reader.read_indices().map(|i| i.into_u32().collect());
+    if read.is_none() {
+        facts.skip(format!(
+            "{label}: its indices cannot be read: its appearance is not read"
+        ));
+    }
+    read
+}
+
+/// Appends one primitive's triangles with their corners' texture coordinates and colours;
+/// what of it cannot be read is named in the facts and left out.
 fn primitive(
     prim: &gltf::Primitive,
+    mesh: usize,
     world: &[[f64; 4]; 4],
     buffers: &[Vec<u8>],
-    path: &Path,
     out: &mut Appearance,
-) -> Result<()> {
+) {
     use gltf::mesh::Mode;
+    use gltf::Semantic;
     if !matches!(
         prim.mode(),
         Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
     ) {
-        return Ok(());
+        return;
     }
+    let label = format!("mesh {mesh} primitive {}", prim.index());
+    let facts = &mut out.facts;
+    let positions = checked(
+        prim,
+        Semantic::Positions,
+        gltf_check::POSITIONS,
+        buffers,
+        &label,
+        facts,
+    );
     let reader = prim.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
-    let bad = |what: &str| parse_err(path, format!("glTF primitive {}: {what}", prim.index()));
-    let Some(positions) = reader.read_positions() else {
-        return Ok(());
+    let Some(positions) = positions.and_then(|_| reader.read_positions()) else {
+        return;
     };
     let positions: Vec<[f32; 3]> = positions
         .map(|p| {
@@ -231,47 +282,90 @@ fn primitive(
         })
         .collect();
     let n = positions.len();
-    let indices: Vec<u32> = match (prim.indices(), reader.read_indices()) {
-        (Some(_), Some(i)) => i.into_u32().collect(),
-        (Some(_), None) => return Err(bad("its indices cannot be read")),
-        (None, _) => (0..n as u32).collect(),
+    let Some(indices) = indices(prim, buffers, n, &label, facts) else {
+        return;
     };
-    let uv: [Option<Vec<[f32; 2]>>; 2] =
-        [0, 1].map(|s| reader.read_tex_coords(s).map(|t| t.into_f32().collect()));
-    let color: Option<Vec<[f32; 4]>> = reader.read_colors(0).map(|c| c.into_rgba_f32().collect());
+    let uv: [Option<Vec<[f32; 2]>>; 2] = [0, 1].map(|s| {
+        let acc = checked(
+            prim,
+            Semantic::TexCoords(s),
+            gltf_check::TEX_COORDS,
+            buffers,
+            &label,
+            facts,
+        );
+        let read = acc
+            .and_then(|_| reader.read_tex_coords(s))
+            .map(|t| t.into_f32().collect());
+        per_vertex(read, n, &format!("TEXCOORD_{s}"), &label, facts)
+    });
+    let color = checked(
+        prim,
+        Semantic::Colors(0),
+        gltf_check::COLOURS,
+        buffers,
+        &label,
+        facts,
+    );
+    let color = color
+        .and_then(|_| reader.read_colors(0))
+        .map(|c| c.into_rgba_f32().collect());
+    let color = per_vertex(color, n, "COLOR_0", &label, facts);
+    let material = prim.material().index().map(|i| i as u32);
+    append(
+        out,
+        &positions,
+        &indices,
+        prim.mode(),
+        &uv,
+        color.as_deref(),
+        material,
+    );
+}
+
+/// Appends triangles of `mode` over `indices` into `positions` to the surface, with their
+/// corners' coordinate sets and colours where the primitive has them, and `material` (the
+/// default one after the file's when `None`).
+fn append(
+    out: &mut Appearance,
+    positions: &[[f32; 3]],
+    indices: &[u32],
+    mode: gltf::mesh::Mode,
+    uv: &[Option<Vec<[f32; 2]>>; 2],
+    color: Option<&[[f32; 4]]>,
+    material: Option<u32>,
+) {
+    let n = positions.len();
     let surface = &mut out.surface;
     let base = surface.positions.len() as u32;
     surface.positions.extend(positions);
     let uv_base = [0, 1].map(|s| surface.uv[s].values.len() as u32);
     for (s, v) in uv.iter().enumerate() {
-        if let Some(v) = v.as_ref().filter(|v| v.len() == n) {
+        if let Some(v) = v {
             surface.uv[s].values.extend(v);
         }
     }
     let color_base = surface.color.values.len() as u32;
-    if let Some(c) = color.as_ref().filter(|c| c.len() == n) {
+    if let Some(c) = color {
         surface.color.values.extend(c);
     }
-    let material = prim.material().index().map(|i| i as u32);
-    for tri in triangles(prim.mode(), &indices) {
+    let material = material.unwrap_or(out.materials.len() as u32);
+    for tri in triangles(mode, indices) {
         if tri.iter().any(|&i| i as usize >= n) {
             continue;
         }
         let t = surface.triangles.len();
         surface.triangles.push(tri.map(|i| base + i));
-        surface
-            .material
-            .push(material.unwrap_or(out.materials.len() as u32));
+        surface.material.push(material);
         for s in 0..2 {
-            if uv[s].as_ref().is_some_and(|v| v.len() == n) {
+            if uv[s].is_some() {
                 surface.uv[s].push(t, tri.map(|i| uv_base[s] + i));
             }
         }
-        if color.as_ref().is_some_and(|c| c.len() == n) {
+        if color.is_some() {
             surface.color.push(t, tri.map(|i| color_base + i));
         }
     }
-    Ok(())
 }
 
 /// The triangles of a list, strip or fan of indices (strips with every other one flipped).

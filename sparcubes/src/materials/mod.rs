@@ -15,6 +15,8 @@
 //! linear for data), their decoding is [`crate::attributes`]' job when sampled.
 
 mod gltf;
+mod gltf_check;
+mod gltf_images;
 pub mod image;
 mod mtl;
 mod obj;
@@ -275,8 +277,8 @@ pub struct Appearance {
 
 impl Appearance {
     /// Settles what the readers left open: a default material for triangles without one,
-    /// channels padded to every triangle, textures whose image failed dropped from their
-    /// materials, triangles with a bad index dropped, and the facts counted and sorted.
+    /// channels padded to every triangle, the facts counted and sorted, then textures whose
+    /// image failed (or was not decoded, as nothing samples it) dropped from their materials.
     fn finish(mut self) -> Self {
         let n = self.surface.triangles.len();
         let default = self.materials.len() as u32;
@@ -289,33 +291,50 @@ impl Appearance {
             uv.finish(n);
         }
         self.surface.color.finish(n);
+        // Counted first: a texture that is not sampled has no image decoded either, and is
+        // named as not sampled before it is dropped.
+        self.count_facts(colored);
         for m in &mut self.materials {
             drop_missing_textures(m, &self.images);
         }
-        self.count_facts(colored);
         self
     }
 
-    /// Fills in the counts of [`Facts`] from the materials the surface uses.
+    /// Fills in the counts of [`Facts`] from the materials the surface uses. A texture counts
+    /// only where it can be sampled: a material's texture on a coordinate set none of its
+    /// triangles has (coordinates that could not be read, or never given) is named as not
+    /// read instead, so an item is `textured` only when a texel is sampled (issue 64 item 6).
     fn count_facts(&mut self, colored: bool) {
-        let mut used = vec![false; self.materials.len()];
-        for &m in &self.surface.material {
-            if let Some(u) = used.get_mut(m as usize) {
-                *u = true;
+        let sets = self.coordinate_sets();
+        let mut images: Vec<usize> = Vec::new();
+        for (m, has) in self.materials.iter().zip(&sets) {
+            let Some(has) = has else { continue };
+            for t in m.textures() {
+                if has[t.set.min(1)] {
+                    // An image that failed to decode is named where it failed.
+                    if self.images.get(t.image).is_some_and(Option::is_some) {
+                        images.push(t.image);
+                    }
+                } else {
+                    self.facts.skip(format!(
+                        "material `{}`: its texture of image {} has no TEXCOORD_{} on its \
+                         triangles, so it is not sampled",
+                        sibling::clip(&m.name),
+                        t.image,
+                        t.set
+                    ));
+                }
             }
         }
+        images.sort_unstable();
+        images.dedup();
         let in_use = || {
             self.materials
                 .iter()
-                .zip(&used)
-                .filter(|(_, u)| **u)
+                .zip(&sets)
+                .filter(|(_, s)| s.is_some())
                 .map(|(m, _)| m)
         };
-        let mut images: Vec<usize> = in_use()
-            .flat_map(|m| m.textures().map(|t| t.image).collect::<Vec<_>>())
-            .collect();
-        images.sort_unstable();
-        images.dedup();
         let facts = &mut self.facts;
         facts.materials = in_use().filter(|m| !m.name.is_empty()).count() as u32;
         facts.textures = images.len() as u32;
@@ -332,6 +351,21 @@ impl Appearance {
         facts.vertex_colors = colored;
         facts.not_read.sort();
         facts.not_read.dedup();
+    }
+
+    /// For each material, `None` when no triangle uses it, else whether any of its triangles
+    /// has texture coordinates of set 0 and of set 1.
+    pub(crate) fn coordinate_sets(&self) -> Vec<Option<[bool; 2]>> {
+        let mut sets = vec![None; self.materials.len()];
+        for (t, &m) in self.surface.material.iter().enumerate() {
+            if let Some(s) = sets.get_mut(m as usize) {
+                let has: &mut [bool; 2] = s.get_or_insert([false; 2]);
+                for (k, h) in has.iter_mut().enumerate() {
+                    *h = *h || self.surface.uv[k].at(t).is_some();
+                }
+            }
+        }
+        sets
     }
 }
 

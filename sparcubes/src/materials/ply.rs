@@ -84,7 +84,12 @@ fn color(e: &Elem) -> Option<[f32; 4]> {
 pub(crate) fn read(bytes: &[u8], path: &Path) -> Result<Appearance> {
     let ply = Parser::<Elem>::new()
         .read_ply(&mut &bytes[..])
-        .map_err(|e| parse_err(path, format!("PLY: {e}")))?;
+        .map_err(|e| {
+            parse_err(
+                path,
+                format!("PLY: {}", crate::io::plain_ply_error(&e.to_string())),
+            )
+        })?;
     let mut out = Appearance::default();
     if ply
         .header
