@@ -98,19 +98,29 @@ impl Image {
 
     /// The picture as a PNG file (8-bit RGB, default compression).
     pub fn encode_png(&self) -> std::io::Result<Vec<u8>> {
-        let mut bytes = Vec::new();
-        {
-            let mut encoder = png::Encoder::new(&mut bytes, self.width, self.height);
-            encoder.set_color(png::ColorType::Rgb);
-            encoder.set_depth(png::BitDepth::Eight);
-            let mut writer = encoder.write_header().map_err(std::io::Error::other)?;
-            writer
-                .write_image_data(&self.rgb)
-                .map_err(std::io::Error::other)?;
-            writer.finish().map_err(std::io::Error::other)?;
-        }
-        Ok(bytes)
+        encode_png(self.width, self.height, png::ColorType::Rgb, &self.rgb)
     }
+}
+
+/// `data` (8-bit samples of `colour`, rows top to bottom) as a PNG file.
+pub(crate) fn encode_png(
+    width: u32,
+    height: u32,
+    colour: png::ColorType,
+    data: &[u8],
+) -> std::io::Result<Vec<u8>> {
+    let mut bytes = Vec::new();
+    {
+        let mut encoder = png::Encoder::new(&mut bytes, width, height);
+        encoder.set_color(colour);
+        encoder.set_depth(png::BitDepth::Eight);
+        let mut writer = encoder.write_header().map_err(std::io::Error::other)?;
+        writer
+            .write_image_data(data)
+            .map_err(std::io::Error::other)?;
+        writer.finish().map_err(std::io::Error::other)?;
+    }
+    Ok(bytes)
 }
 
 /// A mesh ready for ray casting ([`sparc3d_raycast::Scene`]) with its corners for shading.
@@ -162,7 +172,7 @@ impl Scene {
 
 /// Barycentric coordinates of `p` (on the triangle's plane) in triangle `t`, each clamped to
 /// [0, 1]; the centroid's for a degenerate triangle.
-fn barycentric(p: Vec3A, t: [Vec3A; 3]) -> [f32; 3] {
+pub(crate) fn barycentric(p: Vec3A, t: [Vec3A; 3]) -> [f32; 3] {
     let (e0, e1, ep) = (t[1] - t[0], t[2] - t[0], p - t[0]);
     let (d00, d01, d11) = (e0.dot(e0), e0.dot(e1), e1.dot(e1));
     let (d20, d21) = (ep.dot(e0), ep.dot(e1));

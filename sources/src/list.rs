@@ -36,27 +36,7 @@ impl Fetcher {
         let key = prefix.key();
         let path = ObjectPath::from_iter(key.split('/').filter(|p| !p.is_empty()));
         let name = prefix.to_string();
-        let mut out = Vec::new();
-        self.block_on(async {
-            let mut stream = store.list(Some(&path));
-            while let Some(meta) = stream.next().await {
-                let meta = meta.map_err(|e| {
-                    let mut err = FetchError::from_store(&name, &e);
-                    err.message = format!(
-                        "the listing failed after {} objects: {}",
-                        out.len(),
-                        err.message
-                    );
-                    err
-                })?;
-                out.push(Listed {
-                    url: prefix.with_key(meta.location.as_ref()),
-                    size: meta.size,
-                    etag: meta.e_tag.map(|t| t.trim_matches('"').to_string()),
-                });
-            }
-            Ok::<(), FetchError>(())
-        })?;
+        let mut out = self.block_on(collect(store.list(Some(&path)), &name, prefix))?;
         out.sort_by_key(|l| l.url.key());
         if out.is_empty() {
             return Err(FetchError::new(
@@ -67,4 +47,31 @@ impl Fetcher {
         }
         Ok(out)
     }
+}
+
+/// Every object of a listing's `stream`, their URLs made from `root`'s bucket; a failure at any
+/// page is an error naming `name` and how many objects had been listed.
+pub(crate) async fn collect(
+    mut stream: futures_util::stream::BoxStream<'_, object_store::Result<object_store::ObjectMeta>>,
+    name: &str,
+    root: &RemoteUrl,
+) -> Result<Vec<Listed>, FetchError> {
+    let mut out = Vec::new();
+    while let Some(meta) = stream.next().await {
+        let meta = meta.map_err(|e| {
+            let mut err = FetchError::from_store(name, &e);
+            err.message = format!(
+                "the listing failed after {} objects: {}",
+                out.len(),
+                err.message
+            );
+            err
+        })?;
+        out.push(Listed {
+            url: root.with_key(meta.location.as_ref()),
+            size: meta.size,
+            etag: meta.e_tag.map(|t| t.trim_matches('"').to_string()),
+        });
+    }
+    Ok(out)
 }

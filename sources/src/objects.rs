@@ -384,28 +384,13 @@ impl<'f> Prefix<'f> {
     pub fn list_from(&self, key: &str) -> Result<Vec<Listed>, FetchError> {
         let folder = crate::fetch::object_path(&self.root);
         let offset = self.path(key);
-        self.fetcher.block_on(async {
-            let mut stream = self.store.list_with_offset(Some(&folder), &offset);
-            let mut out = Vec::new();
-            while let Some(meta) = stream.next().await {
-                let meta = meta.map_err(|e| {
-                    let mut err = self.error(key, &e);
-                    err.message = format!(
-                        "the listing failed after {} objects: {}",
-                        out.len(),
-                        err.message
-                    );
-                    err
-                })?;
-                out.push(Listed {
-                    url: self.root.with_key(meta.location.as_ref()),
-                    size: meta.size,
-                    etag: meta.e_tag.as_deref().map(bare_etag),
-                });
-            }
-            out.sort_by_key(|l| l.url.key());
-            Ok(out)
-        })
+        let name = self.url(key).to_string();
+        let stream = self.store.list_with_offset(Some(&folder), &offset);
+        let mut out = self
+            .fetcher
+            .block_on(crate::list::collect(stream, &name, &self.root))?;
+        out.sort_by_key(|l| l.url.key());
+        Ok(out)
     }
 
     /// The key of `listed` relative to this prefix.

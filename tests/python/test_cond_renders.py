@@ -105,3 +105,14 @@ def test_the_same_file_and_seed_give_the_same_bytes_and_another_seed_other_views
         px = np.asarray(im).reshape(-1, 4)
     seen = px[px[:, 3] == 255][:, :3].astype(int)
     assert (seen.max(axis=1) - seen.min(axis=1) > 40).mean() > 0.1, "no colour seen"
+
+
+def test_a_mesh_without_triangles_and_a_bad_recipe_are_clear_errors(tmp_path):
+    empty = tmp_path / "empty.off"
+    empty.write_text("OFF\n3 0 0\n0 0 0\n1 0 0\n0 1 0\n")
+    r = run("render", empty, "-o", tmp_path / "out", check=False)
+    assert r.returncode != 0 and "triangle" in r.stderr and "empty.off" in r.stderr, r.stderr
+    assert not (tmp_path / "out").exists(), "nothing written for an asset that cannot render"
+    r = run("render", EXAMPLES / "cube.off", "-o", tmp_path / "out", "--for", "blender",
+            check=False)
+    assert r.returncode != 0 and "trellis2" in r.stderr, r.stderr

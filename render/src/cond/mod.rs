@@ -178,18 +178,9 @@ fn triangle_areas(appearance: &Appearance) -> Vec<f64> {
         .collect()
 }
 
-/// Barycentric coordinates of `p` in triangle `t`, clamped; the centroid's when degenerate.
+/// Barycentric coordinates of `p` in triangle `t` (the preview's, clamped), as doubles.
 fn barycentric(p: Vec3A, t: [Vec3A; 3]) -> [f64; 3] {
-    let (e0, e1, ep) = (t[1] - t[0], t[2] - t[0], p - t[0]);
-    let (d00, d01, d11) = (e0.dot(e0), e0.dot(e1), e1.dot(e1));
-    let (d20, d21) = (ep.dot(e0), ep.dot(e1));
-    let den = d00 * d11 - d01 * d01;
-    if !den.is_normal() {
-        return [1.0 / 3.0; 3];
-    }
-    let v = ((d11 * d20 - d01 * d21) / den).clamp(0.0, 1.0);
-    let w = ((d00 * d21 - d01 * d20) / den).clamp(0.0, 1.0 - v);
-    [(1.0 - v - w) as f64, v as f64, w as f64]
+    crate::barycentric(p, t).map(f64::from)
 }
 
 /// One rendered view: its camera as the consumer describes it, and its picture.

@@ -29,18 +29,7 @@ pub struct RgbaImage {
 impl RgbaImage {
     /// The picture as a PNG file (8-bit RGBA).
     pub fn encode_png(&self) -> std::io::Result<Vec<u8>> {
-        let mut bytes = Vec::new();
-        {
-            let mut encoder = png::Encoder::new(&mut bytes, self.size, self.size);
-            encoder.set_color(png::ColorType::Rgba);
-            encoder.set_depth(png::BitDepth::Eight);
-            let mut writer = encoder.write_header().map_err(std::io::Error::other)?;
-            writer
-                .write_image_data(&self.rgba)
-                .map_err(std::io::Error::other)?;
-            writer.finish().map_err(std::io::Error::other)?;
-        }
-        Ok(bytes)
+        crate::encode_png(self.size, self.size, png::ColorType::Rgba, &self.rgba)
     }
 
     /// The alpha of pixel (`x`, `y`).
