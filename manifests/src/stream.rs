@@ -47,7 +47,10 @@ impl RowStream {
             (Some(c), None) => c.len() >= 2,
         };
         let (names, column, unproven) = if needs_survey {
-            let (found, survey) = survey(path)?;
+            let (found, survey, rows) = survey(path)?;
+            if rows == 0 {
+                return Err(no_rows(path));
+            }
             let names = header.map_or(found, |h| h.into_iter().collect());
             (
                 names,
@@ -129,12 +132,7 @@ impl RowStream {
     /// source in it (the first few named).
     pub fn finish(&self) -> Result<()> {
         if self.read == 0 {
-            bail!(
-                "{}: the manifest has no rows (a manifest lists one mesh a row, with its path \
-                 in a column named one of {})",
-                self.path.display(),
-                PATH_COLUMNS.join(", ")
-            );
+            return Err(no_rows(&self.path));
         }
         if self.unproven {
             return Err(match self.column.why.starts_with("given") {
@@ -198,13 +196,15 @@ fn path_candidates(header: &[String]) -> Vec<&'static str> {
         .collect()
 }
 
-/// A first pass over the manifest at `path`: every column some row has a value for, and which
-/// hold values and local paths.
-fn survey(path: &Path) -> Result<(BTreeSet<String>, ValueSurvey)> {
+/// A first pass over the manifest at `path`: every column some row has a value for, which
+/// hold values and local paths, and how many rows there are.
+fn survey(path: &Path) -> Result<(BTreeSet<String>, ValueSurvey, u64)> {
     let (mut rows, _) = Rows::open(path)?;
     let mut names = BTreeSet::new();
     let mut values = ValueSurvey::default();
+    let mut count = 0u64;
     while let Some(row) = rows.next_row(path)? {
+        count += 1;
         for name in row.keys() {
             if !names.contains(name) {
                 names.insert(name.clone());
@@ -212,7 +212,17 @@ fn survey(path: &Path) -> Result<(BTreeSet<String>, ValueSurvey)> {
         }
         values.add(&row);
     }
-    Ok((names, values))
+    Ok((names, values, count))
+}
+
+/// The refusal of a manifest without a single row.
+fn no_rows(path: &Path) -> anyhow::Error {
+    anyhow::anyhow!(
+        "{}: the manifest has no rows (a manifest lists one mesh a row, with its path in a \
+         column named one of {})",
+        path.display(),
+        PATH_COLUMNS.join(", ")
+    )
 }
 
 /// A manifest's rows as maps from folded column names to values, one at a time.
@@ -459,6 +469,15 @@ mod tests {
             .map(|e| e.to_string())
             .unwrap_or_default();
         assert!(said.contains("has no rows"), "{said}");
+        // A JSONL or a Parquet file without rows has no header to choose a column from: it
+        // is said to have no rows, not to lack a path column.
+        let empty = dir.path().join("empty.jsonl");
+        std::fs::write(&empty, "\n")?;
+        let said = RowStream::open(&empty, None).err().map(|e| e.to_string());
+        assert!(
+            said.as_deref().is_some_and(|s| s.contains("has no rows")),
+            "{said:?}"
+        );
         Ok(())
     }
 }
