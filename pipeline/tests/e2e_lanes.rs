@@ -154,3 +154,28 @@ fn workers_asked_past_the_items_are_taken_at_most_as_many_as_there_are_items() {
         "{st}"
     );
 }
+
+/// Issue 64 item 5: `work --threads 4096` takes the machine's cores, says so, and writes the
+/// shard `--threads 1` writes (before: 4,096 threads in each item worker).
+#[test]
+fn threads_asked_past_the_cores_are_taken_as_the_cores_and_the_shard_is_the_same() {
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let manifest = twelve_mesh_manifest(dir.path());
+    let jobs = [dir.path().join("a"), dir.path().join("b")];
+    for (job, threads) in jobs.iter().zip(["1", "4096"]) {
+        ok(&[
+            "init",
+            s(job),
+            "--manifest",
+            s(&manifest),
+            "--resolution",
+            "16",
+        ]);
+        let work = sparc3d(&["work", s(job), "--shard-index", "0", "--threads", threads]);
+        let said = String::from_utf8_lossy(&work.stderr);
+        assert!(work.status.success(), "{said}");
+        let capped = said.contains("--threads 4096 taken as");
+        assert_eq!(capped, threads == "4096", "{said}");
+    }
+    assert_eq!(digest(&jobs[0]), digest(&jobs[1]));
+}

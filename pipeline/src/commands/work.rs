@@ -52,7 +52,8 @@ pub struct Args {
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..=1024))]
     pub lanes: u64,
     /// Threads per conversion (default: the environment's `RAYON_NUM_THREADS`, else the
-    /// cores divided among the lanes).
+    /// cores divided among the lanes); more than the machine's cores are taken as its cores,
+    /// said on stderr. (`--lanes` past the shard's items starts only as many lanes as items.)
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..=4096))]
     pub threads: Option<u64>,
     /// Read new shares (`{"lanes":N,"threads":T}` lines) on stdin while working (used by
@@ -178,7 +179,7 @@ fn work_shards(args: &Args, job: &Job, process: &mut ShardFn<'_>) -> Result<Exit
 fn budget(args: &Args) -> std::sync::Arc<LaneBudget> {
     let lanes = args.lanes as usize;
     let threads = match args.threads {
-        Some(t) => t as usize,
+        Some(t) => threads_taken(t as usize, crate::machine::cores()),
         // One lane keeps today's behaviour: the item worker inherits the environment.
         None if lanes == 1 => 0,
         None => (crate::machine::threads_from_env_or_cores() / lanes).max(1),
@@ -191,6 +192,17 @@ fn budget(args: &Args) -> std::sync::Arc<LaneBudget> {
         );
     }
     budget
+}
+
+/// `--threads asked` taken at most as the machine's `cores` (more threads per conversion
+/// only contend for them: 4,096 of them on 2 cores stalled the worker), said on stderr when
+/// it is fewer than asked.
+fn threads_taken(asked: usize, cores: usize) -> usize {
+    let taken = asked.min(cores.max(1));
+    if taken < asked {
+        eprintln!("--threads {asked} taken as {taken} (the cores of this machine)");
+    }
+    taken
 }
 
 /// An event as a JSON line on stdout (`--events`), or the damaged-shard note on stderr.
