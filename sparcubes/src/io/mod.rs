@@ -271,7 +271,10 @@ pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>> {
 
 /// [`read_file`], reading the first [`HEAD_BYTES`] first: `refuse` sees them and the file's
 /// length, and an error it returns ends the read there.
-fn read_checked(path: &Path, refuse: impl Fn(&[u8], u64) -> Option<Error>) -> Result<Vec<u8>> {
+pub(crate) fn read_checked(
+    path: &Path,
+    refuse: impl Fn(&[u8], u64) -> Option<Error>,
+) -> Result<Vec<u8>> {
     use std::io::Read;
     let io_err = |source| Error::Io {
         path: path.to_path_buf(),

@@ -132,7 +132,8 @@ fn image_bytes(
             .map_err(|e| format!("bad base64: {e}"));
     }
     let name = crate::io::gltf::percent_decode(uri).ok_or("bad percent-encoding")?;
-    sibling::read(&name, path, external).map_err(|e| format!("`{}`: {e}", sibling::clip(&name)))
+    sibling::read_image(&name, path, external)
+        .map_err(|e| format!("`{}`: {e}", sibling::clip(&name)))
 }
 
 /// Decodes image `index`; one that cannot be read is `None` and named in `facts`.

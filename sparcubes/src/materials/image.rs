@@ -10,6 +10,32 @@ use png::{ColorType, Transformations};
 /// item's memory near the worker's default limit of 8 GiB (`limits.item_memory_bytes`).
 pub const MAX_PIXELS: u64 = 8192 * 8192;
 
+/// Largest texture file read: an image of [`MAX_PIXELS`] in 16-bit RGBA stored without
+/// compression, plus a MiB of other chunks. A larger file cannot hold an image that decodes
+/// here, so it is refused from its length before it is read.
+pub const MAX_FILE_BYTES: u64 = MAX_PIXELS * 8 + (1 << 20);
+
+/// Why a texture file of `len` bytes whose first bytes are `head` is not read further:
+/// longer than [`MAX_FILE_BYTES`], or a PNG whose header (its first 24 bytes) names more than
+/// [`MAX_PIXELS`]. `None` when it may be read.
+pub fn refusal(head: &[u8], len: u64) -> Option<String> {
+    if len > MAX_FILE_BYTES {
+        return Some(format!(
+            "the file is {len} bytes, more than any image of at most {MAX_PIXELS} pixels \
+             (8192²) needs; not read"
+        ));
+    }
+    let png = head.starts_with(&[0x89, b'P', b'N', b'G']) && head.get(12..16) == Some(b"IHDR");
+    let word = |at: usize| {
+        head.get(at..at + 4)
+            .map(|b| u32::from_be_bytes([b[0], b[1], b[2], b[3]]) as u64)
+    };
+    match (png, word(16), word(20)) {
+        (true, Some(w), Some(h)) => check_size(w, h).err().map(|e| format!("PNG: {e}")),
+        _ => None,
+    }
+}
+
 /// A decoded image: 8-bit RGBA, rows top to bottom.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Image {

@@ -217,7 +217,7 @@ fn has_alpha(image: &Option<Image>) -> bool {
 /// Reads and decodes the map file `name` into the appearance's images; `None` (and named in
 /// the facts) when it cannot be.
 fn load(name: &str, path: &Path, buffers: Buffers, out: &mut Appearance) -> Option<usize> {
-    let decoded = sibling::read(name, path, buffers).and_then(|b| super::image::decode(&b));
+    let decoded = sibling::read_image(name, path, buffers).and_then(|b| super::image::decode(&b));
     match decoded {
         Ok(image) => {
             out.images.push(Some(image));

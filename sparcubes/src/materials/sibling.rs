@@ -9,6 +9,22 @@ use std::path::{Component, Path};
 /// Reads the file `name` (relative to the mesh file at `path`; `\` read as `/`, as Windows
 /// exporters write it), or says why not.
 pub fn read(name: &str, path: &Path, buffers: Buffers) -> Result<Vec<u8>, String> {
+    read_with(name, path, buffers, &|_, _| None)
+}
+
+/// [`read`] of a texture image: a file on disk is refused from its length and its first
+/// bytes (its header's size) before it is read whole ([`super::image::refusal`]).
+pub fn read_image(name: &str, path: &Path, buffers: Buffers) -> Result<Vec<u8>, String> {
+    read_with(name, path, buffers, &super::image::refusal)
+}
+
+/// [`read`], with `refuse` shown the first bytes and the length of a file on disk first.
+fn read_with(
+    name: &str,
+    path: &Path,
+    buffers: Buffers,
+    refuse: &dyn Fn(&[u8], u64) -> Option<String>,
+) -> Result<Vec<u8>, String> {
     let name = name.trim().replace('\\', "/");
     if name.is_empty() || name.contains('\0') {
         return Err("an empty name".into());
@@ -44,7 +60,9 @@ pub fn read(name: &str, path: &Path, buffers: Buffers) -> Result<Vec<u8>, String
             real.display()
         ));
     }
-    crate::io::read_file(&real).map_err(|e| e.to_string())
+    let refused =
+        |head: &[u8], len: u64| refuse(head, len).map(|why| crate::io::too_large(&real, why));
+    crate::io::read_checked(&real, refused).map_err(|e| e.to_string())
 }
 
 /// Short form of a name for messages.
