@@ -9,7 +9,7 @@ use crate::keys;
 use anyhow::{Context, Result};
 use sparc3d_sources::list::Listed;
 use sparc3d_sources::objects::Prefix;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 
 /// One listing of a bucket job's `shards/` and `state/`.
 #[derive(Debug, Default)]
@@ -18,8 +18,8 @@ pub struct JobListing {
     shard_objects: BTreeMap<String, Listed>,
     /// Each shard's completion record.
     records: BTreeMap<u64, Listed>,
-    /// Each shard's lease.
-    leases: BTreeMap<u64, Listed>,
+    /// The shards with a lease object.
+    leases: BTreeSet<u64>,
     /// Each shard's checkpoints, by key relative to the job's prefix, sorted.
     journals: BTreeMap<u64, Vec<(String, Listed)>>,
 }
@@ -46,16 +46,11 @@ impl JobListing {
             self.shard_objects.insert(name.to_string(), listed);
         } else if let Some(shard) = keys::shard_of(&key) {
             if key == keys::lease(shard) {
-                self.leases.insert(shard, listed);
+                self.leases.insert(shard);
             } else if key.starts_with(&keys::journals(shard)) && key.ends_with(".journal") {
                 self.journals.entry(shard).or_default().push((key, listed));
             }
         }
-    }
-
-    /// The object named `name` under `shards/`, as listed.
-    pub fn shard_object(&self, name: &str) -> Option<&Listed> {
-        self.shard_objects.get(name)
     }
 
     /// The objects under `shards/` by name within it.
@@ -68,9 +63,9 @@ impl JobListing {
         &self.records
     }
 
-    /// `shard`'s lease object, if it has one.
-    pub fn lease(&self, shard: u64) -> Option<&Listed> {
-        self.leases.get(&shard)
+    /// The shards with a lease.
+    pub fn leased_shards(&self) -> impl Iterator<Item = u64> + '_ {
+        self.leases.iter().copied()
     }
 
     /// The shards with checkpoints.
@@ -107,13 +102,15 @@ mod tests {
         }
         let listing = JobListing::read(&prefix)?;
         assert_eq!(listing.records().keys().collect::<Vec<_>>(), vec![&3]);
-        assert!(listing.shard_object(&keys::data_name(3, "w1")).is_some());
+        assert!(listing
+            .shard_objects()
+            .contains_key(&keys::data_name(3, "w1")));
         assert_eq!(
             listing.shard_objects().len(),
             2,
             "the manifest is not listed"
         );
-        assert!(listing.lease(5).is_some() && listing.lease(3).is_none());
+        assert_eq!(listing.leased_shards().collect::<Vec<_>>(), [5]);
         let journals: Vec<&str> = listing
             .journals(5)
             .iter()

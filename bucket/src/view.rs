@@ -38,8 +38,9 @@ pub fn shard_states(prefix: &Prefix<'_>, job: &Job) -> Result<Vec<ShardState>> {
     let records = crate::records::read(prefix, &job.layout.root, &listing)?;
     let unfinished = |shard: &u64| !records.contains_key(shard);
     crate::checkpoint::sync_checkpoints(prefix, job, &listing, &unfinished)?;
-    let leased: Vec<u64> = (0..job.file.shards)
-        .filter(|s| unfinished(s) && listing.lease(*s).is_some())
+    let leased: Vec<u64> = listing
+        .leased_shards()
+        .filter(|s| *s < job.file.shards && unfinished(s))
         .collect();
     let leases = parallel::each(&leased, IN_FLIGHT, |&s| crate::lease::read(prefix, s))?;
     let mut leases: BTreeMap<u64, _> = leased.into_iter().zip(leases).collect();

@@ -55,31 +55,35 @@ pub struct SurfaceColours<'a> {
 impl<'a> SurfaceColours<'a> {
     /// Paints `appearance` seen at `pixel_size` source units per pixel.
     pub fn new(appearance: &'a Appearance, pixel_size: f64) -> Self {
-        let s = &appearance.surface;
-        let areas = s
-            .triangles
-            .iter()
-            .map(|t| {
-                let p = t.map(|i| {
-                    s.positions
-                        .get(i as usize)
-                        .map_or([0.0; 3], |p| p.map(f64::from))
-                });
-                let (u, v) = (sub(p[1], p[0]), sub(p[2], p[0]));
-                let c = [
-                    u[1] * v[2] - u[2] * v[1],
-                    u[2] * v[0] - u[0] * v[2],
-                    u[0] * v[1] - u[1] * v[0],
-                ];
-                0.5 * (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt()
-            })
-            .collect();
         Self {
             shader: Shader::new(appearance),
-            areas,
+            areas: triangle_areas(appearance),
             pixel_area: pixel_size * pixel_size,
         }
     }
+}
+
+/// The area of each triangle of `appearance`'s surface (source units²; a corner with an index
+/// out of range counts as the origin).
+pub(crate) fn triangle_areas(appearance: &Appearance) -> Vec<f64> {
+    let s = &appearance.surface;
+    s.triangles
+        .iter()
+        .map(|t| {
+            let p = t.map(|i| {
+                s.positions
+                    .get(i as usize)
+                    .map_or([0.0; 3], |p| p.map(f64::from))
+            });
+            let (u, v) = (sub(p[1], p[0]), sub(p[2], p[0]));
+            let c = [
+                u[1] * v[2] - u[2] * v[1],
+                u[2] * v[0] - u[0] * v[2],
+                u[0] * v[1] - u[1] * v[0],
+            ];
+            0.5 * (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt()
+        })
+        .collect()
 }
 
 fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {

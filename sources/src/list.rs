@@ -70,7 +70,7 @@ pub(crate) async fn collect(
         out.push(Listed {
             url: root.with_key(meta.location.as_ref()),
             size: meta.size,
-            etag: meta.e_tag.map(|t| t.trim_matches('"').to_string()),
+            etag: meta.e_tag.as_deref().map(crate::objects::bare_etag),
         });
     }
     Ok(out)

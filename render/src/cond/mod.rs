@@ -112,7 +112,8 @@ pub struct Surface<'a> {
     corners: Vec<[Vec3A; 3]>,
     /// Source units to placed units.
     scale: f64,
-    shaded: Option<(Shader<'a>, &'a Appearance, Vec<f64>)>,
+    /// The appearance's shader and its triangles' areas (source units²), when read.
+    shaded: Option<(Shader<'a>, Vec<f64>)>,
 }
 
 /// The base colour of a surface without an appearance (linear mid grey).
@@ -140,7 +141,7 @@ impl<'a> Surface<'a> {
                 })
             })
             .collect();
-        let shaded = appearance.map(|a| (Shader::new(a), a, triangle_areas(a)));
+        let shaded = appearance.map(|a| (Shader::new(a), crate::paint::triangle_areas(a)));
         Self {
             scene: Scene::new(&placed, triangles),
             corners,
@@ -152,7 +153,7 @@ impl<'a> Surface<'a> {
     /// Linear RGBA of triangle `t` at `point` (placed), textures filtered over a pixel of
     /// side `footprint` (source units).
     fn albedo(&self, t: usize, point: Vec3A, footprint: f64) -> [f32; 4] {
-        let Some((shader, _, areas)) = &self.shaded else {
+        let Some((shader, areas)) = &self.shaded else {
             return PLAIN;
         };
         let Some(&area) = areas.get(t) else {
@@ -162,20 +163,6 @@ impl<'a> Surface<'a> {
         let v = shader.at(t, bary, footprint * footprint, shader.uv_density(t, area));
         [v[0], v[1], v[2], v[5]]
     }
-}
-
-/// The area of each triangle of `appearance`'s surface, in source units².
-fn triangle_areas(appearance: &Appearance) -> Vec<f64> {
-    let s = &appearance.surface;
-    let at = |i: u32| {
-        s.positions
-            .get(i as usize)
-            .map_or(DVec3::ZERO, |p| DVec3::from(p.map(f64::from)))
-    };
-    s.triangles
-        .iter()
-        .map(|t| 0.5 * (at(t[1]) - at(t[0])).cross(at(t[2]) - at(t[0])).length())
-        .collect()
 }
 
 /// Barycentric coordinates of `p` in triangle `t` (the preview's, clamped), as doubles.

@@ -10,6 +10,9 @@ use png::{ColorType, Transformations};
 /// item's memory near the worker's default limit of 8 GiB (`limits.item_memory_bytes`).
 pub const MAX_PIXELS: u64 = 8192 * 8192;
 
+/// The first bytes of every PNG file.
+const PNG_SIGNATURE: [u8; 4] = [0x89, b'P', b'N', b'G'];
+
 /// Largest texture file read: an image of [`MAX_PIXELS`] in 16-bit RGBA stored without
 /// compression, plus a MiB of other chunks. A larger file cannot hold an image that decodes
 /// here, so it is refused from its length before it is read.
@@ -25,7 +28,7 @@ pub fn refusal(head: &[u8], len: u64) -> Option<String> {
              (8192²) needs; not read"
         ));
     }
-    let png = head.starts_with(&[0x89, b'P', b'N', b'G']) && head.get(12..16) == Some(b"IHDR");
+    let png = head.starts_with(&PNG_SIGNATURE) && head.get(12..16) == Some(b"IHDR");
     let word = |at: usize| {
         head.get(at..at + 4)
             .map(|b| u32::from_be_bytes([b[0], b[1], b[2], b[3]]) as u64)
@@ -62,7 +65,7 @@ fn check_size(width: u64, height: u64) -> Result<(), String> {
 
 /// Decodes a PNG or JPEG image (told apart by their signatures); the error says why not.
 pub fn decode(bytes: &[u8]) -> Result<Image, String> {
-    if bytes.starts_with(&[0x89, b'P', b'N', b'G']) {
+    if bytes.starts_with(&PNG_SIGNATURE) {
         decode_png(bytes).map_err(|e| format!("PNG: {e}"))
     } else if bytes.starts_with(&[0xFF, 0xD8]) {
         decode_jpeg(bytes).map_err(|e| format!("JPEG: {e}"))
