@@ -202,9 +202,11 @@ pub struct Item<'a> {
     pub item_index: u64,
     /// Its file stem in the export, unique within the job (`<index>-<id>`, shortened).
     pub stem: &'a str,
-    /// sha256 of its source file: the manifest's, else the one its row recorded of the bytes
-    /// converted (TRELLIS.2 names files by it).
-    pub source_sha256: Option<&'a str>,
+    /// What names its source (TRELLIS.2 names files by it): the sha256 of its source file
+    /// (the manifest's, else the one its row recorded of the bytes converted), or its id when
+    /// that id also covers the files the mesh names (`<sha256>-<16 hex>`: colour variants of
+    /// one mesh file are two items, each with its own files).
+    pub source_key: Option<&'a str>,
     /// Its sparse cubes (with the job's normalization).
     pub cubes: &'a SparseCubes,
     /// Its samples, when the job draws them.

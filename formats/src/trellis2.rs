@@ -232,7 +232,7 @@ pub fn files(item: &Item) -> Result<ItemExport> {
         )));
     }
     let n = grid.size;
-    let key = item.source_sha256.ok_or_else(|| {
+    let key = item.source_key.ok_or_else(|| {
         Error::Missing("no sha256 of its source recorded (TRELLIS.2 names files by it)".into())
     })?;
     let g = dual_grid(item.cubes);

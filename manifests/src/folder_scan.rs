@@ -45,7 +45,8 @@ pub fn scan(dir: &Path, out: &mut Vec<PathBuf>) -> Result<u64> {
     Ok(skipped)
 }
 
-/// The meshes found below a folder: one record per distinct file (id = sha256), and what was
+/// The meshes found below a folder: one record per distinct source (id: the mesh file's
+/// sha256, with the files it names when it names any, [`crate::source_id`]), and what was
 /// left out.
 pub struct Collected {
     /// Records in name order.
@@ -58,17 +59,18 @@ pub struct Collected {
     pub skipped: u64,
 }
 
-/// Scans `dir` for meshes, hashes them in parallel and drops identical duplicates, printing
-/// each file left out on stderr.
+/// Scans `dir` for meshes, hashes them in parallel and drops identical duplicates (the same
+/// mesh file naming the same files, [`crate::source_id`]), printing each file left out on
+/// stderr.
 pub fn collect(dir: &Path) -> Result<Collected> {
     let root =
         std::fs::canonicalize(dir).with_context(|| format!("opening folder {}", dir.display()))?;
     let mut files = Vec::new();
     let skipped = scan(&root, &mut files)?;
-    let hashed: Vec<(PathBuf, Result<String>)> = files
+    let hashed: Vec<(PathBuf, Result<(String, String)>)> = files
         .into_par_iter()
         .map(|p| {
-            let h = crate::hash::file_sha256(&p).map_err(anyhow::Error::from);
+            let h = identify(&p);
             (p, h)
         })
         .collect();
@@ -76,7 +78,7 @@ pub fn collect(dir: &Path) -> Result<Collected> {
     let mut seen: HashMap<String, PathBuf> = HashMap::new();
     let (mut duplicates, mut unreadable) = (0usize, 0usize);
     for (path, hash) in hashed {
-        let sha = match hash {
+        let (id, sha) = match hash {
             Ok(h) => h,
             Err(e) => {
                 eprintln!("skipping unreadable file: {e:#}");
@@ -84,7 +86,7 @@ pub fn collect(dir: &Path) -> Result<Collected> {
                 continue;
             }
         };
-        if let Some(first) = seen.get(&sha) {
+        if let Some(first) = seen.get(&id) {
             eprintln!(
                 "duplicate: {} is identical to {}",
                 path.display(),
@@ -93,9 +95,9 @@ pub fn collect(dir: &Path) -> Result<Collected> {
             duplicates += 1;
             continue;
         }
-        seen.insert(sha.clone(), path.clone());
+        seen.insert(id.clone(), path.clone());
         records.push(ManifestRecord {
-            id: sha.clone(),
+            id,
             uri: path.to_string_lossy().into_owned(),
             sha256: Some(sha),
             format: path
@@ -110,4 +112,10 @@ pub fn collect(dir: &Path) -> Result<Collected> {
         unreadable,
         skipped,
     })
+}
+
+/// The id and sha256 of the mesh file at `path`.
+fn identify(path: &Path) -> Result<(String, String)> {
+    let sha = crate::hash::file_sha256(path)?;
+    Ok((crate::source_id::source_id(path, &sha)?, sha))
 }

@@ -195,14 +195,15 @@ fn is_sha256(sha: &str) -> bool {
 }
 
 /// A row's record with its id and frozen sha256: the manifest's own, or (a row with neither)
-/// the sha256 of the file, which is then also the id.
+/// the sha256 of the file, and an id made of it (and, for a local file that names others,
+/// of those: [`crate::source_id`]).
 fn identify(r: RawRecord) -> Result<ManifestRecord> {
     let (id, sha256) = match (r.id, r.sha256) {
         (Some(id), sha) => (id, sha),
         (None, Some(sha)) => (sha.clone(), Some(sha)),
         (None, None) => {
             let sha = crate::hash::source_sha256(&r.uri)?;
-            (sha.clone(), Some(sha))
+            (local_id(&r.uri, &sha)?, Some(sha))
         }
     };
     Ok(ManifestRecord {
@@ -212,6 +213,15 @@ fn identify(r: RawRecord) -> Result<ManifestRecord> {
         format: r.format,
         extra: r.extra,
     })
+}
+
+/// The id of a row without one whose source hashes to `sha`: [`crate::source_id`] for a local
+/// file, the sha256 alone for a remote one.
+fn local_id(uri: &str, sha: &str) -> Result<String> {
+    match sparc3d_sources::Location::parse(uri)? {
+        sparc3d_sources::Location::Local(path) => Ok(crate::source_id::source_id(&path, sha)?),
+        sparc3d_sources::Location::Remote(_) => Ok(sha.to_string()),
+    }
 }
 
 #[cfg(test)]

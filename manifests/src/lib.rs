@@ -3,7 +3,7 @@
 //! [`path_column`]) and written by `manifest
 //! build` ([`mod@write`]), or made by scanning a folder ([`folder_scan`]) or listing a bucket
 //! prefix ([`bucket_scan`]); files identified by
-//! their sha256 ([`hash`]); column names read without case, two that fold to one refused
+//! their sha256 ([`hash`]) and, when they name other files, those too ([`source_id`]); column names read without case, two that fold to one refused
 //! ([`columns`]); every other column kept as provenance; rows chosen by `--where`
 //! ([`filter`]); and the rows frozen into a job's items, each with its index and shard, or
 //! appended to a growing job ([`freeze`], [`record`]).
@@ -22,6 +22,7 @@ pub mod hash;
 pub mod path_column;
 pub mod problems;
 pub mod record;
+pub mod source_id;
 pub mod stream;
 pub mod table;
 pub mod tsv;

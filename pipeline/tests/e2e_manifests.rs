@@ -312,3 +312,86 @@ fn provenance_jobs_are_deterministic_whatever_the_worker_count() {
     ok_at_32(&plain, &job, "2");
     assert_ne!(inspect(&job)["content_digest"], digests[0].as_str());
 }
+
+/// `dir/NAME/`: one box OBJ whose material library maps `t.png`, holding `texture`.
+fn variant(dir: &Path, name: &str, texture: &[u8]) {
+    let folder = dir.join(name);
+    std::fs::create_dir_all(&folder).unwrap_or_else(|e| panic!("{e}"));
+    let (v, f) = boxed([1.0, 0.6, 0.4], [0.0; 3]);
+    let obj = folder.join("m.obj");
+    write_obj(&obj, &v, &f);
+    let text = std::fs::read_to_string(&obj).unwrap_or_else(|e| panic!("{e}"));
+    std::fs::write(&obj, format!("mtllib m.mtl\nusemtl paint\n{text}"))
+        .unwrap_or_else(|e| panic!("{e}"));
+    std::fs::write(folder.join("m.mtl"), "newmtl paint\nmap_Kd t.png\n")
+        .unwrap_or_else(|e| panic!("{e}"));
+    std::fs::write(folder.join("t.png"), texture).unwrap_or_else(|e| panic!("{e}"));
+}
+
+/// Issue 64 item 3: colour variants (one OBJ file, different textures) are two items to
+/// `manifest build` and `run DIR`, a copy of a whole folder is still one, and TRELLIS.2's
+/// export names each variant's files by its own key.
+#[test]
+fn colour_variants_of_one_mesh_file_are_distinct_items() {
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let meshes = dir.path().join("meshes");
+    variant(&meshes, "red", b"red texels");
+    variant(&meshes, "blue", b"blue texels");
+    variant(&meshes, "red_copy", b"red texels");
+    let m = dir.path().join("m.csv");
+    let built = sparc3d(&["manifest", "build", s(&meshes), "-o", s(&m)]);
+    let said = String::from_utf8_lossy(&built.stderr);
+    assert!(built.status.success(), "{said}");
+    assert!(said.contains("1 identical duplicates left out"), "{said}");
+    let job = dir.path().join("job");
+    ok(&["init", s(&job), "--manifest", s(&m), "--for", "trellis2@48"]);
+    let ids = manifest_ids(&job);
+    assert_eq!(ids.len(), 2, "{ids:?}");
+    assert_ne!(ids[0], ids[1]);
+    let sha = |id: &str| id.split('-').next().map(str::to_string);
+    assert_eq!(sha(&ids[0]), sha(&ids[1]), "one mesh file: {ids:?}");
+    ok(&["run", s(&job), "--workers", "1"]);
+    assert_eq!(status(&job)["ok"], 2);
+    let out = dir.path().join("t2");
+    ok(&["export", s(&job), "--format", "trellis2", "--out", s(&out)]);
+    let mut keys: Vec<String> = std::fs::read_dir(out.join("dual_grid_48"))
+        .unwrap_or_else(|e| panic!("{e}"))
+        .filter_map(|e| e.ok())
+        .filter_map(|e| {
+            let name = e.file_name().to_string_lossy().into_owned();
+            name.strip_suffix(".vxz").map(str::to_string)
+        })
+        .collect();
+    keys.sort();
+    let mut want = ids.clone();
+    want.sort();
+    assert_eq!(keys, want);
+    let direct = dir.path().join("direct");
+    let run = sparc3d(&["run", s(&meshes), "--job", s(&direct), "--resolution", "32"]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert_eq!(status(&direct)["ok"], 2);
+}
+
+/// A mesh that names no other file keeps its sha256 as its id, as before.
+#[test]
+fn a_mesh_that_names_no_file_is_identified_by_its_sha256() {
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let meshes = examples(dir.path());
+    let m = dir.path().join("m.csv");
+    ok(&["manifest", "build", s(&meshes), "-o", s(&m)]);
+    let job = dir.path().join("job");
+    ok(&["init", s(&job), "--manifest", s(&m)]);
+    for (id, name) in manifest_ids(&job)
+        .iter()
+        .zip(["box_textured.glb", "cube.off"])
+    {
+        let bytes = std::fs::read(meshes.join(name)).unwrap_or_else(|e| panic!("{e}"));
+        use sha2::Digest;
+        let sha = sparc3d_schema::hex::hex(&sha2::Sha256::digest(&bytes));
+        assert_eq!(*id, sha, "{name}");
+    }
+}

@@ -13,6 +13,7 @@ use anyhow::{bail, Context, Result};
 use clap::builder::TypedValueParser;
 use rayon::prelude::*;
 use sparc3d_formats::{Consumer, ExportFile, Frame, Item, Listed, StoredSamples};
+use sparc3d_manifests::source_id::names_files_of;
 use sparc3d_schema::ShardRow;
 use sparc3d_workers::store::read::{for_each_shard_row, Columns};
 use sparc3d_workers::store::state::Check;
@@ -459,17 +460,22 @@ fn export_row(
         None => None,
     };
     let config = &job.file.config;
-    // The manifest's sha256, else the one the row recorded of the bytes it converted.
+    // The manifest's sha256, else the one the row recorded of the bytes it converted; the id
+    // where it covers the files the mesh names as well (colour variants of one mesh file).
     let frozen = job.item(row.item_index).ok().flatten();
     let source_sha256 = frozen
         .as_ref()
         .and_then(|i| i.record.sha256.as_deref())
         .or(row.source_sha256.as_deref());
+    let source_key = match source_sha256 {
+        Some(sha) if names_files_of(&row.id, sha) => Some(row.id.as_str()),
+        other => other,
+    };
     let item = Item {
         id: &row.id,
         item_index: row.item_index,
         stem,
-        source_sha256,
+        source_key,
         cubes: &cubes,
         samples: samples.as_ref().map(|s| StoredSamples {
             samples: s,

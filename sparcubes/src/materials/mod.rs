@@ -22,6 +22,7 @@ mod mtl;
 mod obj;
 mod off;
 mod ply;
+pub mod references;
 mod sibling;
 
 pub use image::Image;

@@ -25,6 +25,19 @@ fn read_with(
     buffers: Buffers,
     refuse: &dyn Fn(&[u8], u64) -> Option<String>,
 ) -> Result<Vec<u8>, String> {
+    let rel = relative(name)?;
+    if let Buffers::Relative(reader) = buffers {
+        return reader(&rel);
+    }
+    let real = resolve(&rel, path)?;
+    let refused =
+        |head: &[u8], len: u64| refuse(head, len).map(|why| crate::io::too_large(&real, why));
+    crate::io::read_checked(&real, refused).map_err(|e| e.to_string())
+}
+
+/// The name as it is looked up: `\` read as `/`, empty and `.` parts left out; refused when
+/// it is empty, absolute, has a `..` part or a URI scheme.
+pub fn relative(name: &str) -> Result<String, String> {
     let name = name.trim().replace('\\', "/");
     if name.is_empty() || name.contains('\0') {
         return Err("an empty name".into());
@@ -34,20 +47,22 @@ fn read_with(
             return Err("only relative paths are read (it has a URI scheme)".into());
         }
     }
-    let rel = Path::new(&name);
-    if rel
+    if Path::new(&name)
         .components()
         .any(|c| !matches!(c, Component::Normal(_) | Component::CurDir))
     {
         return Err("absolute paths and `..` components are not read".into());
     }
-    if let Buffers::Relative(reader) = buffers {
-        let plain: Vec<&str> = name
-            .split('/')
-            .filter(|p| !p.is_empty() && *p != ".")
-            .collect();
-        return reader(&plain.join("/"));
-    }
+    let plain: Vec<&str> = name
+        .split('/')
+        .filter(|p| !p.is_empty() && *p != ".")
+        .collect();
+    Ok(plain.join("/"))
+}
+
+/// The file on disk that the [`relative`] name `rel` names beside the mesh file at `path`,
+/// links followed; refused when it resolves outside the mesh file's folder.
+pub fn resolve(rel: &str, path: &Path) -> Result<std::path::PathBuf, String> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
@@ -60,9 +75,7 @@ fn read_with(
             real.display()
         ));
     }
-    let refused =
-        |head: &[u8], len: u64| refuse(head, len).map(|why| crate::io::too_large(&real, why));
-    crate::io::read_checked(&real, refused).map_err(|e| e.to_string())
+    Ok(real)
 }
 
 /// Short form of a name for messages.
