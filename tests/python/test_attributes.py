@@ -82,3 +82,51 @@ def test_a_job_without_the_section_has_no_attribute_columns(jobs):
 
 def pathlib_name(uri):
     return uri.rsplit("/", 1)[-1]
+
+
+def four_textured_box(folder, side):
+    """A box OBJ whose twelve triangles use four materials, each mapping its own solid
+    `side`² PNG (`t0.png` … `t3.png`, four colours)."""
+    from PIL import Image
+    folder.mkdir()
+    colours = [(220, 20, 20), (20, 220, 20), (20, 20, 220), (220, 220, 20)]
+    mtl = ""
+    for i, c in enumerate(colours):
+        Image.new("RGB", (side, side), c).save(folder / f"t{i}.png")
+        mtl += f"newmtl m{i}\nKd 1 1 1\nmap_Kd t{i}.png\n"
+    (folder / "box.mtl").write_text(mtl)
+    corners = [(x, y, z) for x in (0, 1) for y in (0, 1) for z in (0, 1)]
+    quads = [(1, 2, 4, 3), (5, 7, 8, 6), (1, 5, 6, 2), (3, 4, 8, 7), (1, 3, 7, 5), (2, 6, 8, 4)]
+    text = "mtllib box.mtl\n" + "".join(f"v {x} {y} {z}\n" for x, y, z in corners)
+    text += "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
+    for i, (a, b, c, d) in enumerate(quads):
+        text += f"usemtl m{min(i, 3)}\nf {a}/1 {b}/2 {c}/3\nf {a}/1 {c}/3 {d}/4\n"
+    (folder / "box.obj").write_text(text)
+    return folder / "box.obj"
+
+
+def test_textures_past_the_item_memory_budget_are_named_and_the_shape_kept(tmp_path):
+    """Issue 64 item 4: an item decodes at most a quarter of `--item-memory` of texture
+    (`sparcubes/src/materials/budget.rs`): at 1 GiB, 50,331,648 pixels, three 4096² maps
+    of the box's four; the fourth is named in `appearance_not_read` and the row is `ok`.
+    At the default 8 GiB all four are read."""
+    obj = four_textured_box(tmp_path / "box", 4096)
+    manifest = tmp_path / "m.csv"
+    manifest.write_text(f"path\n{obj}\n")
+    config = tmp_path / "c.toml"
+    config.write_text("[attributes]\nenabled = true\n")
+    facts = {}
+    for name, memory in [("small", ["--item-memory", "1G"]), ("default", [])]:
+        job = tmp_path / name
+        run("init", job, "--manifest", manifest, "--resolution", "32", "--config", config)
+        run("run", job, "--workers", "1", *memory)
+        rows = pq.read_table(next((job / "shards").glob("part-*.parquet"))).to_pylist()
+        assert [r["status"] for r in rows] == ["ok"], rows[0].get("error")
+        facts[name] = rows[0]
+    small, default = facts["small"], facts["default"]
+    assert small["textures"] == 3 and default["textures"] == 4
+    assert "t3.png" in small["appearance_not_read"], small["appearance_not_read"]
+    assert "texture budget" in small["appearance_not_read"]
+    assert default["appearance_not_read"] == ""
+    # The shape is the same either way.
+    assert small["cells"] == default["cells"]

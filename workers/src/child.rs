@@ -62,7 +62,7 @@ fn run_one(item: &FrozenItem, config: &JobConfig, memory_bytes: u64) -> ShardRow
     let handle = std::thread::Builder::new()
         .name(format!("item-{}", item.index))
         .stack_size(ITEM_STACK)
-        .spawn(move || crate::convert::convert_item(&it, &cfg));
+        .spawn(move || crate::convert::convert_item(&it, &cfg, memory_bytes));
     let failed = |class, message: String| {
         ShardRow::failed(
             item.index,

@@ -10,6 +10,7 @@ use sparc3d_schema::{
 };
 use sparcubes::attributes::CellAttributes;
 use sparcubes::io::{Buffers, LoadStats};
+use sparcubes::materials::TextureBudget;
 use sparcubes::products::shape_signature::{signature_of, surface_pass};
 use sparcubes::samples::{SampleParams, Samples};
 use sparcubes::{Conversion, Params, TriMesh};
@@ -36,7 +37,8 @@ pub struct Steps<'a> {
     /// Sample the source's appearance at the active cells (a job with `[attributes]`,
     /// `convert --attributes`): its bytes are kept until the conversion is done and parsed
     /// again for materials then, so the conversion's peak memory does not hold them parsed.
-    pub attributes: bool,
+    /// `Some` holds the texture pixels the item may decode (a quarter of its memory limit).
+    pub attributes: Option<TextureBudget>,
     /// Measure the quality facts (a job with `quality = true`): the source's topology, bounds
     /// and area, and the extracted mesh's volume and components (when it is extracted), timed
     /// as the stage `quality`. The input's components then come from the same topology check.
@@ -175,7 +177,7 @@ pub fn convert_bytes(
     let fail = |error, seconds| Box::new(Failed { error, seconds });
     let t = started;
     let loaded = sparcubes::io::load_read_with(&bytes, path, buffers);
-    let kept = steps.attributes.then_some(bytes);
+    let kept = steps.attributes.map(|budget| (bytes, budget));
     let (source, load_stats) = match loaded {
         Ok(loaded) => (loaded.mesh, loaded.stats),
         Err(e) => return Err(fail(StageError::Load(e), seconds)),
@@ -232,10 +234,12 @@ pub fn convert_bytes(
         Err(e) => return Err(fail(StageError::Samples(e), seconds)),
     };
     let attributes = match kept {
-        Some(bytes) => match attributes_of(&bytes, path, buffers, &conversion, &mut seconds) {
-            Ok(a) => Some(a),
-            Err(e) => return Err(fail(StageError::Attributes(e), seconds)),
-        },
+        Some((bytes, budget)) => {
+            match attributes_of((&bytes, path, buffers), budget, &conversion, &mut seconds) {
+                Ok(a) => Some(a),
+                Err(e) => return Err(fail(StageError::Attributes(e), seconds)),
+            }
+        }
         None => None,
     };
     let store_mesh = steps.encode.is_some_and(|e| e.store_mesh);
@@ -344,14 +348,13 @@ fn samples_of(
 /// Reads the appearance from the source's `bytes` and samples it at the converted cells,
 /// timed as the stage `attributes`.
 fn attributes_of(
-    bytes: &[u8],
-    path: &Path,
-    buffers: Buffers,
+    (bytes, path, buffers): (&[u8], &Path, Buffers),
+    budget: TextureBudget,
     conversion: &Conversion,
     seconds: &mut StageSeconds,
 ) -> Result<(CellAttributes, AppearanceFacts), sparcubes::Error> {
     let t = Instant::now();
-    let appearance = sparcubes::materials::read(bytes, path, buffers)?;
+    let appearance = sparcubes::materials::read_within(bytes, path, buffers, budget)?;
     let cells = sparcubes::attributes::sample(&conversion.cubes, &appearance);
     let facts = AppearanceFacts::new(&appearance.facts, &cells);
     seconds.add_stage("attributes", t.elapsed().as_secs_f64());
@@ -385,8 +388,9 @@ fn encode(
 /// the supervisor); every error becomes a `failed` row. The bytes converted are the bytes
 /// hashed: a file whose sha256 is not the one frozen at `init` is a `source_changed` row,
 /// never converted under the item's id (`check_source`); an ok row's `source_sha256` is
-/// the hash of the bytes it was converted from.
-pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
+/// the hash of the bytes it was converted from. `memory_bytes` is the item's memory limit
+/// (0: none), a quarter of which bounds its decoded textures ([`TextureBudget`]).
+pub fn convert_item(item: &FrozenItem, config: &JobConfig, memory_bytes: u64) -> ShardRow {
     let params = &config.params;
     let started = Instant::now();
     let failed = |class, message: String, load_s: f64| {
@@ -434,7 +438,10 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig) -> ShardRow {
             zstd_level: config.zstd_level,
             store_mesh: config.store_mesh,
         }),
-        attributes: config.attributes.enabled,
+        attributes: config
+            .attributes
+            .enabled
+            .then(|| TextureBudget::within_item_memory(memory_bytes)),
         quality: config.quality,
         signature: config.shape_signature,
     };
@@ -553,7 +560,7 @@ mod tests {
                 zstd_level: 3,
                 store_mesh: true,
             }),
-            attributes: false,
+            attributes: None,
             quality: false,
             signature: false,
         };
@@ -595,7 +602,7 @@ mod tests {
             samples: None,
             keep_mesh: true,
             encode: None,
-            attributes: false,
+            attributes: None,
             quality,
             signature,
         };
@@ -649,7 +656,7 @@ mod tests {
                 zstd_level: 3,
                 store_mesh: false,
             }),
-            attributes: false,
+            attributes: None,
             quality: false,
             signature: false,
         };
@@ -681,7 +688,7 @@ mod tests {
             samples: None,
             keep_mesh: false,
             encode: None,
-            attributes: false,
+            attributes: None,
             quality: false,
             signature: false,
         };

@@ -137,7 +137,7 @@ fn measure(args: &Args, row: &mut BenchRow) -> anyhow::Result<()> {
             zstd_level: args.zstd_level,
             store_mesh: false,
         }),
-        attributes: false,
+        attributes: None,
         quality: false,
         signature: false,
     };

@@ -6,6 +6,7 @@ use anyhow::Context;
 use serde_json::{json, Value};
 use sparc3d_workers::convert::{convert_file, StageError, Steps};
 use sparcubes::io::LoadStats;
+use sparcubes::materials::TextureBudget;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
@@ -64,7 +65,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         samples: None,
         keep_mesh: true,
         encode: None,
-        attributes: args.attributes,
+        attributes: args.attributes.then(TextureBudget::default),
         quality: true,
         signature: args.shape_signature,
     };

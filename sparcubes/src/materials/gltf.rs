@@ -14,7 +14,7 @@
 //! the `gltf` crate's readers cannot read (checked first: [`gltf_check`]).
 
 use super::{gltf_check, gltf_images};
-use super::{sibling, AlphaMode, Appearance, Material, ScalarMap, TextureRef, Wrap};
+use super::{sibling, AlphaMode, Appearance, Material, ScalarMap, TextureBudget, TextureRef, Wrap};
 use crate::error::Result;
 use crate::io::gltf::{for_each_primitive, load_buffers, open, transform};
 use crate::io::Buffers;
@@ -22,7 +22,12 @@ use gltf::texture::WrappingMode;
 use serde_json::Value;
 use std::path::Path;
 
-pub(crate) fn read(bytes: &[u8], path: &Path, external: Buffers) -> Result<Appearance> {
+pub(crate) fn read(
+    bytes: &[u8],
+    path: &Path,
+    external: Buffers,
+    budget: TextureBudget,
+) -> Result<Appearance> {
     let doc = open(bytes, path)?;
     let buffers = load_buffers(&doc, path, external)?;
     let json = raw_json(bytes);
@@ -37,7 +42,7 @@ pub(crate) fn read(bytes: &[u8], path: &Path, external: Buffers) -> Result<Appea
             Ok(())
         })?;
     }
-    gltf_images::decode_sampled(&doc, &buffers, path, external, &mut out);
+    gltf_images::decode_sampled(&doc, &buffers, (path, external), budget, &mut out);
     Ok(out)
 }
 

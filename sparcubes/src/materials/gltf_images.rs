@@ -8,8 +8,8 @@
 //! every texture reading any of them reads that one. Images no sampled texture reads are
 //! left undecoded (`None`) and are not named: nothing of them was to be read.
 
-use super::image::{self, Image};
-use super::{sibling, Appearance, Material};
+use super::image::Image;
+use super::{sibling, Appearance, Material, TextureBudget};
 use crate::io::Buffers;
 use base64::Engine as _;
 use std::collections::HashMap;
@@ -17,12 +17,13 @@ use std::path::Path;
 
 /// Decodes the images the surface samples into `out.images` (one entry per image of the
 /// document, `None` where not decoded), each source once, and points every material's
-/// textures at the entry decoded for their source.
+/// textures at the entry decoded for their source. `path` and `external` locate files beside
+/// the glTF file; images past the `budget` are named and not decoded.
 pub(super) fn decode_sampled(
     doc: &gltf::Gltf,
     buffers: &[Vec<u8>],
-    path: &Path,
-    external: Buffers,
+    (path, external): (&Path, Buffers),
+    mut budget: TextureBudget,
     out: &mut Appearance,
 ) {
     let count = doc.images().len();
@@ -39,7 +40,8 @@ pub(super) fn decode_sampled(
         if let Some(k) = key {
             decoded_for.insert(k, i);
         }
-        out.images[i] = decode_image(doc, i, buffers, path, external, &mut out.facts);
+        let bytes = image_bytes(doc, i, buffers, path, external);
+        out.images[i] = decode_image(i, bytes, &mut budget, &mut out.facts);
     }
     for m in &mut out.materials {
         point_at(m, &canonical);
@@ -96,7 +98,7 @@ fn source_key(doc: &gltf::Gltf, index: usize) -> Option<String> {
 /// The bytes of an image: a buffer view, a `data:` URI or a file beside the glTF file. Read
 /// from the document's JSON, not through `gltf::Image::source`, which panics on an image with
 /// neither a `uri` nor a `bufferView`, or with a `bufferView` but no `mimeType` (issue 61);
-/// the format is told by its signature either way ([`image::decode`]).
+/// the format is told by its signature either way ([`super::image::decode`]).
 fn image_bytes(
     doc: &gltf::Gltf,
     index: usize,
@@ -136,16 +138,15 @@ fn image_bytes(
         .map_err(|e| format!("`{}`: {e}", sibling::clip(&name)))
 }
 
-/// Decodes image `index`; one that cannot be read is `None` and named in `facts`.
+/// Decodes image `index` from its `bytes` within the `budget`; one that cannot be read is
+/// `None` and named in `facts`.
 fn decode_image(
-    doc: &gltf::Gltf,
     index: usize,
-    buffers: &[Vec<u8>],
-    path: &Path,
-    external: Buffers,
+    bytes: Result<Vec<u8>, String>,
+    budget: &mut TextureBudget,
     facts: &mut super::Facts,
 ) -> Option<Image> {
-    let decoded = image_bytes(doc, index, buffers, path, external).and_then(|b| image::decode(&b));
+    let decoded = bytes.and_then(|b| budget.decode(&b));
     match decoded {
         Ok(image) => Some(image),
         Err(why) => {

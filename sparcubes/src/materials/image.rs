@@ -34,7 +34,9 @@ pub fn refusal(head: &[u8], len: u64) -> Option<String> {
             .map(|b| u32::from_be_bytes([b[0], b[1], b[2], b[3]]) as u64)
     };
     match (png, word(16), word(20)) {
-        (true, Some(w), Some(h)) => check_size(w, h).err().map(|e| format!("PNG: {e}")),
+        (true, Some(w), Some(h)) => check_size(w, h, MAX_PIXELS)
+            .err()
+            .map(|e| format!("PNG: {e}")),
         _ => None,
     }
 }
@@ -50,14 +52,22 @@ pub struct Image {
     pub pixels: Vec<[u8; 4]>,
 }
 
-/// Fails when `width × height` is zero or over [`MAX_PIXELS`].
-fn check_size(width: u64, height: u64) -> Result<(), String> {
+/// Fails when `width × height` is zero, over [`MAX_PIXELS`], or over `limit` (what is left
+/// of the item's texture budget, [`super::TextureBudget`]).
+fn check_size(width: u64, height: u64, limit: u64) -> Result<(), String> {
     if width == 0 || height == 0 {
         return Err(format!("{width}×{height} pixels: an empty image"));
     }
-    if width * height > MAX_PIXELS {
+    let pixels = width * height;
+    if pixels > MAX_PIXELS {
         return Err(format!(
             "{width}×{height} pixels, over the limit of {MAX_PIXELS} (8192²); not decoded"
+        ));
+    }
+    if pixels > limit {
+        return Err(format!(
+            "{width}×{height} pixels, more than the {limit} pixels left of the item's texture \
+             budget (a quarter of --item-memory); not decoded"
         ));
     }
     Ok(())
@@ -65,23 +75,28 @@ fn check_size(width: u64, height: u64) -> Result<(), String> {
 
 /// Decodes a PNG or JPEG image (told apart by their signatures); the error says why not.
 pub fn decode(bytes: &[u8]) -> Result<Image, String> {
+    decode_within(bytes, MAX_PIXELS)
+}
+
+/// Decodes a PNG or JPEG image of at most `limit` pixels, refused from its header otherwise.
+pub(crate) fn decode_within(bytes: &[u8], limit: u64) -> Result<Image, String> {
     if bytes.starts_with(&PNG_SIGNATURE) {
-        decode_png(bytes).map_err(|e| format!("PNG: {e}"))
+        decode_png(bytes, limit).map_err(|e| format!("PNG: {e}"))
     } else if bytes.starts_with(&[0xFF, 0xD8]) {
-        decode_jpeg(bytes).map_err(|e| format!("JPEG: {e}"))
+        decode_jpeg(bytes, limit).map_err(|e| format!("JPEG: {e}"))
     } else {
         Err("neither PNG nor JPEG (other image formats are not read)".into())
     }
 }
 
-fn decode_png(bytes: &[u8]) -> Result<Image, String> {
+fn decode_png(bytes: &[u8], limit: u64) -> Result<Image, String> {
     let limits = png::Limits {
         bytes: (MAX_PIXELS as usize) * 8 + (1 << 20),
     };
     let mut decoder = png::Decoder::new_with_limits(std::io::Cursor::new(bytes), limits);
     decoder.set_transformations(Transformations::normalize_to_color8());
     let header = decoder.read_header_info().map_err(|e| e.to_string())?;
-    check_size(header.width as u64, header.height as u64)?;
+    check_size(header.width as u64, header.height as u64, limit)?;
     let mut reader = decoder.read_info().map_err(|e| e.to_string())?;
     let size = reader
         .output_buffer_size()
@@ -124,7 +139,7 @@ fn finish(w: u32, h: u32, pixels: Vec<[u8; 4]>) -> Result<Image, String> {
     })
 }
 
-fn decode_jpeg(bytes: &[u8]) -> Result<Image, String> {
+fn decode_jpeg(bytes: &[u8], limit: u64) -> Result<Image, String> {
     use zune_jpeg::zune_core::colorspace::ColorSpace;
     use zune_jpeg::zune_core::options::DecoderOptions;
     let options = DecoderOptions::default()
@@ -137,7 +152,7 @@ fn decode_jpeg(bytes: &[u8]) -> Result<Image, String> {
     let (w, h) = decoder
         .dimensions()
         .ok_or("no dimensions after the header")?;
-    check_size(w as u64, h as u64)?;
+    check_size(w as u64, h as u64, limit)?;
     let data = decoder.decode().map_err(|e| format!("{e:?}"))?;
     let pixels = data
         .chunks_exact(4)
@@ -147,7 +162,7 @@ fn decode_jpeg(bytes: &[u8]) -> Result<Image, String> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// A PNG of `w × h` RGBA pixels from `pixel(x, y)`.

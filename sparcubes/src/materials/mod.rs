@@ -14,6 +14,7 @@
 //! Colours are linear RGBA in `[0, 1]`; images stay 8-bit as decoded (sRGB for base colour,
 //! linear for data), their decoding is [`crate::attributes`]' job when sampled.
 
+mod budget;
 mod gltf;
 mod gltf_check;
 mod gltf_images;
@@ -25,6 +26,7 @@ mod ply;
 pub mod references;
 mod sibling;
 
+pub use budget::TextureBudget;
 pub use image::Image;
 pub use mtl::srgb_to_linear;
 
@@ -386,8 +388,20 @@ fn drop_missing_textures(m: &mut Material, images: &[Option<Image>]) {
 /// Reads the appearance of a mesh file from its bytes (the bytes [`crate::io::read_source`]
 /// read); `path` names it in errors and locates images and material libraries beside it,
 /// read from disk or through `buffers`. Formats without appearance (STL) give the surface
-/// with the default material.
+/// with the default material. Textures are decoded within the default item's budget
+/// ([`TextureBudget::default`]); [`read_within`] takes another.
 pub fn read(bytes: &[u8], path: &Path, buffers: Buffers) -> Result<Appearance> {
+    read_within(bytes, path, buffers, TextureBudget::default())
+}
+
+/// [`read`], decoding textures until `budget` is spent: images past it are named in the
+/// facts and not decoded.
+pub fn read_within(
+    bytes: &[u8],
+    path: &Path,
+    buffers: Buffers,
+    budget: TextureBudget,
+) -> Result<Appearance> {
     let format = Format::from_extension(path)
         .or_else(|| Format::sniff(bytes))
         .ok_or_else(|| Error::UnsupportedFormat {
@@ -395,8 +409,8 @@ pub fn read(bytes: &[u8], path: &Path, buffers: Buffers) -> Result<Appearance> {
             reason: "unknown format: no appearance to read".into(),
         })?;
     let read = catch_unwind(AssertUnwindSafe(|| match format {
-        Format::Gltf => gltf::read(bytes, path, buffers),
-        Format::Obj => obj::read(bytes, path, buffers),
+        Format::Gltf => gltf::read(bytes, path, buffers, budget),
+        Format::Obj => obj::read(bytes, path, buffers, budget),
         Format::Ply => ply::read(bytes, path),
         Format::Off => off::read(bytes, path),
         Format::Stl => stl_surface(bytes, path),

@@ -8,7 +8,7 @@
 //! materials or textures are left out.
 
 use super::mtl::{self, MtlMaterial, Slot};
-use super::{sibling, Appearance, Facts, Image, NONE};
+use super::{sibling, Appearance, Facts, Image, TextureBudget, NONE};
 use crate::error::Result;
 use crate::io::Buffers;
 use std::collections::HashMap;
@@ -101,7 +101,12 @@ impl Parse {
     }
 }
 
-pub(crate) fn read(bytes: &[u8], path: &Path, buffers: Buffers) -> Result<Appearance> {
+pub(crate) fn read(
+    bytes: &[u8],
+    path: &Path,
+    buffers: Buffers,
+    budget: TextureBudget,
+) -> Result<Appearance> {
     let text = String::from_utf8_lossy(bytes);
     let mut p = Parse {
         current: NONE,
@@ -116,7 +121,7 @@ pub(crate) fn read(bytes: &[u8], path: &Path, buffers: Buffers) -> Result<Appear
     }
     vertex_colors(&mut p);
     let library = libraries(&p.libraries, path, buffers, &mut p.out.facts);
-    bind_materials(&mut p, library, path, buffers);
+    bind_materials(&mut p, library, (path, buffers), budget);
     Ok(p.out)
 }
 
@@ -157,8 +162,14 @@ fn libraries(
 }
 
 /// Gives every triangle its material (the default one where `usemtl` named none or one the
-/// libraries lack), decoding each map's image once.
-fn bind_materials(p: &mut Parse, library: Vec<MtlMaterial>, path: &Path, buffers: Buffers) {
+/// libraries lack), decoding each map's image once, within the `budget`; `path` and `buffers`
+/// locate the map files.
+fn bind_materials(
+    p: &mut Parse,
+    library: Vec<MtlMaterial>,
+    (path, buffers): (&Path, Buffers),
+    mut budget: TextureBudget,
+) {
     let mut images: HashMap<String, Option<usize>> = HashMap::new();
     let mut index_of: Vec<u32> = Vec::with_capacity(p.used.len());
     for name in &p.used {
@@ -176,7 +187,7 @@ fn bind_materials(p: &mut Parse, library: Vec<MtlMaterial>, path: &Path, buffers
         for (slot, spec) in &m.maps {
             let image = *images
                 .entry(spec.file.clone())
-                .or_insert_with(|| load(&spec.file, path, buffers, &mut p.out));
+                .or_insert_with(|| load(&spec.file, (path, buffers), &mut budget, &mut p.out));
             let Some(image) = image else { continue };
             match slot {
                 Slot::BaseColor => material.base_color_map = Some(spec.bind(image)),
@@ -215,9 +226,14 @@ fn has_alpha(image: &Option<Image>) -> bool {
 }
 
 /// Reads and decodes the map file `name` into the appearance's images; `None` (and named in
-/// the facts) when it cannot be.
-fn load(name: &str, path: &Path, buffers: Buffers, out: &mut Appearance) -> Option<usize> {
-    let decoded = sibling::read_image(name, path, buffers).and_then(|b| super::image::decode(&b));
+/// the facts) when it cannot be, or when it does not fit in what is left of the `budget`.
+fn load(
+    name: &str,
+    (path, buffers): (&Path, Buffers),
+    budget: &mut TextureBudget,
+    out: &mut Appearance,
+) -> Option<usize> {
+    let decoded = sibling::read_image(name, path, buffers).and_then(|b| budget.decode(&b));
     match decoded {
         Ok(image) => {
             out.images.push(Some(image));
