@@ -559,3 +559,92 @@ fn exports_clear_what_killed_exports_left_and_restore_one_moved_aside() {
     assert!(record.is_file(), "{}", stderr(&failed));
     assert_eq!(beside(), Vec::<String>::new());
 }
+
+/// Makes `file` impossible to unlink until dropped: immutable (`chattr +i`) as root, whom
+/// permissions do not stop; its folder read-only otherwise.
+struct Unremovable(PathBuf);
+
+impl Unremovable {
+    fn new(file: &Path) -> Self {
+        let done = if is_root() {
+            Command::new("chattr").arg("+i").arg(file).status()
+        } else {
+            Command::new("chmod")
+                .arg("555")
+                .arg(parent_of(file))
+                .status()
+        };
+        let done = done.unwrap_or_else(|e| panic!("locking {}: {e}", file.display()));
+        assert!(done.success(), "could not lock {}", file.display());
+        Unremovable(file.to_path_buf())
+    }
+}
+
+impl Drop for Unremovable {
+    fn drop(&mut self) {
+        let _ = Command::new("chattr").arg("-i").arg(&self.0).status();
+        let _ = Command::new("chmod")
+            .arg("755")
+            .arg(parent_of(&self.0))
+            .status();
+    }
+}
+
+fn parent_of(file: &Path) -> &Path {
+    file.parent()
+        .unwrap_or_else(|| panic!("{} has no folder", file.display()))
+}
+
+/// Whether the tests run as root (`id -u` is 0).
+fn is_root() -> bool {
+    let out = Command::new("id").arg("-u").output();
+    let out = out.unwrap_or_else(|e| panic!("id -u: {e}"));
+    String::from_utf8_lossy(&out.stdout).trim() == "0"
+}
+
+/// Issue 64 item 7: an export over an earlier one that cannot be removed (read-only) is
+/// complete and in place, exits 0 and says what it left where (before: exit 1 after the new
+/// export was in place); the next export, once it can, removes what was left.
+#[test]
+fn an_export_over_an_earlier_one_that_cannot_be_removed_succeeds_and_says_so() {
+    // On the checkout's file system (ext4 here and in CI), where `chattr` works.
+    let tmp = tempfile::tempdir_in(env!("CARGO_TARGET_TMPDIR")).unwrap_or_else(|e| panic!("{e}"));
+    let job = finished_job(tmp.path());
+    let out = tmp.path().join("export");
+    let export = || sparc3d(&["export", s(&job), "--format", "cubvh", "--out", s(&out)]);
+    assert!(export().status.success());
+    let record = out.join(".sparc3d-export.json");
+    let before = std::fs::read(&record).unwrap_or_else(|e| panic!("{e}"));
+    let lock = Unremovable::new(&record);
+    let again = export();
+    let said = stderr(&again);
+    assert!(again.status.success(), "{said}");
+    assert!(
+        said.contains("could not be removed") && said.contains("by hand"),
+        "{said}"
+    );
+    assert!(record.is_file(), "{said}");
+    let left: Vec<PathBuf> = std::fs::read_dir(tmp.path())
+        .unwrap_or_else(|e| panic!("{e}"))
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.to_string_lossy().contains("/.export."))
+        .collect();
+    assert_eq!(left.len(), 1, "{left:?}");
+    let kept =
+        std::fs::read(left[0].join(".sparc3d-export.json")).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(kept, before, "the earlier export is what was left");
+    // Still locked, the leftover is said and left; unlocked, the next export removes it.
+    let locked = export();
+    assert!(locked.status.success(), "{}", stderr(&locked));
+    assert!(left[0].exists());
+    drop(lock);
+    let _ = Command::new("chattr")
+        .arg("-i")
+        .arg(left[0].join(".sparc3d-export.json"))
+        .status();
+    let _ = Command::new("chmod").arg("755").arg(&left[0]).status();
+    let cleared = export();
+    assert!(cleared.status.success(), "{}", stderr(&cleared));
+    assert!(!left[0].exists(), "{}", stderr(&cleared));
+}

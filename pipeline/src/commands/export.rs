@@ -185,7 +185,9 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
             return Err(e);
         }
     };
-    staging.move_to(&args.out)?;
+    if let Some(left) = staging.move_to(&args.out)? {
+        eprintln!("warning: {left}");
+    }
     eprintln!(
         "{} items written to {} ({}, frame {}){}",
         outcome.listed.len(),
@@ -611,18 +613,15 @@ impl Staging {
     /// Moves the finished export to `out`: swapped with an earlier export there in one step
     /// (which is then removed from the staging folder's name), or where the file system
     /// cannot, the earlier one moved aside first and removed after; `out` is always a whole
-    /// export.
-    fn move_to(self, out: &Path) -> Result<()> {
+    /// export. An earlier export that cannot be removed (read-only) does not fail the export,
+    /// which is complete and in place: what is left and where is handed back to be said.
+    fn move_to(self, out: &Path) -> Result<Option<String>> {
         sync_tree(&self.dir)?;
         let old = sibling(out, "old")?;
         let replaced = out.exists();
         if replaced && super::export_debris::exchange(&self.dir, out)? {
-            if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
-                sparc3d_workers::fsutil::sync_dir(parent)?;
-            }
-            return std::fs::remove_dir_all(&self.dir).with_context(|| {
-                format!("removing the earlier export from {}", self.dir.display())
-            });
+            sync_parent(out)?;
+            return Ok(remove_earlier(&self.dir, out));
         }
         if replaced {
             if old.exists() {
@@ -634,15 +633,29 @@ impl Staging {
         }
         std::fs::rename(&self.dir, out)
             .with_context(|| format!("moving {} to {}", self.dir.display(), out.display()))?;
-        if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
-            sparc3d_workers::fsutil::sync_dir(parent)?;
-        }
-        if replaced {
-            std::fs::remove_dir_all(&old)
-                .with_context(|| format!("removing the earlier export {}", old.display()))?;
-        }
-        Ok(())
+        sync_parent(out)?;
+        Ok(replaced.then(|| remove_earlier(&old, out)).flatten())
     }
+}
+
+/// fsyncs the folder holding `out`, so that its new name is durable.
+fn sync_parent(out: &Path) -> Result<()> {
+    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        sparc3d_workers::fsutil::sync_dir(parent)?;
+    }
+    Ok(())
+}
+
+/// Removes the earlier export of `out`, moved to `earlier`; `None` when it is gone, else what
+/// is left there and why (the new export is in place either way).
+fn remove_earlier(earlier: &Path, out: &Path) -> Option<String> {
+    let err = std::fs::remove_dir_all(earlier).err()?;
+    Some(format!(
+        "the export in {} is complete; the earlier export it replaced could not be removed \
+         from {} ({err}): remove it by hand",
+        out.display(),
+        earlier.display()
+    ))
 }
 
 /// `.NAME.KIND-PID` beside `out`.

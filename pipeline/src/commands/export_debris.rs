@@ -54,16 +54,19 @@ fn clear_one(path: &Path, kind: &str, pid: u32, out: &Path, record: &str) -> Res
         );
         return Ok(());
     }
-    std::fs::remove_dir_all(path).with_context(|| {
-        format!(
-            "removing {}, left by an export that was killed (process {pid} is gone)",
+    // One that cannot be removed (read-only) is said and left: it takes nothing from the
+    // export about to be made, whose own folders have this process's id.
+    match std::fs::remove_dir_all(path) {
+        Ok(()) => eprintln!(
+            "note: removed {}, left by an export that was killed (process {pid} is gone)",
             path.display()
-        )
-    })?;
-    eprintln!(
-        "note: removed {}, left by an export that was killed (process {pid} is gone)",
-        path.display()
-    );
+        ),
+        Err(e) => eprintln!(
+            "warning: {}, left by an export of process {pid} (gone), could not be removed \
+             ({e}): remove it by hand",
+            path.display()
+        ),
+    }
     Ok(())
 }
 
