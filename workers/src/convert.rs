@@ -235,7 +235,7 @@ pub fn convert_bytes(
     };
     let attributes = match kept {
         Some((bytes, budget)) => {
-            match attributes_of((&bytes, path, buffers), budget, &conversion, &mut seconds) {
+            match attributes_of(&bytes, path, buffers, budget, &conversion, &mut seconds) {
                 Ok(a) => Some(a),
                 Err(e) => return Err(fail(StageError::Attributes(e), seconds)),
             }
@@ -348,7 +348,9 @@ fn samples_of(
 /// Reads the appearance from the source's `bytes` and samples it at the converted cells,
 /// timed as the stage `attributes`.
 fn attributes_of(
-    (bytes, path, buffers): (&[u8], &Path, Buffers),
+    bytes: &[u8],
+    path: &Path,
+    buffers: Buffers,
     budget: TextureBudget,
     conversion: &Conversion,
     seconds: &mut StageSeconds,

@@ -10,7 +10,7 @@
 //! is named in the facts (`appearance_not_read`) with what was left, and the item keeps its
 //! shape and every image decoded before.
 
-use super::image::{self, Image, MAX_PIXELS};
+use super::image::{self, Image};
 
 /// The item memory limit [`TextureBudget::default`] assumes: the job's default
 /// (`limits.item_memory_bytes`, 8 GiB).
@@ -37,10 +37,10 @@ impl TextureBudget {
         self.left
     }
 
-    /// Decodes `bytes` if its image fits in what is left (and under [`MAX_PIXELS`]), taking
+    /// Decodes `bytes` if its image fits in what is left (and under [`image::MAX_PIXELS`]), taking
     /// its pixels from the budget; the error says why not.
     pub(crate) fn decode(&mut self, bytes: &[u8]) -> Result<Image, String> {
-        let decoded = image::decode_within(bytes, self.left.min(MAX_PIXELS))?;
+        let decoded = image::decode_within(bytes, self.left)?;
         self.left -= decoded.width as u64 * decoded.height as u64;
         Ok(decoded)
     }
@@ -81,7 +81,7 @@ mod tests {
 
     #[test]
     fn the_default_is_six_of_the_largest_images_and_no_limit_is_no_budget() {
-        assert_eq!(TextureBudget::default().left(), 6 * MAX_PIXELS);
+        assert_eq!(TextureBudget::default().left(), 6 * image::MAX_PIXELS);
         assert_eq!(TextureBudget::within_item_memory(0).left(), u64::MAX);
     }
 }

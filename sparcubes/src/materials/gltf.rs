@@ -42,20 +42,27 @@ pub(crate) fn read(
             Ok(())
         })?;
     }
-    gltf_images::decode_sampled(&doc, &buffers, (path, external), budget, &mut out);
+    gltf_images::decode_sampled(&doc, &buffers, path, external, budget, &mut out);
     Ok(out)
 }
 
 /// The JSON of a `.gltf` file, or of a `.glb` file's JSON chunk (for the extensions the
 /// `gltf` crate is not built to read); `Null` when it cannot be found.
-fn raw_json(bytes: &[u8]) -> Value {
-    let text = if bytes.starts_with(b"glTF") && bytes.len() >= 20 {
-        let len = u32::from_le_bytes([bytes[12], bytes[13], bytes[14], bytes[15]]) as usize;
-        bytes.get(20..20usize.saturating_add(len)).unwrap_or(&[])
-    } else {
-        bytes
+pub(super) fn raw_json(bytes: &[u8]) -> Value {
+    let text = match glb_json_len(bytes) {
+        Some(len) => bytes.get(20..20usize.saturating_add(len)).unwrap_or(&[]),
+        None => bytes,
     };
     serde_json::from_slice(text).unwrap_or(Value::Null)
+}
+
+/// The length of a `.glb` file's JSON chunk, from its first 20 bytes (the file header and the
+/// chunk's header); `None` when `head` does not start a `.glb` file.
+pub(super) fn glb_json_len(head: &[u8]) -> Option<usize> {
+    if head.len() < 20 || !head.starts_with(b"glTF") {
+        return None;
+    }
+    Some(u32::from_le_bytes([head[12], head[13], head[14], head[15]]) as usize)
 }
 
 /// The material `m`, with what it uses that is not read named in `facts`.

@@ -22,7 +22,8 @@ use std::path::Path;
 pub(super) fn decode_sampled(
     doc: &gltf::Gltf,
     buffers: &[Vec<u8>],
-    (path, external): (&Path, Buffers),
+    path: &Path,
+    external: Buffers,
     mut budget: TextureBudget,
     out: &mut Appearance,
 ) {

@@ -78,7 +78,8 @@ pub fn decode(bytes: &[u8]) -> Result<Image, String> {
     decode_within(bytes, MAX_PIXELS)
 }
 
-/// Decodes a PNG or JPEG image of at most `limit` pixels, refused from its header otherwise.
+/// Decodes a PNG or JPEG image of at most `limit` pixels (and never over [`MAX_PIXELS`]),
+/// refused from its header otherwise.
 pub(crate) fn decode_within(bytes: &[u8], limit: u64) -> Result<Image, String> {
     if bytes.starts_with(&PNG_SIGNATURE) {
         decode_png(bytes, limit).map_err(|e| format!("PNG: {e}"))

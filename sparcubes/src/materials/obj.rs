@@ -121,7 +121,7 @@ pub(crate) fn read(
     }
     vertex_colors(&mut p);
     let library = libraries(&p.libraries, path, buffers, &mut p.out.facts);
-    bind_materials(&mut p, library, (path, buffers), budget);
+    bind_materials(&mut p, library, path, buffers, budget);
     Ok(p.out)
 }
 
@@ -167,7 +167,8 @@ fn libraries(
 fn bind_materials(
     p: &mut Parse,
     library: Vec<MtlMaterial>,
-    (path, buffers): (&Path, Buffers),
+    path: &Path,
+    buffers: Buffers,
     mut budget: TextureBudget,
 ) {
     let mut images: HashMap<String, Option<usize>> = HashMap::new();
@@ -187,7 +188,7 @@ fn bind_materials(
         for (slot, spec) in &m.maps {
             let image = *images
                 .entry(spec.file.clone())
-                .or_insert_with(|| load(&spec.file, (path, buffers), &mut budget, &mut p.out));
+                .or_insert_with(|| load(&spec.file, path, buffers, &mut budget, &mut p.out));
             let Some(image) = image else { continue };
             match slot {
                 Slot::BaseColor => material.base_color_map = Some(spec.bind(image)),
@@ -229,7 +230,8 @@ fn has_alpha(image: &Option<Image>) -> bool {
 /// the facts) when it cannot be, or when it does not fit in what is left of the `budget`.
 fn load(
     name: &str,
-    (path, buffers): (&Path, Buffers),
+    path: &Path,
+    buffers: Buffers,
     budget: &mut TextureBudget,
     out: &mut Appearance,
 ) -> Option<usize> {

@@ -89,25 +89,13 @@ fn library_maps(name: &str, path: &Path) -> Vec<String> {
 /// alone are read); `Null` when there is none.
 fn gltf_json(path: &Path) -> std::io::Result<Value> {
     let (mut file, _) = crate::io::open_regular(path)?;
-    let mut head = [0u8; 20];
-    let mut got = 0;
-    while got < head.len() {
-        match file.read(&mut head[got..])? {
-            0 => break,
-            n => got += n,
-        }
-    }
-    let text = if head[..got].starts_with(b"glTF") && got == head.len() {
-        let len = u32::from_le_bytes([head[12], head[13], head[14], head[15]]);
-        let mut chunk = Vec::new();
-        file.take(u64::from(len)).read_to_end(&mut chunk)?;
-        chunk
-    } else {
-        let mut all = head[..got].to_vec();
-        file.read_to_end(&mut all)?;
-        all
+    let mut bytes = Vec::new();
+    file.by_ref().take(20).read_to_end(&mut bytes)?;
+    match super::gltf::glb_json_len(&bytes) {
+        Some(len) => file.take(len as u64).read_to_end(&mut bytes)?,
+        None => file.read_to_end(&mut bytes)?,
     };
-    Ok(serde_json::from_slice(&text).unwrap_or(Value::Null))
+    Ok(super::gltf::raw_json(&bytes))
 }
 
 /// The external `uri`s of a glTF's buffers, then of its images, percent-decoded.
@@ -170,6 +158,30 @@ mod tests {
         let stl = dir.path().join("m.stl");
         std::fs::write(&stl, "solid x\nendsolid x\n")?;
         assert!(named_files(&stl)?.is_empty());
+        Ok(())
+    }
+
+    /// A `.glb` names the external images of its JSON chunk; the binary chunk after it is
+    /// not read for names.
+    #[test]
+    fn a_glb_names_the_external_files_of_its_json_chunk() -> Result<(), Box<dyn std::error::Error>>
+    {
+        let dir = tempfile::tempdir()?;
+        let json = br#"{"images":[{"uri":"t.png"}]}  "#;
+        let bin = br#"{"images":[{"uri":"not_a_name.png"}]}"#;
+        let total = 12 + 8 + json.len() + 8 + bin.len();
+        let mut glb = b"glTF".to_vec();
+        for word in [2, total as u32, json.len() as u32] {
+            glb.extend(word.to_le_bytes());
+        }
+        glb.extend(b"JSON");
+        glb.extend(json);
+        glb.extend((bin.len() as u32).to_le_bytes());
+        glb.extend(b"BIN\0");
+        glb.extend(bin);
+        let path = dir.path().join("m.glb");
+        std::fs::write(&path, glb)?;
+        assert_eq!(names(&named_files(&path)?), ["t.png"]);
         Ok(())
     }
 }
