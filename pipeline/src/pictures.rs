@@ -79,10 +79,7 @@ pub fn preview_row(row: &ShardRow, options: &CompareOptions, colours: bool) -> R
 /// none, with a note naming `what`, when it could not be read.
 pub(crate) fn coloured(read: Result<Appearance>, what: &str) -> Option<Appearance> {
     match read {
-        Ok(a) => {
-            let f = &a.facts;
-            (f.materials > 0 || f.textures > 0 || f.vertex_colors).then_some(a)
-        }
+        Ok(a) => sparc3d_render::cond::asset::with_colours(a),
         Err(e) => {
             eprintln!("note: {what} is drawn without its colours: {e:#}");
             None

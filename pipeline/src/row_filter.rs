@@ -66,6 +66,7 @@ impl RowFilter {
             attributes: schema.column_with_name(c::MATERIALS).is_some(),
             quality: schema.column_with_name(c::INPUT_BOUNDARY_EDGES).is_some(),
             signature: schema.column_with_name(c::SHAPE_SIGNATURE).is_some(),
+            renders: schema.column_with_name(c::RENDER_VIEWS).is_some(),
         };
         Self::new(text, provenance, sections, what)
     }

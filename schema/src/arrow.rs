@@ -35,6 +35,8 @@ pub struct Sections {
     /// The `shape_signature` column ([`crate::signature_column`]), a job with
     /// `shape_signature = true`.
     pub signature: bool,
+    /// The render columns ([`crate::render_columns`]), a job with `[renders]`.
+    pub renders: bool,
 }
 
 impl Sections {
@@ -44,6 +46,7 @@ impl Sections {
             attributes: config.attributes.enabled,
             quality: config.quality,
             signature: config.shape_signature,
+            renders: config.renders.enabled,
         }
     }
 }
@@ -88,6 +91,9 @@ pub fn schema_for(provenance: &[String], sections: Sections) -> SchemaRef {
     }
     if sections.signature {
         f.push(crate::signature_column::field());
+    }
+    if sections.renders {
+        f.extend(crate::render_columns::fields());
     }
     for name in provenance {
         f.push(Field::new(c::provenance_column(name), Utf8, true));
@@ -229,6 +235,9 @@ pub fn rows_to_batch_for(
             rows.iter().map(|r| r.shape_signature.as_deref()).collect();
         cols.push(crate::signature_column::column(&signatures)?);
     }
+    if sections.renders {
+        cols.extend(crate::render_columns::columns(rows));
+    }
     for name in provenance {
         cols.push(strs(&|r| r.provenance.get(name).map(String::as_str)));
     }
@@ -315,6 +324,7 @@ fn cube_tensors_at(batch: &RecordBatch, i: usize) -> Result<Option<RowTensors>> 
                 mesh_faces: None,
                 samples: None,
                 attributes: None,
+                renders: None,
             }),
             _ => None,
         },
@@ -391,6 +401,7 @@ pub fn batch_to_rows(batch: &RecordBatch) -> Result<Vec<ShardRow>> {
                 mesh_faces: read_tensor(batch, "mesh_faces", i)?,
                 samples: SampleTensors::from_lookup(|stem| read_tensor(batch, stem, i))?,
                 attributes: crate::attribute_columns::tensors_at(batch, i)?,
+                renders: crate::render_columns::renders_at(batch, i)?,
                 ..t
             }),
             None => None,

@@ -47,6 +47,14 @@ pub const WALL_CELLS: &str = "wall_cells";
 /// The shape signature of an ok row (`fixed_size_list<float32>`, null otherwise; absent from
 /// shards written before it): near-duplicates have close signatures (`sparc3d dedup`).
 pub const SHAPE_SIGNATURE: &str = "shape_signature";
+/// The condition views of an ok row of a job with `[renders]` (`list<large_binary>`, an
+/// 8-bit RGBA PNG a view in view order; null otherwise, absent from other jobs' shards).
+pub const RENDER_VIEWS: &str = "render_views";
+/// Seconds spent tracing each view (`list<float64>`, beside [`RENDER_VIEWS`]).
+pub const RENDER_SECONDS: &str = "render_seconds";
+/// The views' `transforms.json` (`utf8`): cameras in Blender's Z-up world, as the
+/// consumer's own render script writes it (docs/RENDERS.md).
+pub const RENDER_TRANSFORMS: &str = "render_transforms";
 /// Seconds loading the file (`f64`).
 pub const TIME_LOAD: &str = "time_load_s";
 /// Seconds converting (`f64`).

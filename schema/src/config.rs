@@ -74,6 +74,10 @@ pub struct JobConfig {
     /// back without it, so a job made before the column keeps its fingerprint and its rows.
     #[serde(default, skip_serializing_if = "is_false")]
     pub shape_signature: bool,
+    /// Condition views rendered of each item's source (`[renders]`, docs/RENDERS.md). Left
+    /// out of the canonical config while disabled, so jobs without it keep their fingerprint.
+    #[serde(default, skip_serializing_if = "RenderConfig::is_disabled")]
+    pub renders: RenderConfig,
 }
 
 /// Whether a flag is off (then left out of the canonical config).
@@ -95,6 +99,74 @@ impl AttributeConfig {
     /// Whether attributes are off (the section is then left out of the canonical config).
     pub fn is_disabled(&self) -> bool {
         !self.enabled
+    }
+}
+
+/// The `[renders]` section of a job config: `enabled = true` renders each ok item's source
+/// with a consumer's cameras and lights (`recipe`, one of [`RenderConfig::RECIPES`]) and
+/// stores the views in its row (docs/RENDERS.md, "In a job").
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RenderConfig {
+    /// Whether each ok item gets the render columns.
+    pub enabled: bool,
+    /// Whose cameras, view count, size and lights (`sparc3d_render::cond::Recipe::named`).
+    pub recipe: String,
+    /// Views per item (the recipe's count when unset).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub views: Option<u32>,
+    /// Side of a view in pixels (the recipe's when unset).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub size: Option<u32>,
+    /// Mixed into each item's seed (the head of its source's sha256): another set of views.
+    pub seed: u64,
+}
+
+impl Default for RenderConfig {
+    fn default() -> Self {
+        Self {
+            enabled: false,
+            recipe: "trellis2".into(),
+            views: None,
+            size: None,
+            seed: 0,
+        }
+    }
+}
+
+impl RenderConfig {
+    /// The recipes a job may name (those of `sparc3d_render::cond::Recipe::ALL`; a test of
+    /// the workers keeps the two lists equal).
+    pub const RECIPES: [&'static str; 2] = ["trellis", "trellis2"];
+    /// The view counts a job may ask for.
+    pub const VIEWS: std::ops::RangeInclusive<u32> = 1..=256;
+    /// The view sizes a job may ask for, in pixels.
+    pub const SIZES: std::ops::RangeInclusive<u32> = 16..=4096;
+
+    /// Whether renders are off (the section is then left out of the canonical config).
+    pub fn is_disabled(&self) -> bool {
+        !self.enabled
+    }
+
+    /// Refuses a recipe no renderer has and a view count or size out of range.
+    fn validate(&self) -> std::result::Result<(), String> {
+        if !Self::RECIPES.contains(&self.recipe.as_str()) {
+            return Err(format!(
+                "renders.recipe must be one of {}, got {:?}",
+                Self::RECIPES.join(", "),
+                self.recipe
+            ));
+        }
+        let out = |key: &str, v: Option<u32>, r: &std::ops::RangeInclusive<u32>| match v {
+            Some(v) if !r.contains(&v) => Err(format!(
+                "renders.{key} must be in {}..={}, got {v}",
+                r.start(),
+                r.end()
+            )),
+            _ => Ok(()),
+        };
+        out("views", self.views, &Self::VIEWS)?;
+        out("size", self.size, &Self::SIZES)
     }
 }
 
@@ -132,6 +204,7 @@ impl Default for JobConfig {
             attributes: AttributeConfig::default(),
             quality: true,
             shape_signature: true,
+            renders: RenderConfig::default(),
         }
     }
 }
@@ -229,6 +302,12 @@ impl JobConfig {
             })?;
             m.insert("samples".into(), samples);
             m.insert("attributes".into(), serde_json::json!({ "enabled": false }));
+            m.insert(
+                "renders".into(),
+                serde_json::json!({
+                    "enabled": false, "recipe": "trellis2", "views": null, "size": null, "seed": 0
+                }),
+            );
             // `params.object_span` is left out while unset (`Params::object_span`); offer it.
             if let Some(Value::Object(params)) = m.get_mut("params") {
                 params.entry("object_span").or_insert(Value::Null);
@@ -300,6 +379,9 @@ impl JobConfig {
                 "validation_sample_rate must be in [0, 1], got {}",
                 self.validation_sample_rate
             ));
+        }
+        if self.renders.enabled {
+            self.renders.validate().map(|_| ()).or_else(invalid)?;
         }
         let timeout = self.limits.item_timeout_s;
         if !(timeout.is_finite() && timeout > 0.0) {
@@ -493,6 +575,56 @@ mod tests {
         assert_eq!(off.fingerprint()?, JobConfig::default().fingerprint()?);
         let typo = JobConfig::from_overrides(&serde_json::json!({"attributes": {"enable": true}}));
         assert!(typo.is_err_and(|e| e.to_string().contains("attributes.enable")));
+        Ok(())
+    }
+
+    #[test]
+    fn renders_are_off_by_default_and_change_the_fingerprint_only_when_on() -> Result<()> {
+        let old: JobConfig =
+            serde_json::from_str(OLD_DEFAULT_CONFIG).map_err(|source| SchemaError::Json {
+                context: "test".into(),
+                source,
+            })?;
+        assert!(!old.renders.enabled);
+        assert_eq!(old.fingerprint()?, OLD_DEFAULT_FINGERPRINT);
+        let default = JobConfig::default();
+        assert!(!default.to_canonical_json()?.contains("renders"));
+        let on = JobConfig::from_overrides(&serde_json::json!({"renders": {"enabled": true}}))?;
+        assert_eq!(on.renders.recipe, "trellis2");
+        assert_ne!(on.fingerprint()?, default.fingerprint()?);
+        let more = serde_json::json!({"renders": {"enabled": true, "views": 24}});
+        assert_ne!(
+            JobConfig::from_overrides(&more)?.fingerprint()?,
+            on.fingerprint()?
+        );
+        let off = serde_json::json!({"renders": {"enabled": false, "recipe": "trellis"}});
+        assert_eq!(
+            JobConfig::from_overrides(&off)?.fingerprint()?,
+            default.fingerprint()?
+        );
+        let refused = |v: serde_json::Value, says: &str| {
+            let e = JobConfig::from_overrides(&v)
+                .map(|_| ())
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(says), "{e}");
+        };
+        refused(
+            serde_json::json!({"renders": {"enabled": true, "recipe": "blender"}}),
+            "renders.recipe",
+        );
+        refused(
+            serde_json::json!({"renders": {"enabled": true, "views": 0}}),
+            "renders.views",
+        );
+        refused(
+            serde_json::json!({"renders": {"enabled": true, "size": 8}}),
+            "renders.size",
+        );
+        refused(
+            serde_json::json!({"renders": {"enable": true}}),
+            "renders.enable",
+        );
         Ok(())
     }
 

@@ -125,6 +125,16 @@ pub fn update_row(h: &mut Sha256, row: &ShardRow) {
             h.update(x.to_le_bytes());
         }
     }
+    // Rows without renders digest as before they existed; each view's seconds are run-
+    // dependent, like the timings, and left out.
+    if let Some(r) = row.tensors.as_ref().and_then(|t| t.renders.as_ref()) {
+        field(h, crate::columns::RENDER_VIEWS.as_bytes());
+        h.update((r.views.len() as u64).to_le_bytes());
+        for v in &r.views {
+            field(h, &v.png);
+        }
+        field(h, r.transforms.as_bytes());
+    }
     // Rows without provenance leave the digest as it was before provenance columns existed.
     if !row.provenance.is_empty() {
         field(h, crate::columns::PROVENANCE_PREFIX.as_bytes());

@@ -19,6 +19,7 @@ pub mod layout;
 pub mod manifest;
 pub mod quality;
 pub mod quality_columns;
+pub mod render_columns;
 pub mod row;
 pub mod signature_column;
 pub mod tensor;
@@ -26,13 +27,14 @@ mod tensor_columns;
 
 pub use class::{ErrorClass, ItemStatus};
 pub use completion::{CompletionRecord, FileStamp};
-pub use config::{AttributeConfig, JobConfig, JobFile, Limits, SampleConfig};
+pub use config::{AttributeConfig, JobConfig, JobFile, Limits, RenderConfig, SampleConfig};
 pub use error::{Result, SchemaError};
 pub use layout::JobLayout;
 pub use manifest::{FrozenItem, ManifestPage, ManifestRecord, SliceEntry};
 pub use quality::QualityFacts;
 pub use row::{
-    AppearanceFacts, AttributeTensors, RowCounts, RowTensors, RowTimings, SampleTensors, ShardRow,
+    AppearanceFacts, AttributeTensors, RenderedView, RowCounts, RowRenders, RowTensors, RowTimings,
+    SampleTensors, ShardRow,
 };
 pub use tensor::{DType, EncodedTensor};
 

@@ -51,7 +51,7 @@ pub struct RowTimings {
 }
 
 /// The encoded tensors of an ok item.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RowTensors {
     /// Active vertex coordinates, `n × 3` `<u2`, sorted lexicographically.
     pub coords: EncodedTensor,
@@ -71,6 +71,31 @@ pub struct RowTensors {
     /// the row's journal form and digest as they were before attributes existed.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub attributes: Option<AttributeTensors>,
+    /// The condition views of the item's source, when the job renders them (`[renders]`);
+    /// `None` leaves the row's journal form and digest as they were before renders existed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub renders: Option<RowRenders>,
+}
+
+/// An item's condition views ([`crate::render_columns`]): a PNG a view, in view order, and
+/// the views' `transforms.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RowRenders {
+    /// The views, in order (`000.png`, `001.png`, …).
+    pub views: Vec<RenderedView>,
+    /// `transforms.json` of the views (cameras in Blender's Z-up world).
+    pub transforms: String,
+}
+
+/// One stored view. The serde form leaves the PNG out (it travels beside the JSON as a
+/// blob, as tensor blobs do).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RenderedView {
+    /// The view as an 8-bit RGBA PNG file.
+    #[serde(skip)]
+    pub png: Vec<u8>,
+    /// Seconds spent tracing it (run-dependent: not digested).
+    pub seconds: f64,
 }
 
 /// The encoded appearance of an item's active cells (columns
@@ -405,6 +430,7 @@ impl RowTensors {
             mesh_faces: None,
             samples: None,
             attributes: None,
+            renders: None,
         })
     }
 
@@ -460,6 +486,9 @@ impl RowTensors {
                 &mut a.roughness.blob,
                 &mut a.alpha.blob,
             ]);
+        }
+        if let Some(r) = self.renders.as_mut() {
+            v.extend(r.views.iter_mut().map(|view| &mut view.png));
         }
         v
     }

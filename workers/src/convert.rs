@@ -3,11 +3,13 @@
 //! run inside the isolated process of [`crate::child`]), `sparc3d convert` and `sparc3d bench`
 //! all go through it; each asks only for the steps it needs ([`Steps`]).
 
+use sparc3d_render::cond::{asset, Request};
 use sparc3d_schema::{
     AppearanceFacts, AttributeTensors, EncodedTensor, ErrorClass, FrozenItem, ItemStatus,
     JobConfig, QualityFacts, RowCounts, RowTensors, RowTimings, SampleTensors, SchemaError,
     ShardRow,
 };
+use sparc3d_schema::{RenderedView, RowRenders};
 use sparcubes::attributes::CellAttributes;
 use sparcubes::io::{Buffers, LoadStats};
 use sparcubes::materials::TextureBudget;
@@ -47,6 +49,10 @@ pub struct Steps<'a> {
     /// row's `shape_signature`, for `sparc3d dedup`), timed as the stage `signature`; the
     /// mesh is then extracted whatever [`Steps::extract`] says.
     pub signature: bool,
+    /// Render the source's condition views (a job with `[renders]`), timed as the stage
+    /// `renders` and stored with the tensors ([`RowTensors::renders`]): the source is parsed
+    /// again after the conversion, as for the attributes, and shares their appearance.
+    pub renders: Option<Request>,
 }
 
 /// How [`convert_file`] encodes the tensors.
@@ -124,6 +130,12 @@ pub enum StageError {
     /// Reading the appearance for the attributes.
     #[error("attributes: {0}")]
     Attributes(sparcubes::Error),
+    /// The condition views: one sees nothing of the asset.
+    #[error("renders: {0}")]
+    Renders(String),
+    /// Encoding a condition view.
+    #[error("renders: {0}")]
+    RenderEncode(String),
     /// Encoding the tensors.
     #[error(transparent)]
     Encode(SchemaError),
@@ -137,7 +149,8 @@ impl StageError {
             | StageError::Convert(e)
             | StageError::Samples(e)
             | StageError::Attributes(e) => e.class().into(),
-            StageError::Encode(_) => ErrorClass::EncodeError,
+            StageError::Renders(_) => sparcubes::ErrorClass::EmptyMesh.into(),
+            StageError::Encode(_) | StageError::RenderEncode(_) => ErrorClass::EncodeError,
         }
     }
 }
@@ -177,7 +190,7 @@ pub fn convert_bytes(
     let fail = |error, seconds| Box::new(Failed { error, seconds });
     let t = started;
     let loaded = sparcubes::io::load_read_with(&bytes, path, buffers);
-    let kept = steps.attributes.map(|budget| (bytes, budget));
+    let kept = (steps.attributes.is_some() || steps.renders.is_some()).then_some(bytes);
     let (source, load_stats) = match loaded {
         Ok(loaded) => (loaded.mesh, loaded.stats),
         Err(e) => return Err(fail(StageError::Load(e), seconds)),
@@ -233,14 +246,17 @@ pub fn convert_bytes(
         Ok(s) => s,
         Err(e) => return Err(fail(StageError::Samples(e), seconds)),
     };
-    let attributes = match kept {
-        Some((bytes, budget)) => {
-            match attributes_of(&bytes, path, buffers, budget, &conversion, &mut seconds) {
-                Ok(a) => Some(a),
-                Err(e) => return Err(fail(StageError::Attributes(e), seconds)),
-            }
-        }
-        None => None,
+    let source = Source {
+        bytes: kept.as_deref().unwrap_or_default(),
+        path,
+        buffers,
+    };
+    let (attributes, renders) = match kept {
+        Some(_) => match appearance_products(&source, &steps, &conversion, &mut seconds) {
+            Ok(products) => products,
+            Err(e) => return Err(fail(e, seconds)),
+        },
+        None => (None, None),
     };
     let store_mesh = steps.encode.is_some_and(|e| e.store_mesh);
     if !(steps.keep_mesh || store_mesh) {
@@ -254,7 +270,8 @@ pub fn convert_bytes(
             let drawn = samples.as_ref().zip(steps.samples);
             let cells = attributes.as_ref().map(|a| &a.0);
             match encode(&conversion, mesh.as_ref(), drawn, cells, encoding) {
-                Ok(tensors) => {
+                Ok(mut tensors) => {
+                    tensors.renders = renders;
                     seconds.timings.encode_s = t.elapsed().as_secs_f64();
                     seconds.add("encode", seconds.timings.encode_s);
                     Some(tensors)
@@ -345,22 +362,79 @@ fn samples_of(
     Ok(Some(samples))
 }
 
-/// Reads the appearance from the source's `bytes` and samples it at the converted cells,
-/// timed as the stage `attributes`.
-fn attributes_of(
-    bytes: &[u8],
-    path: &Path,
-    buffers: Buffers,
-    budget: TextureBudget,
+/// The attributes of the active cells and what the appearance is made of.
+type Sampled = (CellAttributes, AppearanceFacts);
+
+/// The source's bytes kept for the stages after the conversion, and where they came from.
+struct Source<'a> {
+    bytes: &'a [u8],
+    path: &'a Path,
+    buffers: Buffers<'a>,
+}
+
+/// The attributes and the condition views `steps` asks for, from the source's bytes parsed
+/// again: its appearance is read once for both. Attributes fail the item when the
+/// appearance cannot be read; views are then drawn in the plain grey.
+fn appearance_products(
+    source: &Source,
+    steps: &Steps,
     conversion: &Conversion,
     seconds: &mut StageSeconds,
-) -> Result<(CellAttributes, AppearanceFacts), sparcubes::Error> {
+) -> Result<(Option<Sampled>, Option<RowRenders>), StageError> {
     let t = Instant::now();
-    let appearance = sparcubes::materials::read_within(bytes, path, buffers, budget)?;
-    let cells = sparcubes::attributes::sample(&conversion.cubes, &appearance);
-    let facts = AppearanceFacts::new(&appearance.facts, &cells);
-    seconds.add_stage("attributes", t.elapsed().as_secs_f64());
-    Ok((cells, facts))
+    let budget = steps.attributes.unwrap_or_default();
+    let read = sparcubes::materials::read_within(source.bytes, source.path, source.buffers, budget);
+    let appearance = match read {
+        Ok(a) => Some(a),
+        Err(e) if steps.attributes.is_some() => return Err(StageError::Attributes(e)),
+        Err(_) => None,
+    };
+    let attributes = appearance
+        .as_ref()
+        .filter(|_| steps.attributes.is_some())
+        .map(|a| {
+            let cells = sparcubes::attributes::sample(&conversion.cubes, a);
+            let facts = AppearanceFacts::new(&a.facts, &cells);
+            seconds.add_stage("attributes", t.elapsed().as_secs_f64());
+            (cells, facts)
+        });
+    let renders = match &steps.renders {
+        Some(request) => {
+            let coloured = appearance.and_then(asset::with_colours);
+            Some(renders_of(source, coloured.as_ref(), request, seconds)?)
+        }
+        None => None,
+    };
+    Ok((attributes, renders))
+}
+
+/// The condition views of the source (parsed again from its bytes) in `appearance`'s
+/// colours, timed as the stage `renders`; a view that sees nothing fails them.
+fn renders_of(
+    source: &Source,
+    appearance: Option<&sparcubes::materials::Appearance>,
+    request: &Request,
+    seconds: &mut StageSeconds,
+) -> Result<RowRenders, StageError> {
+    let t = Instant::now();
+    let mesh = sparcubes::io::load_read_with(source.bytes, source.path, source.buffers)
+        .map_err(StageError::Load)?
+        .mesh;
+    let views =
+        asset::render_asset(&mesh, appearance, request).map_err(StageError::RenderEncode)?;
+    if let Some(problem) = views.problem() {
+        return Err(StageError::Renders(problem));
+    }
+    seconds.add_stage("renders", t.elapsed().as_secs_f64());
+    Ok(RowRenders {
+        views: views
+            .pngs
+            .into_iter()
+            .zip(views.seconds)
+            .map(|(png, seconds)| RenderedView { png, seconds })
+            .collect(),
+        transforms: views.transforms,
+    })
 }
 
 /// The cubes' tensors, with the mesh's when it is to be stored.
@@ -446,6 +520,17 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig, memory_bytes: u64) ->
             .then(|| TextureBudget::within_item_memory(memory_bytes)),
         quality: config.quality,
         signature: config.shape_signature,
+        renders: match render_request(&config.renders, &sha) {
+            Ok(r) => r,
+            Err(message) => {
+                let elapsed = started.elapsed().as_secs_f64();
+                return failed(
+                    ErrorClass::Geometry(sparcubes::ErrorClass::InvalidParams),
+                    message,
+                    elapsed,
+                );
+            }
+        },
     };
     let done = match convert_bytes(bytes, path, buffers, steps, started) {
         Ok(done) => done,
@@ -521,6 +606,33 @@ fn appearance_not_fetched(
     ))
 }
 
+/// The render request of a job's `[renders]` for a source whose sha256 is `sha` (hex): the
+/// item's seed is the head of that sha256 mixed with the section's seed, as `sparc3d render`
+/// seeds a file. `None` when the job renders nothing.
+fn render_request(
+    config: &sparc3d_schema::RenderConfig,
+    sha: &str,
+) -> Result<Option<Request>, String> {
+    if !config.enabled {
+        return Ok(None);
+    }
+    let recipe = sparc3d_render::cond::Recipe::named(&config.recipe)
+        .ok_or_else(|| format!("renders.recipe {:?} names no render recipe", config.recipe))?;
+    let mut head = [0u8; 8];
+    for (i, b) in head.iter_mut().enumerate() {
+        *b = sha
+            .get(2 * i..2 * i + 2)
+            .and_then(|h| u8::from_str_radix(h, 16).ok())
+            .ok_or_else(|| format!("the source's sha256 {sha:?} is not hex"))?;
+    }
+    Ok(Some(Request {
+        recipe,
+        views: config.views,
+        size: config.size,
+        seed: asset::seed_of(head, config.seed),
+    }))
+}
+
 /// Refuses bytes whose sha256 (`found`) is not the one the item was frozen with: the file
 /// changed after the manifest was made (or its sha256 column is wrong), and the item's id
 /// stands for the frozen bytes. An item frozen without a sha256 (a manifest with ids and no
@@ -565,6 +677,7 @@ mod tests {
             attributes: None,
             quality: false,
             signature: false,
+            renders: None,
         };
         let done = convert_file(&example("cube.off"), steps).map_err(|f| f.error)?;
         let names: Vec<&str> = done
@@ -607,6 +720,7 @@ mod tests {
             attributes: None,
             quality,
             signature,
+            renders: None,
         };
         let both = convert_file(&example("sphere.obj"), steps(true, true)).map_err(|f| f.error)?;
         let quality =
@@ -661,6 +775,7 @@ mod tests {
             attributes: None,
             quality: false,
             signature: false,
+            renders: None,
         };
         let done = convert_file(&example("cube.off"), steps).map_err(|f| f.error)?;
         let stats = done
@@ -681,6 +796,25 @@ mod tests {
     }
 
     #[test]
+    fn a_job_may_name_every_render_recipe_and_no_other() {
+        let names: Vec<&str> = sparc3d_render::cond::Recipe::ALL
+            .iter()
+            .map(|(n, _)| *n)
+            .collect();
+        assert_eq!(names, sparc3d_schema::RenderConfig::RECIPES);
+        let on = sparc3d_schema::RenderConfig {
+            enabled: true,
+            ..Default::default()
+        };
+        let sha = "0102030405060708".to_string() + &"0".repeat(48);
+        let request = render_request(&on, &sha).unwrap().unwrap();
+        assert_eq!(request.seed, asset::seed_of([1, 2, 3, 4, 5, 6, 7, 8], 0));
+        assert!(render_request(&on, "zz").is_err());
+        let off = sparc3d_schema::RenderConfig::default();
+        assert!(render_request(&off, &sha).unwrap().is_none());
+    }
+
+    #[test]
     fn a_failure_names_its_stage_and_class() {
         let params = Params::with_resolution(32);
         let steps = Steps {
@@ -693,6 +827,7 @@ mod tests {
             attributes: None,
             quality: false,
             signature: false,
+            renders: None,
         };
         let Err(failed) = convert_file(&example("missing.obj"), steps) else {
             panic!("a missing file converted")

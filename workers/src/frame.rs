@@ -13,8 +13,8 @@ use std::io::Read;
 const MAGIC: &[u8; 4] = b"SPF1";
 /// Largest JSON part accepted, against garbage lengths.
 const MAX_JSON: u32 = 64 << 20;
-/// Largest number of blobs in one frame.
-const MAX_BLOBS: u32 = 64;
+/// Largest number of blobs in one frame: the tensors, and up to 256 condition views.
+const MAX_BLOBS: u32 = 64 + 256;
 
 /// One record of a journal or of the item worker's answers.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -140,6 +140,7 @@ fn measure(args: &Args, row: &mut BenchRow) -> anyhow::Result<()> {
         attributes: None,
         quality: false,
         signature: false,
+        renders: None,
     };
     let done = match convert_file(&args.input, steps) {
         Ok(done) => done,
@@ -151,6 +152,7 @@ fn measure(args: &Args, row: &mut BenchRow) -> anyhow::Result<()> {
                 StageError::Convert(_) => format!("convert {name} at {}", args.resolution.get()),
                 StageError::Samples(_) => format!("sample {name}"),
                 StageError::Attributes(_) => format!("read the appearance of {name}"),
+                StageError::Renders(_) | StageError::RenderEncode(_) => format!("render {name}"),
                 StageError::Encode(_) => format!("encode {name}"),
             };
             return Err(anyhow::Error::new(error).context(context));

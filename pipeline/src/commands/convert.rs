@@ -68,6 +68,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         attributes: args.attributes.then(TextureBudget::default),
         quality: true,
         signature: args.shape_signature,
+        renders: None,
     };
     let done = convert_file(&args.input, steps).map_err(|failed| {
         let context = match failed.error {

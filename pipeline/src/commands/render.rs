@@ -5,7 +5,7 @@
 //! gives the same bytes.
 
 use anyhow::{bail, Context, Result};
-use sparc3d_render::cond::{self, Placement, Recipe, Request, Surface};
+use sparc3d_render::cond::{asset, Recipe, Request};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -46,9 +46,9 @@ fn parse_recipe(name: &str) -> std::result::Result<Recipe, String> {
 pub fn item_seed(bytes: &[u8], extra: u64) -> u64 {
     use sha2::{Digest, Sha256};
     let digest = Sha256::digest(bytes);
-    let mut first = [0u8; 8];
-    first.copy_from_slice(&digest[..8]);
-    u64::from_le_bytes(first) ^ extra.wrapping_mul(0x9E37_79B9_7F4A_7C15)
+    let mut head = [0u8; 8];
+    head.copy_from_slice(&digest[..8]);
+    asset::seed_of(head, extra)
 }
 
 /// Runs `sparc3d render`.
@@ -59,12 +59,6 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let mesh = sparcubes::io::load(path)
         .with_context(|| format!("loading {}", path.display()))?
         .mesh;
-    if mesh.triangles.is_empty() {
-        bail!(
-            "{}: the mesh has no triangles: nothing to render",
-            path.display()
-        );
-    }
     let appearance = match args.no_colours {
         true => None,
         false => crate::pictures::coloured(
@@ -72,47 +66,47 @@ pub fn run(args: Args) -> Result<ExitCode> {
             &path.display().to_string(),
         ),
     };
-    let placement = Placement::of(&mesh.positions);
-    let surface = Surface::new(&mesh, appearance.as_ref(), &placement);
     let request = Request {
         recipe: args.recipe,
         views: args.views,
         size: args.size,
         seed: item_seed(&bytes, args.seed),
     };
-    let views = cond::render_views(&surface, &request);
-    write(&args.output, &placement, &views)?;
-    let seconds: Vec<f64> = views.iter().map(|v| v.seconds).collect();
-    let total: f64 = seconds.iter().sum();
-    let empty = views
-        .iter()
-        .filter(|v| v.image.rgba.chunks(4).all(|p| p[3] == 0))
-        .count();
+    let views = asset::render_asset(&mesh, appearance.as_ref(), &request)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    write(&args.output, &views)?;
+    let total: f64 = views.seconds.iter().sum();
     eprintln!(
         "{}: {} views of {}² in {:.2} s ({:.3} s a view) written to {}",
         path.display(),
-        views.len(),
-        views.first().map_or(0, |v| v.image.size),
+        views.pngs.len(),
+        views.size,
         total,
-        total / views.len().max(1) as f64,
+        total / views.pngs.len().max(1) as f64,
         args.output.display()
     );
-    if empty > 0 {
-        bail!("{}: {empty} views see nothing of the asset", path.display());
+    if !views.empty.is_empty() {
+        bail!(
+            "{}: {} views see nothing of the asset",
+            path.display(),
+            views.empty.len()
+        );
     }
     Ok(ExitCode::SUCCESS)
 }
 
 /// Writes `NNN.png` for each view and `transforms.json`, each file atomically.
-fn write(dir: &std::path::Path, placement: &Placement, views: &[cond::RenderedView]) -> Result<()> {
+fn write(dir: &std::path::Path, views: &asset::AssetViews) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    for (i, v) in views.iter().enumerate() {
-        let png = v.image.encode_png().context("encoding PNG")?;
+    for (i, png) in views.pngs.iter().enumerate() {
         let file = dir.join(format!("{i:03}.png"));
-        sparc3d_workers::fsutil::write_atomic(&file, &png, "writing a view")?;
+        sparc3d_workers::fsutil::write_atomic(&file, png, "writing a view")?;
     }
-    let transforms = cond::transforms_json(placement, views);
     let file = dir.join("transforms.json");
-    sparc3d_workers::fsutil::write_atomic(&file, transforms.as_bytes(), "writing transforms.json")?;
+    sparc3d_workers::fsutil::write_atomic(
+        &file,
+        views.transforms.as_bytes(),
+        "writing transforms.json",
+    )?;
     Ok(())
 }

@@ -12,6 +12,7 @@
 //! [`lights`], every random draw from a generator seeded per item ([`rng`]): the same source
 //! and seed give the same bytes, whatever the thread count.
 
+pub mod asset;
 pub mod cameras;
 pub mod lights;
 pub mod picture;

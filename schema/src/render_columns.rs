@@ -1,0 +1,165 @@
+//! The render columns of a shard (only in the shards of a job with `[renders]`): each ok
+//! item's condition views as PNG files, the seconds each took to trace and the views'
+//! `transforms.json` (docs/FORMAT.md, "Renders"; docs/RENDERS.md). A shard of any other job
+//! has no such columns and reads as rows without renders.
+
+use crate::columns as c;
+use crate::error::{Result, SchemaError};
+use crate::row::{RenderedView, RowRenders, ShardRow};
+use arrow_array::builder::{LargeBinaryBuilder, ListBuilder};
+use arrow_array::types::Float64Type;
+use arrow_array::{
+    Array, ArrayRef, Float64Array, LargeBinaryArray, ListArray, RecordBatch, StringArray,
+};
+use arrow_schema::{DataType, Field};
+use std::sync::Arc;
+
+/// The render columns' fields, in order: views (`list<large_binary>`, a PNG each), seconds
+/// (`list<float64>`) and `transforms.json` (`utf8`); null in rows without renders.
+pub fn fields() -> Vec<Field> {
+    let png = Arc::new(Field::new("item", DataType::LargeBinary, true));
+    let seconds = Arc::new(Field::new("item", DataType::Float64, true));
+    vec![
+        Field::new(c::RENDER_VIEWS, DataType::List(png), true),
+        Field::new(c::RENDER_SECONDS, DataType::List(seconds), true),
+        Field::new(c::RENDER_TRANSFORMS, DataType::Utf8, true),
+    ]
+}
+
+fn renders_of(row: &ShardRow) -> Option<&RowRenders> {
+    row.tensors.as_ref()?.renders.as_ref()
+}
+
+/// The render columns of `rows`, in the order of [`fields`].
+pub fn columns(rows: &[ShardRow]) -> Vec<ArrayRef> {
+    let mut views = ListBuilder::new(LargeBinaryBuilder::new()).with_field(Arc::new(Field::new(
+        "item",
+        DataType::LargeBinary,
+        true,
+    )));
+    for r in rows.iter().map(renders_of) {
+        match r {
+            Some(r) => {
+                for v in &r.views {
+                    views.values().append_value(&v.png);
+                }
+                views.append(true);
+            }
+            None => views.append(false),
+        }
+    }
+    let seconds = ListArray::from_iter_primitive::<Float64Type, _, _>(rows.iter().map(|row| {
+        renders_of(row).map(|r| r.views.iter().map(|v| Some(v.seconds)).collect::<Vec<_>>())
+    }));
+    let transforms: Vec<Option<&str>> = rows
+        .iter()
+        .map(|row| renders_of(row).map(|r| r.transforms.as_str()))
+        .collect();
+    vec![
+        Arc::new(views.finish()),
+        Arc::new(seconds),
+        Arc::new(StringArray::from(transforms)),
+    ]
+}
+
+/// The renders of row `i` of a batch: `None` when the batch has no render columns (a job
+/// without `[renders]`) or the row none; an error when the columns disagree.
+pub fn renders_at(batch: &RecordBatch, i: usize) -> Result<Option<RowRenders>> {
+    let Some(views) = batch.column_by_name(c::RENDER_VIEWS) else {
+        return Ok(None);
+    };
+    let wrong = |name: &str, reason: String| SchemaError::Column {
+        name: name.into(),
+        reason,
+    };
+    let list = |name: &str, a: &ArrayRef| -> Result<ListArray> {
+        a.as_any()
+            .downcast_ref::<ListArray>()
+            .cloned()
+            .ok_or_else(|| wrong(name, "not a list".into()))
+    };
+    let views = list(c::RENDER_VIEWS, views)?;
+    if !views.is_valid(i) {
+        return Ok(None);
+    }
+    let seconds = batch
+        .column_by_name(c::RENDER_SECONDS)
+        .ok_or_else(|| wrong(c::RENDER_SECONDS, "missing beside render_views".into()))?;
+    let seconds = list(c::RENDER_SECONDS, seconds)?;
+    let transforms = batch
+        .column_by_name(c::RENDER_TRANSFORMS)
+        .and_then(|a| a.as_any().downcast_ref::<StringArray>())
+        .filter(|a| a.is_valid(i))
+        .ok_or_else(|| wrong(c::RENDER_TRANSFORMS, format!("no transforms in row {i}")))?;
+    let pngs = views.value(i);
+    let pngs = pngs
+        .as_any()
+        .downcast_ref::<LargeBinaryArray>()
+        .ok_or_else(|| wrong(c::RENDER_VIEWS, "views are not large_binary".into()))?;
+    let secs = seconds.value(i);
+    let secs = secs
+        .as_any()
+        .downcast_ref::<Float64Array>()
+        .filter(|s| s.len() == pngs.len())
+        .ok_or_else(|| {
+            wrong(
+                c::RENDER_SECONDS,
+                format!("row {i}: not one float64 a view ({} views)", pngs.len()),
+            )
+        })?;
+    let views = (0..pngs.len())
+        .map(|v| RenderedView {
+            png: pngs.value(v).to_vec(),
+            seconds: secs.value(v),
+        })
+        .collect();
+    Ok(Some(RowRenders {
+        views,
+        transforms: transforms.value(i).to_string(),
+    }))
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::arrow::tests::sample_rows;
+    use crate::arrow::{batch_to_rows, rows_to_batch, rows_to_batch_for, schema, Sections};
+    use crate::row::{RenderedView, RowRenders};
+
+    #[test]
+    fn renders_round_trip_and_a_job_without_them_has_no_columns() -> crate::Result<()> {
+        let mut rows = sample_rows();
+        let renders = RowRenders {
+            views: (0..3)
+                .map(|v| RenderedView {
+                    png: vec![v as u8; 10 + v],
+                    seconds: 0.25 * v as f64,
+                })
+                .collect(),
+            transforms: "{\"frames\": []}".into(),
+        };
+        if let Some(t) = rows[0].tensors.as_mut() {
+            t.renders = Some(renders.clone());
+        }
+        let on = Sections {
+            renders: true,
+            ..Sections::default()
+        };
+        let batch = rows_to_batch_for(&rows, &[], on)?;
+        assert!(batch.column_by_name("render_views").is_some());
+        let back = batch_to_rows(&batch)?;
+        assert_eq!(
+            back[0].tensors.as_ref().and_then(|t| t.renders.clone()),
+            Some(renders)
+        );
+        assert_eq!(back, rows);
+        // Without the section: the plain schema, and the rows read back without renders.
+        let plain = rows_to_batch(&rows)?;
+        assert_eq!(plain.schema(), schema());
+        let back = batch_to_rows(&plain)?;
+        assert!(back[0]
+            .tensors
+            .as_ref()
+            .is_some_and(|t| t.renders.is_none()));
+        Ok(())
+    }
+}
