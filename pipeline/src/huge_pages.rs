@@ -3,7 +3,7 @@
 //!
 //! A conversion at 1024³ allocates and fills a few hundred megabytes of tables once each, so
 //! a good part of its kernel time was page faults and the clearing of fresh 4 KiB pages
-//! (docs/PERFORMANCE.md, "The conversion stages (fifth part)"). Where the system's
+//! (docs/record/PERFORMANCE-history.md, "The conversion stages (fifth part)"). Where the system's
 //! transparent huge pages are set to `madvise` (a common default, and this machine's), an
 //! advised block is faulted in 2 MiB at a time instead. Where they are `always` the advice
 //! changes nothing, and where they are `never` the kernel ignores it. The advice never

@@ -11,9 +11,9 @@ run of docs/VAE.md measured it), written on top of the base defaults of `config.
    512³ the 256³ ones. The latent grid is N / `model.downsample`, and a file's `downsample` only
    grows with its resolution, so the rule never gives a job a coarser latent (relative to its
    grid) than the next measured resolution up would; a latent too coarse was the measured
-   cause of the unseen error (docs/VAE.md, "Measured: the dev corpus"). Jobs of several
-   resolutions take the file of the finest: its items are the largest, and its memory keys
-   (`max_cells_per_batch`) are those their batches need;
+   cause of the unseen error (docs/record/VAE-history.md, "Measured: the dev corpus"). Jobs of
+   several resolutions take the file of the finest: its items are the largest, and its memory
+   keys (`max_cells_per_batch`) are those their batches need;
 3. with `train --init-from`, that run's `[model]` (its weights decide the network);
 4. the keys that `--config FILE` sets.
 

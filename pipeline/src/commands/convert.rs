@@ -149,10 +149,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
 /// returns the report, the check's seconds and the save's (writing, then waiting for the sync
 /// and the rename once the check is done; so the stages still add up to the wall time).
 ///
-/// The sync is most of a large output's save (docs/PERFORMANCE.md, "The conversion stages
-/// (fifth part)"): it waits on the disk, not the CPU, so it runs on a thread of its own while
-/// the check has the pool. The check reads only the triangles' vertex indices for what the
-/// summary prints, so the frame the positions are in does not change its answers.
+/// The sync is most of a large output's save (docs/record/PERFORMANCE-history.md, "The
+/// conversion stages (fifth part)"): it waits on the disk, not the CPU, so it runs on a thread
+/// of its own while the check has the pool. The check reads only the triangles' vertex
+/// indices for what the summary prints, so the frame the positions are in does not change its
+/// answers.
 fn save_while_checking(
     mesh: &sparcubes::TriMesh,
     colours: Option<&[[u8; 4]]>,

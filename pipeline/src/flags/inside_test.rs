@@ -4,8 +4,9 @@
 
 /// Whether to run the inside test (docs/ALGORITHM.md §6) and seal small openings (§4). Both
 /// on by default everywhere — in `convert`, `preview`, benchmarks and new jobs: the inside
-/// test made 10 dev meshes better and none worse beyond noise at 256³ (docs/QUALITY.md, "Round
-/// four"), the sealing keeps nearly closed solids solid (docs/QUALITY.md, issue 26).
+/// test made 10 dev meshes better and none worse beyond noise at 256³
+/// (docs/record/QUALITY-history.md, "Round four"), the sealing keeps nearly closed solids solid
+/// (docs/QUALITY.md, issue 26).
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct InsideTestArgs {
     /// Run the inside test (the default; accepted so older command lines keep working):

@@ -6,8 +6,8 @@
 //! within a voxel or two of the source surface, and on sheets and thin walls they are most of
 //! the cells. A search of the whole surface's tree visits every node whose box reaches the
 //! query, and a sheet's few large triangles have boxes that reach everywhere (about 1.4 µs a
-//! query on `Helgo_Toilets`, docs/PERFORMANCE.md); the triangles crossing the cells around a
-//! cell are a handful, already known from cutting them into pieces.
+//! query on `Helgo_Toilets`, docs/record/PERFORMANCE-history.md); the triangles crossing the
+//! cells around a cell are a handful, already known from cutting them into pieces.
 //!
 //! When the answer is certain: a triangle with a point nearer than 1.5 to the cell's centre
 //! has a piece inside the 3 × 3 × 3 cells around it (the ball lies inside them), so the
@@ -45,8 +45,8 @@ const SLACK: f64 = 1e-6;
 /// Why columns: the cells around a cell are nine short runs of three, one in each of the
 /// nine columns around its own, so a column's crossings are all a query reads; sorting by
 /// column is a counting pass over the crossings and small sorts within each column, not one
-/// sort of them all (which cost about as much as the walk: docs/PERFORMANCE.md, "Fifth
-/// round").
+/// sort of them all (which cost about as much as the walk: docs/record/PERFORMANCE-history.md,
+/// "Fifth round").
 #[derive(Debug, Default)]
 pub struct Crossings {
     /// The pieces recorded, in the order recorded (emptied by [`Crossings::sort`]).

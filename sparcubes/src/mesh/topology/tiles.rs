@@ -22,7 +22,8 @@ pub(super) const TILE: usize = 1 << 16;
 
 /// The most times the tiles may read the triangles in all (counting each chunk once for each
 /// tile that reads it) before the general path is cheaper. An output of `extract` at 1024³
-/// reads them about 1.2 times (docs/PERFORMANCE.md, "The output check, tile by tile").
+/// reads them about 1.2 times (docs/record/PERFORMANCE-history.md, "The output check, tile by
+/// tile").
 const MAX_READS: usize = 4;
 
 /// Link entries a vertex keeps in its row. A vertex of a marching-cubes output has 6

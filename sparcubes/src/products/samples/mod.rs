@@ -21,10 +21,11 @@
 //! from the sparse grid ([`crate::queries::sides`]). Before the grid sides set aside crossings that
 //! graze a triangle's border, the two differed on about one near point in 2000
 //! (storage-rounded points on the grid's dyadic planes, where the grid's crossing count met a
-//! triangle edge), and there the face was right by the winding number (docs/PERFORMANCE.md,
-//! issue 13 section); now they agree (tests). Query points are rounded to the storage
-//! precision first, so a stored point and its stored distance belong together; a distance
-//! too small for the precision keeps its sign as the smallest subnormal.
+//! triangle edge), and there the face was right by the winding number
+//! (docs/record/PERFORMANCE-history.md, issue 13 section); now they agree (tests). Query
+//! points are rounded to the storage precision first, so a stored point and its stored
+//! distance belong together; a distance too small for the precision keeps its sign as the
+//! smallest subnormal.
 //!
 //! Every random number is drawn from `(seed, kind, sample index)` ([`rng`]), so the samples
 //! are the same whatever the thread count. [`farthest_points`] picks a farthest-point
