@@ -38,7 +38,7 @@ class SparseCubesDatasetBase:
         # (shard number, row group, row within the group) of every ok row that passes.
         self.index: List[Tuple[int, int, int]] = []
         self.ids: List[str] = []
-        files = open_files(self.paths)
+        files = open_files(shards)
         bound = bind_where(where, files)
         for s, (path, f) in enumerate(zip(self.paths, files)):
             for g in range(f.metadata.num_row_groups):

@@ -251,6 +251,11 @@ class Shard:
     stamp: Optional[Tuple[int, int, int, int]] = None
     #: Why its completion record cannot be used (it does not parse), if so.
     torn: Optional[str] = None
+    #: The file opened to check its footer and rows, until the reader that reads the rows
+    #: takes it (`shards.take_file`): a shard is opened once on the way to its first row.
+    #: Never copied (`dataclasses.replace`), compared or shown.
+    file: Optional[pq.ParquetFile] = dataclasses.field(default=None, init=False, repr=False,
+                                                       compare=False)
 
 
 _stamp = location.stamp

@@ -10,16 +10,17 @@ import numpy as np
 import pyarrow.parquet as pq
 
 from . import jobs, location
-from .shards import check_row_count, naming
+from .shards import check_row_count, naming, take_file
 from .where import BoundWhere, Where
 
 
-def open_files(paths: Sequence[location.Location]) -> List[pq.ParquetFile]:
-    """Each shard file opened (its footer read once), pyarrow's errors naming the file."""
+def open_files(shards: Sequence[jobs.Shard]) -> List[pq.ParquetFile]:
+    """Each shard's file: the one its checks opened, else opened now (so its footer is read
+    once), pyarrow's errors naming the file."""
     files = []
-    for path in paths:
-        with naming(path):
-            files.append(location.parquet_file(path))
+    for shard in shards:
+        with naming(shard.path):
+            files.append(take_file(shard))
     return files
 
 

@@ -41,12 +41,13 @@ def shard_paths(paths: Union[PathLike, Iterable[PathLike]], complete_only: bool 
     `verify`: True hashes every shard against its record's sha256 (as `sparc3d inspect`), "quick"
     only those whose size or stamp changed since recorded (as `sparc3d status`), False checks
     the size only."""
-    return [s.path for s in usable_shards(paths, complete_only, verify)]
+    return [s.path for s in all_shards(paths, complete_only) if usable(s, verify, keep_open=False)]
 
 
 def usable_shards(paths: Union[PathLike, Iterable[PathLike]], complete_only: bool,
                   verify: Verify) -> List[jobs.Shard]:
-    """The shards under `paths` that pass `usable`, the others named in a `ShardWarning`."""
+    """The shards under `paths` that pass `usable`, the others named in a `ShardWarning`; each
+    job shard holds the file its checks opened, for its reader to take (`take_file`)."""
     return [s for s in all_shards(paths, complete_only) if usable(s, verify)]
 
 
@@ -93,15 +94,17 @@ def _folder_shards(folder: pathlib.Path, complete_only: bool) -> List[jobs.Shard
     return out
 
 
-def usable(shard: jobs.Shard, verify: Verify) -> bool:
+def usable(shard: jobs.Shard, verify: Verify, keep_open: bool = True) -> bool:
     """Whether a shard is read: it matches its completion record as far as `verify` looks,
-    and a job's shard holds its items (`jobs.check_rows`). Otherwise a ShardWarning says why."""
+    and a job's shard holds its items (`jobs.check_rows`). Otherwise a ShardWarning says why.
+    A job's shard is opened for its footer and rows; with `keep_open` the shard holds that
+    file until its reader takes it (`take_file`), else it is closed."""
     jobs.check_verify_mode(verify)
     why = shard.torn
     if why is None and shard.record is not None:
         why = jobs.check_against_record(shard, verify)
     if why is None and shard.job is not None:
-        why = _rows_not_the_shards(shard)
+        why = _rows_not_the_shards(shard, keep_open)
     if why is None:
         return True
     fix = (f" `sparc3d verify {shard.job.root}` moves it aside, `sparc3d run {shard.job.root}` "
@@ -110,14 +113,25 @@ def usable(shard: jobs.Shard, verify: Verify) -> bool:
     return False
 
 
-def _rows_not_the_shards(shard: jobs.Shard) -> Optional[str]:
+def _rows_not_the_shards(shard: jobs.Shard, keep_open: bool) -> Optional[str]:
     """Why a job shard's footer or rows are not its own (`jobs.check_rows`), if so; a file
-    pyarrow cannot read is damaged too."""
+    pyarrow cannot read is damaged too. A shard that passes holds its open file when
+    `keep_open`."""
     try:
         f = location.parquet_file(shard.path)
-        return jobs.check_footer(shard, f) or jobs.check_rows(shard, jobs.read_check_columns(shard.path, f))
+        why = jobs.check_footer(shard, f) or jobs.check_rows(shard, jobs.read_check_columns(shard.path, f))
     except READ_ERRORS as e:
         return f"it cannot be read ({type(e).__name__}: {e})"
+    if why is None and keep_open:
+        shard.file = f
+    return why
+
+
+def take_file(shard: jobs.Shard) -> pq.ParquetFile:
+    """The shard's Parquet file: the one `usable` opened to check it, handed over (the shard
+    keeps no hold on it, so only the reader that reads it keeps it open), else opened now."""
+    f, shard.file = shard.file, None
+    return f if f is not None else location.parquet_file(shard.path)
 
 
 def check_schema_version(path: PathLike) -> None:

@@ -72,7 +72,7 @@ class StreamingDatasetBase:
         # Each shard with its record and stamp when checked (a later change is refused),
         # without its job: what DataLoader workers are sent stays small.
         self._shards = [dataclasses.replace(s, job=None) for s in shards]
-        self._index(open_files(self.paths))
+        self._index(open_files(shards))
         self.epoch = 0
         self._consumed: List[int] = [0]  # items received this epoch, per worker
         self._pending: Optional[List[int]] = None  # a loaded position, until iterated
