@@ -7,8 +7,8 @@ from typing import Any, Dict, Iterable, Iterator, List, Union
 import numpy as np
 import pyarrow.parquet as pq
 
-from . import jobs, location
-from .jobs import Verify
+from . import location, row_checks
+from .records import Verify
 from .schema import (APPEARANCE_COLUMNS, ATTRIBUTE_COLUMNS, ATTRIBUTE_TENSORS,
                      OPTIONAL_SAMPLE_COLUMNS, OPTIONAL_SAMPLE_TENSORS, PROVENANCE_PREFIX,
                      QUALITY_COLUMNS, READ_COLUMNS, SAMPLE_COLUMNS, SAMPLE_TENSORS,
@@ -96,7 +96,7 @@ def item_columns(path: location.Location, f: pq.ParquetFile, samples: bool) -> L
     columns are read when asked for and present (jobs without `[samples]` hold them empty)."""
     check_version(path, f)
     names = f.schema_arrow.names
-    jobs.require_columns(path, names, READ_COLUMNS)
+    row_checks.require_columns(path, names, READ_COLUMNS)
     base = READ_COLUMNS + [c for c in names if c.startswith(PROVENANCE_PREFIX)]
     if all(c in names for c in ATTRIBUTE_COLUMNS):
         base = base + ATTRIBUTE_COLUMNS

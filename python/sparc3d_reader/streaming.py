@@ -22,9 +22,9 @@ from typing import Any, Dict, Iterable, Iterator, List, Optional, Sequence, Tupl
 import numpy as np
 import pyarrow.parquet as pq
 
-from . import jobs, location, stream_order
+from . import location, records, stream_order
 from .items import item_columns, shard_item
-from .jobs import Verify
+from .records import Verify
 from .selection import bind_where, open_files, selected_rows
 from .shards import PathLike, check_row_count, naming, usable_shards
 
@@ -185,7 +185,7 @@ class StreamingDatasetBase:
         s, g = self._blocks[self._item_block[positions[start]]]
         need = {int(self._item_row[positions[p]]): p for p in range(start, end) if wanted[p]}
         rows, path, i, offset = sorted(need), self.paths[s], 0, 0
-        jobs.check_unchanged(self._shards[s])
+        records.check_unchanged(self._shards[s])
         with naming(path):
             f = self._open(s)
             columns = item_columns(path, f, self.samples)

@@ -18,8 +18,8 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from . import jobs
-from .jobs import Verify
+from . import records, row_checks
+from .records import Verify
 from .schema import META_SCHEMA_VERSION, SCHEMA_VERSION, tensor_columns
 from .shards import (PathLike, all_shards, check_row_count, check_version, naming,
                      record_beside, take_file, usable)
@@ -110,7 +110,7 @@ def write_completion_record(path: PathLike, fields: Optional[Dict[str, Any]] = N
     → `part-NNNNN.complete.json`): its `bytes` and `sha256`, which the reader checks before it
     reads the file (`shard_paths`), plus `fields`. Written to a temporary name and renamed."""
     path = pathlib.Path(path)
-    record = {**(fields or {}), "bytes": path.stat().st_size, "sha256": jobs.file_sha256(path)}
+    record = {**(fields or {}), "bytes": path.stat().st_size, "sha256": records.file_sha256(path)}
     out = record_beside(path)
     tmp = out.with_name(out.name + ".tmp")
     tmp.write_text(json.dumps(record, sort_keys=True) + "\n")
@@ -134,7 +134,7 @@ def _tensor_rows(path: PathLike, f: pq.ParquetFile, tensors: Sequence[str],
                  batch_size: int) -> Iterator[Dict[str, Any]]:
     """Every row of the tensor file `f` (opened from `path`), its `tensors` decoded."""
     check_version(path, f)
-    jobs.require_columns(path, f.schema_arrow.names, tensor_columns(tensors))
+    row_checks.require_columns(path, f.schema_arrow.names, tensor_columns(tensors))
     names = [n for n in f.schema_arrow.names if not any(
         n in (t + "_dtype", t + "_shape") for t in tensors)]
     n = 0
