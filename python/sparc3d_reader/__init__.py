@@ -24,11 +24,12 @@ layouts of other codebases are written by `sparc3d export` (`run_export`) and re
 its own dataset folder, read by its `FlexiDualGridDataset`). `one_per_group(items, result)` keeps
 one item per near-duplicate group of `sparc3d dedup --json` (`dedup.py`).
 
-A job folder is read as the CLI reads it (`jobs.py`): only its own shards, each checked against
-its completion record (`verify=True`: the sha256; "quick"; False) and its rows against the
-frozen manifest; every shard left out is named in a `ShardWarning`. Wherever a job is taken, a
-job URL is too (`s3://bucket/prefix`, `gs://`, `az://`: a job whose home is a bucket, read
-through `pyarrow.fs` with the credentials and endpoint of the environment, `location.py`).
+A job folder is read as the CLI reads it (`jobs.py` and the modules it names): only its own
+shards, each checked against its completion record (`verify=True`: the sha256; "quick"; False)
+and its rows against the frozen manifest; every shard left out is named in a `ShardWarning`.
+Wherever a job is taken, a job URL is too (`s3://bucket/prefix`, `gs://`, `az://`: a job whose
+home is a bucket, read through `pyarrow.fs` with the credentials and endpoint of the
+environment, `location.py`).
 
 Only numpy and pyarrow are needed; `SparseCubesDataset` is a `torch.utils.data.Dataset` when
 torch is installed (imported only when the class is first used) and a plain indexable class
@@ -42,7 +43,10 @@ and tensor files, `shards.py` which files are read and the checks on each, `item
 items, `dataset.py` the indexable dataset, `streaming.py` the streaming one (its order in
 `stream_order.py`, its DataLoader in `stream_loader.py`), `where.py` filters and
 `selection.py` the rows they select, `torch_classes.py` the two datasets as torch classes, `collate.py` batches, `exports.py` other codebases'
-layouts, `jobs.py` and `location.py` as above. Everything is imported from the package itself.
+layouts, `jobs.py` a job (job.json, its frozen manifest), `job_listing.py` which of its shards
+are read, `records.py` a shard against its completion record, `row_checks.py` its rows against
+the manifest, `location.py` folders and bucket URLs. Everything is imported from the package
+itself.
 """
 
 from __future__ import annotations
@@ -53,8 +57,9 @@ from .dedup import dropped_ids, one_per_group
 from .exports import (ExportDataset, collate_cubvh, collate_direct3d_s2, cubvh_cells,
                       cubvh_corner_values, iter_export, run_export)
 from .items import iter_items, row_to_item, samples_to_source
-from .jobs import ShardWarning, Verify
+from .job_listing import ShardWarning
 from .location import ObjectPath
+from .records import Verify
 from .schema import (APPEARANCE_COLUMNS, ATTRIBUTE_TENSORS, CONSUMER_FORMATS, EXPORT_FORMATS,
                      META_COLUMNS, OPTIONAL_SAMPLE_TENSORS,
                      PROVENANCE_PREFIX, QUALITY_COLUMNS, SAMPLE_TENSORS, SCHEMA_VERSION,

@@ -8,9 +8,9 @@ from typing import Any, Dict, Iterable, Iterator, List, Optional, Tuple, Union
 
 import pyarrow as pa
 
-from . import jobs, location
+from . import location, records
 from .items import item_columns, shard_item
-from .jobs import Verify
+from .records import Verify
 from .selection import bind_where, open_files, selected_rows
 from .shards import PathLike, check_row_count, naming, usable_shards
 
@@ -38,7 +38,7 @@ class SparseCubesDatasetBase:
         # (shard number, row group, row within the group) of every ok row that passes.
         self.index: List[Tuple[int, int, int]] = []
         self.ids: List[str] = []
-        files = open_files(self.paths)
+        files = open_files(shards)
         bound = bind_where(where, files)
         for s, (path, f) in enumerate(zip(self.paths, files)):
             for g in range(f.metadata.num_row_groups):
@@ -52,7 +52,7 @@ class SparseCubesDatasetBase:
         key, table = self._cache
         if key != (s, g) or table is None:
             path = self.paths[s]
-            jobs.check_unchanged(self._shards[s])
+            records.check_unchanged(self._shards[s])
             f = location.parquet_file(path)
             table = f.read_row_group(g, columns=item_columns(path, f, samples=True))
             check_row_count(path, table.num_rows, f.metadata.row_group(g).num_rows)

@@ -7,13 +7,14 @@ from typing import Any, Dict, Iterable, Iterator, List, Union
 import numpy as np
 import pyarrow.parquet as pq
 
-from . import jobs, location
-from .jobs import Verify
+from . import location, row_checks
+from .records import Verify
 from .schema import (APPEARANCE_COLUMNS, ATTRIBUTE_COLUMNS, ATTRIBUTE_TENSORS,
                      OPTIONAL_SAMPLE_COLUMNS, OPTIONAL_SAMPLE_TENSORS, PROVENANCE_PREFIX,
                      QUALITY_COLUMNS, READ_COLUMNS, SAMPLE_COLUMNS, SAMPLE_TENSORS,
                      SHAPE_SIGNATURE_COLUMN, TENSORS)
-from .shards import PathLike, all_shards, check_row_count, check_version, naming, usable
+from .shards import (PathLike, all_shards, check_row_count, check_version, naming, take_file,
+                     usable)
 from .tensors import decode_tensor
 
 
@@ -95,7 +96,7 @@ def item_columns(path: location.Location, f: pq.ParquetFile, samples: bool) -> L
     columns are read when asked for and present (jobs without `[samples]` hold them empty)."""
     check_version(path, f)
     names = f.schema_arrow.names
-    jobs.require_columns(path, names, READ_COLUMNS)
+    row_checks.require_columns(path, names, READ_COLUMNS)
     base = READ_COLUMNS + [c for c in names if c.startswith(PROVENANCE_PREFIX)]
     if all(c in names for c in ATTRIBUTE_COLUMNS):
         base = base + ATTRIBUTE_COLUMNS
@@ -108,9 +109,10 @@ def item_columns(path: location.Location, f: pq.ParquetFile, samples: bool) -> L
     return base + SAMPLE_COLUMNS + [c for c in OPTIONAL_SAMPLE_COLUMNS if c in names]
 
 
-def _rows(path: location.Location, batch_size: int, samples: bool = True) -> Iterator[Dict[str, Any]]:
-    """Every row of a shard file, as dicts of the item columns, `batch_size` at a time."""
-    f = location.parquet_file(path)
+def _rows(path: location.Location, f: pq.ParquetFile, batch_size: int,
+          samples: bool = True) -> Iterator[Dict[str, Any]]:
+    """Every row of the shard file `f` (opened from `path`), as dicts of the item columns,
+    `batch_size` at a time."""
     columns = item_columns(path, f, samples)
     n = 0
     for batch in f.iter_batches(batch_size=batch_size, columns=columns):
@@ -140,6 +142,6 @@ def iter_items(paths: Union[PathLike, Iterable[PathLike]], complete_only: bool =
         if not usable(shard, verify):
             continue
         with naming(shard.path):
-            for row in _rows(shard.path, batch_size, samples):
+            for row in _rows(shard.path, take_file(shard), batch_size, samples):
                 if row["status"] == "ok":
                     yield shard_item(shard.path, row)

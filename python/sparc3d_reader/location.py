@@ -3,9 +3,10 @@ an object store (`s3://bucket/prefix`, `gs://bucket/prefix`, `az://container/pre
 through a `pyarrow.fs` filesystem configured from the environment (docs/CLUSTER.md,
 "Credentials").
 
-A `Location` is either. The functions here read, list and stat both kinds, so `jobs.py` has one
-code path. An `ObjectPath` holds only its URL: pickled into a DataLoader worker, it makes its
-filesystem again there, from that process's environment.
+A `Location` is either. The functions here read, list and stat both kinds, so a job's modules
+(`jobs.py`, `job_listing.py`, `records.py`) have one code path. An `ObjectPath` holds only its
+URL: pickled into a DataLoader worker, it makes its filesystem again there, from that process's
+environment.
 """
 
 from __future__ import annotations

@@ -9,17 +9,18 @@ from typing import List, Optional, Sequence, Tuple
 import numpy as np
 import pyarrow.parquet as pq
 
-from . import jobs, location
-from .shards import check_row_count, naming
+from . import location, records, row_checks
+from .shards import check_row_count, naming, take_file
 from .where import BoundWhere, Where
 
 
-def open_files(paths: Sequence[location.Location]) -> List[pq.ParquetFile]:
-    """Each shard file opened (its footer read once), pyarrow's errors naming the file."""
+def open_files(shards: Sequence[records.Shard]) -> List[pq.ParquetFile]:
+    """Each shard's file: the one its checks opened, else opened now (so its footer is read
+    once), pyarrow's errors naming the file."""
     files = []
-    for path in paths:
-        with naming(path):
-            files.append(location.parquet_file(path))
+    for shard in shards:
+        with naming(shard.path):
+            files.append(take_file(shard))
     return files
 
 
@@ -35,7 +36,7 @@ def selected_rows(path: location.Location, f: pq.ParquetFile, group: int,
     """The rows (positions within row group `group`, ascending) of the `ok` items that pass
     `where`, and their ids; reads `id`, `status` and the filter's columns only."""
     wanted = ["id", "status"] + (where.columns(f.schema_arrow) if where else [])
-    jobs.require_columns(path, f.schema_arrow.names, ["id", "status"])
+    row_checks.require_columns(path, f.schema_arrow.names, ["id", "status"])
     with naming(path):
         t = f.read_row_group(group, columns=list(dict.fromkeys(wanted)))
     check_row_count(path, t.num_rows, f.metadata.row_group(group).num_rows)

@@ -1,9 +1,9 @@
 """Which shard files are read, and the checks every file passes before its rows are used.
 
-A path is a job folder or job URL (its own shards, each checked against its completion record
-and its rows against the frozen manifest by `jobs.py`), a folder of shard files, or a single
-file. Every file is then checked for its schema version and its row count, and errors of
-pyarrow or zstd while reading it are a ValueError naming it.
+A path is a job folder or job URL (its own shards, `job_listing.py`, each checked against its
+completion record, `records.py`, and its rows against the frozen manifest, `row_checks.py`), a
+folder of shard files, or a single file. Every file is then checked for its schema version and
+its row count, and errors of pyarrow or zstd while reading it are a ValueError naming it.
 """
 
 from __future__ import annotations
@@ -17,8 +17,8 @@ from typing import Any, Dict, Iterable, Iterator, List, Optional, Union
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from . import jobs, location
-from .jobs import Verify
+from . import job_listing, jobs, location, records, row_checks
+from .records import Verify
 from .location import ObjectPath
 from .schema import META_CONFIG, META_SCHEMA_VERSION, SCHEMA_VERSION
 
@@ -41,27 +41,28 @@ def shard_paths(paths: Union[PathLike, Iterable[PathLike]], complete_only: bool 
     `verify`: True hashes every shard against its record's sha256 (as `sparc3d inspect`), "quick"
     only those whose size or stamp changed since recorded (as `sparc3d status`), False checks
     the size only."""
-    return [s.path for s in usable_shards(paths, complete_only, verify)]
+    return [s.path for s in all_shards(paths, complete_only) if usable(s, verify, keep_open=False)]
 
 
 def usable_shards(paths: Union[PathLike, Iterable[PathLike]], complete_only: bool,
-                  verify: Verify) -> List[jobs.Shard]:
-    """The shards under `paths` that pass `usable`, the others named in a `ShardWarning`."""
+                  verify: Verify) -> List[records.Shard]:
+    """The shards under `paths` that pass `usable`, the others named in a `ShardWarning`; each
+    job shard holds the file its checks opened, for its reader to take (`take_file`)."""
     return [s for s in all_shards(paths, complete_only) if usable(s, verify)]
 
 
-def all_shards(paths: Union[PathLike, Iterable[PathLike]], complete_only: bool) -> List[jobs.Shard]:
+def all_shards(paths: Union[PathLike, Iterable[PathLike]], complete_only: bool) -> List[records.Shard]:
     """The shards under `paths`, not yet checked against their records."""
     if isinstance(paths, (str, os.PathLike, ObjectPath)):
         paths = [paths]
-    out: List[jobs.Shard] = []
+    out: List[records.Shard] = []
     for p in paths:
         p = location.of(p)
         if isinstance(p, ObjectPath):
-            out += jobs.job_shards(jobs.open_job(p), complete_only)
+            out += job_listing.job_shards(jobs.open_job(p), complete_only)
         elif p.is_dir():
             job = jobs.job_of_folder(p)
-            out += jobs.job_shards(job, complete_only) if job else _folder_shards(p, complete_only)
+            out += job_listing.job_shards(job, complete_only) if job else _folder_shards(p, complete_only)
         elif p.is_file():
             out.append(_file_shard(p))
         else:
@@ -74,50 +75,64 @@ def record_beside(path: pathlib.Path) -> pathlib.Path:
     return path.with_name(path.name[: -len(".parquet")] + ".complete.json")
 
 
-def _file_shard(path: pathlib.Path) -> jobs.Shard:
+def _file_shard(path: pathlib.Path) -> records.Shard:
     """A file named on its own: a shard of a job (checked as the job's), or any other file."""
     job, index = jobs.job_of_file(path)
-    record, torn = jobs.read_record(record_beside(path)) if path.suffix == ".parquet" else (None, None)
-    return jobs.Shard(path, job, index, record, torn=torn)
+    record, torn = records.read_record(record_beside(path)) if path.suffix == ".parquet" else (None, None)
+    return records.Shard(path, job, index, record, torn=torn)
 
 
-def _folder_shards(folder: pathlib.Path, complete_only: bool) -> List[jobs.Shard]:
+def _folder_shards(folder: pathlib.Path, complete_only: bool) -> List[records.Shard]:
     """`part-*.parquet` of a folder outside a job (or its `shards/`): those with a completion
     record (all with `complete_only` false); no job to check names or rows against."""
     shards = folder / "shards" if (folder / "shards").is_dir() else folder
     out = []
     for f in sorted(shards.glob("part-*.parquet")):
-        record, torn = jobs.read_record(record_beside(f))
+        record, torn = records.read_record(record_beside(f))
         if record is not None or torn is not None or not complete_only:
-            out.append(jobs.Shard(f, record=record, torn=torn))
+            out.append(records.Shard(f, record=record, torn=torn))
     return out
 
 
-def usable(shard: jobs.Shard, verify: Verify) -> bool:
+def usable(shard: records.Shard, verify: Verify, keep_open: bool = True) -> bool:
     """Whether a shard is read: it matches its completion record as far as `verify` looks,
-    and a job's shard holds its items (`jobs.check_rows`). Otherwise a ShardWarning says why."""
-    jobs.check_verify_mode(verify)
+    and a job's shard holds its items (`row_checks.check_rows`). Otherwise a ShardWarning says
+    why. A job's shard is opened for its footer and rows; with `keep_open` the shard holds that
+    file until its reader takes it (`take_file`), else it is closed."""
+    records.check_verify_mode(verify)
     why = shard.torn
     if why is None and shard.record is not None:
-        why = jobs.check_against_record(shard, verify)
+        why = records.check_against_record(shard, verify)
     if why is None and shard.job is not None:
-        why = _rows_not_the_shards(shard)
+        why = _rows_not_the_shards(shard, keep_open)
     if why is None:
         return True
     fix = (f" `sparc3d verify {shard.job.root}` moves it aside, `sparc3d run {shard.job.root}` "
            "converts it again." if shard.job else "")
-    jobs.warn_shards(f"{shard.path} is not read, its items left out: {why}.{fix}")
+    job_listing.warn_shards(f"{shard.path} is not read, its items left out: {why}.{fix}")
     return False
 
 
-def _rows_not_the_shards(shard: jobs.Shard) -> Optional[str]:
-    """Why a job shard's footer or rows are not its own (`jobs.check_rows`), if so; a file
-    pyarrow cannot read is damaged too."""
+def _rows_not_the_shards(shard: records.Shard, keep_open: bool) -> Optional[str]:
+    """Why a job shard's footer or rows are not its own (`row_checks.check_rows`), if so; a file
+    pyarrow cannot read is damaged too. A shard that passes holds its open file when
+    `keep_open`."""
     try:
         f = location.parquet_file(shard.path)
-        return jobs.check_footer(shard, f) or jobs.check_rows(shard, jobs.read_check_columns(shard.path, f))
+        why = row_checks.check_footer(shard, f) or row_checks.check_rows(
+            shard, row_checks.read_check_columns(shard.path, f))
     except READ_ERRORS as e:
         return f"it cannot be read ({type(e).__name__}: {e})"
+    if why is None and keep_open:
+        shard.file = f
+    return why
+
+
+def take_file(shard: records.Shard) -> pq.ParquetFile:
+    """The shard's Parquet file: the one `usable` opened to check it, handed over (the shard
+    keeps no hold on it, so only the reader that reads it keeps it open), else opened now."""
+    f, shard.file = shard.file, None
+    return f if f is not None else location.parquet_file(shard.path)
 
 
 def check_schema_version(path: PathLike) -> None:

@@ -22,9 +22,9 @@ from typing import Any, Dict, Iterable, Iterator, List, Optional, Sequence, Tupl
 import numpy as np
 import pyarrow.parquet as pq
 
-from . import jobs, location, stream_order
+from . import location, records, stream_order
 from .items import item_columns, shard_item
-from .jobs import Verify
+from .records import Verify
 from .selection import bind_where, open_files, selected_rows
 from .shards import PathLike, check_row_count, naming, usable_shards
 
@@ -72,7 +72,7 @@ class StreamingDatasetBase:
         # Each shard with its record and stamp when checked (a later change is refused),
         # without its job: what DataLoader workers are sent stays small.
         self._shards = [dataclasses.replace(s, job=None) for s in shards]
-        self._index(open_files(self.paths))
+        self._index(open_files(shards))
         self.epoch = 0
         self._consumed: List[int] = [0]  # items received this epoch, per worker
         self._pending: Optional[List[int]] = None  # a loaded position, until iterated
@@ -185,7 +185,7 @@ class StreamingDatasetBase:
         s, g = self._blocks[self._item_block[positions[start]]]
         need = {int(self._item_row[positions[p]]): p for p in range(start, end) if wanted[p]}
         rows, path, i, offset = sorted(need), self.paths[s], 0, 0
-        jobs.check_unchanged(self._shards[s])
+        records.check_unchanged(self._shards[s])
         with naming(path):
             f = self._open(s)
             columns = item_columns(path, f, self.samples)

@@ -18,11 +18,11 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from . import jobs, location
-from .jobs import Verify
+from . import records, row_checks
+from .records import Verify
 from .schema import META_SCHEMA_VERSION, SCHEMA_VERSION, tensor_columns
-from .shards import (PathLike, check_row_count, check_version, naming, record_beside,
-                     shard_paths)
+from .shards import (PathLike, all_shards, check_row_count, check_version, naming,
+                     record_beside, take_file, usable)
 
 
 def decode_tensor(row: Dict[str, Any], name: str) -> Optional[np.ndarray]:
@@ -110,7 +110,7 @@ def write_completion_record(path: PathLike, fields: Optional[Dict[str, Any]] = N
     → `part-NNNNN.complete.json`): its `bytes` and `sha256`, which the reader checks before it
     reads the file (`shard_paths`), plus `fields`. Written to a temporary name and renamed."""
     path = pathlib.Path(path)
-    record = {**(fields or {}), "bytes": path.stat().st_size, "sha256": jobs.file_sha256(path)}
+    record = {**(fields or {}), "bytes": path.stat().st_size, "sha256": records.file_sha256(path)}
     out = record_beside(path)
     tmp = out.with_name(out.name + ".tmp")
     tmp.write_text(json.dumps(record, sort_keys=True) + "\n")
@@ -123,20 +123,27 @@ def iter_tensor_rows(paths: Union[PathLike, Iterable[PathLike]], tensors: Sequen
                      verify: Verify = True) -> Iterator[Dict[str, Any]]:
     """Yields every row of tensor files (or shards) as a dict: the plain columns as they are,
     each name in `tensors` decoded (None when null; a ValueError names a tensor the file does
-    not have). Folders are read like job folders (`shard_paths`, with `verify`)."""
-    for path in shard_paths(paths, complete_only, verify):
-        f = location.parquet_file(path)
-        check_version(path, f)
-        jobs.require_columns(path, f.schema_arrow.names, tensor_columns(tensors))
-        names = [n for n in f.schema_arrow.names if not any(
-            n in (t + "_dtype", t + "_shape") for t in tensors)]
-        n = 0
-        with naming(path):
-            for batch in f.iter_batches(batch_size=batch_size):
-                n += batch.num_rows
-                for row in batch.to_pylist():
-                    out = {k: row[k] for k in names if k not in tensors}
-                    for t in tensors:
-                        out[t] = decode_tensor(row, t)
-                    yield out
-        check_row_count(path, n, f.metadata.num_rows)
+    not have). Folders are read like job folders (`shard_paths`, with `verify`): each file is
+    checked, as `iter_items` checks it, before its first row is yielded."""
+    for shard in all_shards(paths, complete_only):
+        if usable(shard, verify):
+            yield from _tensor_rows(shard.path, take_file(shard), tensors, batch_size)
+
+
+def _tensor_rows(path: PathLike, f: pq.ParquetFile, tensors: Sequence[str],
+                 batch_size: int) -> Iterator[Dict[str, Any]]:
+    """Every row of the tensor file `f` (opened from `path`), its `tensors` decoded."""
+    check_version(path, f)
+    row_checks.require_columns(path, f.schema_arrow.names, tensor_columns(tensors))
+    names = [n for n in f.schema_arrow.names if not any(
+        n in (t + "_dtype", t + "_shape") for t in tensors)]
+    n = 0
+    with naming(path):
+        for batch in f.iter_batches(batch_size=batch_size):
+            n += batch.num_rows
+            for row in batch.to_pylist():
+                out = {k: row[k] for k in names if k not in tensors}
+                for t in tensors:
+                    out[t] = decode_tensor(row, t)
+                yield out
+    check_row_count(path, n, f.metadata.num_rows)

@@ -9,6 +9,7 @@ import re
 import shutil
 import sys
 import warnings
+import weakref
 
 import numpy as np
 import pyarrow as pa
@@ -70,6 +71,39 @@ def test_the_clean_job_reads_whole_without_a_warning(clean):
     for verify in MODES:
         ids, msgs = ids_read(clean, verify)
         assert ids == IDS and msgs == []
+
+
+@pytest.mark.parametrize("verify", MODES)
+def test_each_shard_is_opened_once_on_the_way_to_its_rows(clean, verify, monkeypatch):
+    """The open that checks a shard (its footer's fingerprint, its rows against the frozen
+    manifest) is the one its rows are read from: reading the job opens each shard's Parquet
+    file once, and building a dataset (checks, then its index) opens each once too. The
+    readers that go shard by shard keep one file open at a time."""
+    opened, alive, most = [], weakref.WeakSet(), [0]
+
+    class Counted(pq.ParquetFile):
+        def __init__(self, source, *args, **kwargs):
+            opened.append(os.path.basename(str(source)))
+            super().__init__(source, *args, **kwargs)
+            alive.add(self)
+            most[0] = max(most[0], len(alive))
+
+    monkeypatch.setattr(pq, "ParquetFile", Counted)
+    shards = ["part-%05d.parquet" % n for n in range(4)]
+    reads = {  # reader: (what it reads, the most files it may hold open at once)
+        "iter_items": (lambda: [it["id"] for it in reader.iter_items(clean, verify=verify)], 1),
+        "iter_tensor_rows": (lambda: [r["id"] for r in reader.iter_tensor_rows(
+            clean, ["sdf"], verify=verify)], 1),
+        "shard_paths": (lambda: reader.shard_paths(clean, verify=verify) and IDS, 1),
+        "SparseCubesDataset": (lambda: reader.SparseCubesDataset(clean, verify=verify).ids, 4),
+        "StreamingDataset": (lambda: len(reader.StreamingDataset(clean, verify=verify)) and IDS, 4),
+    }
+    for name, (read, held) in reads.items():
+        opened.clear()
+        most[0] = 0
+        assert read() == IDS, name
+        assert sorted(opened) == shards, (name, opened)
+        assert most[0] <= held, (name, most[0])
 
 
 @pytest.mark.parametrize("verify", MODES)

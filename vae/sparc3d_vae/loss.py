@@ -29,6 +29,9 @@ from .config import LossConfig
 from .model import Decoded
 from .sparse import CHILD_OFFSETS, SparseTensor, hash_coords, lookup
 
+#: The loss terms `vae_loss` returns, in the log's order.
+LOSS_TERMS = ["loss", "occ", "sign", "mag", "delta", "kl"]
+
 
 def child_targets(parents: SparseTensor, truth: SparseTensor) -> torch.Tensor:
     """float [N, 8]: 1 where the child (in `CHILD_OFFSETS` order) of each parent voxel is a
