@@ -23,6 +23,7 @@ pub mod hunyuan3d;
 pub mod npz;
 pub mod pickle;
 pub mod preset;
+pub mod renders;
 mod select;
 pub mod step1x3d;
 pub mod trellis2;
@@ -214,6 +215,8 @@ pub struct Item<'a> {
     /// Its appearance on `cubes.cells` (one row per cell), when the job samples it
     /// (`[attributes]`) and the consumer reads it ([`Consumer::reads_attributes`]).
     pub attributes: Option<&'a CellAttributes>,
+    /// Its condition views, when the job renders them (`[renders]`).
+    pub renders: Option<renders::StoredRenders<'a>>,
     /// The fraction of the grid's side the object's longest side spans
     /// (`sparcubes::Params::span`: `params.object_span`, else what `params.margin_cells`
     /// leaves).

@@ -27,6 +27,11 @@
 //!   extracted from the item's cubes, which `read_mesh` (L106-126) loads;
 //! - `pbr_voxels_<N>/<key>.vxz`: the item's appearance on the same voxels, for TRELLIS.2's
 //!   texture VAE ([`pbr`]), when the job samples it (`[attributes]`);
+//! - `renders_cond/<key>/{000..}.png` and `transforms.json`: the item's condition views, when
+//!   the job renders them (`[renders]`), with `renders_cond/metadata.csv` (`cond_rendered`)
+//!   and `data_dir.json`'s `render_cond`, as `data_toolkit/render_cond.py` writes them and
+//!   `ImageConditionedMixin` (`trellis2/datasets/components.py`) reads them; the cameras in the
+//!   mesh dump's frame ([`crate::renders`]);
 //! - the `metadata.csv` of each folder of `data_dir.json` (`components.py`
 //!   `StandardDatasetBase.__init__` L21-56 reads one per listed folder), with the columns
 //!   `filter_metadata` (L92-104) asks for, and `data_dir.json` itself ([`listing`]).
@@ -73,7 +78,7 @@ use std::path::{Path, PathBuf};
 
 /// `--help` line.
 pub const ABOUT: &str =
-    "TRELLIS.2's dual grid dataset: dual_grid_<G>/<sha256>.vxz, mesh_dumps/, metadata.csv, data_dir.json (exact for a job at G + 6, docs/FORMAT.md), and with [attributes] pbr_voxels_<G>/<sha256>.vxz on the same voxels; checked against trellis2/datasets/flexi_dual_grid.py FlexiDualGridDataset and sparse_voxel_pbr.py SparseVoxelPbrDataset";
+    "TRELLIS.2's dual grid dataset: dual_grid_<G>/<sha256>.vxz, mesh_dumps/, metadata.csv, data_dir.json (exact for a job at G + 6, docs/FORMAT.md), with [attributes] pbr_voxels_<G>/<sha256>.vxz on the same voxels, and with [renders] renders_cond/<sha256>/ (views and transforms.json); checked against trellis2/datasets/flexi_dual_grid.py FlexiDualGridDataset and sparse_voxel_pbr.py SparseVoxelPbrDataset";
 
 /// The share of the grid TRELLIS.2 scales a mesh's longest side to (`dual_grid.py` L36-56,
 /// `flexi_dual_grid.py` `read_mesh`).
@@ -270,6 +275,15 @@ pub fn files(item: &Item) -> Result<ItemExport> {
             bytes: dump,
         },
     ];
+    if let Some(r) = &item.renders {
+        let dir = PathBuf::from(RENDERS_DIR).join(key);
+        files.extend(crate::renders::files(
+            r,
+            &dir,
+            source_to_export(item.cubes, grid),
+        )?);
+        listing.insert(COND_RENDERED.to_string(), "True".to_string());
+    }
     let note = match item.attributes {
         Some(a) => {
             files.push(pbr::file(&item.cubes.cells, a, &g.voxels, &coords, n, key)?);
@@ -283,6 +297,27 @@ pub fn files(item: &Item) -> Result<ItemExport> {
         listing,
         note,
     })
+}
+
+/// The folder of the condition views, one folder per item named by its key, as TRELLIS.2's
+/// `data_toolkit/render_cond.py` writes `renders_cond/<sha256>/` and `ImageConditionedMixin`
+/// (`trellis2/datasets/components.py`) reads it through `data_dir.json`'s `render_cond`.
+pub const RENDERS_DIR: &str = "renders_cond";
+
+/// The listing column `ImageConditionedMixin.filter_metadata` keeps the items of.
+const COND_RENDERED: &str = "cond_rendered";
+
+/// Where a source point lands in the export's aabb frame of `grid` (the mesh dump's frame):
+/// `(source_to_grid(p) − offset) / G − 0.5`.
+fn source_to_export(cubes: &SparseCubes, grid: Trellis2Grid) -> crate::renders::SourceToExport {
+    let n = cubes.resolution as f64;
+    let g = grid.size as f64;
+    let norm = &cubes.normalization;
+    let a = norm.scale * n / g;
+    let b = norm
+        .center
+        .map(|c| (0.5 - c * norm.scale) * n / g - grid.offset as f64 / g - 0.5);
+    crate::renders::SourceToExport { a, b }
 }
 
 /// Weight of the pull towards the mean crossing point, per crossing (TRELLIS.2's
@@ -405,6 +440,9 @@ pub fn listing(items: &[Listed], root: &Path) -> Result<Vec<ExportFile>> {
     if let Some((dir, _)) = &pbr {
         folders[pbr::DATA_DIR_KEY] = serde_json::json!(root.join(dir));
     }
+    if items.iter().any(|i| i.columns.contains_key(COND_RENDERED)) {
+        folders["render_cond"] = serde_json::json!(root.join(RENDERS_DIR));
+    }
     let data_dir = serde_json::to_vec_pretty(&serde_json::json!({ DATASET: folders }))
         .map_err(|e| Error::Invalid(format!("writing data_dir.json: {e}")))?;
     let mut files = vec![
@@ -430,6 +468,22 @@ pub fn listing(items: &[Listed], root: &Path) -> Result<Vec<ExportFile>> {
         ),
     ];
     files.extend(pbr.map(|(_, table)| table));
+    if items.iter().any(|i| i.columns.contains_key(COND_RENDERED)) {
+        let rendered: Vec<&Listed> = items
+            .iter()
+            .filter(|i| i.columns.contains_key(COND_RENDERED))
+            .collect();
+        files.push(ExportFile {
+            path: Path::new(RENDERS_DIR).join("metadata.csv"),
+            bytes: csv(
+                "sha256,cond_rendered",
+                rendered
+                    .iter()
+                    .map(|i| vec![col(i, "sha256"), "True".into()]),
+            )
+            .into_bytes(),
+        });
+    }
     files.push(ExportFile {
         path: "data_dir.json".into(),
         bytes: data_dir,

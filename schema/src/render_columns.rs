@@ -162,4 +162,23 @@ mod tests {
             .is_some_and(|t| t.renders.is_none()));
         Ok(())
     }
+
+    #[test]
+    fn the_digest_covers_each_views_bytes_and_transforms_but_not_its_seconds() {
+        let with = |png: Vec<u8>, seconds: f64, transforms: &str| {
+            let mut rows = sample_rows();
+            if let Some(t) = rows[0].tensors.as_mut() {
+                t.renders = Some(RowRenders {
+                    views: vec![RenderedView { png, seconds }],
+                    transforms: transforms.into(),
+                });
+            }
+            crate::digest::rows_digest(&rows)
+        };
+        let base = with(vec![1, 2, 3], 0.5, "{}");
+        assert_eq!(with(vec![1, 2, 3], 9.0, "{}"), base);
+        assert_ne!(with(vec![1, 2, 4], 0.5, "{}"), base);
+        assert_ne!(with(vec![1, 2, 3], 0.5, "{ }"), base);
+        assert_ne!(crate::digest::rows_digest(&sample_rows()), base);
+    }
 }

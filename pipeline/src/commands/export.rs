@@ -461,6 +461,10 @@ fn export_row(
         Some(t) => Some(t.to_attributes()?),
         None => None,
     };
+    let stored_renders = row.tensors.as_ref().and_then(|t| t.renders.as_ref());
+    let pngs: Vec<&[u8]> = stored_renders
+        .map(|r| r.views.iter().map(|v| v.png.as_slice()).collect())
+        .unwrap_or_default();
     let config = &job.file.config;
     // The manifest's sha256, else the one the row recorded of the bytes it converted; the id
     // where it covers the files the mesh names as well (colour variants of one mesh file).
@@ -484,6 +488,10 @@ fn export_row(
             params: &config.samples.params,
         }),
         attributes: attributes.as_ref(),
+        renders: stored_renders.map(|r| sparc3d_formats::renders::StoredRenders {
+            pngs: &pngs,
+            transforms: &r.transforms,
+        }),
         object_span: config.params.span(),
         frame,
     };
