@@ -19,9 +19,12 @@
 //! which the released VAE decodes (docs/FORMAT.md, "Exports"). A mesh without a sharp edge is
 //! left out, as its producer leaves it: `sharp_sample_pointcloud` (L29-59) indexes the empty
 //! list of sharp edges and raises, so no file is written. Its DiT loader also reads 24
-//! RGBA renders in `<item>/render_cond/`, which are not ours to make.
+//! RGBA renders in `<item>/render_cond/` (`000.png` … `023.png`, composited on white): a job
+//! with `[renders]` gets them there, with a `transforms.json` whose cameras are in this
+//! export's frame ([`crate::renders`]).
 
 use crate::arrays::{floats, placed, point_normal_rows, Width};
+use crate::renders::SourceToExport;
 use crate::select::{
     block_needs, block_rows, missing_needs, require_sharp, rows_in_cube, sharp_near_needs,
     sharp_near_rows, surface_and_sharp_needs, Need,
@@ -31,7 +34,7 @@ use sparcubes::samples::SampleParams;
 
 /// `--help` line.
 pub const ABOUT: &str =
-    "Hunyuan3D-2.1: <item>/geo_data/<item>_surface.npz and _sdf.npz (f16, label > 0 inside); checked against hy3dshape/data/dit_asl.py AlignedShapeLatentDataset";
+    "Hunyuan3D-2.1: <item>/geo_data/<item>_surface.npz and _sdf.npz (f16, label > 0 inside), and with [renders] <item>/render_cond/000.png …; checked against hy3dshape/data/dit_asl.py AlignedShapeLatentDataset";
 
 /// Rows of `random_surface` and `sharp_surface` (`499712 // 4`, L143).
 const SURFACE_ROWS: usize = 124_928;
@@ -128,14 +131,35 @@ pub fn files(item: &Item) -> Result<ItemExport> {
         &sharp_near,
     ));
     let dir = format!("{0}/geo_data/{0}", item.stem);
+    let mut files = vec![
+        npz_file(format!("{dir}_surface.npz"), &surface)?,
+        npz_file(format!("{dir}_sdf.npz"), &sdf)?,
+    ];
+    let mut note = None;
+    if let Some(r) = &item.renders {
+        let dir = std::path::Path::new(item.stem).join("render_cond");
+        let to_export = SourceToExport::through(&place, &item.cubes.normalization);
+        files.extend(crate::renders::files(
+            r,
+            &dir,
+            to_export,
+            &crate::renders::three_digits,
+        )?);
+        note = (r.pngs.len() < RENDER_VIEWS).then_some(FEW_VIEWS);
+    }
     Ok(ItemExport {
-        files: vec![
-            npz_file(format!("{dir}_surface.npz"), &surface)?,
-            npz_file(format!("{dir}_sdf.npz"), &sdf)?,
-        ],
+        files,
+        note,
         ..Default::default()
     })
 }
+
+/// Views its DiT loader reads of each item: `render_cond/000.png` … `023.png`
+/// (`AlignedShapeLatentDataset.decode`, L247-249).
+pub const RENDER_VIEWS: usize = 24;
+
+/// The note of an item with fewer views than its loader reads.
+const FEW_VIEWS: &str = "fewer than the 24 condition views Hunyuan3D-2.1's loader reads (render_cond/000.png … 023.png): render them with [renders] views = 24";
 
 /// `[n, 6]` f16 rows of points and normals.
 fn surface_rows(name: &str, points: &[[f32; 3]], normals: &[[f32; 3]], place: &Placement) -> Array {

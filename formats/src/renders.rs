@@ -9,8 +9,9 @@
 //! matrix `[R | t]` becomes `[zup⁻¹ R | a · zup⁻¹((t − offset) / scale) + b]` (a similarity,
 //! so `camera_angle_x` is unchanged), and the file's `scale` and `offset` become `a` and `b`.
 
-use crate::{Error, ExportFile, Result};
+use crate::{Error, ExportFile, Placement, Result};
 use serde_json::{json, Value};
+use sparcubes::Normalization;
 use std::path::Path;
 
 /// An item's stored views: a PNG each, in view order, and their `transforms.json`.
@@ -29,6 +30,18 @@ pub struct SourceToExport {
     pub a: f64,
     /// Translation, per axis.
     pub b: [f64; 3],
+}
+
+impl SourceToExport {
+    /// The map of an export that writes a point `p` of the normalized frame (`p = 2 ·
+    /// (source − center) · scale`, [`Placement::to_source`]) at `placement.point(p)`.
+    pub fn through(placement: &Placement, norm: &Normalization) -> Self {
+        let a = placement.factor * 2.0 * norm.scale;
+        Self {
+            a,
+            b: std::array::from_fn(|i| placement.offset[i] - a * norm.center[i]),
+        }
+    }
 }
 
 /// `zup⁻¹`: Blender's Z-up axes back to the source's (`(x, y, z)` → `(x, z, −y)`).
@@ -55,6 +68,15 @@ fn triple(v: &Value, what: &str) -> Result<[f64; 3]> {
 
 /// The stored `transforms.json` with its cameras in the export's frame (module docs).
 pub fn transforms_in(stored: &str, to_export: SourceToExport) -> Result<String> {
+    transforms_named(stored, to_export, &three_digits)
+}
+
+/// [`transforms_in`] with each frame's `file_path` the view's `name`.
+fn transforms_named(
+    stored: &str,
+    to_export: SourceToExport,
+    name: &dyn Fn(usize) -> String,
+) -> Result<String> {
     let doc: Value = serde_json::from_str(stored)
         .map_err(|e| Error::Invalid(format!("transforms.json: {e}")))?;
     let scale = number(&doc["scale"], "scale")?;
@@ -65,7 +87,8 @@ pub fn transforms_in(stored: &str, to_export: SourceToExport) -> Result<String> 
     let SourceToExport { a, b } = to_export;
     let moved: Vec<Value> = frames
         .iter()
-        .map(|f| {
+        .enumerate()
+        .map(|(i, f)| {
             let m = &f["transform_matrix"];
             let row = |i: usize| triple(&json!([m[i][0], m[i][1], m[i][2]]), "transform_matrix");
             let column = |r: &[[f64; 3]; 3], j: usize| [r[0][j], r[1][j], r[2][j]];
@@ -85,7 +108,7 @@ pub fn transforms_in(stored: &str, to_export: SourceToExport) -> Result<String> 
                 .chain([json!([0.0, 0.0, 0.0, 1.0])])
                 .collect();
             Ok(json!({
-                "file_path": f["file_path"],
+                "file_path": name(i),
                 "camera_angle_x": f["camera_angle_x"],
                 "transform_matrix": rows,
             }))
@@ -102,25 +125,31 @@ pub fn transforms_in(stored: &str, to_export: SourceToExport) -> Result<String> 
         .map_err(|e| Error::Invalid(format!("writing transforms.json: {e}")))
 }
 
-/// The view files of one item under `dir`: `000.png …` as stored and `transforms.json` in
-/// the export's frame.
+/// The name TRELLIS and TRELLIS.2 give view `i`: `000.png`.
+pub fn three_digits(i: usize) -> String {
+    format!("{i:03}.png")
+}
+
+/// The view files of one item under `dir`: each view as stored, named by `name`, and
+/// `transforms.json` in the export's frame.
 pub fn files(
     renders: &StoredRenders,
     dir: &Path,
     to_export: SourceToExport,
+    name: &dyn Fn(usize) -> String,
 ) -> Result<Vec<ExportFile>> {
     let mut files: Vec<ExportFile> = renders
         .pngs
         .iter()
         .enumerate()
         .map(|(i, png)| ExportFile {
-            path: dir.join(format!("{i:03}.png")),
+            path: dir.join(name(i)),
             bytes: png.to_vec(),
         })
         .collect();
     files.push(ExportFile {
         path: dir.join("transforms.json"),
-        bytes: transforms_in(renders.transforms, to_export)?.into_bytes(),
+        bytes: transforms_named(renders.transforms, to_export, name)?.into_bytes(),
     });
     Ok(files)
 }
@@ -165,5 +194,25 @@ mod tests {
         assert!(e.to_string().contains("scale"), "{e}");
         let e = transforms_in("not json", to).unwrap_err();
         assert!(e.to_string().contains("transforms.json"), "{e}");
+    }
+
+    #[test]
+    fn through_a_placement_is_the_placement_of_the_normalized_point() {
+        let norm = Normalization {
+            center: [1.0, -2.0, 0.5],
+            scale: 0.25,
+        };
+        let placement = Placement {
+            factor: 0.9,
+            offset: [0.1, 0.2, -0.3],
+        };
+        let to = SourceToExport::through(&placement, &norm);
+        let source = [3.0, 1.0, -1.0];
+        let normalized: [f32; 3] =
+            std::array::from_fn(|i| (2.0 * (source[i] - norm.center[i]) * norm.scale) as f32);
+        let expected = placement.point(normalized);
+        for i in 0..3 {
+            assert!((to.a * source[i] + to.b[i] - expected[i]).abs() < 1e-6);
+        }
     }
 }

@@ -17,13 +17,14 @@
 
 use crate::arrays::{floats, point_normal_rows, Width};
 use crate::dora::{self, near_and_volume, near_and_volume_needs, signed_array};
+use crate::renders::SourceToExport;
 use crate::select::{has_sharp, missing_needs, surface_and_sharp_needs};
 use crate::{npz::Array, npz_file, ExportFile, Item, ItemExport, Listed, Result};
 use sparcubes::samples::SampleParams;
 
 /// `--help` line.
 pub const ABOUT: &str =
-    "Step1X-3D: surfaces/<item>.npz (surface, sharp_surface, near_surface_points, volume_rand_points; f32, sdf > 0 inside) + train/val/test.json; checked against step1x3d_geometry/data/base.py BaseDataset";
+    "Step1X-3D: surfaces/<item>.npz (surface, sharp_surface, near_surface_points, volume_rand_points; f32, sdf > 0 inside) + train/val/test.json, and with [renders] images/<item>/NNNN_rgb.png; checked against step1x3d_geometry/data/base.py BaseDataset";
 
 /// Rows of `surface` and of `sharp_surface`.
 const SURFACE_ROWS: usize = 124_928;
@@ -77,11 +78,23 @@ pub fn files(item: &Item) -> Result<ItemExport> {
         ),
         Array::numbers("bounds", "<f4", vec![], &[dora::VOLUME_BOUND as f32]),
     ]);
+    let mut files = vec![npz_file(format!("surfaces/{}.npz", item.stem), &arrays)?];
+    if let Some(r) = &item.renders {
+        let dir = std::path::Path::new("images").join(item.stem);
+        let to_export = SourceToExport::through(&place, &item.cubes.normalization);
+        files.extend(crate::renders::files(r, &dir, to_export, &view_name)?);
+    }
     Ok(ItemExport {
-        files: vec![npz_file(format!("surfaces/{}.npz", item.stem), &arrays)?],
+        files,
         note: (!sharp).then_some(NO_SHARP),
         ..Default::default()
     })
+}
+
+/// The file of view `i` as `BaseDataset._load_image` reads it (`step1x3d_geometry/data/base.py`
+/// L238-243: `images/<uid>/<i:04d>_rgb.png`, the uid being the item's stem here).
+fn view_name(i: usize) -> String {
+    format!("{i:04}_rgb.png")
 }
 
 /// `train.json`, `val.json` and `test.json` (as Dora's, `dora::split_lists`): the items'

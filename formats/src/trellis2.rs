@@ -281,6 +281,7 @@ pub fn files(item: &Item) -> Result<ItemExport> {
             r,
             &dir,
             source_to_export(item.cubes, grid),
+            &crate::renders::three_digits,
         )?);
         listing.insert(COND_RENDERED.to_string(), "True".to_string());
     }
