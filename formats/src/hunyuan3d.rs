@@ -158,6 +158,14 @@ pub fn files(item: &Item) -> Result<ItemExport> {
 /// (`AlignedShapeLatentDataset.decode`, L247-249).
 pub const RENDER_VIEWS: usize = 24;
 
+/// Hunyuan3D-2.1's condition views: TRELLIS's cameras, 24 of 512² (`hy3dshape/tools/render/
+/// render.py` `init_render(resolution=512)` with TRELLIS's `sphere_hammersley_sequence`).
+pub const RENDERS: crate::preset::RenderRecipe = crate::preset::RenderRecipe {
+    recipe: "trellis",
+    views: RENDER_VIEWS as u32,
+    size: 512,
+};
+
 /// The note of an item with fewer views than its loader reads.
 const FEW_VIEWS: &str = "fewer than the 24 condition views Hunyuan3D-2.1's loader reads (render_cond/000.png … 023.png): render them with [renders] views = 24";
 

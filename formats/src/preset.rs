@@ -34,6 +34,21 @@ pub struct Settings {
     pub object_span: Option<f64>,
     /// `samples.enabled = true` (the defaults serve every vector-set consumer).
     pub samples: bool,
+    /// The consumer's condition views (`[renders]` recipe, views and size), used when the
+    /// job renders (`--renders`, `[renders] enabled = true`); a job that does not keeps its
+    /// config and fingerprint, since a disabled section is left out of both.
+    pub renders: Option<RenderRecipe>,
+}
+
+/// A consumer's condition views: whose cameras and lights, how many, how large.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RenderRecipe {
+    /// `[renders] recipe` (`trellis`, `trellis2`).
+    pub recipe: &'static str,
+    /// Views per item.
+    pub views: u32,
+    /// Side of a view in pixels.
+    pub size: u32,
 }
 
 impl Preset {
@@ -111,14 +126,26 @@ impl Preset {
                     resolution: Some(resolution),
                     object_span: Some(span),
                     samples: false,
+                    renders: Some(trellis2::RENDERS),
                 }
             }
             (Consumer::Direct3dS2, grid) => Settings {
                 resolution: grid,
                 object_span: Some(direct3d_s2::OBJECT_SPAN),
                 samples: false,
+                renders: None,
             },
             (Consumer::Trellis2 | Consumer::Cubvh, _) => Settings::default(),
+            (Consumer::Hunyuan3d21, _) => Settings {
+                samples: true,
+                renders: Some(crate::hunyuan3d::RENDERS),
+                ..Settings::default()
+            },
+            (Consumer::Step1x3d, _) => Settings {
+                samples: true,
+                renders: Some(crate::step1x3d::RENDERS),
+                ..Settings::default()
+            },
             _ => Settings {
                 samples: true,
                 ..Settings::default()
@@ -144,6 +171,12 @@ impl Settings {
         }
         if self.samples {
             out.insert("samples".into(), json!({"enabled": true}));
+        }
+        if let Some(r) = self.renders {
+            out.insert(
+                "renders".into(),
+                json!({"recipe": r.recipe, "views": r.views, "size": r.size}),
+            );
         }
         Value::Object(out)
     }

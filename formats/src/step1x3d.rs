@@ -91,6 +91,15 @@ pub fn files(item: &Item) -> Result<ItemExport> {
     })
 }
 
+/// Step1X-3D's condition views: its render script is not released; its loader's paths name
+/// 20 views (`0000` … `0019`, issue 61's reading of its data) and `_process_img` resizes each
+/// to 512² (`base.py` L228), so TRELLIS's cameras, 20 of 512².
+pub const RENDERS: crate::preset::RenderRecipe = crate::preset::RenderRecipe {
+    recipe: "trellis",
+    views: 20,
+    size: 512,
+};
+
 /// The file of view `i` as `BaseDataset._load_image` reads it (`step1x3d_geometry/data/base.py`
 /// L238-243: `images/<uid>/<i:04d>_rgb.png`, the uid being the item's stem here).
 fn view_name(i: usize) -> String {

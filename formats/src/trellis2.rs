@@ -305,6 +305,14 @@ pub fn files(item: &Item) -> Result<ItemExport> {
 /// (`trellis2/datasets/components.py`) reads it through `data_dir.json`'s `render_cond`.
 pub const RENDERS_DIR: &str = "renders_cond";
 
+/// TRELLIS.2's condition views: 16 of 1024² with its own lights (`data_toolkit/render_cond.py`
+/// `--num_cond_views` 16, `--cond_resolution` 1024).
+pub const RENDERS: crate::preset::RenderRecipe = crate::preset::RenderRecipe {
+    recipe: "trellis2",
+    views: 16,
+    size: 1024,
+};
+
 /// The listing column `ImageConditionedMixin.filter_metadata` keeps the items of.
 const COND_RENDERED: &str = "cond_rendered";
 

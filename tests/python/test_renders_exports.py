@@ -153,3 +153,27 @@ def test_fewer_views_than_hunyuan3d_reads_are_named_by_the_export(tmp_path):
     job = make_job(tmp_path, 4)
     said, _ = exported(job, "hunyuan3d-2.1", tmp_path / "hy")
     assert "fewer than the 24 condition views" in said and "views = 24" in said, said
+
+
+def job_json(path):
+    return json.loads((path / "job.json").read_text())
+
+
+def test_renders_take_the_presets_recipe_and_a_job_without_them_keeps_its_fingerprint(tmp_path):
+    manifest = tmp_path / "m.csv"
+    manifest.write_text(f"path\n{EXAMPLES / 'cube.off'}\n")
+    samples = tmp_path / "samples.toml"
+    samples.write_text("[samples]\nenabled = true\n")
+    made = {}
+    for name, flags in [("plain", ["--config", samples]), ("preset", ["--for", "hunyuan3d-2.1"]),
+                        ("rendered", ["--for", "hunyuan3d-2.1", "--renders"]),
+                        ("trellis2", ["--for", "trellis2@64", "--renders"])]:
+        run("init", tmp_path / name, "--manifest", manifest, *flags)
+        made[name] = job_json(tmp_path / name)
+    assert "renders" not in made["preset"]["config"]
+    assert made["preset"]["fingerprint"] == made["plain"]["fingerprint"]
+    assert made["rendered"]["config"]["renders"] == {
+        "enabled": True, "recipe": "trellis", "views": 24, "size": 512, "seed": 0}
+    assert made["rendered"]["fingerprint"] != made["preset"]["fingerprint"]
+    assert made["trellis2"]["config"]["renders"]["views"] == 16
+    assert made["trellis2"]["config"]["renders"]["size"] == 1024

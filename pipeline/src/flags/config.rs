@@ -26,6 +26,11 @@ pub struct ConfigArgs {
     /// the other flags win over it; job.json records it as `preset`.
     #[arg(long = "for", value_name = "CONSUMER")]
     pub preset: Option<String>,
+    /// Render each item's condition views with the conversion (`[renders] enabled = true`,
+    /// docs/RENDERS.md), with the `--for` consumer's recipe (TRELLIS.2's 16 views of 1024²,
+    /// Hunyuan3D-2.1's 24 of 512², Step1X-3D's 20 of 512²) unless the config file sets one.
+    #[arg(long)]
+    pub renders: bool,
 }
 
 impl ConfigArgs {
@@ -35,5 +40,6 @@ impl ConfigArgs {
             || self.shard_size.is_some()
             || self.config.is_some()
             || self.preset.is_some()
+            || self.renders
     }
 }

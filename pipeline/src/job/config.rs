@@ -32,6 +32,9 @@ pub fn build_config(args: &ConfigArgs) -> Result<JobConfig> {
     if let Some(s) = args.shard_size {
         config.shard_size = s;
     }
+    if args.renders {
+        config.renders.enabled = true;
+    }
     config.preset = preset.map(|p| p.name());
     // Its errors already begin "invalid job config:".
     config.validate()?;
