@@ -143,3 +143,24 @@ def test_a_job_without_renders_exports_no_renders_folder(tmp_path):
     run("export", job, "--format", "trellis2", "--out", out)
     assert not (out / "renders_cond").exists()
     assert "render_cond" not in json.dumps(json.loads((out / "data_dir.json").read_text()))
+
+
+def test_the_report_shows_each_previewed_items_views_on_white(job, tmp_path):
+    import base64
+    import io
+    import re
+    from PIL import Image
+    _, job_dir, _ = job
+    report = tmp_path / "report.html"
+    run("report", job_dir, "-o", report, "--previews", len(NAMES), "--tile", 64)
+    html = report.read_text()
+    assert "Condition views" in html
+    thumbs = re.findall(r'<img class="view" src="data:image/png;base64,([^"]+)"', html)
+    assert len(thumbs) == len(NAMES) * VIEWS
+    for t in thumbs:
+        with Image.open(io.BytesIO(base64.b64decode(t))) as im:
+            assert im.mode == "RGB" and max(im.size) <= 128
+            px = np.asarray(im).reshape(-1, 3)
+        background = (px == 255).all(axis=1).mean()
+        assert 0.05 < background < 0.995, f"on white, with the asset in it ({background:.3f})"
+    assert html.count(f"{VIEWS} views, ") == len(NAMES)

@@ -13,6 +13,7 @@ use crate::summary::{summarize, JobSummary};
 use crate::units::format_seconds;
 use anyhow::{Context, Result};
 use base64::Engine;
+use sparc3d_render::cond::thumbnail::thumbnail;
 use sparc3d_render::CompareOptions;
 use sparc3d_schema::{ItemStatus, ShardRow};
 use sparc3d_workers::store::read::shard_rows;
@@ -185,11 +186,30 @@ struct Preview {
     id: String,
     uri: String,
     png: Result<Vec<u8>>,
+    /// Thumbnails of the item's condition views (a job with `[renders]`), and its seconds a
+    /// view (the mean).
+    views: Vec<std::result::Result<Vec<u8>, String>>,
+    view_seconds: f64,
 }
+
+/// Side of a condition view's thumbnail in the contact sheet, in pixels.
+const THUMBNAIL: u32 = 128;
 
 fn preview(job: &Job, id: &str, options: &CompareOptions) -> Preview {
     let row = item_lookup::find(job, id).and_then(|item| item_lookup::row(job, &item));
     let uri = row.as_ref().map(|r| r.uri.clone()).unwrap_or_default();
+    let renders = row
+        .as_ref()
+        .ok()
+        .and_then(|r| r.tensors.as_ref())
+        .and_then(|t| t.renders.as_ref());
+    let views = renders.map_or_else(Vec::new, |r| {
+        let thumb = |v: &sparc3d_schema::RenderedView| thumbnail(&v.png, THUMBNAIL);
+        r.views.iter().map(thumb).collect()
+    });
+    let view_seconds = renders.map_or(0.0, |r| {
+        r.views.iter().map(|v| v.seconds).sum::<f64>() / r.views.len().max(1) as f64
+    });
     let png = row
         .and_then(|r| preview_row(&r, options, true))
         .and_then(|image| image.encode_png().context("encoding PNG"));
@@ -197,6 +217,8 @@ fn preview(job: &Job, id: &str, options: &CompareOptions) -> Preview {
         id: id.to_string(),
         uri,
         png,
+        views,
+        view_seconds,
     }
 }
 
@@ -261,6 +283,9 @@ fn page(job: &Job, s: &JobSummary, c: &Columns, previews: &[Preview]) -> String 
     h.push_str("</div>\n");
     validation_section(&mut h, &job.layout.root);
     previews_section(&mut h, previews, job.file.config.attributes.enabled);
+    if job.file.config.renders.enabled {
+        contact_sheet(&mut h, previews);
+    }
     provenance_section(&mut h, c);
     failures_section(&mut h, c);
     h.push_str("</body></html>\n");
@@ -382,6 +407,41 @@ fn previews_section(h: &mut String, previews: &[Preview], coloured: bool) {
         }
     }
     h.push_str("</div>\n");
+}
+
+/// The condition views of the previewed items, each row one item's views on white
+/// (docs/RENDERS.md), with its seconds a view.
+fn contact_sheet(h: &mut String, previews: &[Preview]) {
+    h.push_str(
+        "<h2>Condition views</h2>\n<p>The views each previewed item's row stores, in order, \
+         composited on white as the loaders show them.</p>\n",
+    );
+    let b64 = base64::engine::general_purpose::STANDARD;
+    for p in previews {
+        let _ = write!(h, "<div class=\"previews\">");
+        for (i, v) in p.views.iter().enumerate() {
+            let alt = esc(&format!("{} view {i:03}", p.id));
+            let _ = match v {
+                Ok(png) => write!(
+                    h,
+                    "<img class=\"view\" src=\"data:image/png;base64,{}\" alt=\"{alt}\" \
+                     onload=\"{ONLOAD}\" onerror=\"{ONERROR}\">",
+                    b64.encode(png)
+                ),
+                Err(e) => write!(h, "<p class=\"err\">{alt}: {}</p>", esc(e)),
+            };
+        }
+        let caption = match p.views.len() {
+            0 => "no views stored".to_string(),
+            n => format!("{n} views, {:.3} s a view", p.view_seconds),
+        };
+        let _ = writeln!(
+            h,
+            "</div><p>{} — {}</p>",
+            esc(&format!("{} — {}", p.id, p.uri)),
+            esc(&caption)
+        );
+    }
 }
 
 /// Values of a provenance column listed in the report; the rest are counted.

@@ -17,6 +17,7 @@ pub mod cameras;
 pub mod lights;
 pub mod picture;
 pub mod rng;
+pub mod thumbnail;
 
 use cameras::{PerspectiveCamera, View};
 use glam::{DVec3, Vec3A};
