@@ -132,3 +132,32 @@ fn bench_records_a_broken_mesh_as_failed_and_goes_on() {
     let kept = std::fs::read_to_string(&out).expect("rows file");
     assert_eq!(kept.lines().count(), 2, "--out keeps every row");
 }
+
+#[test]
+fn bench_with_renders_times_the_views_of_each_mesh() {
+    let cube = examples().join("cube.off");
+    let cube = cube.to_string_lossy().into_owned();
+    let report = bench_json(&[
+        &cube,
+        "--resolution",
+        "32",
+        "--renders",
+        "trellis",
+        "--json",
+    ]);
+    let row = &report["rows"][0];
+    assert_eq!(row["ok"], true, "{row}");
+    let views = &row["render_views"];
+    assert_eq!(views[0], 24, "TRELLIS's 24 views: {row}");
+    assert!(views[1].as_f64().is_some_and(|s| s > 0.0), "{row}");
+    let stages = row["stages"].as_array().expect("stages");
+    assert!(stages.iter().any(|s| s[0] == "renders"), "{row}");
+    let summary = &report["summary"][0];
+    assert!(
+        num(&summary["seconds_per_view"], "median") > 0.0,
+        "{summary}"
+    );
+    // Without the flag: no views and no stage.
+    let plain = bench_json(&[&cube, "--resolution", "32", "--json"]);
+    assert!(plain["rows"][0].get("render_views").is_none());
+}

@@ -49,6 +49,10 @@ pub struct Args {
     /// zstd level of the encoded tensors.
     #[arg(long, default_value_t = 3)]
     pub zstd_level: i32,
+    /// Also render each mesh's condition views with this recipe (`trellis`, `trellis2`;
+    /// docs/RENDERS.md): the stage `renders` and the seconds a view.
+    #[arg(long, value_parser = super::render::parse_recipe)]
+    pub renders: Option<sparc3d_render::cond::Recipe>,
 }
 
 /// Median, 95th percentile (nearest rank), maximum and mean of a sample.
@@ -105,6 +109,8 @@ pub struct ResolutionSummary {
     pub stages: Vec<(String, Spread)>,
     /// Peak RSS per mesh (kernel `ru_maxrss`), bytes.
     pub peak_rss_bytes: Spread,
+    /// Tracing seconds a condition view, per mesh (`--renders`; all zero without).
+    pub seconds_per_view: Spread,
     /// Active vertices per mesh.
     pub active_vertices: Spread,
     /// Output triangles per mesh.
@@ -197,6 +203,9 @@ fn bench_mesh(exe: &Path, path: &Path, resolution: u32, args: &Args) -> BenchRow
         .stdin(Stdio::null())
         .stdout(Stdio::piped());
     cmd.args(args.conversion.as_flags());
+    if let Some(recipe) = args.renders {
+        cmd.arg("--renders").arg(recipe.name());
+    }
     if let Some(t) = args.threads {
         cmd.env("RAYON_NUM_THREADS", t.to_string());
     }
@@ -294,6 +303,7 @@ pub fn summarise(rows: &[BenchRow], resolution: u32, threads: usize) -> Resoluti
         cpu_seconds: spread(&|r| r.cpu_user_seconds + r.cpu_sys_seconds),
         stages,
         peak_rss_bytes: spread(&|r| r.max_rss_bytes.or(r.peak_rss_bytes).unwrap_or(0) as f64),
+        seconds_per_view: spread(&|r| r.render_views.map_or(0.0, |v| v.1)),
         active_vertices: spread(&|r| r.active_vertices as f64),
         output_faces: spread(&|r| r.output_faces as f64),
         bytes_per_active_vertex: spread(&|r| r.bytes_per_active_vertex),
@@ -322,6 +332,9 @@ fn print_summary(s: &ResolutionSummary, rows: &[BenchRow]) {
     line("total", &s.total_seconds, "s", 1.0, 3);
     for (name, sp) in &s.stages {
         line(&format!("  {name}"), sp, "s", 1.0, 3);
+    }
+    if s.seconds_per_view.max > 0.0 {
+        line("  a condition view", &s.seconds_per_view, "s", 1.0, 3);
     }
     line("process wall", &s.process_seconds, "s", 1.0, 3);
     line("cpu user+sys", &s.cpu_seconds, "s", 1.0, 3);

@@ -23,6 +23,10 @@ pub struct Args {
     /// zstd level of the encoded tensors (the job default is 3).
     #[arg(long, default_value_t = 3)]
     pub zstd_level: i32,
+    /// Also render the condition views with this recipe's cameras, count and size
+    /// (`trellis`, `trellis2`), timed as the stage `renders` and per view.
+    #[arg(long, value_parser = super::render::parse_recipe)]
+    pub renders: Option<sparc3d_render::cond::Recipe>,
 }
 
 /// Compressed bytes of each stored tensor (zstd frames as `sparc3d-schema` encodes them).
@@ -86,6 +90,9 @@ pub struct BenchRow {
     /// Compressed bytes of the four tensors per active vertex.
     #[serde(default)]
     pub bytes_per_active_vertex: f64,
+    /// Condition views rendered (`--renders`), and their mean tracing seconds a view.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub render_views: Option<(u32, f64)>,
     /// Peak RSS as the process saw it at its end (`VmHWM`), bytes.
     #[serde(default)]
     pub peak_rss_bytes: Option<u64>,
@@ -140,7 +147,10 @@ fn measure(args: &Args, row: &mut BenchRow) -> anyhow::Result<()> {
         attributes: None,
         quality: false,
         signature: false,
-        renders: None,
+        renders: match args.renders {
+            Some(recipe) => Some(render_request(&args.input, recipe)?),
+            None => None,
+        },
     };
     let done = match convert_file(&args.input, steps) {
         Ok(done) => done,
@@ -168,6 +178,10 @@ fn measure(args: &Args, row: &mut BenchRow) -> anyhow::Result<()> {
     let Some(tensors) = done.tensors else {
         anyhow::bail!("encode {name}: the conversion path returned no tensors");
     };
+    row.render_views = tensors.renders.as_ref().map(|r| {
+        let seconds: f64 = r.views.iter().map(|v| v.seconds).sum();
+        (r.views.len() as u32, seconds / r.views.len().max(1) as f64)
+    });
     row.tensor_bytes = TensorBytes {
         coords: tensors.coords.blob.len() as u64,
         sdf: tensors.sdf.blob.len() as u64,
@@ -181,4 +195,18 @@ fn measure(args: &Args, row: &mut BenchRow) -> anyhow::Result<()> {
     };
     row.ok = true;
     Ok(())
+}
+
+/// The recipe's own views of the file at `path`, seeded as `sparc3d render` seeds it.
+fn render_request(
+    path: &std::path::Path,
+    recipe: sparc3d_render::cond::Recipe,
+) -> anyhow::Result<sparc3d_render::cond::Request> {
+    let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    Ok(sparc3d_render::cond::Request {
+        recipe,
+        views: None,
+        size: None,
+        seed: super::render::item_seed(&bytes, 0),
+    })
 }

@@ -35,7 +35,8 @@ pub struct Args {
     pub no_colours: bool,
 }
 
-fn parse_recipe(name: &str) -> std::result::Result<Recipe, String> {
+/// The render recipe a flag names (`trellis`, `trellis2`); the error lists them.
+pub fn parse_recipe(name: &str) -> std::result::Result<Recipe, String> {
     Recipe::named(name).ok_or_else(|| {
         let known: Vec<&str> = Recipe::ALL.iter().map(|(n, _)| *n).collect();
         format!("no render recipe {name:?}: one of {}", known.join(", "))

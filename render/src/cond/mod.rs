@@ -49,6 +49,14 @@ impl Recipe {
         Self::ALL.iter().find(|(n, _)| *n == name).map(|(_, r)| *r)
     }
 
+    /// The recipe's name, as [`Recipe::named`] reads it.
+    pub fn name(self) -> &'static str {
+        Self::ALL
+            .iter()
+            .find(|(_, r)| *r == self)
+            .map_or("trellis2", |(n, _)| n)
+    }
+
     /// Views per asset in the consumer's own script.
     pub fn views(self) -> u32 {
         match self {
