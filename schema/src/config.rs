@@ -540,14 +540,18 @@ mod tests {
 
     const OLD_DEFAULT_CONFIG: &str = r#"{"extract_mesh":true,"limits":{"item_memory_bytes":8589934592,"item_timeout_s":600.0,"max_crash_retries":2,"max_interrupted_attempts":5},"params":{"deform":false,"deform_max":0.45,"deform_step":0.5,"margin_cells":3,"resolution":512,"shell_half_thickness":0.9},"shard_size":256,"store_mesh":false,"validation_sample_rate":0.01,"zstd_level":3}"#;
 
+    /// [`OLD_DEFAULT_CONFIG`] read back.
+    fn old_default_config() -> Result<JobConfig> {
+        serde_json::from_str(OLD_DEFAULT_CONFIG).map_err(|source| SchemaError::Json {
+            context: "test".into(),
+            source,
+        })
+    }
+
     #[test]
     fn a_stored_config_without_the_key_keeps_the_inside_test_off_and_its_fingerprint() -> Result<()>
     {
-        let old: JobConfig =
-            serde_json::from_str(OLD_DEFAULT_CONFIG).map_err(|source| SchemaError::Json {
-                context: "test".into(),
-                source,
-            })?;
+        let old = old_default_config()?;
         assert!(!old.params.inside_test);
         assert_eq!(old.fingerprint()?, OLD_DEFAULT_FINGERPRINT);
         // Written back (a resumed job's job.json), it still has no key.
@@ -557,11 +561,7 @@ mod tests {
 
     #[test]
     fn attributes_are_off_by_default_and_change_the_fingerprint_only_when_on() -> Result<()> {
-        let old: JobConfig =
-            serde_json::from_str(OLD_DEFAULT_CONFIG).map_err(|source| SchemaError::Json {
-                context: "test".into(),
-                source,
-            })?;
+        let old = old_default_config()?;
         assert!(!old.attributes.enabled);
         assert_eq!(old.fingerprint()?, OLD_DEFAULT_FINGERPRINT);
         assert!(!JobConfig::default()
@@ -580,11 +580,7 @@ mod tests {
 
     #[test]
     fn renders_are_off_by_default_and_change_the_fingerprint_only_when_on() -> Result<()> {
-        let old: JobConfig =
-            serde_json::from_str(OLD_DEFAULT_CONFIG).map_err(|source| SchemaError::Json {
-                context: "test".into(),
-                source,
-            })?;
+        let old = old_default_config()?;
         assert!(!old.renders.enabled);
         assert_eq!(old.fingerprint()?, OLD_DEFAULT_FINGERPRINT);
         let default = JobConfig::default();

@@ -131,6 +131,15 @@ mod tests {
     }
 
     #[test]
+    fn views_that_see_nothing_are_a_problem_named_by_count_and_first_view() {
+        let mesh = sparcubes::shapes::sphere([0.0; 3], 0.4, 8);
+        let mut views = render_asset(&mesh, None, &request(3)).unwrap();
+        views.empty = vec![1, 2];
+        let problem = views.problem().unwrap_or_default();
+        assert_eq!(problem, "2 of 3 views see nothing of the asset (view 001 first)");
+    }
+
+    #[test]
     fn the_seed_is_the_sha256_head_mixed_with_the_extra_seed() {
         let head = [1, 2, 3, 4, 5, 6, 7, 8];
         assert_eq!(seed_of(head, 0), u64::from_le_bytes(head));
