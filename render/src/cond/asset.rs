@@ -136,7 +136,10 @@ mod tests {
         let mut views = render_asset(&mesh, None, &request(3)).unwrap();
         views.empty = vec![1, 2];
         let problem = views.problem().unwrap_or_default();
-        assert_eq!(problem, "2 of 3 views see nothing of the asset (view 001 first)");
+        assert_eq!(
+            problem,
+            "2 of 3 views see nothing of the asset (view 001 first)"
+        );
     }
 
     #[test]
