@@ -449,7 +449,11 @@ pub fn listing(items: &[Listed], root: &Path) -> Result<Vec<ExportFile>> {
     if let Some((dir, _)) = &pbr {
         folders[pbr::DATA_DIR_KEY] = serde_json::json!(root.join(dir));
     }
-    if items.iter().any(|i| i.columns.contains_key(COND_RENDERED)) {
+    let rendered: Vec<&Listed> = items
+        .iter()
+        .filter(|i| i.columns.contains_key(COND_RENDERED))
+        .collect();
+    if !rendered.is_empty() {
         folders["render_cond"] = serde_json::json!(root.join(RENDERS_DIR));
     }
     let data_dir = serde_json::to_vec_pretty(&serde_json::json!({ DATASET: folders }))
@@ -477,11 +481,7 @@ pub fn listing(items: &[Listed], root: &Path) -> Result<Vec<ExportFile>> {
         ),
     ];
     files.extend(pbr.map(|(_, table)| table));
-    if items.iter().any(|i| i.columns.contains_key(COND_RENDERED)) {
-        let rendered: Vec<&Listed> = items
-            .iter()
-            .filter(|i| i.columns.contains_key(COND_RENDERED))
-            .collect();
+    if !rendered.is_empty() {
         files.push(ExportFile {
             path: Path::new(RENDERS_DIR).join("metadata.csv"),
             bytes: csv(

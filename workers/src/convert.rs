@@ -246,16 +246,18 @@ pub fn convert_bytes(
         Ok(s) => s,
         Err(e) => return Err(fail(StageError::Samples(e), seconds)),
     };
-    let source = Source {
-        bytes: kept.as_deref().unwrap_or_default(),
-        path,
-        buffers,
-    };
-    let (attributes, renders) = match kept {
-        Some(_) => match appearance_products(&source, &steps, &conversion, &mut seconds) {
-            Ok(products) => products,
-            Err(e) => return Err(fail(e, seconds)),
-        },
+    let (attributes, renders) = match kept.as_deref() {
+        Some(bytes) => {
+            let source = Source {
+                bytes,
+                path,
+                buffers,
+            };
+            match appearance_products(&source, &steps, &conversion, &mut seconds) {
+                Ok(products) => products,
+                Err(e) => return Err(fail(e, seconds)),
+            }
+        }
         None => (None, None),
     };
     let store_mesh = steps.encode.is_some_and(|e| e.store_mesh);
@@ -373,8 +375,9 @@ struct Source<'a> {
 }
 
 /// The attributes and the condition views `steps` asks for, from the source's bytes parsed
-/// again: its appearance is read once for both. Attributes fail the item when the
-/// appearance cannot be read; views are then drawn in the plain grey.
+/// again: its appearance is read once for both, and timed with the attributes when they are
+/// asked for, else with the views. Attributes fail the item when the appearance cannot be
+/// read; views are then drawn in the plain grey.
 fn appearance_products(
     source: &Source,
     steps: &Steps,
@@ -401,7 +404,17 @@ fn appearance_products(
     let renders = match &steps.renders {
         Some(request) => {
             let coloured = appearance.and_then(asset::with_colours);
-            Some(renders_of(source, coloured.as_ref(), request, seconds)?)
+            let since = match steps.attributes {
+                Some(_) => Instant::now(),
+                None => t,
+            };
+            Some(renders_of(
+                source,
+                coloured.as_ref(),
+                request,
+                since,
+                seconds,
+            )?)
         }
         None => None,
     };
@@ -409,14 +422,14 @@ fn appearance_products(
 }
 
 /// The condition views of the source (parsed again from its bytes) in `appearance`'s
-/// colours, timed as the stage `renders`; a view that sees nothing fails them.
+/// colours, timed from `since` as the stage `renders`; a view that sees nothing fails them.
 fn renders_of(
     source: &Source,
     appearance: Option<&sparcubes::materials::Appearance>,
     request: &Request,
+    since: Instant,
     seconds: &mut StageSeconds,
 ) -> Result<RowRenders, StageError> {
-    let t = Instant::now();
     let mesh = sparcubes::io::load_read_with(source.bytes, source.path, source.buffers)
         .map_err(StageError::Load)?
         .mesh;
@@ -425,7 +438,7 @@ fn renders_of(
     if let Some(problem) = views.problem() {
         return Err(StageError::Renders(problem));
     }
-    seconds.add_stage("renders", t.elapsed().as_secs_f64());
+    seconds.add_stage("renders", since.elapsed().as_secs_f64());
     Ok(RowRenders {
         views: views
             .pngs

@@ -57,13 +57,14 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let path = &args.input;
     let bytes =
         sparcubes::io::read_source(path).with_context(|| format!("reading {}", path.display()))?;
-    let mesh = sparcubes::io::load(path)
+    let mesh = sparcubes::io::load_read(&bytes, path)
         .with_context(|| format!("loading {}", path.display()))?
         .mesh;
     let appearance = match args.no_colours {
         true => None,
         false => crate::pictures::coloured(
-            crate::pictures::appearance_of_file(path),
+            sparcubes::materials::read(&bytes, path, sparcubes::io::Buffers::Folder)
+                .with_context(|| format!("reading the appearance of {}", path.display())),
             &path.display().to_string(),
         ),
     };
