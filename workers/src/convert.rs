@@ -643,6 +643,7 @@ fn render_request(
         views: config.views,
         size: config.size,
         seed: asset::seed_of(head, config.seed),
+        passes: Default::default(),
     }))
 }
 
