@@ -358,9 +358,22 @@ def _list_in_data_dir(export: Export, key: str, listed: Path) -> None:
 
 def is_npz_latents(path: Path) -> bool:
     """Whether `decode --latents` names npz latents (a file, or a folder holding them) rather
-    than Parquet latent shards."""
+    than Parquet latent shards; the export folder itself is refused, naming its latent
+    folders."""
     path = Path(path)
+    if (path / "data_dir.json").is_file():
+        listed = "; ".join(_latent_folders(path)) or (
+            "none listed in data_dir.json yet: run `sparc3d-vae encode --format trellis2`")
+        raise UsageError(f"{path} is a TRELLIS.2 export: give --latents its latent folder "
+                         f"({listed})")
     return path.suffix == ".npz" or (path.is_dir() and any(path.glob("*.npz")))
+
+
+def _latent_folders(export: Path) -> List[str]:
+    """`key: folder` of every `*_latent` entry of an export's data_dir.json."""
+    data_dir = _read_json(export / "data_dir.json", "an export without data_dir.json")
+    return [f"{k}: {v}" for folders in data_dir.values() if isinstance(folders, dict)
+            for k, v in folders.items() if k.endswith("latent")]
 
 
 def read_stats(path: Path, channels: int) -> Tuple[np.ndarray, np.ndarray]:

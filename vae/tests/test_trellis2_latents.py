@@ -307,3 +307,8 @@ def test_decode_reports_a_bad_file_and_meshes_the_others(encoded, tmp_path, caps
     code, err = run_cli(capsys, "decode", "--ckpt", encoded["run"], "--latents", mixed, "--id",
                         "nope", "--out", tmp_path / "m2", "--device", "cpu", "--sparc3d", binary)
     assert code == 2 and "'nope'" in err, err
+    # The export itself is no latent folder: the error names the one it lists.
+    code, err = run_cli(capsys, "decode", "--ckpt", encoded["run"], "--latents",
+                        encoded["export"], "--all", "--out", tmp_path / "m3", "--device", "cpu",
+                        "--sparc3d", binary)
+    assert code == 2 and "is a TRELLIS.2 export" in err and f"shape_latent: {folder}" in err, err
