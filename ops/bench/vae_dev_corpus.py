@@ -45,7 +45,7 @@ import time
 
 
 def sample_key(seed, item_id):
-    """The key of pipeline/src/sample.rs: first 8 bytes, big-endian, of sha256(seed_le ‖ id)."""
+    """The key of pipeline/src/rows/sample.rs: first 8 bytes, big-endian, of sha256(seed_le ‖ id)."""
     return int.from_bytes(hashlib.sha256(struct.pack("<Q", seed) + item_id.encode()).digest()[:8], "big")
 
 

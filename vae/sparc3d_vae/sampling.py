@@ -9,7 +9,7 @@ from typing import Iterable, List
 
 
 def sample_key(seed: int, item_id: str) -> int:
-    """The sampling key `sparc3d validate` and `sparc3d eval --sample` use (pipeline/src/sample.rs):
+    """The sampling key `sparc3d validate` and `sparc3d eval --sample` use (pipeline/src/rows/sample.rs):
     the first 8 bytes, big-endian, of sha256(seed as 8 little-endian bytes ‖ id)."""
     d = hashlib.sha256(struct.pack("<Q", seed) + item_id.encode()).digest()
     return int.from_bytes(d[:8], "big")

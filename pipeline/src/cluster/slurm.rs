@@ -385,7 +385,7 @@ pub fn print_status(job: &Path) {
             s.array,
             s.offset,
             s.shards_per_task,
-            crate::units::format_seconds((now - s.submitted_at).max(0.0)),
+            crate::util::units::format_seconds((now - s.submitted_at).max(0.0)),
         );
     }
 }

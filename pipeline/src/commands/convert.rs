@@ -85,7 +85,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let colours = done
         .attributes
         .as_ref()
-        .map(|(cells, _)| crate::colours::of_vertices(cubes, cells, &mesh, &args.output));
+        .map(|(cells, _)| crate::check::colours::of_vertices(cubes, cells, &mesh, &args.output));
     if !args.grid_frame {
         sparcubes::extract::to_source(&mut mesh, &cubes.normalization, cubes.resolution);
     }
@@ -97,7 +97,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     stages.push(("check".into(), check_seconds));
     stages.push(("save".into(), save_seconds));
     let total = start.elapsed().as_secs_f64();
-    let peak = crate::memory::peak_rss_bytes();
+    let peak = crate::util::memory::peak_rss_bytes();
     let summary = json!({
         "input": args.input.display().to_string(),
         "output": args.output.display().to_string(),

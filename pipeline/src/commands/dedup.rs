@@ -1,11 +1,11 @@
 //! `sparc3d dedup JOB [--threshold T] [--json]`: the job's near-duplicate groups, read from
-//! the ok items' `shape_signature` column and grouped by [`crate::near_duplicates`]: each
+//! the ok items' `shape_signature` column and grouped by [`crate::rows::near_duplicates`]: each
 //! group's representative (its lowest item index) and the other members with their distance
 //! to it. Writes nothing. `export` and `ls` keep one item per group with `--one-per-group`
 //! ([`dropped_ids`]).
 
-use crate::near_duplicates::{groups, Group};
-use crate::row_filter::RowFilter;
+use crate::rows::near_duplicates::{groups, Group};
+use crate::rows::row_filter::RowFilter;
 use anyhow::{Context, Result};
 use serde::Serialize;
 use sparc3d_schema::ItemStatus;

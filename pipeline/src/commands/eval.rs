@@ -6,8 +6,8 @@
 //! (the sampler of `sparc3d validate`): each row is decoded, its mesh extracted in the source
 //! frame and measured against the source file of its `uri`; per-item rows, then medians.
 
-use crate::sample::{self, SampleSize};
-use crate::stats::median;
+use crate::rows::sample::{self, SampleSize};
+use crate::util::stats::median;
 use anyhow::{bail, Context};
 use serde_json::{json, Value};
 use sparc3d_metrics::{evaluate, EvalOptions, QualityReport};

@@ -4,11 +4,11 @@
 //! beside `--out` and moved into place at the end, so `--out` is never half written: it is
 //! either absent, or a finished export, or (after a rerun) the new finished export.
 //! `.sparc3d-export.json` in it says which job, consumer, frame and items it holds.
-//! `--where FILTER` exports only the items whose row passes (`crate::row_filter`).
+//! `--where FILTER` exports only the items whose row passes (`crate::rows::row_filter`).
 
-use crate::export_name::ExportNames;
-use crate::item_lookup;
-use crate::row_filter::RowFilter;
+use crate::rows::export_name::ExportNames;
+use crate::rows::item_lookup;
+use crate::rows::row_filter::RowFilter;
 use anyhow::{bail, Context, Result};
 use clap::builder::TypedValueParser;
 use rayon::prelude::*;

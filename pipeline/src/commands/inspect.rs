@@ -8,11 +8,11 @@
 //! alone, when its record lies beside it): a damaged shard is named and the command fails
 //! instead of reporting fewer rows or another digest.
 //!
-//! `--where FILTER` reports only the rows that pass (`crate::row_filter`): their counts,
+//! `--where FILTER` reports only the rows that pass (`crate::rows::row_filter`): their counts,
 //! percentiles, provenance values and digests; the bytes stay those of the whole shards.
 
-use crate::row_filter::RowFilter;
-use crate::summary::shard_states;
+use crate::rows::row_filter::RowFilter;
+use crate::rows::summary::shard_states;
 use anyhow::{bail, Context, Result};
 use serde::Serialize;
 use sparc3d_schema::{digest, meta_keys, ItemStatus};

@@ -3,14 +3,14 @@
 //! matches its record) and source file: where the ids that `show`/`preview --id` take come
 //! from. One line per item, fields separated by tabs and escaped (`sparc3d_manifests::tsv`),
 //! then the item's provenance columns as `name=value` fields (`--json`: a `manifest` object).
-//! `--where FILTER` lists only the items whose row passes (`crate::row_filter`; a pending item
+//! `--where FILTER` lists only the items whose row passes (`crate::rows::row_filter`; a pending item
 //! has only its id, uri, index and provenance).
 //! `--one-per-group` leaves out every near-duplicate but its group's representative
 //! (`sparc3d dedup`). The summary on stderr counts the items listed, and says how many each
 //! option left out.
 
-use crate::hints;
-use crate::row_filter::RowFilter;
+use crate::rows::row_filter::RowFilter;
+use crate::util::hints;
 use anyhow::Result;
 use serde::Serialize;
 use sparc3d_manifests::tsv;

@@ -3,8 +3,6 @@
 
 pub mod add;
 pub mod bench;
-pub mod bench_dedup;
-pub mod bench_one;
 pub mod convert;
 pub mod dedup;
 pub mod eval;
@@ -96,7 +94,7 @@ enum Command {
     /// Hash every finished shard against its completion record; move damaged ones aside.
     Verify(verify::Args),
     /// Check a reproducible sample of a job's outputs with pymeshlab; writes a report.
-    #[command(after_help = crate::validation::PYTHON_HELP)]
+    #[command(after_help = crate::check::validation::PYTHON_HELP)]
     Validate(validate::Args),
     /// Render a mesh (or a job's item) and its converted output side by side to a PNG.
     Preview(preview::Args),
@@ -111,10 +109,10 @@ enum Command {
     /// Benchmark conversion over a folder or manifest: time per stage, peak memory, size.
     Bench(bench::Args),
     /// Benchmark `dedup`'s grouping on N synthetic shape signatures (default a million).
-    BenchDedup(bench_dedup::Args),
+    BenchDedup(bench::dedup::Args),
     /// Internal: converts one mesh for `bench` and prints one JSON row.
     #[command(hide = true)]
-    BenchOne(bench_one::Args),
+    BenchOne(bench::one::Args),
     /// Internal: the isolated process converting items for `work`.
     #[command(hide = true)]
     ItemWorker(item_worker::Args),
@@ -148,8 +146,8 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Report(args) => report::run(args),
         Command::Generate(args) => generate::run(args),
         Command::Bench(args) => bench::run(args),
-        Command::BenchDedup(args) => bench_dedup::run(args),
-        Command::BenchOne(args) => bench_one::run(args),
+        Command::BenchDedup(args) => bench::dedup::run(args),
+        Command::BenchOne(args) => bench::one::run(args),
         Command::ItemWorker(args) => item_worker::run(args),
     }
 }

@@ -11,8 +11,8 @@
 //! With a mesh, it is converted here (like `sparc3d convert`); with a job and an item id, the
 //! item's row is decoded (as `sparc3d show` does) and the source is loaded from the row's uri.
 
-use crate::item_lookup;
-use crate::pictures::{preview_mesh, preview_row, write_png};
+use crate::check::pictures::{preview_mesh, preview_row, write_png};
+use crate::rows::item_lookup;
 use anyhow::{bail, Result};
 use sparc3d_render::CompareOptions;
 use std::path::PathBuf;

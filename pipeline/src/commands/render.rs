@@ -77,7 +77,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         .mesh;
     let appearance = match args.no_colours {
         true => None,
-        false => crate::pictures::coloured(
+        false => crate::check::pictures::coloured(
             sparcubes::materials::read(&bytes, path, sparcubes::io::Buffers::Folder)
                 .with_context(|| format!("reading the appearance of {}", path.display())),
             &path.display().to_string(),

@@ -7,10 +7,10 @@
 //! Every `<img>` carries `onload`/`onerror` attributes marking it `data-loaded` or
 //! `data-broken`, so a headless browser's dump of the page shows whether each picture decoded.
 
-use crate::item_lookup;
-use crate::pictures::preview_row;
-use crate::summary::{summarize, JobSummary};
-use crate::units::format_seconds;
+use crate::check::pictures::preview_row;
+use crate::rows::item_lookup;
+use crate::rows::summary::{summarize, JobSummary};
+use crate::util::units::format_seconds;
 use anyhow::{Context, Result};
 use base64::Engine;
 use sparc3d_render::cond::thumbnail::thumbnail;

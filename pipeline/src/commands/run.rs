@@ -15,12 +15,12 @@
 //! it names what is left (or that every item failed) and exits non-zero.
 
 use crate::flags::limits::LimitArgs;
-use crate::local_workers::LocalWorkers;
-use crate::pool::{self, Pool};
-use crate::progress::Progress;
-use crate::signals::{install_signals, Stop};
-use crate::summary::{shard_states, summarize, summarize_states, JobSummary};
-use crate::units::{format_seconds, parse_duration};
+use crate::rows::summary::{shard_states, summarize, summarize_states, JobSummary};
+use crate::run::local_workers::LocalWorkers;
+use crate::run::pool::{self, Pool};
+use crate::run::progress::Progress;
+use crate::run::signals::{install_signals, Stop};
+use crate::util::units::{format_seconds, parse_duration};
 use anyhow::Result;
 use sparc3d_workers::store::state::{Check, ShardState};
 use sparc3d_workers::Job;
@@ -58,7 +58,7 @@ pub struct Args {
     /// When every shard is done, check this sample of the ok items with pymeshlab (`1%` or a
     /// count), as `sparc3d validate JOB --sample SAMPLE` does.
     #[arg(long, value_name = "SAMPLE")]
-    pub validate_sample: Option<crate::sample::SampleSize>,
+    pub validate_sample: Option<crate::rows::sample::SampleSize>,
 }
 
 /// Runs `sparc3d run`.
@@ -102,13 +102,14 @@ fn run_shards(
     let start = Instant::now();
     let states = shard_states(job, Check::Quick)?;
     let before = summarize_states(job, &states);
-    let machine = crate::machine::Machine {
+    let machine = crate::util::machine::Machine {
         items: before.pending,
-        cores: crate::machine::cores(),
-        memory: crate::machine::available_memory(),
+        cores: crate::util::machine::cores(),
+        memory: crate::util::machine::available_memory(),
         item_memory: args.limits.apply(job.file.config.limits).item_memory_bytes,
     };
-    let plan = crate::machine::plan(requested, machine, crate::machine::threads_from_env());
+    let plan =
+        crate::util::machine::plan(requested, machine, crate::util::machine::threads_from_env());
     let workers = plan.workers;
     let mut progress = Progress::new(
         job.file.items,
@@ -141,7 +142,11 @@ fn run_shards(
     };
     let counts = progress.finish();
     if let Some(e) = &pool_error {
-        eprintln!("error: {}{}", crate::describe(e), os_hint(e));
+        eprintln!(
+            "error: {}{}",
+            crate::util::error_line::describe(e),
+            os_hint(e)
+        );
     }
     let elapsed = start.elapsed().as_secs_f64();
     let after = summarize(job)?;
@@ -173,7 +178,7 @@ fn conclude(args: &Args, job: &Job, job_dir: &Path, stop: &Stop, ran: &Ran) -> R
     let after = &ran.after;
     // The last line points to the failures, whatever the outcome.
     let failures_hint = || {
-        if let Some(hint) = crate::hints::failures(job_dir, after.failed) {
+        if let Some(hint) = crate::util::hints::failures(job_dir, after.failed) {
             eprintln!("{hint}");
         }
     };
@@ -199,7 +204,7 @@ fn conclude(args: &Args, job: &Job, job_dir: &Path, stop: &Stop, ran: &Ran) -> R
         print_all_failed(job_dir, after);
         return Ok(ExitCode::FAILURE);
     }
-    eprintln!("{}", crate::hints::next_steps(job_dir, after.shards));
+    eprintln!("{}", crate::util::hints::next_steps(job_dir, after.shards));
     failures_hint();
     if let Some(sample) = args.validate_sample {
         return super::validate::after_run(job_dir, sample);

@@ -2,7 +2,7 @@
 //! mesh, exactly as `sparc3d convert` would with the job's parameters (in colour when the job
 //! stores attributes, as `convert --attributes` writes it).
 
-use crate::item_lookup;
+use crate::rows::item_lookup;
 use anyhow::{Context, Result};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -59,7 +59,7 @@ pub fn run(mut args: Args) -> Result<ExitCode> {
     };
     let colours = attributes
         .as_ref()
-        .map(|cells| crate::colours::of_vertices(&cubes, cells, &mesh, &args.output));
+        .map(|cells| crate::check::colours::of_vertices(&cubes, cells, &mesh, &args.output));
     if !args.grid_frame {
         sparcubes::extract::to_source(&mut mesh, &cubes.normalization, cubes.resolution);
     }

@@ -1,8 +1,8 @@
 //! `sparc3d status JOB [--json]`: shards done/running/pending, items ok/failed/pending,
 //! throughput, ETA, the slowest items in flight and the top error classes.
 
-use crate::summary::{summarize, RATE_MIN_ITEMS, RATE_MIN_SECONDS};
-use crate::units::format_seconds;
+use crate::rows::summary::{summarize, RATE_MIN_ITEMS, RATE_MIN_SECONDS};
+use crate::util::units::format_seconds;
 use anyhow::Result;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -74,7 +74,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
             println!("  {n:>6}  {c}");
         }
     }
-    if let Some(hint) = crate::hints::failures(&args.job, s.failed) {
+    if let Some(hint) = crate::util::hints::failures(&args.job, s.failed) {
         println!("{hint}");
     }
     for d in &s.damaged {

@@ -9,8 +9,8 @@
 //! distance both ways. The report goes to `JOB/validation/report.jsonl` and
 //! `JOB/validation/summary.md`; the exit code is 1 when any check failed.
 
-use crate::sample::SampleSize;
-use crate::validation::{validate_job, NoPymeshlab, Options};
+use crate::check::validation::{validate_job, NoPymeshlab, Options};
+use crate::rows::sample::SampleSize;
 use anyhow::Result;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;

@@ -4,8 +4,8 @@
 //! jobs, `--array` reads `SLURM_ARRAY_TASK_ID` or `JOB_COMPLETION_INDEX`.
 
 use crate::flags::limits::LimitArgs;
-use crate::signals::install_signals;
-use crate::units::parse_duration;
+use crate::run::signals::install_signals;
+use crate::util::units::parse_duration;
 use anyhow::{bail, Context, Result};
 use sparc3d_workers::events::Event;
 use sparc3d_workers::lanes::{LaneBudget, Share};
@@ -179,10 +179,10 @@ fn work_shards(args: &Args, job: &Job, process: &mut ShardFn<'_>) -> Result<Exit
 fn budget(args: &Args) -> std::sync::Arc<LaneBudget> {
     let lanes = args.lanes as usize;
     let threads = match args.threads {
-        Some(t) => threads_taken(t as usize, crate::machine::cores()),
+        Some(t) => threads_taken(t as usize, crate::util::machine::cores()),
         // One lane keeps today's behaviour: the item worker inherits the environment.
         None if lanes == 1 => 0,
-        None => (crate::machine::threads_from_env_or_cores() / lanes).max(1),
+        None => (crate::util::machine::threads_from_env_or_cores() / lanes).max(1),
     };
     let budget = LaneBudget::new(Share { lanes, threads });
     if args.control_stdin {

@@ -1,7 +1,7 @@
 //! `--resolution`, `--shard-size`, `--config` and `--for`: the flags that make a job's config
 //! (`init`, `run --job`); the config itself is built from them by `job/config.rs`.
 
-use crate::units::with_default;
+use crate::util::units::with_default;
 use sparc3d_schema::JobConfig;
 use std::path::PathBuf;
 

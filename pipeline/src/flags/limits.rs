@@ -1,7 +1,7 @@
 //! `--item-timeout`, `--item-memory`, `--max-crash-retries` (and the hidden `--lease-ttl`):
 //! the per-item limits of a run that override the job's (`work`, `run`, `submit`).
 
-use crate::units::{format_seconds, format_size, parse_duration, parse_size, with_default};
+use crate::util::units::{format_seconds, format_size, parse_duration, parse_size, with_default};
 use sparc3d_schema::Limits;
 
 /// Per-item limits given on the command line (override the job's for this run).

@@ -3,7 +3,7 @@
 //! default). Its default is the library's (`sparcubes::Params::default()`); where a job or a
 //! config file has its own, the flag only overrides it when given.
 
-use crate::units::with_default;
+use crate::util::units::with_default;
 
 /// The library's default grid resolution.
 pub fn default_resolution() -> u32 {

@@ -105,7 +105,7 @@ pub fn init(
 
 /// The progress of the bucket job at `url`, from its records, leases and checkpoints
 /// (nothing of a finished shard but its record is read).
-pub fn summarize(url: &RemoteUrl) -> Result<crate::summary::JobSummary> {
+pub fn summarize(url: &RemoteUrl) -> Result<crate::rows::summary::JobSummary> {
     let prefix = prefix(url)?;
     let dir = scratch::folder(url, None).join("status");
     let (job, problems) = scratch::pull_job(&prefix, &dir, true)?;
@@ -113,7 +113,7 @@ pub fn summarize(url: &RemoteUrl) -> Result<crate::summary::JobSummary> {
         eprintln!("warning: {url}: {p}");
     }
     let states = view::shard_states(&prefix, &job)?;
-    Ok(crate::summary::summarize_states(&job, &states))
+    Ok(crate::rows::summary::summarize_states(&job, &states))
 }
 
 /// `run URL`: `workers` processes of `sparc3d work URL --all` on this machine (each takes

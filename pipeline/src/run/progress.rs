@@ -1,8 +1,8 @@
 //! Progress display of `run`: indicatif bars on a terminal (items done/failed, rate, ETA, one
 //! line per worker), plain periodic log lines otherwise.
 
-use crate::summary::rate_per_hour;
-use crate::units::format_seconds;
+use crate::rows::summary::rate_per_hour;
+use crate::util::units::format_seconds;
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
 use std::time::{Duration, Instant};

@@ -9,7 +9,7 @@
 //! ([`Launcher`], [`Observer`]): `run` starts `sparc3d work --events` processes
 //! (`local_workers.rs`); the unit tests below start fakes.
 
-use crate::stuck::Watch;
+use crate::run::stuck::Watch;
 use anyhow::Result;
 use sparc3d_workers::events::Event;
 use sparc3d_workers::lanes::Share;
@@ -78,21 +78,21 @@ pub trait Observer {
     fn tick(&mut self);
 }
 
-impl Observer for crate::progress::Progress {
+impl Observer for crate::run::progress::Progress {
     fn slot_shard(&mut self, slot: usize, shard: Option<u64>) {
-        crate::progress::Progress::slot_shard(self, slot, shard)
+        crate::run::progress::Progress::slot_shard(self, slot, shard)
     }
     fn item_started(&mut self, slot: usize, uri: &str) {
-        crate::progress::Progress::item_started(self, slot, uri)
+        crate::run::progress::Progress::item_started(self, slot, uri)
     }
     fn item_finished(&mut self, slot: usize, status: &str) {
-        crate::progress::Progress::item_finished(self, slot, status)
+        crate::run::progress::Progress::item_finished(self, slot, status)
     }
     fn println(&self, line: &str) {
-        crate::progress::Progress::println(self, line)
+        crate::run::progress::Progress::println(self, line)
     }
     fn tick(&mut self) {
-        crate::progress::Progress::tick(self)
+        crate::run::progress::Progress::tick(self)
     }
 }
 
@@ -164,7 +164,7 @@ pub fn plan(
 }
 
 /// The pool of worker slots over a job's shards. Its lanes (as many as slots) are spread over
-/// the running workers ([`crate::lane_plan`]): a slot left free because no shard is queued
+/// the running workers ([`crate::run::lane_plan`]): a slot left free because no shard is queued
 /// lends its lane to a worker with items left.
 pub struct Pool<L: Launcher> {
     launcher: L,
@@ -301,13 +301,13 @@ impl<L: Launcher> Pool<L> {
 
     /// Spreads the lanes over the running workers again, telling those whose share changed.
     fn share_lanes(&mut self) {
-        let holders: Vec<crate::lane_plan::Holder> = self
+        let holders: Vec<crate::run::lane_plan::Holder> = self
             .slots
             .iter()
             .flatten()
-            .map(|r| crate::lane_plan::Holder { left: r.left })
+            .map(|r| crate::run::lane_plan::Holder { left: r.left })
             .collect();
-        let lanes = crate::lane_plan::share(self.slots.len(), &holders, self.queue.len());
+        let lanes = crate::run::lane_plan::share(self.slots.len(), &holders, self.queue.len());
         for (r, lanes) in self.slots.iter_mut().flatten().zip(lanes) {
             if r.lanes != lanes {
                 r.lanes = lanes;

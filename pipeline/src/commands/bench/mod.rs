@@ -5,9 +5,12 @@
 //! every stage, of CPU seconds, peak RSS, active vertices and compressed bytes per active
 //! vertex, and the throughput in meshes per hour per core.
 
-use super::bench_one::BenchRow;
-use crate::units::parse_duration;
+pub mod dedup;
+pub mod one;
+
+use crate::util::units::parse_duration;
 use anyhow::{bail, Context, Result};
+use one::BenchRow;
 use serde::Serialize;
 use sparc3d_manifests::table as manifest_io;
 use sparc3d_workers::process::{Process, ProcessOptions};
@@ -51,7 +54,7 @@ pub struct Args {
     pub zstd_level: i32,
     /// Also render each mesh's condition views with this recipe (`trellis`, `trellis2`;
     /// docs/RENDERS.md): the stage `renders` and the seconds a view.
-    #[arg(long, value_parser = super::render::parse_recipe)]
+    #[arg(long, value_parser = crate::commands::render::parse_recipe)]
     pub renders: Option<sparc3d_render::cond::Recipe>,
 }
 
@@ -77,7 +80,7 @@ impl Spread {
         }
         v.sort_by(f64::total_cmp);
         let n = v.len();
-        let median = crate::stats::median(&v).unwrap_or_default();
+        let median = crate::util::stats::median(&v).unwrap_or_default();
         let rank = ((0.95 * n as f64).ceil() as usize).clamp(1, n);
         Self {
             median,

@@ -3,7 +3,7 @@
 //! (`sparc3d_workers::process`), their JSON-line events read into the pool's channel, their
 //! share of the lanes written to their stdin (`--control-stdin`).
 
-use crate::pool::{Launcher, Worker};
+use crate::run::pool::{Launcher, Worker};
 use anyhow::{Context, Result};
 use sparc3d_workers::events::Event;
 use sparc3d_workers::lanes::Share;

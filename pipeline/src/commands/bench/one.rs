@@ -4,7 +4,7 @@
 //! RSS of this process. `sparc3d bench` runs it once per mesh in a subprocess, so that the
 //! peak RSS is per mesh and a crash of one mesh is one failed row.
 
-use crate::memory::peak_rss_bytes;
+use crate::util::memory::peak_rss_bytes;
 use anyhow::Context;
 use serde::{Deserialize, Serialize};
 use sparc3d_workers::convert::{convert_file, Encoding, Failed, StageError, Steps};
@@ -25,7 +25,7 @@ pub struct Args {
     pub zstd_level: i32,
     /// Also render the condition views with this recipe's cameras, count and size
     /// (`trellis`, `trellis2`), timed as the stage `renders` and per view.
-    #[arg(long, value_parser = super::render::parse_recipe)]
+    #[arg(long, value_parser = crate::commands::render::parse_recipe)]
     pub renders: Option<sparc3d_render::cond::Recipe>,
 }
 
@@ -207,7 +207,7 @@ fn render_request(
         recipe,
         views: None,
         size: None,
-        seed: super::render::item_seed(&bytes, 0),
+        seed: crate::commands::render::item_seed(&bytes, 0),
         passes: Default::default(),
     })
 }

@@ -5,7 +5,7 @@
 //! two-mode mixture); a third of them get one to three copies moved by a small noise, as
 //! re-exported copies of an asset are. Fixed seed: the same signatures on every run.
 
-use crate::near_duplicates::groups;
+use crate::rows::near_duplicates::groups;
 use anyhow::Result;
 use sparcubes::products::shape_signature::SIGNATURE_LEN;
 use std::process::ExitCode;
@@ -18,7 +18,7 @@ pub struct Args {
     #[arg(long, default_value_t = 1_000_000)]
     pub items: usize,
     #[command(flatten)]
-    pub threshold: super::dedup::Threshold,
+    pub threshold: crate::commands::dedup::Threshold,
 }
 
 /// A fixed-seed generator of uniform numbers in `[0, 1)` (Knuth's MMIX LCG).
@@ -119,7 +119,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         signatures.len(),
         found.len(),
         args.threshold.value,
-        crate::memory::peak_rss_bytes().unwrap_or(0) >> 20
+        crate::util::memory::peak_rss_bytes().unwrap_or(0) >> 20
     );
     Ok(ExitCode::SUCCESS)
 }

@@ -72,7 +72,7 @@ pub fn plan(requested: Option<usize>, m: Machine, env_threads: Option<usize>) ->
             f,
             format!(
                 "{f} workers (auto: {cores} cores, but memory for {f} items at the {} item limit)",
-                crate::units::format_size(m.item_memory)
+                crate::util::units::format_size(m.item_memory)
             ),
         ),
         (None, _) => (cores, format!("{cores} workers (auto: {cores} cores)")),
@@ -111,7 +111,7 @@ fn asked(n: usize, m: Machine, fits: Option<usize>) -> (usize, String) {
         reasons.push(format!(
             "memory for {f} item{} at the {} item limit",
             plural(f),
-            crate::units::format_size(m.item_memory)
+            crate::util::units::format_size(m.item_memory)
         ));
     }
     match reasons.is_empty() {

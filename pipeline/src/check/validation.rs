@@ -9,8 +9,8 @@
 //! distance both ways. The report goes to `JOB/validation/report.jsonl` and
 //! `JOB/validation/summary.md`.
 
-use crate::sample::{self, SampleSize};
-use crate::stats::median;
+use crate::rows::sample::{self, SampleSize};
+use crate::util::stats::median;
 use anyhow::{bail, Context, Result};
 use serde_json::{json, Value};
 use sparc3d_schema::ShardRow;
@@ -21,7 +21,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
 
 /// The validator script, built into the binary so an installed `sparc3d` needs no checkout.
-const VALIDATE_PY: &str = include_str!("../validate/validate.py");
+const VALIDATE_PY: &str = include_str!("../../validate/validate.py");
 
 /// The one command that installs what the validator needs.
 pub const INSTALL_HINT: &str = "python3 -m pip install -r pipeline/validate/requirements.txt";

@@ -7,7 +7,7 @@
 //! row each vertex in its cell's base colour, as `convert --attributes` writes the mesh.
 //! Anything else is drawn in the plain grey-blue, byte for byte as before colours existed.
 
-use crate::item_lookup;
+use crate::rows::item_lookup;
 use anyhow::{Context, Result};
 use sparc3d_render::paint::{Paint, SurfaceColours, VertexColours};
 use sparc3d_render::{compare_painted, CompareOptions, Drawn, Image};
