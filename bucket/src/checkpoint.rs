@@ -20,7 +20,7 @@ use anyhow::Context;
 use sparc3d_schema::JobLayout;
 use sparc3d_sources::list::Listed;
 use sparc3d_sources::objects::{Prefix, WriteMode, Written};
-use sparc3d_workers::frame::{self, ReadFrame, Record};
+use sparc3d_workers::journal::record::{self, ReadFrame, Record};
 use sparc3d_workers::journal::{self, Journal};
 use sparc3d_workers::Job;
 use sparc3d_workers::WorkerError;
@@ -124,7 +124,7 @@ impl Checkpoints {
         let mut file = std::fs::File::open(&path).map_err(io)?;
         let mut out = Vec::new();
         if self.uploaded > 0 {
-            let header = match frame::read(&mut BufReader::new(&mut file)).map_err(io)? {
+            let header = match record::read(&mut BufReader::new(&mut file)).map_err(io)? {
                 ReadFrame::Record(h @ Record::Header { .. }, _) => h,
                 other => {
                     return Err(WorkerError::BadFile {
@@ -133,7 +133,7 @@ impl Checkpoints {
                     })
                 }
             };
-            out = frame::encode(&header).map_err(|e| WorkerError::BadFile {
+            out = record::encode(&header).map_err(|e| WorkerError::BadFile {
                 path: path.clone(),
                 reason: e.to_string(),
             })?;

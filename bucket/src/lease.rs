@@ -77,7 +77,7 @@ pub struct BucketLease {
 }
 
 fn fresh(owner: &str, ttl: f64, acquired_at: f64) -> LeaseInfo {
-    let now = sparc3d_workers::now();
+    let now = sparc3d_workers::clock::now();
     LeaseInfo {
         owner: owner.to_string(),
         host: hostname(),
@@ -103,7 +103,7 @@ pub fn acquire(
     on_loss: Arc<AtomicBool>,
 ) -> Result<Acquired> {
     let key = keys::lease(shard);
-    let now = sparc3d_workers::now();
+    let now = sparc3d_workers::clock::now();
     for _ in 0..TAKEOVER_TRIES {
         let mine = fresh(owner, ttl, now);
         if let Written::Done(version) = prefix.put(&key, bytes(&mine), WriteMode::Create)? {
@@ -115,7 +115,7 @@ pub fn acquire(
             continue; // released meanwhile
         };
         let holder: Option<LeaseInfo> = serde_json::from_slice(&current.bytes).ok();
-        if let Some(h) = holder.filter(|h| !h.is_stale(sparc3d_workers::now())) {
+        if let Some(h) = holder.filter(|h| !h.is_stale(sparc3d_workers::clock::now())) {
             return Ok(Acquired::Busy(h));
         }
         if current.version.etag.is_none() && current.version.version.is_none() {
@@ -273,7 +273,7 @@ impl Beater {
             return Some(why);
         }
         let expires_at = self.shared.version.lock().map(|v| v.1).unwrap_or(0.0);
-        let now = sparc3d_workers::now();
+        let now = sparc3d_workers::clock::now();
         (now > expires_at).then(|| {
             self.lose(format!(
                 "lease {} expired {:.1} s ago without a renewal (the bucket could not be \
@@ -287,7 +287,7 @@ impl Beater {
     /// The seconds left before the lease expires (no I/O).
     fn left(&self) -> f64 {
         let expires_at = self.shared.version.lock().map(|v| v.1).unwrap_or(0.0);
-        expires_at - sparc3d_workers::now()
+        expires_at - sparc3d_workers::clock::now()
     }
 
     fn gone(&self) -> Renewal {
@@ -466,7 +466,7 @@ pub(crate) mod tests {
         };
         assert_eq!(a.confirm(), Ok(()));
         // Another worker replaces it (as a taker of an expired lease would).
-        let theirs = fresh("b", 60.0, sparc3d_workers::now());
+        let theirs = fresh("b", 60.0, sparc3d_workers::clock::now());
         prefix.put(&keys::lease(3), bytes(&theirs), WriteMode::Overwrite)?;
         let why = a.confirm().expect_err("the renewal is refused");
         assert!(

@@ -17,7 +17,7 @@ pub fn quarantine(prefix: &Prefix<'_>, shard: u64, reason: &str) -> Result<Optio
     let Some(record) = read_record(prefix, shard)? else {
         return Ok(None);
     };
-    let ms = sparc3d_workers::since_epoch().as_millis();
+    let ms = sparc3d_workers::clock::since_epoch().as_millis();
     let folder = format!("quarantine/{}-{ms}/", JobLayout::shard_name(shard));
     let name = object_name(shard, &record);
     let record_key = keys::record(shard);

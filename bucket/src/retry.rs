@@ -19,7 +19,7 @@ pub fn requeue(
     fingerprint: &str,
     kept: &[ShardRow],
 ) -> Result<()> {
-    let ms = sparc3d_workers::since_epoch().as_millis();
+    let ms = sparc3d_workers::clock::since_epoch().as_millis();
     let key = keys::checkpoint(shard, &format!("retry-{ms}"), 0);
     let bytes =
         sparc3d_workers::journal::set::with_rows(Path::new(&key), shard, fingerprint, kept)?;

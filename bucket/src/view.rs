@@ -44,7 +44,7 @@ pub fn shard_states(prefix: &Prefix<'_>, job: &Job) -> Result<Vec<ShardState>> {
         .collect();
     let leases = parallel::each(&leased, IN_FLIGHT, |&s| crate::lease::read(prefix, s))?;
     let mut leases: BTreeMap<u64, _> = leased.into_iter().zip(leases).collect();
-    let now = sparc3d_workers::now();
+    let now = sparc3d_workers::clock::now();
     let objects = listing.shard_objects();
     Ok((0..job.file.shards)
         .map(|shard| match records.get(&shard) {

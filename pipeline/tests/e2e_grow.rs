@@ -5,7 +5,7 @@
 mod common;
 use common::*;
 use sparc3d_schema::JobLayout;
-use sparc3d_workers::job_lock::JobLock;
+use sparc3d_workers::job::lock::JobLock;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 

@@ -4,10 +4,10 @@
 //! worker), read by the shard loop and the loop over its items.
 
 use crate::error::Result;
-use crate::events::Event;
+use crate::isolate::supervisor::ChildCommand;
 use crate::journal::Journal;
-use crate::lanes::LaneBudget;
-use crate::supervisor::ChildCommand;
+use crate::shard::events::Event;
+use crate::shard::lanes::LaneBudget;
 use sparc3d_schema::Limits;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;

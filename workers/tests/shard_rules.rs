@@ -8,11 +8,11 @@ use sparc3d_schema::{
     ErrorClass, FrozenItem, ItemStatus, JobConfig, JobFile, JobLayout, Limits, ManifestRecord,
     ShardRow,
 };
-use sparc3d_workers::frame::Record;
+use sparc3d_workers::isolate::supervisor::ChildCommand;
+use sparc3d_workers::journal::record::Record;
 use sparc3d_workers::journal::{self, Journal, JournalState};
 use sparc3d_workers::lease::{self, Acquired};
 use sparc3d_workers::store;
-use sparc3d_workers::supervisor::ChildCommand;
 use sparc3d_workers::{process_shard, Job, ShardOutcome, WorkOptions};
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
@@ -80,7 +80,7 @@ fn options(script: &str, limits: Limits, stop: bool) -> WorkOptions {
         stop: Arc::new(AtomicBool::new(stop)),
         events: Box::new(|_| {}),
         after_item: None,
-        budget: sparc3d_workers::lanes::LaneBudget::single(),
+        budget: sparc3d_workers::shard::lanes::LaneBudget::single(),
     }
 }
 

@@ -59,7 +59,7 @@ pub fn preview_row(row: &ShardRow, options: &CompareOptions, colours: bool) -> R
         ),
         None => None,
     };
-    let source = sparc3d_workers::source::load_mesh(&row.uri)
+    let source = sparc3d_workers::item::source::load_mesh(&row.uri)
         .map_err(anyhow::Error::msg)
         .with_context(|| format!("loading the source of item {:?}", row.id))?
         .mesh;
@@ -145,7 +145,7 @@ pub(crate) fn appearance_of_file(path: &Path) -> Result<Appearance> {
 /// images and buffers are read from its own prefix.
 fn appearance_of_uri(uri: &str) -> Result<Appearance> {
     use sparc3d_sources::Location;
-    use sparc3d_workers::source::{fetcher, RemoteBuffers};
+    use sparc3d_workers::item::source::{fetcher, RemoteBuffers};
     match Location::parse(uri)? {
         Location::Local(path) => appearance_of_file(&path),
         Location::Remote(url) => {

@@ -176,7 +176,7 @@ fn prepare(row: &ShardRow, work: &Path) -> Prepared {
         p.files = fail("write output", format!("{}: {e}", out.display()));
         return p;
     }
-    let source = match sparc3d_workers::source::load_mesh(&row.uri) {
+    let source = match sparc3d_workers::item::source::load_mesh(&row.uri) {
         Ok(s) => s.mesh,
         Err(e) => {
             p.files = fail("load source", e);

@@ -367,7 +367,7 @@ pub fn print_status(job: &Path) {
             subs.len()
         ),
     }
-    let now = sparc3d_workers::now();
+    let now = sparc3d_workers::clock::now();
     let shown = subs.len().saturating_sub(10);
     if shown > 0 {
         println!("  … {shown} older, all ids: {}", ids.join(","));

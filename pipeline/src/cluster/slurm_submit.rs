@@ -149,7 +149,7 @@ pub fn write_and_submit(root: &Path, plan: &SubmitPlan) -> Result<Vec<Submission
         let id = slurm::sbatch(args)?;
         let sub = Submission {
             job_id: id.clone(),
-            submitted_at: sparc3d_workers::now(),
+            submitted_at: sparc3d_workers::clock::now(),
             array: slurm::array_spec(&array.tasks, plan.max_concurrent),
             offset: array.offset,
             shards_per_task: plan.shards_per_task,

@@ -4,7 +4,7 @@
 
 use anyhow::Context;
 use serde_json::{json, Value};
-use sparc3d_workers::convert::{convert_file, StageError, Steps};
+use sparc3d_workers::item::convert::{convert_file, StageError, Steps};
 use sparcubes::io::LoadStats;
 use sparcubes::materials::TextureBudget;
 use std::path::PathBuf;

@@ -101,7 +101,7 @@ fn eval_row(row: &ShardRow, args: &Args) -> anyhow::Result<QualityReport> {
         .cubes()
         .with_context(|| format!("item {:?}: decoding its row", row.id))?;
     let output = sparcubes::extract::extract_to_source(&cubes);
-    let source = sparc3d_workers::source::load_mesh(&row.uri)
+    let source = sparc3d_workers::item::source::load_mesh(&row.uri)
         .map_err(anyhow::Error::msg)
         .with_context(|| format!("item {:?}", row.id))?
         .mesh;

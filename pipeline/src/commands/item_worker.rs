@@ -16,9 +16,10 @@ pub struct Args {
 
 /// Runs the item worker loop.
 pub fn run(args: Args) -> Result<ExitCode> {
-    let code = sparc3d_workers::child::main(sparc3d_workers::child::ChildOptions {
-        memory_bytes: args.memory_bytes,
-        parent_pid: args.parent_pid,
-    });
+    let code =
+        sparc3d_workers::isolate::child::main(sparc3d_workers::isolate::child::ChildOptions {
+            memory_bytes: args.memory_bytes,
+            parent_pid: args.parent_pid,
+        });
     Ok(ExitCode::from(code.clamp(0, 255) as u8))
 }

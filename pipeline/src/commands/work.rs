@@ -7,9 +7,9 @@ use crate::flags::limits::LimitArgs;
 use crate::run::signals::install_signals;
 use crate::util::units::parse_duration;
 use anyhow::{bail, Context, Result};
-use sparc3d_workers::events::Event;
-use sparc3d_workers::lanes::{LaneBudget, Share};
-use sparc3d_workers::supervisor::ChildCommand;
+use sparc3d_workers::isolate::supervisor::ChildCommand;
+use sparc3d_workers::shard::events::Event;
+use sparc3d_workers::shard::lanes::{LaneBudget, Share};
 use sparc3d_workers::{process_shard, Job, ShardOutcome, WorkOptions};
 use std::io::Write;
 use std::path::PathBuf;
@@ -136,7 +136,7 @@ fn work_shards(args: &Args, job: &Job, process: &mut ShardFn<'_>) -> Result<Exit
     let stop = install_signals()?;
     if let Some(parent) = args.parent_pid {
         // SIGTERM, not SIGKILL: the worker stops like on Ctrl-C and releases its lease.
-        sparc3d_workers::parent::die_with_parent(parent, libc::SIGTERM);
+        sparc3d_workers::isolate::parent::die_with_parent(parent, libc::SIGTERM);
     }
     let events = args.events;
     let mut opts = WorkOptions {
@@ -186,7 +186,7 @@ fn budget(args: &Args) -> std::sync::Arc<LaneBudget> {
     };
     let budget = LaneBudget::new(Share { lanes, threads });
     if args.control_stdin {
-        sparc3d_workers::lanes::follow_control(
+        sparc3d_workers::shard::lanes::follow_control(
             std::io::BufReader::new(std::io::stdin()),
             budget.clone(),
         );

@@ -81,13 +81,13 @@ fn check_flags(dir: &Path, flags: &ConfigArgs) -> Result<()> {
 /// `None` when `root` is not a job (opening it says so next), or when the file system refuses
 /// locks (some network file systems; said on stderr: the lock is advisory, the command goes
 /// on).
-pub fn hold_shared(root: &Path) -> Result<Option<sparc3d_workers::job_lock::JobLock>> {
+pub fn hold_shared(root: &Path) -> Result<Option<sparc3d_workers::job::lock::JobLock>> {
     if !is_job(root) {
         return Ok(None);
     }
     let layout = JobLayout::new(root);
     let waiting = || eprintln!("{}: waiting for an `add` to finish", root.display());
-    match sparc3d_workers::job_lock::JobLock::shared(&layout, waiting) {
+    match sparc3d_workers::job::lock::JobLock::shared(&layout, waiting) {
         Ok(lock) => Ok(Some(lock)),
         Err(e) => {
             eprintln!("warning: {e}: going on without the job lock (an `add` is not kept out)");

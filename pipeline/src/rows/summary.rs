@@ -103,7 +103,7 @@ pub fn summarize_states(job: &Job, states: &[ShardState]) -> JobSummary {
         items: job.file.items,
         ..Default::default()
     };
-    let now = sparc3d_workers::now();
+    let now = sparc3d_workers::clock::now();
     let (mut first, mut last) = (f64::INFINITY, 0.0f64);
     for (shard, state) in (0..job.file.shards).zip(states) {
         match state {

@@ -2,7 +2,7 @@
 //! it runs, one shard each: shards still queued get a lane each first, then every worker's
 //! items left (running or not started) ask for one lane each, the worker furthest from its
 //! need served first, and lanes nobody needs go to the workers anyway, where they become
-//! threads for their last items ([`sparc3d_workers::lanes::LaneBudget::threads_for`]). So a
+//! threads for their last items ([`sparc3d_workers::shard::lanes::LaneBudget::threads_for`]). So a
 //! job of one shard keeps every lane busy, and the tail of a job uses the cores that finished
 //! workers left.
 

@@ -1,14 +1,14 @@
 //! The workers of `sparc3d run`: `sparc3d work JOB --shard-index I --events --parent-pid P`
 //! processes on this machine, started and watched through the one child-process supervisor
-//! (`sparc3d_workers::process`), their JSON-line events read into the pool's channel, their
+//! (`sparc3d_workers::isolate::process`), their JSON-line events read into the pool's channel, their
 //! share of the lanes written to their stdin (`--control-stdin`).
 
 use crate::run::pool::{Launcher, Worker};
 use anyhow::{Context, Result};
-use sparc3d_workers::events::Event;
-use sparc3d_workers::lanes::Share;
+use sparc3d_workers::isolate::process::{Process, ProcessOptions};
 use sparc3d_workers::lease::LeaseInfo;
-use sparc3d_workers::process::{Process, ProcessOptions};
+use sparc3d_workers::shard::events::Event;
+use sparc3d_workers::shard::lanes::Share;
 use sparc3d_workers::store::state::{shard_state, Check, ShardState};
 use sparc3d_workers::Job;
 use std::io::{BufRead, BufReader, Write};

@@ -11,9 +11,9 @@
 
 use crate::run::stuck::Watch;
 use anyhow::Result;
-use sparc3d_workers::events::Event;
-use sparc3d_workers::lanes::Share;
 use sparc3d_workers::lease::LeaseInfo;
+use sparc3d_workers::shard::events::Event;
+use sparc3d_workers::shard::lanes::Share;
 use sparc3d_workers::store::state::ShardState;
 use std::collections::{BTreeMap, HashMap, VecDeque};
 use std::os::unix::process::ExitStatusExt;
@@ -350,7 +350,7 @@ impl<L: Launcher> Pool<L> {
             return;
         }
         self.last_watch = Instant::now();
-        let now = sparc3d_workers::now();
+        let now = sparc3d_workers::clock::now();
         let running = self
             .slots
             .iter_mut()

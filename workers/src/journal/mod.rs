@@ -15,6 +15,7 @@
 //! `syncer`), so the disk flush is off the per-item path. A failed background fsync is
 //! reported at the next append, and [`Journal::sync`] waits for every flush.
 
+pub mod record;
 pub mod set;
 mod state;
 mod syncer;
@@ -22,7 +23,7 @@ mod syncer;
 pub use state::{replay, Attempts, DoneItem, JournalState};
 
 use crate::error::{Result, WorkerError};
-use crate::frame::{self, ReadFrame, Record};
+use record::{ReadFrame, Record};
 use sparc3d_schema::ShardRow;
 use std::fs::{File, OpenOptions};
 use std::io::{BufReader, Seek, SeekFrom, Write};
@@ -76,7 +77,7 @@ impl Journal {
             len: 0,
             state: earlier,
         };
-        let created_at = crate::now();
+        let created_at = crate::clock::now();
         journal.write_frame(&Record::Header {
             shard,
             fingerprint: fingerprint.to_string(),
@@ -106,7 +107,7 @@ impl Journal {
         if let Some(e) = self.syncer.take_error() {
             return Err(WorkerError::io("syncing journal", &self.path, e));
         }
-        let bytes = frame::encode(record).map_err(|e| WorkerError::BadFile {
+        let bytes = record::encode(record).map_err(|e| WorkerError::BadFile {
             path: self.path.clone(),
             reason: format!("encoding a record: {e}"),
         })?;
@@ -175,7 +176,7 @@ pub fn read_row_at(path: &Path, offset: u64) -> Result<ShardRow> {
     f.seek(SeekFrom::Start(offset))
         .map_err(|e| WorkerError::io("reading journal", path, e))?;
     let mut r = BufReader::new(f);
-    match frame::read(&mut r).map_err(|e| WorkerError::io("reading journal", path, e))? {
+    match record::read(&mut r).map_err(|e| WorkerError::io("reading journal", path, e))? {
         ReadFrame::Record(Record::Done { row, .. }, _) => Ok(*row),
         other => Err(WorkerError::BadFile {
             path: path.to_path_buf(),

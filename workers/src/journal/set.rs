@@ -11,7 +11,7 @@
 
 use super::state::{replay, JournalState};
 use crate::error::{Result, WorkerError};
-use crate::frame::{self, Record};
+use crate::journal::record::{self, Record};
 use sparc3d_schema::{JobLayout, ShardRow};
 use std::path::{Path, PathBuf};
 
@@ -121,7 +121,7 @@ pub fn replace_with_rows(
     fingerprint: &str,
     rows: &[ShardRow],
 ) -> Result<()> {
-    let stamp = crate::since_epoch().as_nanos();
+    let stamp = crate::clock::since_epoch().as_nanos();
     let name = format!("retry-{stamp}-{}", std::process::id());
     let path = layout.holder_journal(shard, &name);
     let bytes = with_rows(&path, shard, fingerprint, rows)?;
@@ -140,7 +140,7 @@ pub fn replace_with_rows(
 /// The bytes of a journal holding `rows` as finished items (`path` names it in errors).
 pub fn with_rows(path: &Path, shard: u64, fingerprint: &str, rows: &[ShardRow]) -> Result<Vec<u8>> {
     let enc = |r: &Record| {
-        frame::encode(r).map_err(|e| WorkerError::BadFile {
+        record::encode(r).map_err(|e| WorkerError::BadFile {
             path: path.to_path_buf(),
             reason: format!("encoding a record: {e}"),
         })
@@ -148,12 +148,12 @@ pub fn with_rows(path: &Path, shard: u64, fingerprint: &str, rows: &[ShardRow]) 
     let mut bytes = enc(&Record::Header {
         shard,
         fingerprint: fingerprint.to_string(),
-        created_at: crate::now(),
+        created_at: crate::clock::now(),
     })?;
     for row in rows {
         bytes.extend(enc(&Record::Done {
             row: Box::new(row.clone()),
-            at: crate::now(),
+            at: crate::clock::now(),
         })?);
     }
     Ok(bytes)
@@ -185,14 +185,14 @@ mod tests {
         Record::Start {
             index,
             attempt: 1,
-            at: crate::now(),
+            at: crate::clock::now(),
         }
     }
 
     fn done(row: &ShardRow) -> Record {
         Record::Done {
             row: Box::new(row.clone()),
-            at: crate::now(),
+            at: crate::clock::now(),
         }
     }
 

@@ -3,7 +3,7 @@
 //! journals of a shard's successive holders, oldest first ([`JournalState::absorb`]).
 
 use crate::error::{Result, WorkerError};
-use crate::frame::{self, ReadFrame, Record};
+use crate::journal::record::{self, ReadFrame, Record};
 use sparc3d_schema::{ErrorClass, ItemStatus};
 use std::collections::{BTreeMap, HashMap};
 use std::fs::File;
@@ -160,7 +160,7 @@ pub fn replay(path: &Path) -> Result<JournalState> {
     let journal: Arc<Path> = Arc::from(path);
     let mut state = JournalState::default();
     loop {
-        match frame::read(&mut r).map_err(|e| WorkerError::io("reading journal", path, e))? {
+        match record::read(&mut r).map_err(|e| WorkerError::io("reading journal", path, e))? {
             ReadFrame::Record(rec, len) => {
                 state.apply(&rec, &journal, state.valid_len);
                 state.valid_len += len;

@@ -131,7 +131,7 @@ impl Lease {
             return Err(loss(why));
         }
         let expires_at = self.shared.expires_at();
-        let found = match expired(&self.path, &self.owner, expires_at, crate::now()) {
+        let found = match expired(&self.path, &self.owner, expires_at, crate::clock::now()) {
             Some(why) => Some(why),
             None => read(&self.path).and_then(|h| {
                 let why = taken(&h, &self.owner, self.acquired_at);
@@ -156,7 +156,7 @@ impl Lease {
 
     /// Whether the lease is known to be lost, without I/O (polled while an item converts).
     pub fn is_lost(&self) -> bool {
-        self.shared.lost().is_some() || crate::now() > self.shared.expires_at()
+        self.shared.lost().is_some() || crate::clock::now() > self.shared.expires_at()
     }
 
     /// The owner name.
@@ -244,7 +244,7 @@ fn renew(p: &Path, next: &LeaseInfo, s: &Shared) -> Result<(), Option<String>> {
     });
     let lost = || {
         // An expired lease is never renewed: someone may be taking it over right now.
-        expired(p, &next.owner, s.expires_at(), crate::now())
+        expired(p, &next.owner, s.expires_at(), crate::clock::now())
             .or_else(|| read(p).and_then(|h| taken(&h, &next.owner, next.acquired_at)))
     };
     let result = match written {
@@ -284,7 +284,7 @@ mod tests {
     fn an_expired_lease_is_lost_and_left_alone() -> Result<()> {
         let dir = tempfile::tempdir().map_err(io)?;
         let path = dir.path().join("l");
-        let now = crate::now();
+        let now = crate::clock::now();
         let mine = LeaseInfo {
             expires_at: now - 5.0,
             ..info("me", 60.0)

@@ -99,7 +99,7 @@ pub fn read(path: &Path) -> Option<LeaseInfo> {
 
 /// A fresh lease of this process for `owner`, valid for `ttl` seconds from now.
 fn info(owner: &str, ttl: f64) -> LeaseInfo {
-    let now = crate::now();
+    let now = crate::clock::now();
     LeaseInfo {
         owner: owner.to_string(),
         host: hostname(),
@@ -173,7 +173,7 @@ pub fn acquire(path: &Path, owner: &str, ttl: f64) -> Result<Acquired> {
         if create(path, &content, owner).map_err(|e| WorkerError::io("creating lease", path, e))? {
             return Ok(Acquired::Held(Lease::start(path, &fresh, ttl)));
         }
-        if let Some(h) = read(path).filter(|h| !h.is_stale(crate::now())) {
+        if let Some(h) = read(path).filter(|h| !h.is_stale(crate::clock::now())) {
             return Ok(Acquired::Busy(h));
         }
         // Stale or unreadable: take it over. Only one of several takers' renames succeeds.
@@ -183,7 +183,7 @@ pub fn acquire(path: &Path, owner: &str, ttl: f64) -> Result<Acquired> {
         }
         // Between our look and our rename another taker may have put a fresh lease there:
         // give a live one back rather than stealing it.
-        match read(&aside).filter(|h| !h.is_stale(crate::now())) {
+        match read(&aside).filter(|h| !h.is_stale(crate::clock::now())) {
             Some(h) => {
                 let _ = std::fs::hard_link(&aside, path);
                 let _ = std::fs::remove_file(&aside);
@@ -217,7 +217,7 @@ pub fn file_token(owner: &str) -> String {
 
 /// A unique owner name for this process.
 pub fn owner_name() -> String {
-    let nonce = crate::since_epoch().subsec_nanos();
+    let nonce = crate::clock::since_epoch().subsec_nanos();
     format!("{}:{}:{nonce:08x}", hostname(), std::process::id())
 }
 
@@ -290,17 +290,17 @@ mod tests {
             owner: "zombie".into(),
             host: hostname(),
             pid,
-            heartbeat_at: crate::now(),
-            expires_at: crate::now() + 60.0,
-            acquired_at: crate::now(),
+            heartbeat_at: crate::clock::now(),
+            expires_at: crate::clock::now() + 60.0,
+            acquired_at: crate::clock::now(),
         };
-        assert!(lease.is_stale(crate::now()));
+        assert!(lease.is_stale(crate::clock::now()));
         let _ = child.wait();
         let me = LeaseInfo {
             pid: std::process::id(),
             ..lease
         };
-        assert!(!me.is_stale(crate::now()));
+        assert!(!me.is_stale(crate::clock::now()));
         Ok(())
     }
 }

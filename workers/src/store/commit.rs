@@ -61,7 +61,7 @@ pub fn commit(
     let record = CompletionRecord {
         bytes: meta.len(),
         stamp: Some(file_stamp(&meta)),
-        finished_at: crate::now(),
+        finished_at: crate::clock::now(),
         ..record
     };
     write_record(layout, shard, fingerprint, &record, &meta, writer)

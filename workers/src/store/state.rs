@@ -146,7 +146,7 @@ pub fn shard_state(
         Completion::Absent => None,
     };
     match lease::read(&layout.lease(shard)) {
-        Some(l) if !l.is_stale(crate::now()) => Ok(ShardState::Running(l)),
+        Some(l) if !l.is_stale(crate::clock::now()) => Ok(ShardState::Running(l)),
         _ => Ok(damaged.map_or(ShardState::Pending, ShardState::Damaged)),
     }
 }
@@ -158,7 +158,7 @@ pub fn shard_state(
 /// file still in `shards/` (a folder without one was interrupted while moving). The caller
 /// holds the shard's lease. Returns the folder.
 pub fn quarantine(layout: &JobLayout, shard: u64, reason: &str) -> Result<PathBuf> {
-    let stamp = crate::since_epoch().as_millis();
+    let stamp = crate::clock::since_epoch().as_millis();
     let dir = layout
         .quarantine_dir()
         .join(format!("{}-{stamp}", JobLayout::shard_name(shard)));

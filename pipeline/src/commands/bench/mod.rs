@@ -13,7 +13,7 @@ use anyhow::{bail, Context, Result};
 use one::BenchRow;
 use serde::Serialize;
 use sparc3d_manifests::table as manifest_io;
-use sparc3d_workers::process::{Process, ProcessOptions};
+use sparc3d_workers::isolate::process::{Process, ProcessOptions};
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode, Stdio};

@@ -7,7 +7,7 @@
 use crate::util::memory::peak_rss_bytes;
 use anyhow::Context;
 use serde::{Deserialize, Serialize};
-use sparc3d_workers::convert::{convert_file, Encoding, Failed, StageError, Steps};
+use sparc3d_workers::item::convert::{convert_file, Encoding, Failed, StageError, Steps};
 use std::path::PathBuf;
 use std::process::ExitCode;
 

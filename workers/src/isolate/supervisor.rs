@@ -1,11 +1,11 @@
-//! Runs items in an item worker process ([`crate::child`]) with a watchdog: a time-out kills
+//! Runs items in an item worker process ([`crate::isolate::child`]) with a watchdog: a time-out kills
 //! the process, and any death of the process (signal, abort, allocation failure, stack
 //! overflow) is classified and attributed to the item it was converting. A dead process is
 //! replaced at the next item.
 
 use crate::error::{Result, WorkerError};
-use crate::frame::{self, ReadFrame, Record};
-use crate::process::{Process, ProcessOptions};
+use crate::isolate::process::{Process, ProcessOptions};
+use crate::journal::record::{self, ReadFrame, Record};
 use sparc3d_schema::{ErrorClass, FrozenItem, JobConfig, Limits, ShardRow};
 use std::io::{BufReader, Write};
 use std::os::unix::process::ExitStatusExt;
@@ -204,7 +204,7 @@ impl ItemRunner {
             .spawn(move || {
                 let mut r = BufReader::new(stdout);
                 loop {
-                    match frame::read(&mut r) {
+                    match record::read(&mut r) {
                         Ok(ReadFrame::Record(Record::Done { row, .. }, _)) => {
                             if tx.send(Msg::Row(row)).is_err() {
                                 return;

@@ -5,12 +5,16 @@
 //! are preceded by a check that the lease is still held; a worker that lost it (stopped past
 //! it, or taken over) stops with [`ShardOutcome::LeaseLost`].
 
+pub mod events;
+mod item_loop;
+pub mod lanes;
+
 use crate::error::{Result, WorkerError};
-use crate::events::Event;
-use crate::item_loop::{fence, run_items, LoopEnd, ShardWork};
 use crate::job::Job;
 use crate::journal::{self, Journal};
 use crate::lease::{self, Acquired, Lease};
+use crate::shard::events::Event;
+use crate::shard::item_loop::{fence, run_items, LoopEnd, ShardWork};
 use crate::store::commit::Committed;
 use crate::store::state::{self, Check, Completion};
 use crate::store::write::ShardStream;
@@ -118,7 +122,7 @@ fn run_leased(
     let writer = lease::file_token(owner);
     let own = layout.holder_journal(shard, &writer);
     let mut journal = Journal::create(&own, shard, &fp, earlier)?;
-    let started_at = journal.state.created_at.unwrap_or_else(crate::now);
+    let started_at = journal.state.created_at.unwrap_or_else(crate::clock::now);
     (opts.events)(Event::ShardStarted {
         shard,
         items: items.len() as u64,

@@ -1,9 +1,9 @@
 //! The item worker process: reads the job config and then one item per line on stdin, runs
-//! [`crate::convert::convert_item`] on each in a thread with a large stack, catches panics,
+//! [`crate::item::convert::convert_item`] on each in a thread with a large stack, catches panics,
 //! and answers each item with a `Done` frame. A stack overflow, an allocation failure under
 //! its memory limit or a signal kills the process; the supervisor attributes that to the item.
 
-use crate::frame::{self, Record};
+use crate::journal::record::{self, Record};
 use sparc3d_schema::{ErrorClass, FrozenItem, JobConfig, ShardRow};
 use std::io::{BufRead, Write};
 use std::os::fd::FromRawFd;
@@ -62,7 +62,7 @@ fn run_one(item: &FrozenItem, config: &JobConfig, memory_bytes: u64) -> ShardRow
     let handle = std::thread::Builder::new()
         .name(format!("item-{}", item.index))
         .stack_size(ITEM_STACK)
-        .spawn(move || crate::convert::convert_item(&it, &cfg, memory_bytes));
+        .spawn(move || crate::item::convert::convert_item(&it, &cfg, memory_bytes));
     let failed = |class, message: String| {
         ShardRow::failed(
             item.index,
@@ -90,7 +90,7 @@ fn run_one(item: &FrozenItem, config: &JobConfig, memory_bytes: u64) -> ShardRow
             format!(
                 "the item memory limit of {} (--item-memory) is too small to start the \
                  conversion thread with its {}M stack ({e}); raise it",
-                crate::supervisor::describe_memory_limit(memory_bytes),
+                crate::isolate::supervisor::describe_memory_limit(memory_bytes),
                 ITEM_STACK >> 20
             ),
         ),
@@ -99,7 +99,7 @@ fn run_one(item: &FrozenItem, config: &JobConfig, memory_bytes: u64) -> ShardRow
 
 /// Runs the item worker loop until stdin closes; returns the process exit code.
 pub fn main(opts: ChildOptions) -> i32 {
-    crate::parent::die_with_parent(opts.parent_pid, libc::SIGKILL);
+    crate::isolate::parent::die_with_parent(opts.parent_pid, libc::SIGKILL);
     let mut out = match protocol_stdout() {
         Ok(f) => f,
         Err(e) => {
@@ -107,7 +107,7 @@ pub fn main(opts: ChildOptions) -> i32 {
             return 2;
         }
     };
-    if let Err(e) = crate::process::set_memory_limit(opts.memory_bytes) {
+    if let Err(e) = crate::isolate::process::set_memory_limit(opts.memory_bytes) {
         eprintln!("item worker: cannot set the memory limit: {e}");
         return 2;
     }
@@ -134,9 +134,9 @@ pub fn main(opts: ChildOptions) -> i32 {
             }
         };
         let row = run_one(&item, &config, opts.memory_bytes);
-        let bytes = match frame::encode(&Record::Done {
+        let bytes = match record::encode(&Record::Done {
             row: Box::new(row),
-            at: crate::now(),
+            at: crate::clock::now(),
         }) {
             Ok(b) => b,
             Err(e) => {

@@ -1,6 +1,9 @@
 //! A job folder opened: its job file, checked, and its frozen manifest, whose slices are read
 //! when asked for ([`crate::frozen`]).
 
+pub mod files;
+pub mod lock;
+
 use crate::error::{Result, WorkerError};
 use crate::frozen::lines::{self, Expected};
 use crate::frozen::{FrozenManifest, Items, Sliced};
@@ -34,7 +37,7 @@ impl Job {
     /// Opens the job folder `root` (written by `sparc3d init`) for a command that changes it
     /// or trusts it (`run`, `work`, `retry`, `verify`, `submit`, `init` again): a job whose
     /// files no longer match what `init` recorded (a hand edit of `job.json`, a config out of
-    /// range: [`crate::job_files::problems`]) is refused, naming each file and what differs; a
+    /// range: [`crate::job::files::problems`]) is refused, naming each file and what differs; a
     /// slice of the frozen manifest is checked when it is read, and refused the same way.
     pub fn open(root: &Path) -> Result<Self> {
         let (job, problems) = Self::open_with(root, true)?;
@@ -66,7 +69,7 @@ impl Job {
 
     /// Opens the job folder `root` for a command that only reads it (`status`, `ls`,
     /// `failures`, `inspect`, ...): also a job whose files were edited after `init`, with what
-    /// was found ([`crate::job_files::problems`]; empty when nothing was), for the command to
+    /// was found ([`crate::job::files::problems`]; empty when nothing was), for the command to
     /// say; an edited slice is read with a warning.
     pub fn open_read_only(root: &Path) -> Result<(Self, Vec<String>)> {
         Self::open_with(root, false)
@@ -82,11 +85,11 @@ impl Job {
             });
         }
         let file: JobFile = read_json(&job_file)?;
-        let mut problems = crate::job_files::job_file_problems(&layout, &file);
+        let mut problems = crate::job::files::job_file_problems(&layout, &file);
         let manifest = match file.manifest_pages.clone() {
             Some(pages) => {
                 let sliced = Sliced::new(&layout, &file, pages, strict);
-                problems.extend(crate::job_files::pin_problems(&file, &sliced));
+                problems.extend(crate::job::files::pin_problems(&file, &sliced));
                 FrozenManifest::Sliced(sliced)
             }
             None => {
@@ -144,7 +147,7 @@ fn read_whole(layout: &JobLayout, file: &JobFile) -> Result<(Vec<FrozenItem>, Ve
             reason: format!("{} items, job.json says {}", items.len(), file.items),
         });
     }
-    let problems = crate::job_files::whole_manifest_problems(file, &items, &bytes);
+    let problems = crate::job::files::whole_manifest_problems(file, &items, &bytes);
     Ok((items, problems))
 }
 

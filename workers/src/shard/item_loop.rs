@@ -1,16 +1,16 @@
-//! The loop over a shard's unfinished items: up to the budget's lanes ([`crate::lanes`])
+//! The loop over a shard's unfinished items: up to the budget's lanes ([`crate::shard::lanes`])
 //! convert at once, each lane in its own supervised item worker. This thread alone journals
 //! every start, result, crash and abort (each append fenced by the lease), so a shard keeps one
 //! writer whatever the lanes; rows are written in item order whatever order they finish in,
 //! so the shard is the same for any number of lanes. With one lane it is the sequential loop.
 
 use crate::error::{Result, WorkerError};
-use crate::events::Event;
-use crate::frame::Record;
+use crate::isolate::supervisor::{ItemOutcome, ItemRunner};
+use crate::journal::record::Record;
 use crate::journal::Journal;
 use crate::lease::Lease;
+use crate::shard::events::Event;
 use crate::store::write::ShardStream;
-use crate::supervisor::{ItemOutcome, ItemRunner};
 use crate::work_options::WorkOptions;
 use sparc3d_schema::{ErrorClass, FrozenItem, ItemStatus, JobConfig, ShardRow};
 use std::collections::VecDeque;
@@ -230,7 +230,7 @@ fn dispatch<'e, S: Fn() -> bool + Sync>(
     let start = Record::Start {
         index: item.index,
         attempt: task.started + 1,
-        at: crate::now(),
+        at: crate::clock::now(),
     };
     append(journal, work.held, work.shard, &start)?;
     (work.opts.events)(Event::ItemStarted {
@@ -287,7 +287,7 @@ fn settle(work: &mut ShardWork<'_>, journal: &mut Journal, a: Answer<'_>) -> Res
         ItemOutcome::Stopped => {
             let abort = Record::Abort {
                 index: a.item.index,
-                at: crate::now(),
+                at: crate::clock::now(),
             };
             append(journal, work.held, work.shard, &abort)?;
             Ok(Settled::Stopped)
@@ -307,7 +307,7 @@ fn settle(work: &mut ShardWork<'_>, journal: &mut Journal, a: Answer<'_>) -> Res
                     index: a.item.index,
                     class,
                     message,
-                    at: crate::now(),
+                    at: crate::clock::now(),
                 };
                 append(journal, work.held, work.shard, &crash)?;
                 (work.opts.events)(Event::ItemFinished {
@@ -362,7 +362,7 @@ fn finish(work: &mut ShardWork<'_>, journal: &mut Journal, row: ShardRow) -> Res
     };
     let done = Record::Done {
         row: Box::new(row),
-        at: crate::now(),
+        at: crate::clock::now(),
     };
     append(journal, work.held, work.shard, &done)?;
     work.stream.catch_up(journal)?;

@@ -1,7 +1,7 @@
 //! The one child-process supervisor: starts a child with its stderr captured into a bounded
 //! tail, optionally tied to this process's life (parent-death signal) and in its own process
 //! group; waits for it with a time limit and its resource use (`wait4`: CPU time, peak RSS);
-//! stops it when its handle is dropped. Used by the item supervisor ([`crate::supervisor`]),
+//! stops it when its handle is dropped. Used by the item supervisor ([`crate::isolate::supervisor`]),
 //! the `run` orchestrator's workers and `bench`'s subprocesses. The address-space limit of an
 //! item worker is set by the child itself ([`set_memory_limit`]), after its start-up.
 

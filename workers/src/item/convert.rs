@@ -1,6 +1,6 @@
 //! The one conversion path: load a mesh file, convert it with Sparcubes, extract the mesh,
 //! encode the tensors, timing each stage ([`convert_file`]). The item worker ([`convert_item`],
-//! run inside the isolated process of [`crate::child`]), `sparc3d convert` and `sparc3d bench`
+//! run inside the isolated process of [`crate::isolate::child`]), `sparc3d convert` and `sparc3d bench`
 //! all go through it; each asks only for the steps it needs ([`Steps`]).
 
 use sparc3d_render::cond::{asset, Request};
@@ -196,7 +196,9 @@ pub fn convert_bytes(
         Err(e) => return Err(fail(StageError::Load(e), seconds)),
     };
     let quality_started = Instant::now();
-    let source_facts = steps.quality.then(|| crate::quality::source_facts(&source));
+    let source_facts = steps
+        .quality
+        .then(|| crate::item::quality::source_facts(&source));
     let quality_s = quality_started.elapsed().as_secs_f64();
     let input_components = match &source_facts {
         Some(f) => Some(f.components),
@@ -308,7 +310,7 @@ pub fn convert_bytes(
 fn measure_output(
     steps: &Steps,
     mesh: Option<&TriMesh>,
-    source: Option<(crate::quality::SourceFacts, f64)>,
+    source: Option<(crate::item::quality::SourceFacts, f64)>,
     load_stats: &LoadStats,
     conversion: &Conversion,
     seconds: &mut StageSeconds,
@@ -332,9 +334,9 @@ fn measure_output(
         let t = Instant::now();
         let cubes = &conversion.cubes;
         let output = mesh.zip(pass.as_ref()).map(|(m, p)| {
-            crate::quality::output_facts(m, p.volume, &cubes.normalization, cubes.resolution)
+            crate::item::quality::output_facts(m, p.volume, &cubes.normalization, cubes.resolution)
         });
-        let facts = crate::quality::facts(&source, load_stats, &conversion.stats, output);
+        let facts = crate::item::quality::facts(&source, load_stats, &conversion.stats, output);
         seconds.add_stage(
             "quality",
             source_s + pass_for_quality + t.elapsed().as_secs_f64(),
@@ -491,11 +493,11 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig, memory_bytes: u64) ->
         row.timings.load_s = load_s;
         row
     };
-    let source = match crate::source::read(item) {
+    let source = match crate::item::source::read(item) {
         Ok(source) => source,
         Err(e) => return failed(e.class, e.message, started.elapsed().as_secs_f64()),
     };
-    let crate::source::SourceBytes {
+    let crate::item::source::SourceBytes {
         bytes,
         sha256,
         path,
@@ -512,7 +514,7 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig, memory_bytes: u64) ->
         row.source_sha256 = Some(sha);
         return row;
     }
-    let remote_buffers = remote.map(crate::source::RemoteBuffers::new);
+    let remote_buffers = remote.map(crate::item::source::RemoteBuffers::new);
     let read_remote = |rel: &str| match &remote_buffers {
         Some(b) => b.read(rel),
         None => Err("no remote source".to_string()),
@@ -609,7 +611,7 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig, memory_bytes: u64) ->
 /// fetch` queues it rather than an `ok` row without that appearance. A file over the byte cap
 /// is not retried: it stays named in the row's `appearance_not_read`.
 fn appearance_not_fetched(
-    buffers: Option<&crate::source::RemoteBuffers>,
+    buffers: Option<&crate::item::source::RemoteBuffers>,
     item: &FrozenItem,
 ) -> Option<String> {
     let e = buffers?.failure()?;

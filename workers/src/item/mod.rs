@@ -1,0 +1,6 @@
+//! One item: its bytes from disk or a URL ([`source`]), its conversion, the one function that
+//! touches geometry ([`convert`]), and its quality columns ([`quality`]).
+
+pub mod convert;
+pub mod quality;
+pub mod source;
