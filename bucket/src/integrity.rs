@@ -136,7 +136,7 @@ pub(crate) mod tests {
             rows: 1,
             ok: 1,
             bytes: bytes.len() as u64,
-            sha256: sparc3d_schema::config::hex(&Sha256::digest(bytes)),
+            sha256: sparc3d_schema::job::config::hex(&Sha256::digest(bytes)),
             object: Some("part-00000.w.parquet".into()),
             object_etag: etag.map(str::to_string),
             ..Default::default()

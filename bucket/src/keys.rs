@@ -1,5 +1,5 @@
 //! Where things live in a job whose home is a bucket: the keys of a job folder's files
-//! (schema/src/layout.rs), relative to the job's prefix, plus the names that only a bucket
+//! (schema/src/job/layout.rs), relative to the job's prefix, plus the names that only a bucket
 //! needs.
 //!
 //! ```text

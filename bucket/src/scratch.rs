@@ -6,7 +6,7 @@
 use crate::keys;
 use anyhow::{bail, Context, Result};
 use sha2::{Digest, Sha256};
-use sparc3d_schema::manifest::PAGE_SHARDS;
+use sparc3d_schema::job::manifest::PAGE_SHARDS;
 use sparc3d_schema::{JobFile, JobLayout};
 use sparc3d_sources::objects::Prefix;
 use sparc3d_sources::RemoteUrl;
@@ -25,7 +25,7 @@ pub fn folder(url: &RemoteUrl, base: Option<&Path>) -> PathBuf {
     let digest = Sha256::digest(name.trim_end_matches('/').as_bytes());
     base.join(format!(
         "sparc3d-{}",
-        sparc3d_schema::config::hex(&digest[..8])
+        sparc3d_schema::job::config::hex(&digest[..8])
     ))
 }
 

@@ -1,7 +1,7 @@
 //! Manifest records and frozen items (their types are the contracts of `sparc3d-schema`,
-//! [`sparc3d_schema::manifest`]), and the columns a manifest's rows are read from.
+//! [`sparc3d_schema::job::manifest`]), and the columns a manifest's rows are read from.
 
-pub use sparc3d_schema::manifest::{FrozenItem, ManifestRecord};
+pub use sparc3d_schema::job::manifest::{FrozenItem, ManifestRecord};
 
 /// Column names accepted for the path of an item, in order of preference.
 pub const PATH_COLUMNS: [&str; 5] = ["uri", "path", "local_path", "file", "url"];

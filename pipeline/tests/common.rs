@@ -212,7 +212,8 @@ pub fn all_rows(job: &Path) -> Vec<(u64, String, String, Option<String>)> {
             .unwrap_or_else(|e| panic!("{}: {e}", p.display()));
         for batch in reader {
             let batch = batch.unwrap_or_else(|e| panic!("{e}"));
-            for r in sparc3d_schema::arrow::batch_to_rows(&batch).unwrap_or_else(|e| panic!("{e}"))
+            for r in sparc3d_schema::columns::arrow::batch_to_rows(&batch)
+                .unwrap_or_else(|e| panic!("{e}"))
             {
                 out.push((
                     r.item_index,

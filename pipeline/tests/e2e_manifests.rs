@@ -4,7 +4,7 @@
 mod common;
 use common::*;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
-use sparc3d_schema::digest;
+use sparc3d_schema::row::digest;
 use std::path::{Path, PathBuf};
 
 /// The bundled example meshes copied into `dir/meshes`.
@@ -45,7 +45,8 @@ fn path_free_digest(job: &Path, provenance: bool) -> String {
             let mut rows = Vec::new();
             for b in batches(p) {
                 rows.extend(
-                    sparc3d_schema::arrow::batch_to_rows(&b).unwrap_or_else(|e| panic!("{e}")),
+                    sparc3d_schema::columns::arrow::batch_to_rows(&b)
+                        .unwrap_or_else(|e| panic!("{e}")),
                 );
             }
             for r in &mut rows {
@@ -114,8 +115,9 @@ fn extra_columns_add_their_own_columns_and_change_nothing_else() {
         path_free_digest(&licensed, true)
     );
     // The columns of a job with the default config (the quality columns on).
-    let sections = sparc3d_schema::arrow::Sections::of(&sparc3d_schema::JobConfig::default());
-    let before: Vec<String> = sparc3d_schema::arrow::schema_for(&[], sections)
+    let sections =
+        sparc3d_schema::columns::arrow::Sections::of(&sparc3d_schema::JobConfig::default());
+    let before: Vec<String> = sparc3d_schema::columns::arrow::schema_for(&[], sections)
         .fields()
         .iter()
         .map(|f| f.name().clone())

@@ -60,7 +60,8 @@ fn rows(job: &Path) -> Vec<ShardRow> {
         for batch in reader {
             let batch = batch.unwrap_or_else(|e| panic!("{e}"));
             out.extend(
-                sparc3d_schema::arrow::batch_to_rows(&batch).unwrap_or_else(|e| panic!("{e}")),
+                sparc3d_schema::columns::arrow::batch_to_rows(&batch)
+                    .unwrap_or_else(|e| panic!("{e}")),
             );
         }
     }

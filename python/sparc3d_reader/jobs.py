@@ -50,7 +50,7 @@ __all__ = ["CHECK_COLUMNS", "Job", "PAGE_SHARDS", "Shard", "ShardWarning", "VERI
 
 _SHARD_NAME = re.compile(r"^part-(\d{5,})\.parquet$")
 
-# Shards one index page of a sliced frozen manifest lists (schema/src/manifest.rs PAGE_SHARDS).
+# Shards one index page of a sliced frozen manifest lists (schema/src/job/manifest.rs PAGE_SHARDS).
 PAGE_SHARDS = 1024
 
 

@@ -6,37 +6,24 @@
 //! This crate does no I/O beyond encoding and decoding its own types.
 #![deny(missing_docs)]
 
-pub mod arrow;
-pub mod attribute_columns;
-pub mod class;
 pub mod columns;
-pub mod completion;
-pub mod config;
-pub mod digest;
 pub mod error;
 pub mod hex;
-pub mod layout;
-pub mod manifest;
-pub mod quality;
-pub mod quality_columns;
-pub mod render_columns;
+pub mod job;
 pub mod row;
-pub mod signature_column;
-pub mod tensor;
-mod tensor_columns;
 
-pub use class::{ErrorClass, ItemStatus};
-pub use completion::{CompletionRecord, FileStamp};
-pub use config::{AttributeConfig, JobConfig, JobFile, Limits, RenderConfig, SampleConfig};
 pub use error::{Result, SchemaError};
-pub use layout::JobLayout;
-pub use manifest::{FrozenItem, ManifestPage, ManifestRecord, SliceEntry};
-pub use quality::QualityFacts;
+pub use job::completion::{CompletionRecord, FileStamp};
+pub use job::config::{AttributeConfig, JobConfig, JobFile, Limits, RenderConfig, SampleConfig};
+pub use job::layout::JobLayout;
+pub use job::manifest::{FrozenItem, ManifestPage, ManifestRecord, SliceEntry};
+pub use row::class::{ErrorClass, ItemStatus};
+pub use row::quality::QualityFacts;
+pub use row::tensor::{DType, EncodedTensor};
 pub use row::{
     AppearanceFacts, AttributeTensors, RenderedView, RowCounts, RowRenders, RowTensors, RowTimings,
     SampleTensors, ShardRow,
 };
-pub use tensor::{DType, EncodedTensor};
 
 /// Version of the shard format; bumped on any change to columns or encodings. Version 2 stores
 /// tensor bytes in byte planes (version 1: row-major); version 3 puts zstd's content checksum

@@ -99,7 +99,7 @@ fn samples_and_digest_of_a_job_from_before_are_unchanged() {
         );
         row.tensors = Some(tensors);
         assert_eq!(
-            sparc3d_schema::digest::rows_digest(&[row]),
+            sparc3d_schema::row::digest::rows_digest(&[row]),
             digest,
             "{file}: digest"
         );

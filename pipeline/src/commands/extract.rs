@@ -46,7 +46,7 @@ fn find_cubes(args: &Args) -> Result<(String, SparseCubes)> {
     let mut found: Option<(String, Result<SparseCubes, sparc3d_schema::SchemaError>)> = None;
     let mut rows = 0usize;
     for_each_batch(path, |batch| {
-        let decoded = sparc3d_schema::arrow::batch_to_cubes(&batch)
+        let decoded = sparc3d_schema::columns::arrow::batch_to_cubes(&batch)
             .with_context(|| format!("decoding {}", path.display()))?;
         for (id, cubes) in decoded {
             rows += 1;

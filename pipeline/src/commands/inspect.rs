@@ -15,7 +15,8 @@ use crate::rows::row_filter::RowFilter;
 use crate::rows::summary::shard_states;
 use anyhow::{bail, Context, Result};
 use serde::Serialize;
-use sparc3d_schema::{digest, meta_keys, ItemStatus};
+use sparc3d_schema::row::digest;
+use sparc3d_schema::{meta_keys, ItemStatus};
 use sparc3d_workers::store::footer::read_meta;
 use sparc3d_workers::store::read::{self, for_each_row};
 use sparc3d_workers::store::state::{check_file, Check, ShardState};
@@ -190,7 +191,7 @@ fn build_report(
     r.rows -= r.filter.as_ref().map_or(0, |c| c.rows_left_out);
     r.items_digest = {
         use sha2::Digest;
-        sparc3d_schema::config::hex(&items.finalize())
+        sparc3d_schema::job::config::hex(&items.finalize())
     };
     r.content_digest = if digests.len() == 1 && single_file {
         digests[0].clone()
@@ -280,7 +281,7 @@ fn add_shard(
         anyhow::Ok(())
     })?;
     use sha2::Digest;
-    Ok(sparc3d_schema::config::hex(&h.finalize()))
+    Ok(sparc3d_schema::job::config::hex(&h.finalize()))
 }
 
 /// Whether `row` passes `--where` (always without one); one that does not is counted in the

@@ -9,7 +9,7 @@ use super::freeze_rows::{freeze_rows, Written};
 use super::rows::InputRows;
 use anyhow::{bail, Result};
 use sparc3d_manifests::freeze::Freezer;
-use sparc3d_schema::manifest::index_sha256;
+use sparc3d_schema::job::manifest::index_sha256;
 use sparc3d_schema::{JobConfig, JobFile, JobLayout};
 use sparc3d_workers::frozen::lines;
 use sparc3d_workers::frozen::write::SliceWriter;

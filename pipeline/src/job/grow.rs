@@ -14,7 +14,7 @@ use super::rows::InputRows;
 use anyhow::{bail, Context, Result};
 use rayon::prelude::*;
 use sparc3d_manifests::freeze::{id_key, Freezer, IdKey};
-use sparc3d_schema::manifest::index_sha256;
+use sparc3d_schema::job::manifest::index_sha256;
 use sparc3d_schema::{JobFile, JobLayout};
 use sparc3d_workers::frozen::write::SliceWriter;
 use sparc3d_workers::frozen::FrozenManifest;

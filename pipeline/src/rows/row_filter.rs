@@ -13,7 +13,7 @@ use arrow_array::RecordBatch;
 use arrow_schema::SchemaRef;
 use sparc3d_manifests::filter::batch::{resolve, BatchTable};
 use sparc3d_manifests::filter::{Cell, Filter, Kind, Table};
-use sparc3d_schema::arrow::{rows_to_batch_for, schema_for, Sections};
+use sparc3d_schema::columns::arrow::{rows_to_batch_for, schema_for, Sections};
 use sparc3d_schema::{columns as c, FrozenItem, ShardRow};
 use sparc3d_workers::Job;
 use std::borrow::Cow;

@@ -116,7 +116,7 @@ mod tests {
             config,
             items: pages.iter().map(|p| p.items).sum(),
             shards: pages.iter().map(|p| p.shards).sum(),
-            manifest_sha256: sparc3d_schema::manifest::index_sha256(pages),
+            manifest_sha256: sparc3d_schema::job::manifest::index_sha256(pages),
             manifest_pages: Some(pages.to_vec()),
         }
     }

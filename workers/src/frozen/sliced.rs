@@ -6,7 +6,7 @@
 
 use super::lines::{self, Expected};
 use crate::error::{Result, WorkerError};
-use sparc3d_schema::manifest::PAGE_SHARDS;
+use sparc3d_schema::job::manifest::PAGE_SHARDS;
 use sparc3d_schema::{FrozenItem, JobFile, JobLayout, ManifestPage, SliceEntry};
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};

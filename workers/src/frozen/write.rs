@@ -10,7 +10,7 @@ use super::sliced::Sliced;
 use crate::error::{Result, WorkerError};
 use crate::fsutil::bytes_sha256;
 use rayon::prelude::*;
-use sparc3d_schema::manifest::PAGE_SHARDS;
+use sparc3d_schema::job::manifest::PAGE_SHARDS;
 use sparc3d_schema::{FrozenItem, JobFile, JobLayout, ManifestPage, ManifestRecord, SliceEntry};
 use std::path::{Path, PathBuf};
 

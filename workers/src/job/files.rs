@@ -10,7 +10,7 @@
 
 use crate::frozen::Sliced;
 use crate::store::footer::read_meta;
-use sparc3d_schema::manifest::index_sha256;
+use sparc3d_schema::job::manifest::index_sha256;
 use sparc3d_schema::{meta_keys, FrozenItem, JobConfig, JobFile, JobLayout, SCHEMA_VERSION};
 
 /// What differs between `job.json` (read as `file`) and what `init` recorded, one line each
@@ -165,7 +165,7 @@ fn changed_keys(old: &JobConfig, new: &JobConfig) -> String {
     };
     keys.iter()
         .filter(|k| {
-            !sparc3d_schema::config::UNFINGERPRINTED
+            !sparc3d_schema::job::config::UNFINGERPRINTED
                 .iter()
                 .any(|u| k.as_str() == *u || k.starts_with(&format!("{u}.")))
         })

@@ -119,7 +119,7 @@ pub fn for_each_row_of<E: From<WorkerError>>(
     mut f: impl FnMut(ShardRow) -> std::result::Result<(), E>,
 ) -> std::result::Result<(), E> {
     for_each_batch_of(path, columns, |batch| {
-        let rows = sparc3d_schema::arrow::batch_to_rows(&batch)
+        let rows = sparc3d_schema::columns::arrow::batch_to_rows(&batch)
             .map_err(|e| WorkerError::read_shard("decoding", path, e))?;
         for row in rows {
             f(row)?;

@@ -317,7 +317,7 @@ mod tests {
             rows: 1,
             ok: 1,
             bytes: bytes.len() as u64,
-            sha256: sparc3d_schema::config::hex(&Sha256::digest(bytes)),
+            sha256: sparc3d_schema::job::config::hex(&Sha256::digest(bytes)),
             ..Default::default()
         }
     }

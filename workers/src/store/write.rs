@@ -15,7 +15,7 @@ use parquet::file::metadata::KeyValue;
 use parquet::file::properties::{EnabledStatistics, WriterProperties};
 use parquet::schema::types::ColumnPath;
 use sha2::{Digest, Sha256};
-use sparc3d_schema::arrow::Sections;
+use sparc3d_schema::columns::arrow::Sections;
 use sparc3d_schema::{columns, meta_keys, CompletionRecord, FrozenItem, ItemStatus, ShardRow};
 use std::collections::{BTreeMap, VecDeque};
 use std::fs::File;
@@ -121,7 +121,7 @@ struct Tally {
 
 impl Tally {
     fn count(&mut self, row: &ShardRow) {
-        sparc3d_schema::digest::update_row(&mut self.digest, row);
+        sparc3d_schema::row::digest::update_row(&mut self.digest, row);
         match row.status {
             ItemStatus::Ok => self.ok += 1,
             _ => self.failed += 1,
@@ -180,7 +180,7 @@ impl ShardStream {
             file,
             hash: Sha256::new(),
         };
-        let schema = sparc3d_schema::arrow::schema_for(&stream.provenance, sections);
+        let schema = sparc3d_schema::columns::arrow::schema_for(&stream.provenance, sections);
         let properties = writer_properties(job, shard)?;
         let writer = ArrowWriter::try_new(sink, schema, Some(properties))
             .map_err(|e| stream.parquet_error(e))?;
@@ -208,7 +208,7 @@ impl ShardStream {
     fn push(&mut self, row: ShardRow) -> Result<()> {
         self.tally.count(&row);
         self.group_bytes += blob_bytes(&row);
-        let batch = sparc3d_schema::arrow::rows_to_batch_for(
+        let batch = sparc3d_schema::columns::arrow::rows_to_batch_for(
             std::slice::from_ref(&row),
             &self.provenance,
             self.sections,
@@ -277,11 +277,11 @@ impl ShardStream {
             failed: tally.failed,
             error_classes: tally.classes,
             bytes: 0,
-            sha256: sparc3d_schema::config::hex(&hash.finalize()),
+            sha256: sparc3d_schema::job::config::hex(&hash.finalize()),
             stamp: None,
             object: None,
             object_etag: None,
-            content_digest: sparc3d_schema::config::hex(&tally.digest.finalize()),
+            content_digest: sparc3d_schema::job::config::hex(&tally.digest.finalize()),
             item_seconds: tally.item_seconds,
             started_at,
             finished_at: 0.0,

@@ -4,8 +4,8 @@
 
 use crate::columns as c;
 use crate::error::Result;
+use crate::row::tensor::EncodedTensor;
 use crate::row::{AppearanceFacts, AttributeTensors, ShardRow};
-use crate::tensor::EncodedTensor;
 use arrow_array::{
     Array, ArrayRef, BooleanArray, RecordBatch, StringArray, UInt32Array, UInt64Array,
 };
@@ -17,7 +17,7 @@ pub fn fields() -> Vec<Field> {
     use DataType::*;
     let mut f = Vec::new();
     for t in c::ATTRIBUTE_TENSORS {
-        f.extend(crate::tensor_columns::tensor_fields(t));
+        f.extend(crate::columns::tensors::tensor_fields(t));
     }
     f.extend([
         Field::new(c::MATERIALS, UInt32, true),
@@ -42,7 +42,7 @@ pub fn columns(rows: &[ShardRow]) -> Vec<ArrayRef> {
     let mut cols = Vec::new();
     for stem in c::ATTRIBUTE_TENSORS {
         let ts: Vec<Option<&EncodedTensor>> = rows.iter().map(|r| tensor_of(r, stem)).collect();
-        cols.extend(crate::tensor_columns::tensor_arrays(&ts));
+        cols.extend(crate::columns::tensors::tensor_arrays(&ts));
     }
     let facts: Vec<Option<&AppearanceFacts>> = rows.iter().map(|r| r.appearance.as_ref()).collect();
     let u32s = |f: &dyn Fn(&AppearanceFacts) -> u32| -> ArrayRef {
@@ -88,7 +88,7 @@ pub fn tensors_at(batch: &RecordBatch, i: usize) -> Result<Option<AttributeTenso
     if batch.column_by_name(c::BASE_COLOR).is_none() {
         return Ok(None);
     }
-    AttributeTensors::from_lookup(|stem| crate::tensor_columns::read_tensor(batch, stem, i))
+    AttributeTensors::from_lookup(|stem| crate::columns::tensors::read_tensor(batch, stem, i))
 }
 
 /// The appearance facts of row `i`, `None` when the batch has no such columns or the row none.
@@ -126,17 +126,17 @@ pub fn facts_at(batch: &RecordBatch, i: usize) -> Option<AppearanceFacts> {
 
 #[cfg(test)]
 mod tests {
-    use crate::arrow::{
+    use crate::columns::arrow::{
         batch_to_rows, rows_to_batch, rows_to_batch_for, schema, schema_for, Sections,
     };
-    use crate::digest::rows_digest;
     use crate::error::Result;
+    use crate::row::digest::rows_digest;
     use crate::row::{AppearanceFacts, AttributeTensors};
     use sparcubes::attributes::CellAttributes;
 
     #[test]
     fn attribute_columns_round_trip_and_are_absent_without_the_section() -> Result<()> {
-        let plain = crate::arrow::tests::sample_rows();
+        let plain = crate::columns::arrow::tests::sample_rows();
         // Without `[attributes]`: the schema and the rows' digest are what they always were.
         assert_eq!(schema_for(&[], Sections::default()), schema());
         assert_eq!(rows_to_batch(&plain)?.schema(), schema());

@@ -84,12 +84,14 @@ pub fn read(batch: &RecordBatch) -> Result<Option<Vec<Option<Vec<f32>>>>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::arrow::{batch_to_rows, rows_to_batch, rows_to_batch_for, schema, Sections};
-    use crate::digest::rows_digest;
+    use crate::columns::arrow::{
+        batch_to_rows, rows_to_batch, rows_to_batch_for, schema, Sections,
+    };
+    use crate::row::digest::rows_digest;
 
     #[test]
     fn signatures_round_trip_and_are_absent_without_the_setting() -> Result<()> {
-        let plain = crate::arrow::tests::sample_rows();
+        let plain = crate::columns::arrow::tests::sample_rows();
         let mut rows = plain.clone();
         rows[0].shape_signature = Some((0..32).map(|i| i as f32 / 32.0).collect());
         let on = Sections {

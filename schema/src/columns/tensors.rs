@@ -5,7 +5,7 @@
 
 use crate::columns as c;
 use crate::error::{Result, SchemaError};
-use crate::tensor::{DType, EncodedTensor};
+use crate::row::tensor::{DType, EncodedTensor};
 use arrow_array::types::Int64Type;
 use arrow_array::{Array, ArrayRef, BinaryArray, ListArray, RecordBatch, StringArray};
 use arrow_schema::{DataType, Field};

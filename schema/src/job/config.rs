@@ -499,15 +499,15 @@ pub struct JobFile {
     /// Number of shards.
     pub shards: u64,
     /// sha256 of the frozen manifest: of `manifest.jsonl` for a job whose frozen manifest is
-    /// one file; of the index (its pages' sha256s, one a line: [`crate::manifest::index_sha256`])
+    /// one file; of the index (its pages' sha256s, one a line: [`crate::job::manifest::index_sha256`])
     /// for a job kept in slices.
     pub manifest_sha256: String,
     /// The frozen manifest's index pages, in order, when it is kept in slices (one file per
-    /// shard under `manifest/`, each page listing [`crate::manifest::PAGE_SHARDS`] shards'
+    /// shard under `manifest/`, each page listing [`crate::job::manifest::PAGE_SHARDS`] shards'
     /// slices with their sha256s: docs/FORMAT.md, "The frozen manifest"). Absent for a job made
     /// before slices, whose frozen manifest is `manifest.jsonl` alone.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub manifest_pages: Option<Vec<crate::manifest::ManifestPage>>,
+    pub manifest_pages: Option<Vec<crate::job::manifest::ManifestPage>>,
 }
 
 #[cfg(test)]

@@ -2,7 +2,7 @@
 //! (docs/FORMAT.md, "Quality columns").
 
 use crate::columns as c;
-use crate::quality::QualityFacts;
+use crate::row::quality::QualityFacts;
 use crate::row::{RowCounts, ShardRow};
 use arrow_array::{Array, ArrayRef, Float64Array, RecordBatch, UInt64Array};
 use arrow_schema::{DataType, Field};
@@ -109,9 +109,11 @@ pub fn facts_at(batch: &RecordBatch, i: usize) -> Option<QualityFacts> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::arrow::{batch_to_rows, rows_to_batch, rows_to_batch_for, schema, Sections};
-    use crate::digest::rows_digest;
+    use crate::columns::arrow::{
+        batch_to_rows, rows_to_batch, rows_to_batch_for, schema, Sections,
+    };
     use crate::error::Result;
+    use crate::row::digest::rows_digest;
 
     fn facts() -> QualityFacts {
         QualityFacts {
@@ -129,7 +131,7 @@ mod tests {
 
     #[test]
     fn quality_columns_round_trip_and_are_absent_without_the_setting() -> Result<()> {
-        let plain = crate::arrow::tests::sample_rows();
+        let plain = crate::columns::arrow::tests::sample_rows();
         let mut rows = plain.clone();
         rows[0].quality = Some(facts());
         let on = Sections {

@@ -1,10 +1,15 @@
 //! One shard row in memory: an item's outcome, counts, timings and encoded tensors.
 
-use crate::class::{ErrorClass, ItemStatus};
+pub mod class;
+pub mod digest;
+pub mod quality;
+pub mod tensor;
+
 use crate::columns as c;
 use crate::error::{Result, SchemaError};
-use crate::manifest::FrozenItem;
-use crate::tensor::{DType, EncodedTensor};
+use crate::job::manifest::FrozenItem;
+use crate::row::class::{ErrorClass, ItemStatus};
+use crate::row::tensor::{DType, EncodedTensor};
 use serde::{Deserialize, Serialize};
 use sparcubes::attributes::CellAttributes;
 use sparcubes::materials::Facts;
@@ -77,7 +82,7 @@ pub struct RowTensors {
     pub renders: Option<RowRenders>,
 }
 
-/// An item's condition views ([`crate::render_columns`]): a PNG a view, in view order, and
+/// An item's condition views ([`crate::columns::renders`]): a PNG a view, in view order, and
 /// the views' `transforms.json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RowRenders {
@@ -561,7 +566,7 @@ pub struct ShardRow {
     /// quality columns and the item converted (`None` leaves the row's journal form and digest
     /// as they were before the columns existed).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub quality: Option<crate::quality::QualityFacts>,
+    pub quality: Option<crate::row::quality::QualityFacts>,
     /// The shape signature of the output (`sparcubes::products::shape_signature`), when
     /// converted; `None` in failed rows and in rows of shards written before it.
     #[serde(default, skip_serializing_if = "Option::is_none")]

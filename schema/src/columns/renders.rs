@@ -143,8 +143,10 @@ fn not_read_at(batch: &RecordBatch, i: usize) -> Vec<String> {
 
 #[cfg(test)]
 mod tests {
-    use crate::arrow::tests::sample_rows;
-    use crate::arrow::{batch_to_rows, rows_to_batch, rows_to_batch_for, schema, Sections};
+    use crate::columns::arrow::tests::sample_rows;
+    use crate::columns::arrow::{
+        batch_to_rows, rows_to_batch, rows_to_batch_for, schema, Sections,
+    };
     use crate::row::{RenderedView, RowRenders};
 
     #[test]
@@ -200,14 +202,14 @@ mod tests {
                     not_read: not_read.iter().map(|s| s.to_string()).collect(),
                 });
             }
-            crate::digest::rows_digest(&rows)
+            crate::row::digest::rows_digest(&rows)
         };
         let with = |png, seconds, transforms| with_not_read(png, seconds, transforms, &[]);
         let base = with(vec![1, 2, 3], 0.5, "{}");
         assert_eq!(with(vec![1, 2, 3], 9.0, "{}"), base);
         assert_ne!(with(vec![1, 2, 4], 0.5, "{}"), base);
         assert_ne!(with(vec![1, 2, 3], 0.5, "{ }"), base);
-        assert_ne!(crate::digest::rows_digest(&sample_rows()), base);
+        assert_ne!(crate::row::digest::rows_digest(&sample_rows()), base);
         let missing = with_not_read(vec![1, 2, 3], 0.5, "{}", &["texture a.png: not found"]);
         assert_ne!(missing, base);
     }

@@ -1,5 +1,12 @@
 //! Column names of a shard row, as constants. docs/FORMAT.md documents each one.
 
+pub mod arrow;
+pub mod attributes;
+pub mod quality;
+pub mod renders;
+pub mod signature;
+mod tensors;
+
 /// Position of the item in the frozen manifest (`u64`); rows are sorted by it.
 pub const ITEM_INDEX: &str = "item_index";
 /// Item id (`utf8`), unique in the job.

@@ -1,11 +1,11 @@
 //! The Arrow schema of a shard row, and conversion between [`ShardRow`]s and record batches.
 
-use crate::class::{ErrorClass, ItemStatus};
 use crate::columns as c;
+use crate::columns::tensors::{col, read_tensor, tensor_arrays, tensor_fields};
 use crate::error::{Result, SchemaError};
+use crate::row::class::{ErrorClass, ItemStatus};
+use crate::row::tensor::EncodedTensor;
 use crate::row::{RowCounts, RowTensors, RowTimings, SampleTensors, ShardRow};
-use crate::tensor::EncodedTensor;
-use crate::tensor_columns::{col, read_tensor, tensor_arrays, tensor_fields};
 use arrow_array::{
     Array, ArrayRef, Float64Array, RecordBatch, StringArray, UInt32Array, UInt64Array,
 };
@@ -28,14 +28,14 @@ pub fn schema_with(provenance: &[String]) -> SchemaRef {
 /// The optional groups of columns a job's shards hold, as its config decides.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Sections {
-    /// The appearance columns ([`crate::attribute_columns`]), a job with `[attributes]`.
+    /// The appearance columns ([`crate::columns::attributes`]), a job with `[attributes]`.
     pub attributes: bool,
-    /// The quality columns ([`crate::quality`]), a job with `quality = true`.
+    /// The quality columns ([`crate::row::quality`]), a job with `quality = true`.
     pub quality: bool,
-    /// The `shape_signature` column ([`crate::signature_column`]), a job with
+    /// The `shape_signature` column ([`crate::columns::signature`]), a job with
     /// `shape_signature = true`.
     pub signature: bool,
-    /// The render columns ([`crate::render_columns`]), a job with `[renders]`.
+    /// The render columns ([`crate::columns::renders`]), a job with `[renders]`.
     pub renders: bool,
 }
 
@@ -51,9 +51,9 @@ impl Sections {
     }
 }
 
-/// [`schema_with`], with the appearance columns ([`crate::attribute_columns`]), the quality
-/// columns ([`crate::quality`]) and then the `shape_signature` column
-/// ([`crate::signature_column`]) after the tensors, as `sections` asks; without them the
+/// [`schema_with`], with the appearance columns ([`crate::columns::attributes`]), the quality
+/// columns ([`crate::row::quality`]) and then the `shape_signature` column
+/// ([`crate::columns::signature`]) after the tensors, as `sections` asks; without them the
 /// schema is exactly [`schema_with`]'s.
 pub fn schema_for(provenance: &[String], sections: Sections) -> SchemaRef {
     use DataType::*;
@@ -84,16 +84,16 @@ pub fn schema_for(provenance: &[String], sections: Sections) -> SchemaRef {
         f.extend(tensor_fields(t));
     }
     if sections.attributes {
-        f.extend(crate::attribute_columns::fields());
+        f.extend(crate::columns::attributes::fields());
     }
     if sections.quality {
-        f.extend(crate::quality_columns::fields());
+        f.extend(crate::columns::quality::fields());
     }
     if sections.signature {
-        f.push(crate::signature_column::field());
+        f.push(crate::columns::signature::field());
     }
     if sections.renders {
-        f.extend(crate::render_columns::fields());
+        f.extend(crate::columns::renders::fields());
     }
     for name in provenance {
         f.push(Field::new(c::provenance_column(name), Utf8, true));
@@ -225,18 +225,18 @@ pub fn rows_to_batch_for(
         cols.extend(tensor_arrays(&ts));
     }
     if sections.attributes {
-        cols.extend(crate::attribute_columns::columns(rows));
+        cols.extend(crate::columns::attributes::columns(rows));
     }
     if sections.quality {
-        cols.extend(crate::quality_columns::columns(rows));
+        cols.extend(crate::columns::quality::columns(rows));
     }
     if sections.signature {
         let signatures: Vec<Option<&[f32]>> =
             rows.iter().map(|r| r.shape_signature.as_deref()).collect();
-        cols.push(crate::signature_column::column(&signatures)?);
+        cols.push(crate::columns::signature::column(&signatures)?);
     }
     if sections.renders {
-        cols.extend(crate::render_columns::columns(rows));
+        cols.extend(crate::columns::renders::columns(rows));
     }
     for name in provenance {
         cols.push(strs(&|r| r.provenance.get(name).map(String::as_str)));
@@ -377,7 +377,7 @@ pub fn batch_to_rows(batch: &RecordBatch) -> Result<Vec<ShardRow>> {
         .collect::<Result<_>>()?;
     let stages = col::<StringArray>(batch, c::TIME_STAGES)?;
     let provenance = provenance_columns(batch)?;
-    let signatures = crate::signature_column::read(batch)?;
+    let signatures = crate::columns::signature::read(batch)?;
     let mut rows = Vec::with_capacity(batch.num_rows());
     for i in 0..batch.num_rows() {
         let normalization = normalization_at(&norm, i);
@@ -400,8 +400,8 @@ pub fn batch_to_rows(batch: &RecordBatch) -> Result<Vec<ShardRow>> {
                 mesh_vertices: read_tensor(batch, "mesh_vertices", i)?,
                 mesh_faces: read_tensor(batch, "mesh_faces", i)?,
                 samples: SampleTensors::from_lookup(|stem| read_tensor(batch, stem, i))?,
-                attributes: crate::attribute_columns::tensors_at(batch, i)?,
-                renders: crate::render_columns::renders_at(batch, i)?,
+                attributes: crate::columns::attributes::tensors_at(batch, i)?,
+                renders: crate::columns::renders::renders_at(batch, i)?,
                 ..t
             }),
             None => None,
@@ -434,8 +434,8 @@ pub fn batch_to_rows(batch: &RecordBatch) -> Result<Vec<ShardRow>> {
                 .iter()
                 .filter_map(|(name, a)| Some((name.clone(), opt_str(a, i)?)))
                 .collect(),
-            appearance: crate::attribute_columns::facts_at(batch, i),
-            quality: crate::quality_columns::facts_at(batch, i),
+            appearance: crate::columns::attributes::facts_at(batch, i),
+            quality: crate::columns::quality::facts_at(batch, i),
             shape_signature: signatures.as_ref().and_then(|s| s[i].clone()),
         });
     }
@@ -596,8 +596,8 @@ pub(crate) mod tests {
         let old = batch_to_rows(&full.project(&keep)?)?;
         assert_eq!(old, rows);
         assert_eq!(
-            crate::digest::rows_digest(&old),
-            crate::digest::rows_digest(&rows)
+            crate::row::digest::rows_digest(&old),
+            crate::row::digest::rows_digest(&rows)
         );
         // Cube columns stay required.
         let no_coords: Vec<usize> = (0..schema.fields().len())

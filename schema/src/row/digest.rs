@@ -44,7 +44,7 @@ pub fn update_row(h: &mut Sha256, row: &ShardRow) {
     match &row.counts {
         Some(k) => {
             h.update([1]);
-            for v in crate::arrow::count_values(k) {
+            for v in crate::columns::arrow::count_values(k) {
                 opt(h, v.map(|x| x.to_le_bytes()).as_ref().map(|b| &b[..]));
             }
         }
@@ -177,7 +177,7 @@ mod tests {
 
     #[test]
     fn digest_ignores_run_dependent_columns_only() {
-        let rows = crate::arrow::tests::sample_rows();
+        let rows = crate::columns::arrow::tests::sample_rows();
         let d = rows_digest(&rows);
         let mut other = rows.clone();
         other[0].timings.total_s = 99.0;
