@@ -109,18 +109,7 @@ pub(crate) fn encode_png(
     colour: png::ColorType,
     data: &[u8],
 ) -> std::io::Result<Vec<u8>> {
-    let mut bytes = Vec::new();
-    {
-        let mut encoder = png::Encoder::new(&mut bytes, width, height);
-        encoder.set_color(colour);
-        encoder.set_depth(png::BitDepth::Eight);
-        let mut writer = encoder.write_header().map_err(std::io::Error::other)?;
-        writer
-            .write_image_data(data)
-            .map_err(std::io::Error::other)?;
-        writer.finish().map_err(std::io::Error::other)?;
-    }
-    Ok(bytes)
+    encode_png_at(width, height, (colour, png::BitDepth::Eight), data)
 }
 
 /// `data` (16-bit samples of `colour`, rows top to bottom) as a PNG file (big-endian
@@ -132,14 +121,24 @@ pub(crate) fn encode_png16(
     data: &[u16],
 ) -> std::io::Result<Vec<u8>> {
     let bytes: Vec<u8> = data.iter().flat_map(|v| v.to_be_bytes()).collect();
+    encode_png_at(width, height, (colour, png::BitDepth::Sixteen), &bytes)
+}
+
+/// `bytes` (samples of `format`'s colour type and depth, rows top to bottom) as a PNG file.
+fn encode_png_at(
+    width: u32,
+    height: u32,
+    format: (png::ColorType, png::BitDepth),
+    bytes: &[u8],
+) -> std::io::Result<Vec<u8>> {
     let mut out = Vec::new();
     {
         let mut encoder = png::Encoder::new(&mut out, width, height);
-        encoder.set_color(colour);
-        encoder.set_depth(png::BitDepth::Sixteen);
+        encoder.set_color(format.0);
+        encoder.set_depth(format.1);
         let mut writer = encoder.write_header().map_err(std::io::Error::other)?;
         writer
-            .write_image_data(&bytes)
+            .write_image_data(bytes)
             .map_err(std::io::Error::other)?;
         writer.finish().map_err(std::io::Error::other)?;
     }
