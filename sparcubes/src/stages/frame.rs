@@ -34,7 +34,7 @@ use crate::params::Params;
 use crate::stages::extract::extract;
 
 /// Conversions after the first, each refitted from the box of the one before.
-const REFITS: usize = 2;
+const REFITS: usize = 3;
 
 /// Room between an end of the source's box and the target in the first conversion, in voxels:
 /// the shell around an open part reaches 0.9 voxel beyond it (`Params::shell_half_thickness`).
@@ -245,10 +245,11 @@ pub fn targets(
         let clear = if a == longest { EDGE_MIN } else { CLEARANCE };
         let from = (c - lo[a].floor() - 1.0).max(hi[a].floor() - c) + clear;
         let to = (c - lo[a].floor()).min(hi[a].floor() + 1.0 - c) - clear;
-        let m = if a == longest {
-            half
-        } else {
-            (0.5 * (hi[a] - lo[a])).clamp(from, to.min(half))
+        let upper = to.min(half);
+        let m = match (a == longest, from <= upper) {
+            (true, _) => half,
+            (false, true) => (0.5 * (hi[a] - lo[a])).clamp(from, upper),
+            (false, false) => upper,
         };
         if !(from <= m && m <= to) || m > half {
             return Err(format!(
