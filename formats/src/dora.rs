@@ -126,8 +126,10 @@ pub fn files(item: &Item) -> Result<ItemExport> {
 /// items' files.
 pub fn listing(items: &[Listed], root: &Path) -> Result<Vec<ExportFile>> {
     split_lists(items, |l| {
+        // Its data module opens every entry as an item's npz: the views beside are not one.
         l.files
             .iter()
+            .filter(|f| !f.starts_with(crate::renders::PLAIN_DIR))
             .map(|f| root.join(f).to_string_lossy().into_owned())
             .collect()
     })

@@ -68,6 +68,17 @@ impl Placement {
         }
     }
 
+    /// Normalized → the grid's coordinates in voxels (`g = (p / 2 + 0.5) · N`,
+    /// `sparcubes::Normalization`): the frame of exports that write grid indices
+    /// (Direct3D-S2's `sparse_index`, cubvh's cells).
+    pub fn grid(resolution: u32) -> Placement {
+        let half = resolution as f64 / 2.0;
+        Placement {
+            factor: half,
+            offset: [half; 3],
+        }
+    }
+
     /// A point moved into the frame.
     #[inline]
     pub fn point(&self, p: [f32; 3]) -> [f64; 3] {

@@ -164,8 +164,32 @@ impl Consumer {
         }
     }
 
-    /// The files of one item, paths relative to the export folder.
+    /// The files of one item, paths relative to the export folder: the consumer's own, and
+    /// for a consumer without a layout of condition views, the item's views in the plain
+    /// multi-view layout ([`renders::plain`]) when the job rendered them.
     pub fn files(self, item: &Item) -> Result<ItemExport> {
+        let mut export = self.own_files(item)?;
+        if let Some(place) = self.plain_views_frame(item) {
+            export.files.extend(renders::plain(item, &place)?);
+        }
+        Ok(export)
+    }
+
+    /// The frame of the geometry a consumer without its own layout of condition views
+    /// writes, for the cameras of [`renders::plain`]; `None` for those with one (Hunyuan3D-2.1,
+    /// Step1X-3D, TRELLIS.2).
+    fn plain_views_frame(self, item: &Item) -> Option<Placement> {
+        match self {
+            Consumer::Dora => Some(item.placement(dora::HALF_EXTENT)),
+            Consumer::Triposg => Some(item.placement(triposg::HALF_EXTENT)),
+            Consumer::Vecset => Some(vecset::placement(item)),
+            Consumer::Direct3dS2 | Consumer::Cubvh => Some(Placement::grid(item.cubes.resolution)),
+            Consumer::Hunyuan3d21 | Consumer::Step1x3d | Consumer::Trellis2 => None,
+        }
+    }
+
+    /// The consumer's own files of one item.
+    fn own_files(self, item: &Item) -> Result<ItemExport> {
         match self {
             Consumer::Hunyuan3d21 => hunyuan3d::files(item),
             Consumer::Dora => dora::files(item),

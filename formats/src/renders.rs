@@ -154,6 +154,22 @@ pub fn files(
     Ok(files)
 }
 
+/// Folder of the plain multi-view layout in an export: `renders/<stem>/`.
+pub const PLAIN_DIR: &str = "renders";
+
+/// An item's views in the plain multi-view layout, for consumers whose own data has no
+/// condition views: `renders/<stem>/000.png …` and `transforms.json` with the cameras in the
+/// frame the export's geometry is written in (`place`, from the normalized frame); nothing
+/// when the job rendered none.
+pub fn plain(item: &crate::Item, place: &Placement) -> Result<Vec<ExportFile>> {
+    let Some(renders) = &item.renders else {
+        return Ok(Vec::new());
+    };
+    let dir = Path::new(PLAIN_DIR).join(item.stem);
+    let to_export = SourceToExport::through(place, &item.cubes.normalization);
+    files(renders, &dir, to_export, &three_digits)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -17,7 +17,7 @@ pub const ABOUT: &str = "TripoSG: <item>.npy (pickled dict: surface_points, surf
 /// Rows its VAE script draws.
 const SURFACE_ROWS: usize = 204_800;
 /// Half extent of the longest side in its frame.
-const HALF_EXTENT: f64 = 1.0;
+pub(crate) const HALF_EXTENT: f64 = 1.0;
 
 /// The `[samples]` counts it needs.
 pub fn missing(samples: Option<&SampleParams>) -> Vec<String> {

@@ -18,12 +18,21 @@ pub fn missing(samples: Option<&SampleParams>) -> Vec<String> {
     missing_needs(samples, |_| Vec::new())
 }
 
+/// Where the item's points are written: the source's frame, else the normalized one.
+pub(crate) fn placement(item: &Item) -> Placement {
+    match item.frame {
+        Frame::Source => Placement::to_source(&item.cubes.normalization),
+        _ => Placement::IDENTITY,
+    }
+}
+
 /// One `<stem>.npz` with the item's samples in `item.frame`.
 pub fn files(item: &Item) -> Result<ItemExport> {
     let s = item.stored_samples()?;
-    let (place, width) = match item.frame {
-        Frame::Source => (Placement::to_source(&item.cubes.normalization), Width::F32),
-        _ => (Placement::IDENTITY, stored_width(s.params.dtype)),
+    let place = placement(item);
+    let width = match item.frame {
+        Frame::Source => Width::F32,
+        _ => stored_width(s.params.dtype),
     };
     let points =
         |name: &str, v: &[[f32; 3]]| floats(name, vec![v.len(), 3], &placed(v, &place), width);

@@ -123,6 +123,29 @@ pub(crate) fn encode_png(
     Ok(bytes)
 }
 
+/// `data` (16-bit samples of `colour`, rows top to bottom) as a PNG file (big-endian
+/// samples, as PNG stores them).
+pub(crate) fn encode_png16(
+    width: u32,
+    height: u32,
+    colour: png::ColorType,
+    data: &[u16],
+) -> std::io::Result<Vec<u8>> {
+    let bytes: Vec<u8> = data.iter().flat_map(|v| v.to_be_bytes()).collect();
+    let mut out = Vec::new();
+    {
+        let mut encoder = png::Encoder::new(&mut out, width, height);
+        encoder.set_color(colour);
+        encoder.set_depth(png::BitDepth::Sixteen);
+        let mut writer = encoder.write_header().map_err(std::io::Error::other)?;
+        writer
+            .write_image_data(&bytes)
+            .map_err(std::io::Error::other)?;
+        writer.finish().map_err(std::io::Error::other)?;
+    }
+    Ok(out)
+}
+
 /// A mesh ready for ray casting ([`sparc3d_raycast::Scene`]) with its corners for shading.
 pub struct Scene {
     /// The BVH over the mesh's triangles.

@@ -55,6 +55,10 @@ pub const RENDER_SECONDS: &str = "render_seconds";
 /// The views' `transforms.json` (`utf8`): cameras in Blender's Z-up world, as the
 /// consumer's own render script writes it (docs/RENDERS.md).
 pub const RENDER_TRANSFORMS: &str = "render_transforms";
+/// What of the source's appearance the views could not draw (`utf8`, one entry a line, empty
+/// when all was read; absent from shards written before it): a texture that is missing, or an
+/// appearance that could not be read at all (then drawn in the plain grey).
+pub const RENDER_NOT_READ: &str = "render_not_read";
 /// Seconds loading the file (`f64`).
 pub const TIME_LOAD: &str = "time_load_s";
 /// Seconds converting (`f64`).

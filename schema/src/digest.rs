@@ -134,6 +134,13 @@ pub fn update_row(h: &mut Sha256, row: &ShardRow) {
             field(h, &v.png);
         }
         field(h, r.transforms.as_bytes());
+        // Views that drew all of the appearance digest as before the column existed.
+        if !r.not_read.is_empty() {
+            field(h, crate::columns::RENDER_NOT_READ.as_bytes());
+            for entry in &r.not_read {
+                field(h, entry.as_bytes());
+            }
+        }
     }
     // Rows without provenance leave the digest as it was before provenance columns existed.
     if !row.provenance.is_empty() {

@@ -15,7 +15,8 @@ use arrow_schema::{DataType, Field};
 use std::sync::Arc;
 
 /// The render columns' fields, in order: views (`list<large_binary>`, a PNG each), seconds
-/// (`list<float64>`) and `transforms.json` (`utf8`); null in rows without renders.
+/// (`list<float64>`), `transforms.json` and what was not read (`utf8`); null in rows without
+/// renders.
 pub fn fields() -> Vec<Field> {
     let png = Arc::new(Field::new("item", DataType::LargeBinary, true));
     let seconds = Arc::new(Field::new("item", DataType::Float64, true));
@@ -23,6 +24,7 @@ pub fn fields() -> Vec<Field> {
         Field::new(c::RENDER_VIEWS, DataType::List(png), true),
         Field::new(c::RENDER_SECONDS, DataType::List(seconds), true),
         Field::new(c::RENDER_TRANSFORMS, DataType::Utf8, true),
+        Field::new(c::RENDER_NOT_READ, DataType::Utf8, true),
     ]
 }
 
@@ -55,10 +57,15 @@ pub fn columns(rows: &[ShardRow]) -> Vec<ArrayRef> {
         .iter()
         .map(|row| renders_of(row).map(|r| r.transforms.as_str()))
         .collect();
+    let not_read: Vec<Option<String>> = rows
+        .iter()
+        .map(|row| renders_of(row).map(|r| r.not_read.join("\n")))
+        .collect();
     vec![
         Arc::new(views.finish()),
         Arc::new(seconds),
         Arc::new(StringArray::from(transforms)),
+        Arc::new(StringArray::from(not_read)),
     ]
 }
 
@@ -116,7 +123,22 @@ pub fn renders_at(batch: &RecordBatch, i: usize) -> Result<Option<RowRenders>> {
     Ok(Some(RowRenders {
         views,
         transforms: transforms.value(i).to_string(),
+        not_read: not_read_at(batch, i),
     }))
+}
+
+/// Row `i`'s `render_not_read` entries: none when the column is absent (a shard written
+/// before it) or empty.
+fn not_read_at(batch: &RecordBatch, i: usize) -> Vec<String> {
+    batch
+        .column_by_name(c::RENDER_NOT_READ)
+        .and_then(|a| a.as_any().downcast_ref::<StringArray>())
+        .filter(|a| a.is_valid(i))
+        .map(|a| a.value(i))
+        .filter(|text| !text.is_empty())
+        .map_or(Vec::new(), |text| {
+            text.split('\n').map(str::to_string).collect()
+        })
 }
 
 #[cfg(test)]
@@ -136,6 +158,10 @@ mod tests {
                 })
                 .collect(),
             transforms: "{\"frames\": []}".into(),
+            not_read: vec![
+                "texture a.png: not found".into(),
+                "texture b.png: too large".into(),
+            ],
         };
         if let Some(t) = rows[0].tensors.as_mut() {
             t.renders = Some(renders.clone());
@@ -165,20 +191,53 @@ mod tests {
 
     #[test]
     fn the_digest_covers_each_views_bytes_and_transforms_but_not_its_seconds() {
-        let with = |png: Vec<u8>, seconds: f64, transforms: &str| {
+        let with_not_read = |png: Vec<u8>, seconds: f64, transforms: &str, not_read: &[&str]| {
             let mut rows = sample_rows();
             if let Some(t) = rows[0].tensors.as_mut() {
                 t.renders = Some(RowRenders {
                     views: vec![RenderedView { png, seconds }],
                     transforms: transforms.into(),
+                    not_read: not_read.iter().map(|s| s.to_string()).collect(),
                 });
             }
             crate::digest::rows_digest(&rows)
         };
+        let with = |png, seconds, transforms| with_not_read(png, seconds, transforms, &[]);
         let base = with(vec![1, 2, 3], 0.5, "{}");
         assert_eq!(with(vec![1, 2, 3], 9.0, "{}"), base);
         assert_ne!(with(vec![1, 2, 4], 0.5, "{}"), base);
         assert_ne!(with(vec![1, 2, 3], 0.5, "{ }"), base);
         assert_ne!(crate::digest::rows_digest(&sample_rows()), base);
+        let missing = with_not_read(vec![1, 2, 3], 0.5, "{}", &["texture a.png: not found"]);
+        assert_ne!(missing, base);
+    }
+
+    #[test]
+    fn a_shard_written_before_render_not_read_reads_with_nothing_named() -> crate::Result<()> {
+        let mut rows = sample_rows();
+        if let Some(t) = rows[0].tensors.as_mut() {
+            t.renders = Some(RowRenders {
+                views: vec![RenderedView {
+                    png: vec![7; 4],
+                    seconds: 0.1,
+                }],
+                transforms: "{}".into(),
+                not_read: vec!["texture a.png: not found".into()],
+            });
+        }
+        let on = Sections {
+            renders: true,
+            ..Sections::default()
+        };
+        let batch = rows_to_batch_for(&rows, &[], on)?;
+        let keep: Vec<usize> = (0..batch.num_columns())
+            .filter(|&i| batch.schema().field(i).name() != "render_not_read")
+            .collect();
+        let older = batch.project(&keep).map_err(crate::SchemaError::Arrow)?;
+        let back = batch_to_rows(&older)?;
+        let renders = back[0].tensors.as_ref().and_then(|t| t.renders.as_ref());
+        assert_eq!(renders.map(|r| r.not_read.len()), Some(0));
+        assert_eq!(renders.map(|r| r.views.len()), Some(1));
+        Ok(())
     }
 }

@@ -85,6 +85,9 @@ pub struct RowRenders {
     pub views: Vec<RenderedView>,
     /// `transforms.json` of the views (cameras in Blender's Z-up world).
     pub transforms: String,
+    /// What of the source's appearance the views could not draw ([`crate::columns::RENDER_NOT_READ`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub not_read: Vec<String>,
 }
 
 /// One stored view. The serde form leaves the PNG out (it travels beside the JSON as a

@@ -177,3 +177,36 @@ def test_renders_take_the_presets_recipe_and_a_job_without_them_keeps_its_finger
     assert made["rendered"]["fingerprint"] != made["preset"]["fingerprint"]
     assert made["trellis2"]["config"]["renders"]["views"] == 16
     assert made["trellis2"]["config"]["renders"]["size"] == 1024
+
+
+def own_surface(fmt, out, stem):
+    """The export's own points of an item, in its frame: Dora's surface block, TripoSG's
+    surface points, the vecset npz's surface points, cubvh's active cells' centres."""
+    if fmt == "dora":
+        return np.load(out / f"{stem}.npz")["fps_coarse_surface"].reshape(-1, 6)[:, :3]
+    if fmt == "triposg":
+        return np.load(out / f"{stem}.npy", allow_pickle=True).item()["surface_points"]
+    if fmt == "vecset-npz":
+        return np.load(out / f"{stem}.npz")["surface_points"]
+    data = np.load(out / f"{stem}.npz")
+    n = int(data["resolution"])
+    cells = data["active_cells"].astype(np.int64)
+    return np.stack([cells // (n * n), cells // n % n, cells % n], axis=1) + 0.5
+
+
+@pytest.mark.parametrize("fmt", ["dora", "triposg", "vecset-npz", "cubvh"])
+def test_the_other_formats_carry_the_views_in_the_plain_layout_in_their_own_frame(
+        job, tmp_path, fmt):
+    out = tmp_path / fmt
+    exported(job, fmt, out)
+    meshes = sources(job)
+    folders = sorted((out / "renders").iterdir())
+    assert len(folders) == len(MESHES)
+    for folder in folders:
+        stem = folder.name
+        (rid,) = [k for k in meshes if k in stem or stem.endswith(k[:12])]
+        surface = np.asarray(own_surface(fmt, out, stem), dtype=np.float64)
+        check_views(folder, meshes[rid], [f"{i:03d}.png" for i in range(24)], surface)
+    if fmt == "dora":
+        listed = json.loads((out / "train.json").read_text())
+        assert listed and not any("/renders/" in p for p in listed), listed[:3]

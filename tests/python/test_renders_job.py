@@ -164,3 +164,32 @@ def test_the_report_shows_each_previewed_items_views_on_white(job, tmp_path):
         background = (px == 255).all(axis=1).mean()
         assert 0.05 < background < 0.995, f"on white, with the asset in it ({background:.3f})"
     assert html.count(f"{VIEWS} views, ") == len(NAMES)
+
+
+def test_a_missing_texture_is_named_in_the_row_and_the_item_is_rendered_in_its_colour(tmp_path):
+    """A renders-only job (no `[attributes]`) over an OBJ whose material names a texture that
+    is not there: the item is ok, its views drawn in the material's colour, and the texture
+    named in `render_not_read`; the examples read whole have nothing named."""
+    (tmp_path / "box.obj").write_text(
+        "mtllib box.mtl\n" + "".join(f"v {x} {y} {z}\n" for z in (0, 1) for y in (0, 1)
+                                     for x in (0, 1))
+        + "usemtl skin\nf 1 3 4 2\nf 5 6 8 7\nf 1 2 6 5\nf 2 4 8 6\nf 4 3 7 8\nf 3 1 5 7\n")
+    (tmp_path / "box.mtl").write_text("newmtl skin\nKd 0.8 0.1 0.1\nmap_Kd missing.png\n")
+    manifest = tmp_path / "m.csv"
+    manifest.write_text(f"path\n{tmp_path / 'box.obj'}\n{EXAMPLES / 'box_textured.glb'}\n")
+    config = tmp_path / "job.toml"
+    config.write_text("[renders]\nenabled = true\nviews = 2\nsize = 48\n")
+    job = tmp_path / "job"
+    run("init", job, "--manifest", manifest, "--resolution", 32, "--config", config)
+    run("run", job, "--workers", "1")
+    by_name = {pathlib.Path(r["uri"]).name: r for r in rows(job)}
+    box, glb = by_name["box.obj"], by_name["box_textured.glb"]
+    assert box["status"] == "ok" and glb["status"] == "ok"
+    assert "missing.png" in box["render_not_read"], box["render_not_read"]
+    assert glb["render_not_read"] == ""
+    from PIL import Image
+    import io
+    with Image.open(io.BytesIO(box["render_views"][0])) as im:
+        px = np.asarray(im).reshape(-1, 4)
+    red = px[px[:, 3] == 255][:, :3].astype(int)
+    assert len(red) and (red[:, 0] > red[:, 1] + 60).mean() > 0.9, "not in the material's red"

@@ -82,19 +82,38 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--hold-out-seed", type=int, metavar="S", help="their seed (train.hold_out_seed)")
     _device(p)
 
-    p = sub.add_parser("encode", help="write the latents of a job's items as Parquet shards",
+    p = sub.add_parser("encode", help="write the latents of a job's items as Parquet shards, "
+                       "or into a TRELLIS.2 export",
                        description="Encode every ok item of the jobs (the posterior mean and "
                        "log-variance on the latent grid) into LATENTS/part-NNNNN.parquet, "
-                       "readable with sparc3d_reader.iter_tensor_rows.")
+                       "readable with sparc3d_reader.iter_tensor_rows. With --format trellis2, "
+                       "EXPORT is a `sparc3d export --format trellis2` folder of the same job: "
+                       "each of its items' latent (the mean) goes to "
+                       "EXPORT/<key>s/<name>/<sha256>.npz (coords, feats) with that folder's "
+                       "metadata.csv (<key>_encoded, <key>_tokens), normalization.json (per-"
+                       "channel mean and std over the export, for the config's "
+                       "dataset.args.normalization) and data_dir.json's <key> entry: what "
+                       "TRELLIS.2's SLat dataset reads (docs/VAE.md).")
     _ckpt(p)
-    p.add_argument("--out", type=Path, required=True, metavar="LATENTS")
+    p.add_argument("--out", type=Path, required=True, metavar="LATENTS|EXPORT")
+    p.add_argument("--format", choices=["parquet", "trellis2"], default="parquet",
+                   help="parquet: latent shards in LATENTS (the default); trellis2: into the "
+                   "TRELLIS.2 export EXPORT, keyed by its sha256s")
+    p.add_argument("--latent-key", default="shape_latent", metavar="KEY",
+                   help="with --format trellis2: SLat's latent_key, the data_dir.json entry and "
+                   "the metadata columns' prefix (shape_latent, what SLatShape reads)")
+    p.add_argument("--latent-name", metavar="NAME",
+                   help="with --format trellis2: the folder under EXPORT/<KEY>s/ (default "
+                   "sparc3d_vae_<checkpoint digest>_<G>)")
     _device(p)
     _budget(p)
 
     p = sub.add_parser("decode", help="decode latents to meshes",
                        description="Decode latents (their mean) to pruned sparse cubes, extract "
                        "each mesh with `sparc3d extract` and close its holes (paper §3.4): "
-                       "MESHES/<id>.ply.")
+                       "MESHES/<id>.ply. LATENTS: the Parquet shards of `encode`, or npz "
+                       "latents in TRELLIS.2's layout (one .npz, or a folder of them such as "
+                       "`encode --format trellis2` writes; --id takes an id or a sha256).")
     _ckpt(p, data=False)
     p.add_argument("--latents", type=Path, required=True, metavar="LATENTS")
     which = p.add_mutually_exclusive_group(required=True)
@@ -102,6 +121,14 @@ def parser() -> argparse.ArgumentParser:
     which.add_argument("--all", action="store_true", help="every item of LATENTS")
     p.add_argument("--out", type=Path, required=True, metavar="MESHES")
     p.add_argument("--no-fill-holes", action="store_true", help="keep the extracted mesh as is")
+    p.add_argument("--normalized-by", type=Path, metavar="normalization.json",
+                   help="npz latents whose feats are normalised, (feats - mean) / std, such as "
+                   "a sample of TRELLIS.2's flow: un-normalised with this file's mean and std "
+                   "(the normalization.json beside the export's latents) before decoding")
+    p.add_argument("--resolution", type=int, metavar="N",
+                   help="the job grid of npz latents that carry none (a flow's sample: "
+                   "`resolution` in the latent folder's .sparc3d-latents.json); their mesh is "
+                   "written in that grid's [-0.5, 0.5] frame")
     _device(p)
     _budget(p)
     _sparc3d(p)
@@ -165,6 +192,7 @@ def main(argv: Optional[List[str]] = None) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     from . import infer, train
+    from .runtime import UsageError
 
     if args.command == "train":
         summary = train.train(args.data, args.out, args.config, args.steps, args.device,
@@ -181,13 +209,18 @@ def _run(args: argparse.Namespace) -> int:
         print(f"{summary['cells_per_second']:.0f} cells/s on {summary['world_size']} process(es)"
               + (f"; peak GPU memory {peak / 2**30:.2f} GiB (rank 0)" if peak is not None else ""))
     elif args.command == "encode":
+        if args.format == "trellis2":
+            return _encode_trellis2(args)
+        if args.latent_name is not None or args.latent_key != "shape_latent":
+            raise UsageError("--latent-key and --latent-name are for --format trellis2")
         s = infer.encode(args.ckpt, args.data, args.out, args.device, args.max_cells)
         print(f"{s['items']} items encoded into {s['shards']} shard(s) in {args.out}; "
               f"{s['latent_voxels_mean']:.1f} latent voxels × {s['latent_channels']} channels "
               "per item on average")
     elif args.command == "decode":
         rows = infer.decode(args.ckpt, args.latents, None if args.all else args.id, args.out,
-                            args.device, not args.no_fill_holes, args.sparc3d, args.max_cells)
+                            args.device, not args.no_fill_holes, args.sparc3d, args.max_cells,
+                            args.normalized_by, args.resolution)
         for r in rows:
             if "error" in r:
                 print(f"error: {r['error']}", file=sys.stderr)
@@ -204,6 +237,23 @@ def _run(args: argparse.Namespace) -> int:
                        args.sparc3d, args.max_cells, args.eval_samples)
         print((args.out / "summary.md").read_text())
     return 0
+
+
+def _encode_trellis2(args: argparse.Namespace) -> int:
+    """`encode --format trellis2`: its summary, each failed item on stderr (exit 1 if any)."""
+    from . import trellis2_latents
+
+    s = trellis2_latents.encode(args.ckpt, args.data, args.out, args.device, args.max_cells,
+                                args.latent_key, args.latent_name)
+    for f in s["failed"]:
+        print(f"error: {f['id']} (sha256 {f['sha256']}): {f['error']}", file=sys.stderr)
+    print(f"{s['items']} items of {args.out} encoded into {s['folder']} "
+          f"({s['tokens_mean']:.1f} tokens × {s['latent_channels']} channels on average, latent "
+          f"grid {s['latent_grid']}); data_dir.json lists it as {s['latent_key']!r}; "
+          f"normalization.json beside it"
+          + (f"; {s['not_exported']} ok items of the job(s) are not in the export"
+             if s["not_exported"] else ""))
+    return 1 if s["failed"] else 0
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -5,6 +5,8 @@ The commands' code lives in modules by role, all re-exported here:
 - `loaded`: a checkpoint ready to run (`Loaded`): model, device, cell budget, batches;
 - `latents`: latent shards, written by `encode` and read back for `decode` (their columns
   there);
+- `trellis2_latents`: latents in TRELLIS.2's structured-latent layout inside a `sparc3d export
+  --format trellis2` folder (`encode --format trellis2`), read back for `decode`;
 - `meshes`: decoded cubes to meshes through `sparc3d extract` (`decode`, `reconstruct`);
 - `evaluation`: `evaluate`, with `sampling` (which items), `pieces` (the pieces' bar),
   `aggregate` (over the items) and `eval_report` (summary.md).

@@ -1,6 +1,7 @@
 """Decoded cubes to meshes: the cubes go to the Rust extractor through a tensor file
-(`sparc3d extract --close`). `decode` meshes latents, `reconstruct` one item of a job (encode →
-decode → extract); an item that fails gets an `error` in its summary and the others go on.
+(`sparc3d extract --close`). `decode` meshes latents (Parquet shards, or npz in TRELLIS.2's
+layout), `reconstruct` one item of a job (encode → decode → extract); an item that fails gets
+an `error` in its summary and the others go on.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from typing import Any, Dict, List, Optional, Sequence
 import numpy as np
 
 from .data import Cubes, Sample, cubes_row, write_cubes
+from . import trellis2_latents as t2
 from .latents import read_latents
 from .loaded import Loaded
 from .runtime import UsageError, find_sparc3d, run_sparc3d
@@ -52,18 +54,55 @@ def _extract_decoded(binary: str, cubes_file: Path, item_id: str, cubes: Cubes, 
 
 
 def decode(ckpt: Path, latents: Path, ids: Optional[List[str]], out: Path, device: str,
-           fill_holes: bool, sparc3d: Optional[str], max_cells: Optional[int] = None) -> List[Dict[str, Any]]:
-    """Decodes latents (of `ids`, or all) to meshes `out/<id>.ply` through `sparc3d extract`;
-    an item that fails gets an `error` in its summary and the others go on."""
+           fill_holes: bool, sparc3d: Optional[str], max_cells: Optional[int] = None,
+           normalized_by: Optional[Path] = None,
+           resolution: Optional[int] = None) -> List[Dict[str, Any]]:
+    """Decodes latents (of `ids`, or all) to meshes `out/<id>.ply` through `sparc3d extract`:
+    Parquet latent shards of `encode`, or npz latents in TRELLIS.2's layout (`encode --format
+    trellis2`, or a flow's sample; `normalized_by` un-normalises them, `resolution` gives a
+    bare sample its grid: `trellis2_latents.npz_row`). An item that fails gets an `error` in
+    its summary and the others go on."""
     binary = find_sparc3d(sparc3d)
     loaded = Loaded(ckpt, device, max_cells)
-    rows = read_latents(latents, ids, loaded)
+    if t2.is_npz_latents(latents):
+        entries = _npz_entries(latents, ids, loaded, normalized_by, resolution)
+        per_pass = 1  # one item per pass, as `encode --format trellis2` and `reconstruct`
+    else:
+        if normalized_by is not None or resolution is not None:
+            raise UsageError(f"{latents}: --normalized-by and --resolution are for npz latents "
+                             "(TRELLIS.2's layout); Parquet latents carry their item's frame "
+                             "and are not normalised")
+        entries = read_latents(latents, ids, loaded)
+        per_pass = loaded.cfg.train.batch_size
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    rows = [e for e in entries if "error" not in e]
+    meshed = iter(_decode_rows(loaded, binary, rows, out, fill_holes, per_pass))
+    return [e if "error" in e else next(meshed) for e in entries]
+
+
+def _npz_entries(latents: Path, ids: Optional[List[str]], loaded: Loaded,
+                 normalized_by: Optional[Path], resolution: Optional[int]) -> List[Dict[str, Any]]:
+    """A latent row per npz, or `{"id", "error"}` for a file that cannot be decoded."""
+    stats = (t2.read_stats(normalized_by, loaded.cfg.model.latent_channels)
+             if normalized_by is not None else None)
+    entries = []
+    for path in t2.npz_paths(latents, ids):
+        try:
+            entries.append(t2.npz_row(path, loaded, stats, resolution))
+        except UsageError as e:  # one bad file does not stop the others
+            entries.append({"id": path.stem, "error": str(e)})
+    return entries
+
+
+def _decode_rows(loaded: Loaded, binary: str, rows: Sequence[Dict[str, Any]], out: Path,
+                 fill_holes: bool, per_pass: int) -> List[Dict[str, Any]]:
+    """Latent rows (`coords`, `mean` and the item's frame) decoded `per_pass` at a time and
+    meshed to `out/<id>.ply`; one summary per row, in order."""
     results = []
     with tempfile.TemporaryDirectory() as tmp:
-        for start in range(0, len(rows), loaded.cfg.train.batch_size):
-            chunk = rows[start:start + loaded.cfg.train.batch_size]
+        for start in range(0, len(rows), per_pass):
+            chunk = rows[start:start + per_pass]
             cubes = loaded.decode(chunk)
             file = Path(tmp) / f"cubes-{start}.parquet"
             meta = [{"resolution": r["resolution"], "scale": r["scale"],

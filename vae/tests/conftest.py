@@ -22,9 +22,9 @@ from sparc3d_cli import run, sparc3d_bin  # noqa: E402
 MESHES = ["sphere.obj", "wuson.stl"]
 
 
-def make_job(tmp, resolution, names=MESHES, deform=False):
+def make_job(tmp, resolution, names=MESHES, deform=False, preset=None):
     """A converted job of the bundled example meshes at `resolution` (with the deformation
-    stored when `deform`)."""
+    stored when `deform`), or made for a consumer with `--for preset` (resolution None)."""
     meshes = tmp / "meshes"
     meshes.mkdir()
     for name in names:
@@ -33,7 +33,8 @@ def make_job(tmp, resolution, names=MESHES, deform=False):
     job = tmp / "job"
     config = tmp / "job.toml"
     config.write_text(f"[params]\ndeform = {'true' if deform else 'false'}\n")
-    run("init", job, "--manifest", tmp / "m.jsonl", "--resolution", resolution, "--config", config)
+    grid = ["--for", preset] if preset else ["--resolution", resolution]
+    run("init", job, "--manifest", tmp / "m.jsonl", *grid, "--config", config)
     run("run", job, "--workers", 1)
     return job
 

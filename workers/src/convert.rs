@@ -387,10 +387,10 @@ fn appearance_products(
     let t = Instant::now();
     let budget = steps.attributes.unwrap_or_default();
     let read = sparcubes::materials::read_within(source.bytes, source.path, source.buffers, budget);
-    let appearance = match read {
-        Ok(a) => Some(a),
+    let (appearance, read_error) = match read {
+        Ok(a) => (Some(a), None),
         Err(e) if steps.attributes.is_some() => return Err(StageError::Attributes(e)),
-        Err(_) => None,
+        Err(e) => (None, Some(e)),
     };
     let attributes = appearance
         .as_ref()
@@ -403,18 +403,21 @@ fn appearance_products(
         });
     let renders = match &steps.renders {
         Some(request) => {
+            let not_read = match (&read_error, &appearance) {
+                (Some(e), _) => vec![format!(
+                    "the appearance could not be read ({e}): the views are in the plain grey"
+                )],
+                (None, Some(a)) => a.facts.not_read.clone(),
+                (None, None) => Vec::new(),
+            };
             let coloured = appearance.and_then(asset::with_colours);
             let since = match steps.attributes {
                 Some(_) => Instant::now(),
                 None => t,
             };
-            Some(renders_of(
-                source,
-                coloured.as_ref(),
-                request,
-                since,
-                seconds,
-            )?)
+            let mut views = renders_of(source, coloured.as_ref(), request, since, seconds)?;
+            views.not_read = not_read;
+            Some(views)
         }
         None => None,
     };
@@ -447,6 +450,7 @@ fn renders_of(
             .map(|(png, seconds)| RenderedView { png, seconds })
             .collect(),
         transforms: views.transforms,
+        not_read: Vec::new(),
     })
 }
 
@@ -643,6 +647,7 @@ fn render_request(
         views: config.views,
         size: config.size,
         seed: asset::seed_of(head, config.seed),
+        passes: Default::default(),
     }))
 }
 

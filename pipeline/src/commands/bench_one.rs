@@ -208,5 +208,6 @@ fn render_request(
         views: None,
         size: None,
         seed: super::render::item_seed(&bytes, 0),
+        passes: Default::default(),
     })
 }

@@ -13,6 +13,7 @@ mod export_debris;
 pub mod extract;
 pub mod failures;
 pub mod fill_holes;
+pub mod generate;
 pub mod init;
 pub mod inspect;
 pub mod item_worker;
@@ -104,6 +105,9 @@ enum Command {
     Render(render::Args),
     /// Write one static HTML page about a job: status, histograms, previews, failures.
     Report(report::Args),
+    /// Write the man page, the shell completions (bash, zsh, fish) or the command reference
+    /// (docs/CLI.md), all from the definitions `--help` prints.
+    Generate(generate::Args),
     /// Benchmark conversion over a folder or manifest: time per stage, peak memory, size.
     Bench(bench::Args),
     /// Benchmark `dedup`'s grouping on N synthetic shape signatures (default a million).
@@ -142,6 +146,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Preview(args) => preview::run(args),
         Command::Render(args) => render::run(args),
         Command::Report(args) => report::run(args),
+        Command::Generate(args) => generate::run(args),
         Command::Bench(args) => bench::run(args),
         Command::BenchDedup(args) => bench_dedup::run(args),
         Command::BenchOne(args) => bench_one::run(args),

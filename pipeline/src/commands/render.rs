@@ -1,10 +1,11 @@
-//! `sparc3d render MESH -o DIR [--for trellis|trellis2]`: the condition views of one asset as
-//! the consumer's own Blender script would lay them out (`000.png …` RGBA and
-//! `transforms.json`), traced on the CPU (`sparc3d_render::cond`, docs/RENDERS.md). The
+//! `sparc3d render MESH -o DIR [--for trellis|trellis2] [--passes normal,depth,albedo,mask]`:
+//! the condition views of one asset as the consumer's own Blender script would lay them out
+//! (`000.png …` RGBA, `NNN_<pass>.png` beside them, and `transforms.json`), traced on the CPU (`sparc3d_render::cond`, docs/RENDERS.md). The
 //! cameras' random draws are seeded from the file's sha256 (and `--seed`), so the same file
 //! gives the same bytes.
 
 use anyhow::{bail, Context, Result};
+use sparc3d_render::cond::passes::{Pass, PassSet};
 use sparc3d_render::cond::{asset, Recipe, Request};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -33,6 +34,20 @@ pub struct Args {
     /// Draw the plain grey surface even when the source has colours.
     #[arg(long)]
     pub no_colours: bool,
+    /// Passes to write beside each view, comma-separated: `normal` (16-bit RGBA of
+    /// (n + 1)/2, Blender's Z-up world), `depth` (16-bit grey over the frame's `depth` range
+    /// in transforms.json), `albedo` (base colour before lighting, RGBA), `mask` (alpha as
+    /// grey); files `NNN_<pass>.png` as TRELLIS's render script names them.
+    #[arg(long, value_delimiter = ',', value_parser = parse_pass)]
+    pub passes: Vec<Pass>,
+}
+
+/// A pass a flag names; the error lists them.
+fn parse_pass(name: &str) -> std::result::Result<Pass, String> {
+    Pass::named(name).ok_or_else(|| {
+        let known: Vec<&str> = Pass::ALL.iter().map(|(n, _)| *n).collect();
+        format!("no render pass {name:?}: one of {}", known.join(", "))
+    })
 }
 
 /// The render recipe a flag names (`trellis`, `trellis2`); the error lists them.
@@ -73,6 +88,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         views: args.views,
         size: args.size,
         seed: item_seed(&bytes, args.seed),
+        passes: PassSet::of(&args.passes),
     };
     let views = asset::render_asset(&mesh, appearance.as_ref(), &request)
         .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
@@ -103,6 +119,10 @@ fn write(dir: &std::path::Path, views: &asset::AssetViews) -> Result<()> {
     for (i, png) in views.pngs.iter().enumerate() {
         let file = dir.join(format!("{i:03}.png"));
         sparc3d_workers::fsutil::write_atomic(&file, png, "writing a view")?;
+        for (pass, png) in views.passes.get(i).into_iter().flatten() {
+            let file = dir.join(pass.file_name(i));
+            sparc3d_workers::fsutil::write_atomic(&file, png, "writing a pass")?;
+        }
     }
     let file = dir.join("transforms.json");
     sparc3d_workers::fsutil::write_atomic(

@@ -3,6 +3,7 @@
 //! workers (`[renders]`) both go through [`render_asset`], so the same source and seed give
 //! the same bytes from either.
 
+use super::passes::{self, Pass};
 use super::{render_views, transforms_json, Placement, Request, Surface};
 use sparcubes::materials::Appearance;
 use sparcubes::TriMesh;
@@ -12,6 +13,8 @@ use sparcubes::TriMesh;
 pub struct AssetViews {
     /// Each view as an 8-bit RGBA PNG, in view order (`000.png`, `001.png`, …).
     pub pngs: Vec<Vec<u8>>,
+    /// Each view's passes asked for (`Request::passes`), as PNGs, in [`Pass::ALL`]'s order.
+    pub passes: Vec<Vec<(Pass, Vec<u8>)>>,
     /// Seconds spent tracing each view (reading and encoding excluded).
     pub seconds: Vec<f64>,
     /// `transforms.json` ([`transforms_json`]), in Blender's Z-up world.
@@ -72,6 +75,22 @@ pub fn render_asset(
                 .map_err(|e| format!("encoding view {i:03} as PNG: {e}"))
         })
         .collect::<Result<Vec<_>, _>>()?;
+    let passes = views
+        .iter()
+        .enumerate()
+        .map(|(i, v)| {
+            request
+                .passes
+                .iter()
+                .map(|p| {
+                    Ok((
+                        p,
+                        passes::encode(p, v).map_err(|e| format!("view {i:03}: {e}"))?,
+                    ))
+                })
+                .collect::<Result<Vec<_>, String>>()
+        })
+        .collect::<Result<Vec<_>, _>>()?;
     let empty = views
         .iter()
         .enumerate()
@@ -80,6 +99,7 @@ pub fn render_asset(
         .collect();
     Ok(AssetViews {
         pngs,
+        passes,
         seconds: views.iter().map(|v| v.seconds).collect(),
         transforms: transforms_json(&placement, &views),
         size: views.first().map_or(0, |v| v.image.size),
@@ -98,6 +118,7 @@ mod tests {
             views: Some(3),
             size: Some(48),
             seed,
+            passes: Default::default(),
         }
     }
 

@@ -15,6 +15,7 @@
 pub mod asset;
 pub mod cameras;
 pub mod lights;
+pub mod passes;
 pub mod picture;
 pub mod rng;
 pub mod thumbnail;
@@ -22,7 +23,8 @@ pub mod thumbnail;
 use cameras::{PerspectiveCamera, View};
 use glam::{DVec3, Vec3A};
 use lights::Lights;
-use picture::RgbaImage;
+use passes::{Pass, PassSet};
+use picture::{PassData, RgbaImage};
 use rng::SplitMix64;
 use sparc3d_raycast::Scene;
 use sparcubes::attributes::shade::Shader;
@@ -188,6 +190,10 @@ pub struct RenderedView {
     pub camera: PerspectiveCamera,
     /// The RGBA picture.
     pub image: RgbaImage,
+    /// What the passes asked for need of its rays ([`passes`]).
+    pub passes: PassData,
+    /// What 0 and 65535 of its depth pass stand for, when one was asked for.
+    pub depth_range: Option<[f64; 2]>,
     /// Seconds spent tracing it.
     pub seconds: f64,
 }
@@ -203,6 +209,8 @@ pub struct Request {
     pub size: Option<u32>,
     /// The item's seed: every random draw of its cameras and lights comes from it.
     pub seed: u64,
+    /// The passes to render beside each view ([`passes`]; none by default).
+    pub passes: PassSet,
 }
 
 /// Renders the views `request` asks for of `surface`, placed by `placement`.
@@ -223,11 +231,17 @@ pub fn render_views(surface: &Surface<'_>, request: &Request) -> Vec<RenderedVie
             };
             let camera = PerspectiveCamera::of_view(&view);
             let start = std::time::Instant::now();
-            let image = picture::trace(surface, &camera, &lights, size);
+            let (image, passes) =
+                picture::trace_with(surface, &camera, &lights, size, request.passes);
             RenderedView {
                 view,
                 camera,
                 image,
+                passes,
+                depth_range: request
+                    .passes
+                    .contains(Pass::Depth)
+                    .then(|| passes::depth_range(view.radius)),
                 seconds: start.elapsed().as_secs_f64(),
             }
         })
@@ -235,7 +249,8 @@ pub fn render_views(surface: &Surface<'_>, request: &Request) -> Vec<RenderedVie
 }
 
 /// The `transforms.json` of rendered views, as the peers' scripts write it (`aabb`, `scale`,
-/// `offset`, and per frame `file_path` `NNN.png`, `camera_angle_x`, `transform_matrix`).
+/// `offset`, and per frame `file_path` `NNN.png`, `camera_angle_x`, `transform_matrix`, and
+/// the `depth` `min` and `max` of a depth pass, as TRELLIS's `render.py` writes them).
 pub fn transforms_json(placement: &Placement, views: &[RenderedView]) -> String {
     let frames: Vec<String> = views
         .iter()
@@ -243,8 +258,11 @@ pub fn transforms_json(placement: &Placement, views: &[RenderedView]) -> String 
         .map(|(i, v)| {
             let m = v.camera.transform_matrix();
             let rows: Vec<String> = m.iter().map(|r| format!("[{}]", join(r))).collect();
+            let depth = v.depth_range.map_or(String::new(), |[lo, hi]| {
+                format!(", \"depth\": {{\"min\": {lo:?}, \"max\": {hi:?}}}")
+            });
             format!(
-                "    {{\"file_path\": \"{i:03}.png\", \"camera_angle_x\": {}, \"transform_matrix\": [{}]}}",
+                "    {{\"file_path\": \"{i:03}.png\", \"camera_angle_x\": {}, \"transform_matrix\": [{}]{depth}}}",
                 v.view.fov,
                 rows.join(", ")
             )

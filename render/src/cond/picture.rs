@@ -6,6 +6,7 @@
 
 use super::cameras::PerspectiveCamera;
 use super::lights::Lights;
+use super::passes::{CentreSample, Pass, PassSet};
 use super::Surface;
 use glam::Vec3A;
 use rayon::prelude::*;
@@ -38,12 +39,38 @@ impl RgbaImage {
     }
 }
 
-/// What one ray saw: premultiplied linear RGBA and the surface's normal (zero on a miss).
-#[derive(Clone, Copy, Default)]
+/// What one ray saw: premultiplied linear RGBA, lit and unlit, the surface's normal (zero on
+/// a miss) and its distance from the camera's plane (infinite on a miss).
+#[derive(Clone, Copy)]
 struct Seen {
     rgba: [f32; 4],
+    albedo: [f32; 4],
     normal: Vec3A,
+    depth: f32,
     hit: bool,
+}
+
+impl Default for Seen {
+    fn default() -> Self {
+        Self {
+            rgba: [0.0; 4],
+            albedo: [0.0; 4],
+            normal: Vec3A::ZERO,
+            depth: f32::INFINITY,
+            hit: false,
+        }
+    }
+}
+
+/// What a view's passes need beyond its picture ([`super::passes`]): the centre rays'
+/// normals and depths when a normal or depth pass is asked for, the base colours as 8-bit
+/// RGBA when an albedo pass is; empty otherwise.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PassData {
+    /// One per pixel, row-major.
+    pub centres: Vec<CentreSample>,
+    /// `size × size × 4` bytes, straight sRGB and the view's alpha.
+    pub albedo: Vec<u8>,
 }
 
 /// Traces the view of `camera` (`size` pixels a side) of `surface` lit by `lights`; rows
@@ -54,6 +81,17 @@ pub fn trace(
     lights: &Lights,
     size: u32,
 ) -> RgbaImage {
+    trace_with(surface, camera, lights, size, PassSet::NONE).0
+}
+
+/// [`trace`], with what `passes` need of the same rays.
+pub fn trace_with(
+    surface: &Surface<'_>,
+    camera: &PerspectiveCamera,
+    lights: &Lights,
+    size: u32,
+    passes: PassSet,
+) -> (RgbaImage, PassData) {
     let n = size as usize;
     let mut centres = vec![Seen::default(); n * n];
     centres
@@ -71,19 +109,47 @@ pub fn trace(
                 );
             }
         });
+    let with_albedo = passes.contains(Pass::Albedo);
     let mut rgba = vec![0u8; n * n * 4];
-    rgba.par_chunks_mut((n * 4).max(1))
-        .enumerate()
-        .for_each(|(y, row)| {
-            for x in 0..n {
-                let seen = match at_edge(&centres, n, x, y) {
-                    true => grid(surface, camera, lights, x, y, size),
-                    false => centres[y * n + x].rgba,
-                };
-                row[x * 4..x * 4 + 4].copy_from_slice(&to_bytes(seen));
+    let mut albedo = vec![0u8; if with_albedo { n * n * 4 } else { 0 }];
+    let rows = rgba.par_chunks_mut((n * 4).max(1));
+    let albedo_rows = albedo.par_chunks_mut((n * 4).max(1));
+    let fill = |y: usize, row: &mut [u8], albedo_row: Option<&mut [u8]>| {
+        let mut albedo_row = albedo_row;
+        for x in 0..n {
+            let [lit, unlit] = match at_edge(&centres, n, x, y) {
+                true => grid(surface, camera, lights, x, y, size),
+                false => [centres[y * n + x].rgba, centres[y * n + x].albedo],
+            };
+            row[x * 4..x * 4 + 4].copy_from_slice(&to_bytes(lit));
+            if let Some(a) = albedo_row.as_deref_mut() {
+                a[x * 4..x * 4 + 4].copy_from_slice(&to_bytes(unlit));
             }
-        });
-    RgbaImage { size, rgba }
+        }
+    };
+    match with_albedo {
+        true => rows
+            .zip(albedo_rows)
+            .enumerate()
+            .for_each(|(y, (row, a))| fill(y, row, Some(a))),
+        false => rows.enumerate().for_each(|(y, row)| fill(y, row, None)),
+    }
+    let data = PassData {
+        centres: match passes.contains(Pass::Normal) || passes.contains(Pass::Depth) {
+            true => centres.iter().map(centre_sample).collect(),
+            false => Vec::new(),
+        },
+        albedo,
+    };
+    (RgbaImage { size, rgba }, data)
+}
+
+/// The normal and depth a centre ray saw.
+fn centre_sample(seen: &Seen) -> CentreSample {
+    CentreSample {
+        normal: seen.normal.to_array(),
+        depth: seen.depth,
+    }
 }
 
 /// Whether pixel (`x`, `y`) differs from a neighbour in what its centre ray saw.
@@ -99,7 +165,7 @@ fn at_edge(centres: &[Seen], n: usize, x: usize, y: usize) -> bool {
     })
 }
 
-/// The mean of an `EDGE_GRID²` grid of rays in pixel (`x`, `y`).
+/// The means of an `EDGE_GRID²` grid of rays in pixel (`x`, `y`), lit and unlit.
 fn grid(
     surface: &Surface<'_>,
     camera: &PerspectiveCamera,
@@ -107,20 +173,22 @@ fn grid(
     x: usize,
     y: usize,
     size: u32,
-) -> [f32; 4] {
-    let mut sum = [0.0f32; 4];
+) -> [[f32; 4]; 2] {
+    let mut sum = [[0.0f32; 4]; 2];
     let step = 1.0 / EDGE_GRID as f64;
     for j in 0..EDGE_GRID {
         for i in 0..EDGE_GRID {
             let sx = x as f64 + (i as f64 + 0.5) * step;
             let sy = y as f64 + (j as f64 + 0.5) * step;
             let seen = look(surface, camera, lights, sx, sy, size);
-            for (s, v) in sum.iter_mut().zip(seen.rgba) {
-                *s += v;
+            for (sums, values) in sum.iter_mut().zip([seen.rgba, seen.albedo]) {
+                for (s, v) in sums.iter_mut().zip(values) {
+                    *s += v;
+                }
             }
         }
     }
-    sum.map(|s| s / (EDGE_GRID * EDGE_GRID) as f32)
+    sum.map(|s| s.map(|v| v / (EDGE_GRID * EDGE_GRID) as f32))
 }
 
 /// What the ray through picture point (`sx`, `sy`) sees.
@@ -147,9 +215,12 @@ fn look(
     let [r, g, b, alpha] = surface.albedo(t, point, footprint);
     let light = lights.at(normal, point.as_dvec3());
     let a = alpha.clamp(0.0, 1.0);
+    let depth = -(point - camera.eye.as_vec3a()).dot(camera.back.as_vec3a());
     Seen {
         rgba: [r * light * a, g * light * a, b * light * a, a],
+        albedo: [r * a, g * a, b * a, a],
         normal,
+        depth,
         hit: true,
     }
 }
