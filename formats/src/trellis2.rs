@@ -473,7 +473,7 @@ fn framed_positions(positions: &mut [[f32; 3]], size: u32) -> Result<()> {
             false => (-lo[a]).max(hi[a]).min(FRAMED_SIDE / 2.0),
         };
         let off = (lo[a] + end).abs().max((hi[a] - end).abs());
-        if !(off <= tolerance) {
+        if off.is_nan() || off > tolerance {
             return Err(Error::Invalid(format!(
                 "the output's box on axis {a} spans [{}, {}], {:.2e} voxel from where TRELLIS.2's \
                  read_mesh puts it (±{end}): the conversion could not frame it (its ends in \
