@@ -41,17 +41,20 @@
 //! alone), never the export stem, which is no sha256.
 //!
 //! Frame: TRELLIS.2's grid spans the aabb [−0.5, 0.5]³ at resolution G (`dual_grid.py`
-//! L58-66), and its dataset rescales every mesh dump so that its longest side spans 0.99999
-//! of it, centred (`read_mesh`, as `dual_grid.py` L36-56). A job cannot place its object so
-//! (the converter keeps 3 free cells per side), so a job made for TRELLIS.2 converts on a
-//! grid 6 cells larger with the object at TRELLIS.2's size, and the export cuts the free
-//! cells off ([`Trellis2Grid`]): `resolution = G + 6` and
-//! `object_span = (0.99999 · G − 2) / (G + 6)` ([`job_for_grid`], what `--for trellis2@G`
-//! sets) give TRELLIS.2's grid of G exactly (voxel `i` of the export is cell `i + 3` of the
-//! job). Any other job is refused in that frame and written on its own grid with `--frame
-//! normalized`, where the object spans `params.span()` of it (at most `(N − 6)/N`): the files
-//! overlay each other, but `read_mesh` enlarges the dump to 0.99999 and [`check`] warns with the
-//! factor.
+//! L58-66), and its dataset centres every mesh dump's box and rescales its longest side to
+//! 0.99999 of it (`read_mesh`, as `dual_grid.py` L36-56). A job made for TRELLIS.2 converts on
+//! a grid 6 cells larger (the converter keeps 3 free cells per side) and the export cuts the
+//! free cells off ([`Trellis2Grid`]): `resolution = G + 6` and `output_span = 0.99999·G/(G + 6)`
+//! ([`job_for_grid`], what `--for trellis2@G` sets), with which the conversion frames the
+//! *output's* box where `read_mesh` puts it (`sparcubes::stages::frame`); the export writes the
+//! dump so that `read_mesh`'s centre is 0 and its scale 1 (`framed_positions`), so the mesh
+//! it returns is the dump bit for bit and the dual grid agrees with it (voxel `i` of the
+//! export is cell `i + 3` of the job). A job made before with `object_span` = [`span_for`]
+//! is still exported in this frame as it was (its dump moves by about [`ROOM_CELLS`] under
+//! `read_mesh`). Any other job is refused in that frame and written on its own grid with
+//! `--frame normalized`, where the object spans `params.span()` of it (at most `(N − 6)/N`):
+//! the files overlay each other, but `read_mesh` enlarges the dump to 0.99999 and [`check`]
+//! warns with the factor.
 //! The mesh dump is written in the export's aabb frame (`(cell − offset) / G − 0.5`), so
 //! `(coord + vertices/255)/G − 0.5` lies on it. The axes are the source's (TRELLIS.2's own
 //! dumps are Blender's Z-up world).
@@ -59,8 +62,9 @@
 //! `intersected`: TRELLIS.2 sets a bit where a triangle of the mesh it converts crosses the
 //! edge (`flexible_dual_grid.cpp` L148-156), we where φ changes sign along it; on our
 //! watertight output, the mesh dump, the two are the same bits (marching cubes crosses exactly
-//! the edges with a sign change; measured in docs/FORMAT.md, "`intersected`"), which is what
-//! its SC-VAE learns to predict and renders against.
+//! the edges with a sign change), and with the framed output also on the mesh `read_mesh`
+//! returns (measured in docs/FORMAT.md, "`intersected`" and the run through TRELLIS.2's own
+//! datasets), which is what its SC-VAE learns to predict and renders against.
 //!
 //! Frames (`--frame`): `consumer` is TRELLIS.2's grid exactly and needs a job made for it
 //! (`--for trellis2@G`, [`check`] refuses any other); `normalized` writes the job's own grid
