@@ -245,6 +245,9 @@ pub struct Item<'a> {
     /// (`sparcubes::Params::span`: `params.object_span`, else what `params.margin_cells`
     /// leaves).
     pub object_span: f64,
+    /// The fraction of the grid's side the *output's* box spans, centred, when the job framed
+    /// it (`sparcubes::Params::output_span`, what `--for trellis2@G` sets).
+    pub output_span: Option<f64>,
     /// The frame the files are written in (one of [`Consumer::frames`]).
     pub frame: Frame,
 }

@@ -5,7 +5,8 @@
 //! export's checks, the preset that fits a job that does not.
 //!
 //! - `trellis2@G`: TRELLIS.2's dual grid of G exactly: `resolution = G + 6` and
-//!   `object_span = (0.99999·G − 2)/(G + 6)` (docs/FORMAT.md, "TRELLIS.2's dual grid dataset");
+//!   `output_span = 0.99999·G/(G + 6)`, the output's box framed as TRELLIS.2's `read_mesh`
+//!   places it (docs/FORMAT.md, "TRELLIS.2's dual grid dataset");
 //! - `direct3d-s2` (or `direct3d-s2@N`, also `resolution = N`): `object_span = 0.95`, its
 //!   objects' span; the export warns off resolutions other than 512 and 1024;
 //! - `hunyuan3d-2.1`, `dora`, `step1x-3d`, `triposg`, `vecset-npz`: `[samples] enabled = true`,
@@ -32,6 +33,8 @@ pub struct Settings {
     pub resolution: Option<u32>,
     /// `params.object_span`.
     pub object_span: Option<f64>,
+    /// `params.output_span`.
+    pub output_span: Option<f64>,
     /// `samples.enabled = true` (the defaults serve every vector-set consumer).
     pub samples: bool,
     /// The consumer's condition views (`[renders]` recipe, views and size), used when the
@@ -124,16 +127,15 @@ impl Preset {
                 let (resolution, span) = trellis2::job_for_grid(g);
                 Settings {
                     resolution: Some(resolution),
-                    object_span: Some(span),
-                    samples: false,
+                    output_span: Some(span),
                     renders: Some(trellis2::RENDERS),
+                    ..Settings::default()
                 }
             }
             (Consumer::Direct3dS2, grid) => Settings {
                 resolution: grid,
                 object_span: Some(direct3d_s2::OBJECT_SPAN),
-                samples: false,
-                renders: None,
+                ..Settings::default()
             },
             (Consumer::Trellis2 | Consumer::Cubvh, _) => Settings::default(),
             (Consumer::Hunyuan3d21, _) => Settings {
@@ -164,6 +166,9 @@ impl Settings {
         }
         if let Some(s) = self.object_span {
             params.insert("object_span".into(), json!(s));
+        }
+        if let Some(s) = self.output_span {
+            params.insert("output_span".into(), json!(s));
         }
         let mut out = Map::new();
         if !params.is_empty() {
@@ -206,6 +211,7 @@ mod tests {
             p.resolution = r;
         }
         p.object_span = s.object_span;
+        p.output_span = s.output_span;
         p
     }
 
@@ -287,7 +293,8 @@ mod tests {
             "{line}"
         );
         // The preset's own span, or another resolution: nothing to say here.
-        p.object_span = Some(trellis2::span_for(48));
+        p.object_span = None;
+        p.output_span = Some(trellis2::output_span_for(48));
         assert_eq!(trellis2::preset_misfit(48, &p), None);
         let other = Params::with_resolution(64);
         assert_eq!(trellis2::preset_misfit(48, &other), None);

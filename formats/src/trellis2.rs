@@ -41,17 +41,20 @@
 //! alone), never the export stem, which is no sha256.
 //!
 //! Frame: TRELLIS.2's grid spans the aabb [−0.5, 0.5]³ at resolution G (`dual_grid.py`
-//! L58-66), and its dataset rescales every mesh dump so that its longest side spans 0.99999
-//! of it, centred (`read_mesh`, as `dual_grid.py` L36-56). A job cannot place its object so
-//! (the converter keeps 3 free cells per side), so a job made for TRELLIS.2 converts on a
-//! grid 6 cells larger with the object at TRELLIS.2's size, and the export cuts the free
-//! cells off ([`Trellis2Grid`]): `resolution = G + 6` and
-//! `object_span = (0.99999 · G − 2) / (G + 6)` ([`job_for_grid`], what `--for trellis2@G`
-//! sets) give TRELLIS.2's grid of G exactly (voxel `i` of the export is cell `i + 3` of the
-//! job). Any other job is refused in that frame and written on its own grid with `--frame
-//! normalized`, where the object spans `params.span()` of it (at most `(N − 6)/N`): the files
-//! overlay each other, but `read_mesh` enlarges the dump to 0.99999 and [`check`] warns with the
-//! factor.
+//! L58-66), and its dataset centres every mesh dump's box and rescales its longest side to
+//! 0.99999 of it (`read_mesh`, as `dual_grid.py` L36-56). A job made for TRELLIS.2 converts on
+//! a grid 6 cells larger (the converter keeps 3 free cells per side) and the export cuts the
+//! free cells off ([`Trellis2Grid`]): `resolution = G + 6` and `output_span = 0.99999·G/(G + 6)`
+//! ([`job_for_grid`], what `--for trellis2@G` sets), with which the conversion frames the
+//! *output's* box where `read_mesh` puts it (`sparcubes::stages::frame`); the export writes the
+//! dump so that `read_mesh`'s centre is 0 and its scale 1 (`framed_positions`), so the mesh
+//! it returns is the dump bit for bit and the dual grid agrees with it (voxel `i` of the
+//! export is cell `i + 3` of the job). A job made before with `object_span` = [`span_for`]
+//! is still exported in this frame as it was (its dump moves by about [`ROOM_CELLS`] under
+//! `read_mesh`). Any other job is refused in that frame and written on its own grid with
+//! `--frame normalized`, where the object spans `params.span()` of it (at most `(N − 6)/N`):
+//! the files overlay each other, but `read_mesh` enlarges the dump to 0.99999 and [`check`]
+//! warns with the factor.
 //! The mesh dump is written in the export's aabb frame (`(cell − offset) / G − 0.5`), so
 //! `(coord + vertices/255)/G − 0.5` lies on it. The axes are the source's (TRELLIS.2's own
 //! dumps are Blender's Z-up world).
@@ -59,8 +62,9 @@
 //! `intersected`: TRELLIS.2 sets a bit where a triangle of the mesh it converts crosses the
 //! edge (`flexible_dual_grid.cpp` L148-156), we where φ changes sign along it; on our
 //! watertight output, the mesh dump, the two are the same bits (marching cubes crosses exactly
-//! the edges with a sign change; measured in docs/FORMAT.md, "`intersected`"), which is what
-//! its SC-VAE learns to predict and renders against.
+//! the edges with a sign change), and with the framed output also on the mesh `read_mesh`
+//! returns (measured in docs/FORMAT.md, "`intersected`" and the run through TRELLIS.2's own
+//! datasets), which is what its SC-VAE learns to predict and renders against.
 //!
 //! Frames (`--frame`): `consumer` is TRELLIS.2's grid exactly and needs a job made for it
 //! (`--for trellis2@G`, [`check`] refuses any other); `normalized` writes the job's own grid
@@ -109,16 +113,27 @@ pub struct Trellis2Grid {
     pub size: u32,
     /// The job's cell at the export's voxel 0, per axis.
     pub offset: u32,
+    /// Whether the job framed its output's box as `read_mesh` places it
+    /// (`params.output_span`, [`output_span_for`]): the mesh dump is then written so that
+    /// `read_mesh` moves none of it ([`framed_positions`]).
+    pub framed: bool,
 }
 
 impl Trellis2Grid {
-    /// The grid a job at `resolution` whose object spans `span` of it exports: TRELLIS.2's
-    /// own of `resolution − 6` when the object has TRELLIS.2's size there, else the job's.
-    pub fn of(resolution: u32, span: f64) -> Self {
+    /// The grid a job at `resolution` exports: TRELLIS.2's own of `resolution − 6` when its
+    /// output's box spans `output_span` = [`output_span_for`] of it (a job made with
+    /// `--for trellis2@G`), or, for a job without an output span, when its object spans
+    /// `span` = [`span_for`] (the preset's jobs before the output was framed); else the job's.
+    pub fn of(resolution: u32, span: f64, output_span: Option<f64>) -> Self {
+        let exact = |size: u32| match output_span {
+            Some(s) => near(s, output_span_for(size), resolution),
+            None => near(span, span_for(size), resolution),
+        };
         match resolution.checked_sub(2 * FREE_CELLS) {
-            Some(size) if size > 0 && in_trellis2_frame(resolution, span, size) => Self {
+            Some(size) if size > 0 && exact(size) => Self {
                 size,
                 offset: FREE_CELLS,
+                framed: output_span.is_some(),
             },
             _ => Self::whole(resolution),
         }
@@ -129,6 +144,7 @@ impl Trellis2Grid {
         Self {
             size: resolution,
             offset: 0,
+            framed: false,
         }
     }
 
@@ -138,28 +154,34 @@ impl Trellis2Grid {
     }
 }
 
-/// Whether an object spanning `span` of a grid of `resolution` spans what [`span_for`] gives
-/// for TRELLIS.2's grid of `size`.
-fn in_trellis2_frame(resolution: u32, span: f64, size: u32) -> bool {
-    (span - span_for(size)).abs() * resolution as f64 <= SPAN_TOLERANCE_CELLS
+/// Whether two spans of a grid of `resolution` differ by at most [`SPAN_TOLERANCE_CELLS`].
+fn near(span: f64, wanted: f64, resolution: u32) -> bool {
+    (span - wanted).abs() * resolution as f64 <= SPAN_TOLERANCE_CELLS
 }
 
-/// The `object_span` of a job at `size + 6` whose object TRELLIS.2's dataset sees in a grid of
-/// `size`: its longest side 0.99999 of the grid less [`ROOM_CELLS`] at each end, so that
-/// `read_mesh`'s rescaling of a closed object's dump moves each end of it by about
-/// [`ROOM_CELLS`] against the dual grid (0.2 % of a 512 grid), an open one's by less.
+/// The `object_span` that `--for trellis2@G` set before the output was framed (a job made
+/// so is still exported in TRELLIS.2's frame, as it was): the source's longest side 0.99999
+/// of the grid less [`ROOM_CELLS`] at each end, so that `read_mesh`'s rescaling of a closed
+/// object's dump moves each end of it by about [`ROOM_CELLS`] against the dual grid.
 pub fn span_for(size: u32) -> f64 {
     (OBJECT_SPAN * size as f64 - 2.0 * ROOM_CELLS) / (size + 2 * FREE_CELLS) as f64
+}
+
+/// The `output_span` of a job at `size + 6` whose output TRELLIS.2's `read_mesh` reads where
+/// it is: its box centred, its longest side 0.99999 of the grid of `size`
+/// (`flexi_dual_grid.py` `read_mesh`; the conversion frames it, `sparcubes::stages::frame`).
+pub fn output_span_for(size: u32) -> f64 {
+    OBJECT_SPAN * size as f64 / (size + 2 * FREE_CELLS) as f64
 }
 
 /// The largest grid `--for trellis2@G` takes: its job converts at `G + 6`, at most the
 /// largest resolution.
 pub const MAX_GRID: u32 = sparcubes::params::MAX_RESOLUTION - 2 * FREE_CELLS;
 
-/// The `(resolution, object_span)` of a job whose export is TRELLIS.2's grid of `size`
-/// exactly: `size + 6` and [`span_for`] (what `--for trellis2@size` sets).
+/// The `(resolution, output_span)` of a job whose export is TRELLIS.2's grid of `size`
+/// exactly: `size + 6` and [`output_span_for`] (what `--for trellis2@size` sets).
 pub fn job_for_grid(size: u32) -> (u32, f64) {
-    (size + 2 * FREE_CELLS, span_for(size))
+    (size + 2 * FREE_CELLS, output_span_for(size))
 }
 
 /// What a job made with `--for trellis2@grid` lacks for TRELLIS.2's frame when a config key
@@ -169,14 +191,19 @@ pub fn job_for_grid(size: u32) -> (u32, f64) {
 /// or nothing was.
 pub fn preset_misfit(grid: u32, params: &Params) -> Option<String> {
     let (resolution, span) = job_for_grid(grid);
-    if params.resolution != resolution || Trellis2Grid::of(resolution, params.span()).is_exact() {
+    let own = Trellis2Grid::of(resolution, params.span(), params.output_span);
+    if params.resolution != resolution || own.is_exact() {
         return None;
     }
+    let key = match params.output_span {
+        Some(_) => "output_span",
+        None => "object_span",
+    };
     Some(format!(
-        "params.object_span = {} replaces the preset's {span} (TRELLIS.2's grid of {grid} \
-         exactly), so the export in TRELLIS.2's frame refuses this job: leave object_span out of \
-         the config (the preset sets it), or export with --frame normalized to write the job's \
-         own grid as it is",
+        "params.{key} = {} replaces the preset's output_span = {span} (TRELLIS.2's grid of \
+         {grid} exactly), so the export in TRELLIS.2's frame refuses this job: leave {key} out \
+         of the config (the preset sets output_span), or export with --frame normalized to \
+         write the job's own grid as it is",
         params.span()
     ))
 }
@@ -188,7 +215,7 @@ pub fn preset_misfit(grid: u32, params: &Params) -> Option<String> {
 pub fn check(params: &Params, frame: Frame) -> JobCheck {
     let span = params.span();
     let n = params.resolution;
-    let exact = Trellis2Grid::of(n, span).is_exact();
+    let exact = Trellis2Grid::of(n, span, params.output_span).is_exact();
     let (resolution, exact_span) = job_for_grid(n);
     let rescaled = |size: u32| {
         let cells = (OBJECT_SPAN - span) * size as f64 / 2.0;
@@ -204,7 +231,7 @@ pub fn check(params: &Params, frame: Frame) -> JobCheck {
         Frame::Consumer if exact => JobCheck::default(),
         Frame::Consumer => JobCheck {
             required: vec![format!(
-                "params.resolution = {resolution} and params.object_span = {exact_span}, \
+                "params.resolution = {resolution} and params.output_span = {exact_span}, \
                  TRELLIS.2's grid of {n} exactly: make the job with --for trellis2@{n} \
                  (docs/FORMAT.md); {}; or export with --frame normalized to write the job's \
                  own grid as it is",
@@ -229,7 +256,7 @@ pub fn files(item: &Item) -> Result<ItemExport> {
     let resolution = item.cubes.resolution;
     let grid = match item.frame {
         Frame::Normalized => Trellis2Grid::whole(resolution),
-        _ => Trellis2Grid::of(resolution, item.object_span),
+        _ => Trellis2Grid::of(resolution, item.object_span, item.output_span),
     };
     if item.frame == Frame::Consumer && !grid.is_exact() {
         return Err(Error::Invalid(format!(
@@ -257,7 +284,7 @@ pub fn files(item: &Item) -> Result<ItemExport> {
     ];
     let dual = vxz::vxz_bytes(&coords, &attrs, vxz::CHUNK_SIZE)?;
     let mesh = sparcubes::extract(item.cubes);
-    let dump = mesh_dump(&mesh, grid);
+    let dump = mesh_dump(&mesh, grid)?;
     let mut listing = BTreeMap::from([
         ("sha256".to_string(), key.to_string()),
         ("dual_grid_size".to_string(), coords.len().to_string()),
@@ -387,15 +414,20 @@ fn voxels_in(voxels: &[[u16; 3]], grid: Trellis2Grid) -> Result<Vec<[u32; 3]>> {
         .collect()
 }
 
-/// The pickle of `mesh` (the job's grid coordinates) in the aabb frame of `grid`.
-fn mesh_dump(mesh: &sparcubes::TriMesh, grid: Trellis2Grid) -> Vec<u8> {
+/// The pickle of `mesh` (the job's grid coordinates) in the aabb frame of `grid`; for a
+/// framed job, as [`framed_positions`] writes it.
+fn mesh_dump(mesh: &sparcubes::TriMesh, grid: Trellis2Grid) -> Result<Vec<u8>> {
     let scale = 1.0 / grid.size as f64;
     let offset = grid.offset as f64;
-    let positions: Vec<f64> = mesh
+    let mut positions: Vec<[f32; 3]> = mesh
         .positions
         .iter()
-        .flat_map(|p| p.map(|v| (v as f64 - offset) * scale - 0.5))
+        .map(|p| p.map(|v| ((v as f64 - offset) * scale - 0.5) as f32))
         .collect();
+    if grid.framed {
+        framed_positions(&mut positions, grid.size)?;
+    }
+    let positions: Vec<f64> = positions.iter().flatten().map(|&v| v as f64).collect();
     let faces: Vec<u8> = mesh
         .triangles
         .iter()
@@ -413,10 +445,79 @@ fn mesh_dump(mesh: &sparcubes::TriMesh, grid: Trellis2Grid) -> Vec<u8> {
             },
         ),
     ]);
-    pickle::dumps(&Value::Dict(vec![(
+    Ok(pickle::dumps(&Value::Dict(vec![(
         "objects".into(),
         Value::List(vec![object]),
-    )]))
+    )])))
+}
+
+/// The longest side of the dump's box, in `f32` as `read_mesh` computes it: 0.99999, whose
+/// `0.99999 / side` is exactly 1 in `f32` (torch computes it as `side.reciprocal() · 0.99999`,
+/// and `f32(1/x)·x` rounds to 1 for this `x`; checked in the unit tests).
+const FRAMED_SIDE: f32 = OBJECT_SPAN as f32;
+
+/// Largest move, in voxels, [`framed_positions`] makes: the conversion put the output's ends
+/// within `sparcubes::stages::frame::SNAP_TOLERANCE` of their targets, and the `f32` of the
+/// dump rounds them by 1e-5 voxel at the most.
+const FRAMED_TOLERANCE: f64 = 2e-4;
+
+/// Puts the dump's box where `read_mesh` (`flexi_dual_grid.py` L106-126) would move it, so
+/// that it moves nothing: on each axis the box symmetric about 0 in `f32` (its centre
+/// `(min + max) / 2` exactly 0), the longest side exactly [`FRAMED_SIDE`] (its scale exactly
+/// 1). The framed conversion put the ends there to [`FRAMED_TOLERANCE`]; they are rounded onto
+/// it here (the points beyond it moved back, the outermost one out), each a move along its
+/// own grid edge of under 1e-4 voxel. An output not so framed is refused.
+fn framed_positions(positions: &mut [[f32; 3]], size: u32) -> Result<()> {
+    let tolerance = (FRAMED_TOLERANCE / size as f64) as f32;
+    let (lo, hi) = f32_bounds(positions);
+    let longest = (0..3).fold(0, |m, a| if hi[a] - lo[a] > hi[m] - lo[m] { a } else { m });
+    for a in 0..3 {
+        let end = match a == longest {
+            true => FRAMED_SIDE / 2.0,
+            false => (-lo[a]).max(hi[a]).min(FRAMED_SIDE / 2.0),
+        };
+        let off = (lo[a] + end).abs().max((hi[a] - end).abs());
+        if off.is_nan() || off > tolerance {
+            return Err(Error::Invalid(format!(
+                "the output's box on axis {a} spans [{}, {}], {:.2e} voxel from where TRELLIS.2's \
+                 read_mesh puts it (±{end}): the conversion could not frame it (its ends in \
+                 other cells than their targets'); export with --frame normalized",
+                lo[a],
+                hi[a],
+                off as f64 * size as f64
+            )));
+        }
+        round_ends(positions, a, end);
+    }
+    Ok(())
+}
+
+/// The box of `positions` in `f32`.
+fn f32_bounds(positions: &[[f32; 3]]) -> ([f32; 3], [f32; 3]) {
+    let mut lo = [f32::INFINITY; 3];
+    let mut hi = [f32::NEG_INFINITY; 3];
+    for p in positions {
+        for a in 0..3 {
+            lo[a] = lo[a].min(p[a]);
+            hi[a] = hi[a].max(p[a]);
+        }
+    }
+    (lo, hi)
+}
+
+/// Clamps axis `a` of `positions` to `[−end, end]` and puts the lowest and highest on them.
+fn round_ends(positions: &mut [[f32; 3]], a: usize, end: f32) {
+    for p in positions.iter_mut() {
+        p[a] = p[a].clamp(-end, end);
+    }
+    let order = |i: &usize, j: &usize| positions[*i][a].total_cmp(&positions[*j][a]);
+    let lowest = (0..positions.len()).min_by(order);
+    let highest = (0..positions.len()).max_by(order);
+    for (i, v) in [(lowest, -end), (highest, end)] {
+        if let Some(i) = i {
+            positions[i][a] = v;
+        }
+    }
 }
 
 /// The folders' `metadata.csv` (base, `mesh_dumps`, `dual_grid_<N>`, `asset_stats`, and
@@ -581,15 +682,28 @@ mod tests {
     #[test]
     fn a_job_six_cells_larger_at_trellis2_size_exports_its_grid() {
         for size in [48, 256, 512, 1024] {
-            let exact = Trellis2Grid::of(size + 6, span_for(size));
-            assert_eq!(exact, Trellis2Grid { size, offset: 3 });
-            assert!(exact.is_exact());
+            let (resolution, output) = job_for_grid(size);
+            let framed = Trellis2Grid::of(resolution, output, Some(output));
+            let grid = |offset, framed| Trellis2Grid {
+                size,
+                offset,
+                framed,
+            };
+            assert_eq!(framed, grid(3, true));
+            assert!(framed.is_exact());
+            // A job of the preset before the output was framed keeps its frame.
+            let earlier = Trellis2Grid::of(size + 6, span_for(size), None);
+            assert_eq!(earlier, grid(3, false));
             // Seven digits of the span are enough; a default job keeps its own grid.
-            let rounded = (span_for(size) * 1e7).round() / 1e7;
-            assert!(Trellis2Grid::of(size + 6, rounded).is_exact(), "{size}");
-            let default = Trellis2Grid::of(size, (size - 6) as f64 / size as f64);
-            assert_eq!(default, Trellis2Grid { size, offset: 0 });
-            assert!(!Trellis2Grid::of(size + 6, span_for(size) * 0.999).is_exact());
+            let rounded = (output * 1e7).round() / 1e7;
+            assert!(Trellis2Grid::of(resolution, rounded, Some(rounded)).is_exact());
+            let default = Trellis2Grid::of(size, (size - 6) as f64 / size as f64, None);
+            assert_eq!(default, grid(0, false));
+            let off = output * 0.999;
+            assert!(!Trellis2Grid::of(resolution, off, Some(off)).is_exact());
+            // The old span as an output span is no frame, nor the new one as a source's.
+            assert!(!Trellis2Grid::of(resolution, span_for(size), Some(span_for(size))).is_exact());
+            assert!(!Trellis2Grid::of(resolution, output, None).is_exact());
         }
         let shift = sparcubes::normalize::GRID_OFFSET
             .iter()
@@ -597,12 +711,12 @@ mod tests {
         assert!(ROOM_CELLS > 0.9 + shift);
         let mut params = Params {
             resolution: 518,
-            object_span: Some(span_for(512)),
+            output_span: Some(output_span_for(512)),
             ..Params::default()
         };
         assert!(params.validate().is_ok());
         assert_eq!(check(&params, Frame::Consumer), JobCheck::default());
-        params.object_span = None;
+        params.output_span = None;
         // Not in its frame: refused in TRELLIS.2's, naming the preset; written with a warning
         // in the job's own.
         let refused = check(&params, Frame::Consumer).required.join(" ");
@@ -615,11 +729,57 @@ mod tests {
         );
     }
 
+    /// `read_mesh`'s arithmetic in `f32`: the centre `(min + max) / 2` and the scale
+    /// `0.99999 / side` as torch computes it (`side.reciprocal() · 0.99999`).
+    fn read_mesh_frame(positions: &[[f32; 3]]) -> ([f32; 3], f32) {
+        let (lo, hi) = f32_bounds(positions);
+        let side = (0..3).map(|a| hi[a] - lo[a]).fold(0.0f32, f32::max);
+        let centre = std::array::from_fn(|a| (lo[a] + hi[a]) / 2.0);
+        (centre, (1.0f32 / side) * OBJECT_SPAN as f32)
+    }
+
+    #[test]
+    fn a_framed_dump_is_where_read_mesh_puts_it() {
+        assert_eq!((1.0f32 / FRAMED_SIDE) * OBJECT_SPAN as f32, 1.0);
+        assert_eq!(OBJECT_SPAN as f32 / FRAMED_SIDE, 1.0);
+        let size = 64;
+        let voxel = 1.0 / size as f32;
+        let h = FRAMED_SIDE / 2.0;
+        // Ends a little off the targets (under the tolerance), one axis shorter.
+        let mut positions = vec![
+            [-h + 0.5e-4 * voxel, 0.1, -0.2],
+            [
+                h - 0.3e-4 * voxel,
+                -0.3 - 0.2e-4 * voxel,
+                0.2 + 1e-5 * voxel,
+            ],
+            [0.0, 0.3, 0.0],
+        ];
+        let before = positions.clone();
+        assert!(framed_positions(&mut positions, size).is_ok());
+        let (centre, scale) = read_mesh_frame(&positions);
+        assert_eq!((centre, scale), ([0.0; 3], 1.0), "{positions:?}");
+        let moved = before
+            .iter()
+            .zip(&positions)
+            .flat_map(|(p, q)| (0..3).map(move |a| (p[a] - q[a]).abs()))
+            .fold(0.0f32, f32::max);
+        assert!(moved <= 1e-4 * voxel, "{moved}");
+        // An end a voxel off is refused, naming the axis.
+        let mut far = vec![[-h, -0.3, 0.0], [h, 0.3 - voxel, 0.0]];
+        let refused = framed_positions(&mut far, size).map_err(|e| e.to_string());
+        assert!(
+            matches!(&refused, Err(m) if m.contains("axis 1")),
+            "{refused:?}"
+        );
+    }
+
     #[test]
     fn voxels_move_into_the_export_grid_or_are_refused() {
         let grid = Trellis2Grid {
             size: 10,
             offset: 3,
+            framed: false,
         };
         let moved = voxels_in(&[[3, 4, 12]], grid).unwrap_or_default();
         assert_eq!(moved, vec![[0, 1, 9]]);

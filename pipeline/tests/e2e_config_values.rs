@@ -120,7 +120,8 @@ fn trellis2_preset_sets_its_grid_exactly_and_the_export_takes_it_without_a_warni
     let config = &job_json(&job)["config"];
     assert_eq!(config["params"]["resolution"], 54);
     let (_, span) = sparc3d_formats::trellis2::job_for_grid(48);
-    assert_eq!(config["params"]["object_span"].as_f64(), Some(span));
+    assert_eq!(config["params"]["output_span"].as_f64(), Some(span));
+    assert!(config["params"].get("object_span").is_none());
     assert_eq!(config["preset"], "trellis2@48");
     ok(&["run", s(&job), "--workers", "1"]);
     let out = dir.path().join("t2");

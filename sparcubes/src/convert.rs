@@ -4,6 +4,7 @@
 
 use crate::error::Result;
 use crate::grid::cubes::SparseCubes;
+use crate::grid::normalization::Normalization;
 use crate::grid::{dilate, Dilation};
 use crate::mesh::TriMesh;
 use crate::params::Params;
@@ -122,12 +123,27 @@ impl Stages {
 
 /// Converts a sanitised mesh into sparse cubes (docs/ALGORITHM.md §1–10 and, when
 /// `params.refine` asks, §12; extraction, §11, is [`crate::extract()`]).
+/// With `params.output_span` the output's box is framed instead of the source's (§13,
+/// [`crate::stages::frame`]): the conversion runs two or three times.
 pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
     params.validate()?;
+    match params.output_span {
+        Some(span) => crate::stages::frame::convert_framed(mesh, params, span),
+        None => convert_at(mesh, params, None),
+    }
+}
+
+/// One conversion, with the normalization `fit` (else the source's box fitted to
+/// `params.span()`).
+pub(crate) fn convert_at(
+    mesh: &TriMesh,
+    params: &Params,
+    fit: Option<Normalization>,
+) -> Result<Conversion> {
     let n = params.resolution;
     let mut st = Stages::start(mesh);
     // §1: the mesh in grid coordinates.
-    let (grid, norm, degenerate) = normalize(mesh, params)?;
+    let (grid, norm, degenerate) = normalize(mesh, params, fit)?;
     st.stats.degenerate_faces = degenerate;
     st.done("normalize");
     // §2: wall cells and crossed grid edges.

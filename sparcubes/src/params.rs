@@ -64,6 +64,17 @@ pub struct Params {
     /// existed keeps its normalization and its fingerprint.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub object_span: Option<f64>,
+    /// The fraction of the grid's side that the *output's* longest side spans, its box
+    /// centred on the grid, when a consumer reads the output mesh as filling a cube
+    /// (TRELLIS.2's `read_mesh`, `sparc3d-formats`' `trellis2`); `None`: the source's box is
+    /// fitted ([`Params::object_span`]). The conversion then runs twice and puts the
+    /// output's box there exactly ([`crate::stages::frame`], docs/ALGORITHM.md §13). Excludes
+    /// `object_span`, `deform` and `refine`, and must leave 3 free cells per side.
+    ///
+    /// Serialized only when set, and missing reads as `None`: every job stored before the key
+    /// existed keeps its normalization and its fingerprint.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub output_span: Option<f64>,
     /// The rendering-based refinement of the displacements (paper step 4, docs/ALGORITHM.md
     /// §12, [`crate::stages::refine`]) and its settings; `None`: off, the default (docs/QUALITY.md
     /// says what it measured). A job file writes `refine = true` for the default settings or
@@ -114,6 +125,7 @@ impl Default for Params {
             inside_test: true,
             seal_openings: true,
             object_span: None,
+            output_span: None,
             refine: None,
         }
     }
@@ -139,12 +151,37 @@ impl Params {
     }
 
     /// The fraction of the grid's side that the object's longest side spans:
-    /// [`Params::object_span`], else `(N − 2·margin_cells)/N`.
+    /// [`Params::object_span`], else the output's [`Params::output_span`] (the source's box
+    /// within a voxel of it), else `(N − 2·margin_cells)/N`.
     pub fn span(&self) -> f64 {
-        self.object_span.unwrap_or_else(|| {
+        self.object_span.or(self.output_span).unwrap_or_else(|| {
             let n = self.resolution as f64;
             (n - 2.0 * self.margin_cells as f64) / n
         })
+    }
+
+    /// Refuses an output span that leaves fewer than 3 free cells per side, or that is set
+    /// with a setting it excludes (the source's span; displacements, which move the output
+    /// after it is framed).
+    fn check_output_span(&self, span: f64) -> Result<()> {
+        check_span(span, self.resolution).map_err(|e| match e {
+            Error::InvalidParams(m) => {
+                Error::InvalidParams(m.replace("object_span", "output_span"))
+            }
+            other => other,
+        })?;
+        let excluded = [
+            ("object_span", self.object_span.is_some()),
+            ("deform", self.deform),
+            ("refine", self.refine.is_some()),
+        ];
+        match excluded.iter().find(|(_, on)| *on) {
+            Some((name, _)) => Err(Error::InvalidParams(format!(
+                "output_span frames the output's box, which {name} would change or contradict: \
+                 set one of them"
+            ))),
+            None => Ok(()),
+        }
     }
 
     /// Checks every field's range; the error names the field.
@@ -164,6 +201,9 @@ impl Params {
         }
         if let Some(span) = self.object_span {
             check_span(span, self.resolution)?;
+        }
+        if let Some(span) = self.output_span {
+            self.check_output_span(span)?;
         }
         if let Some(refine) = &self.refine {
             refine.validate()?;

@@ -208,12 +208,18 @@ def trellis2_exact(tmp_path_factory):
     return out, records
 
 
+def trellis2_output_span(size):
+    """The `output_span` `--for trellis2@size` sets: the output's box 0.99999 of TRELLIS.2's
+    grid, in a job at `size + 6` (docs/FORMAT.md)."""
+    return 0.99999 * size / (size + 6)
+
+
 def test_trellis2_preset_gives_its_grid_exactly_with_its_span_to_the_last_digit(tmp_path):
     """issue 47: a job with the span the export advised, written with all its digits, was
     refused by every `run` (job.json read it back 1 ulp off); `--for trellis2@G` sets it."""
-    span = trellis2_span(T2_RES)
-    job, records = make_job(tmp_path, T2_RES + 6, "[params]\nobject_span = %r\n" % span)
-    assert json.loads((job / "job.json").read_text())["config"]["params"]["object_span"] == span
+    span = trellis2_output_span(T2_RES)
+    job, records = make_job(tmp_path, T2_RES + 6, "[params]\noutput_span = %r\n" % span)
+    assert json.loads((job / "job.json").read_text())["config"]["params"]["output_span"] == span
     by_preset = tmp_path / "preset"
     by_preset.mkdir()
     job2, _ = make_job(by_preset, preset="trellis2@%d" % T2_RES)
@@ -340,6 +346,94 @@ def test_trellis2_intersected_is_what_its_own_conversion_sets_on_the_mesh_dump(t
         flagged_not_crossed, crossed_not_flagged = flag_disagreement(ours, theirs)
         assert flagged_not_crossed < 1e-3 and crossed_not_flagged < 1e-3, (
             rec["uri"], flagged_not_crossed, crossed_not_flagged)
+
+
+# A closed plate 1 % as thick as wide (thin) and a wavy open sheet, beside the open box.
+THIN_PLATE = """OFF
+8 12 0
+0 0 0
+1 0 0
+1 0.6 0
+0 0.6 0
+0 0 0.01
+1 0 0.01
+1 0.6 0.01
+0 0.6 0.01
+3 0 2 1
+3 0 3 2
+3 4 5 6
+3 4 6 7
+3 0 1 5
+3 0 5 4
+3 1 2 6
+3 1 6 5
+3 2 3 7
+3 2 7 6
+3 3 0 4
+3 3 4 7
+"""
+
+
+def wavy_sheet(n=24):
+    """An open sheet z = 0.1 sin(6u) cos(4w) over the unit square, as OBJ text."""
+    u, w = np.meshgrid(np.linspace(0, 1, n), np.linspace(0, 1, n), indexing="ij")
+    v = np.stack([u, w, 0.1 * np.sin(6 * u) * np.cos(4 * w)], -1).reshape(-1, 3)
+    lines = ["v %.9g %.9g %.9g" % tuple(p) for p in v]
+    for i in range(n - 1):
+        for j in range(n - 1):
+            a, b, c, d = i * n + j + 1, (i + 1) * n + j + 1, (i + 1) * n + j + 2, i * n + j + 2
+            lines += ["f %d %d %d" % (a, b, c), "f %d %d %d" % (a, c, d)]
+    return "\n".join(lines) + "\n"
+
+
+@pytest.fixture(scope="module")
+def trellis2_framed(tmp_path_factory):
+    """A job made with `--for trellis2@48`: closed (cube, wuson), thin (the plate) and open
+    (the box without its top, the sheet) sources."""
+    tmp = tmp_path_factory.mktemp("trellis2_framed")
+    job, records = make_job(tmp, preset="trellis2@%d" % T2_RES, extra=[
+        ("open_box.off", OPEN_BOX), ("plate.off", THIN_PLATE), ("sheet.obj", wavy_sheet())])
+    out = tmp / "out"
+    r = run("export", job, "--format", "trellis2", "--out", out)
+    assert "warning" not in r.stderr, r.stderr
+    return out, records
+
+
+def read_mesh_f32(v):
+    """`FlexiDualGridDataset.read_mesh`'s placement (`trellis2/datasets/flexi_dual_grid.py`,
+    as `data_toolkit/dual_grid.py` L50-55) in float32 as torch computes it: the box centre
+    `(min + max) / 2`, the scale `0.99999 / side` (torch's `Tensor.__rtruediv__`:
+    `side.reciprocal() * 0.99999`), then `(v - centre) * scale`."""
+    v = np.asarray(v, np.float32)
+    lo, hi = v.min(0), v.max(0)
+    centre = (lo + hi) / np.float32(2)
+    side = (hi - lo).max()
+    scale = (np.float32(1) / side) * np.float32(0.99999)
+    return (v - centre) * scale, centre, scale
+
+
+def test_trellis2_preset_dual_grid_is_the_grid_of_the_mesh_read_mesh_returns(trellis2_framed):
+    """issue 62 item 1: on the mesh `read_mesh` returns (not the dump as written), TRELLIS.2's
+    crossing rule sets exactly our `intersected` bits, and every dual vertex lies in its
+    voxel; the dump's box is where `read_mesh` puts it, so it moves nothing."""
+    out, records = trellis2_framed
+    (root,) = json.loads((out / "data_dir.json").read_text()).values()
+    assert sorted(filter_metadata(root)) == sorted(r["sha256"] for r in records)
+    for rec in records:
+        v, f, coords, attrs, _ = load_item(root, rec["sha256"])
+        read, centre, scale = read_mesh_f32(v)
+        assert np.all(centre == 0) and scale == 1, (rec["uri"], centre, scale)
+        assert np.array_equal(read, v), rec["uri"]
+        assert np.abs(read).max() <= 0.5
+        lo, hi = read.min(0), read.max(0)
+        assert (hi - lo).max() == np.float32(0.99999), rec["uri"]  # fills the cube
+        ours = written_flags(coords, attrs["intersected"])
+        theirs = crossed_flags(read, f, T2_RES)
+        assert ours == theirs, (rec["uri"], len(ours - theirs), len(theirs - ours))
+        # Each dual vertex, placed against the mesh as read, within its voxel (to 1/255).
+        dual = (coords + attrs["vertices"] / 255.0) / T2_RES - 0.5
+        local = ((dual - centre) * scale + 0.5) * T2_RES - coords
+        assert local.min() >= -1 / 255 and local.max() <= 1 + 1 / 255, rec["uri"]
 
 
 def test_trellis2_filter_drops_items_over_the_limits(trellis2):

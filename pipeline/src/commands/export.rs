@@ -493,6 +493,7 @@ fn export_row(
             transforms: &r.transforms,
         }),
         object_span: config.params.span(),
+        output_span: config.params.output_span,
         frame,
     };
     Ok(consumer.files(&item)?)

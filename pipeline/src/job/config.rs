@@ -24,7 +24,15 @@ pub fn build_config(args: &ConfigArgs) -> Result<JobConfig> {
         .map(Preset::parse)
         .transpose()?;
     let mut overrides = preset.map_or(serde_json::json!({}), |p| p.settings().overrides());
+    // A span of the file's wins over the preset's output span, as its other keys do (the two
+    // exclude each other).
+    let own_span = file.pointer("/params/object_span").is_some();
     merge_json(&mut overrides, file);
+    if let Some(params) = overrides.get_mut("params").and_then(|p| p.as_object_mut()) {
+        if own_span {
+            params.remove("output_span");
+        }
+    }
     let mut config = JobConfig::overlaid(&overrides).context("invalid job config")?;
     if let Some(r) = args.resolution.given {
         config.params.resolution = r;

@@ -308,9 +308,11 @@ impl JobConfig {
                     "enabled": false, "recipe": "trellis2", "views": null, "size": null, "seed": 0
                 }),
             );
-            // `params.object_span` is left out while unset (`Params::object_span`); offer it.
+            // `params.object_span` and `params.output_span` are left out while unset
+            // (`Params::object_span`); offer them.
             if let Some(Value::Object(params)) = m.get_mut("params") {
                 params.entry("object_span").or_insert(Value::Null);
+                params.entry("output_span").or_insert(Value::Null);
                 // `params.refine` too, as its default table when the override writes one,
                 // so a misspelt setting is refused by its dotted name.
                 params.entry("refine").or_insert(refine_base(overrides)?);

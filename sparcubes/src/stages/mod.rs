@@ -16,7 +16,10 @@
 //! 10. `assemble` — the cells with a sign change and their corners, stored;
 //! 11. [`extract`] — marching cubes over the active cells → a closed, 2-manifold mesh;
 //! 12. [`refine`] (optional, the paper's step 4) — the displacements refined against
-//!     renderings of the source.
+//!     renderings of the source;
+//! 13. [`frame`] (with `params.output_span`) — the conversion run again with the output's box
+//!     framed, and the box's ends put exactly where a consumer reading the output as filling
+//!     its cube expects them.
 //!
 //! Only [`band`] (for the benches), [`extract`] and [`refine`] (for other crates) are public.
 
@@ -25,6 +28,7 @@ pub mod band;
 pub(crate) mod deform;
 pub mod extract;
 pub(crate) mod flood;
+pub mod frame;
 pub(crate) mod inside;
 pub(crate) mod normalize;
 pub mod refine;

@@ -8,12 +8,17 @@ use crate::params::Params;
 use crate::vec3::{cross, sub};
 
 /// The mesh in grid coordinates without zero-area triangles, the normalization that put it
-/// there, and how many triangles had zero area. A mesh must be sanitised ([`checked_bounds`]);
-/// one whose every triangle has zero area is refused.
-pub fn normalize(mesh: &TriMesh, params: &Params) -> Result<(GridMesh, Normalization, u64)> {
+/// there (`fit`, else the source's box fitted to `params.span()`), and how many triangles had
+/// zero area. A mesh must be sanitised ([`checked_bounds`]); one whose every triangle has
+/// zero area is refused.
+pub fn normalize(
+    mesh: &TriMesh,
+    params: &Params,
+    fit: Option<Normalization>,
+) -> Result<(GridMesh, Normalization, u64)> {
     let n = params.resolution;
     let bounds = checked_bounds(mesh)?;
-    let norm = Normalization::fit_span(bounds, n, params.span());
+    let norm = fit.unwrap_or_else(|| Normalization::fit_span(bounds, n, params.span()));
     let (grid, degenerate) = to_grid(mesh, &norm, n);
     if grid.tris.is_empty() {
         return Err(Error::EmptyMesh {
