@@ -1,5 +1,5 @@
 //! The item worker process: reads the job config and then one item per line on stdin, runs
-//! [`crate::item::convert::convert_item`] on each in a thread with a large stack, catches panics,
+//! [`crate::item::row::convert_item`] on each in a thread with a large stack, catches panics,
 //! and answers each item with a `Done` frame. A stack overflow, an allocation failure under
 //! its memory limit or a signal kills the process; the supervisor attributes that to the item.
 
@@ -62,7 +62,7 @@ fn run_one(item: &FrozenItem, config: &JobConfig, memory_bytes: u64) -> ShardRow
     let handle = std::thread::Builder::new()
         .name(format!("item-{}", item.index))
         .stack_size(ITEM_STACK)
-        .spawn(move || crate::item::convert::convert_item(&it, &cfg, memory_bytes));
+        .spawn(move || crate::item::row::convert_item(&it, &cfg, memory_bytes));
     let failed = |class, message: String| {
         ShardRow::failed(
             item.index,
