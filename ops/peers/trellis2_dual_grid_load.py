@@ -40,11 +40,11 @@ import argparse
 import json
 import os
 import pathlib
-import subprocess
 import sys
 import tempfile
 
 import numpy as np
+from trellis2_code import linked_package, trellis2_source
 
 HERE = pathlib.Path(__file__).resolve().parent
 TESTS = HERE.parent.parent / "tests" / "python"
@@ -108,32 +108,9 @@ PBR_ARGS = {"max_active_voxels": 1000000, "max_num_faces": 1000000, "with_mesh":
             "attrs": ["base_color", "metallic", "roughness", "alpha"]}
 
 
-def trellis2_source(given, tmp):
-    """The folder holding `trellis2/` and `o-voxel/`, and its commit: GIVEN itself (a
-    checkout), or for a bare clone its HEAD's two folders written under `tmp`."""
-    git = ["git", "-C", str(given)]
-    commit = subprocess.run(git + ["rev-parse", "HEAD"], capture_output=True, text=True)
-    commit = commit.stdout.strip() if commit.returncode == 0 else "unknown"
-    if (given / "trellis2").is_dir():
-        return given, commit
-    src = tmp / "trellis2-src"
-    src.mkdir()
-    tar = subprocess.run(git + ["archive", "HEAD", "trellis2", "o-voxel/o_voxel"],
-                         capture_output=True, check=True)
-    subprocess.run(["tar", "-x", "-C", str(src)], input=tar.stdout, check=True)
-    return src, commit
-
-
 def import_datasets(checkout, tmp):
     """TRELLIS.2's two datasets, their files linked into a package with the stubs."""
-    pkg = tmp / "pkg"
-    for name, text in STUBS.items():
-        (pkg / name).parent.mkdir(parents=True, exist_ok=True)
-        (pkg / name).write_text(text)
-    for rel, src in AS_THEY_ARE.items():
-        (pkg / rel).parent.mkdir(parents=True, exist_ok=True)
-        os.symlink(checkout / src, pkg / rel)
-    sys.path[:0] = [str(pkg), str(TESTS)]
+    linked_package(tmp / "pkg", checkout, STUBS, AS_THEY_ARE, [TESTS])
     from trellis2.datasets import FlexiDualGridDataset, SparseVoxelPbrDataset
     return FlexiDualGridDataset, SparseVoxelPbrDataset
 
@@ -208,7 +185,7 @@ def main():
     args = args.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         tmp = pathlib.Path(tmp)
-        checkout, commit = trellis2_source(args.trellis2, tmp)
+        checkout, commit = trellis2_source(args.trellis2, tmp, ["trellis2", "o-voxel/o_voxel"])
         print(f"TRELLIS.2 at {commit}")
         flexi, svpbr = import_datasets(checkout, tmp)
         roots = (args.export / "data_dir.json").read_text()  # the --data_dir object

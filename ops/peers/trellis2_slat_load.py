@@ -35,11 +35,11 @@ import json
 import os
 import pathlib
 import shutil
-import subprocess
 import sys
 import tempfile
 
 import numpy as np
+from trellis2_code import linked_package, trellis2_source
 
 #: The flow config's filters (`configs/gen/slat_flow_img2shape_dit_1_3B_512_bf16.json`).
 DATASET_ARGS = {"min_aesthetic_score": 4.5, "max_tokens": 8192}
@@ -56,31 +56,10 @@ AS_THEY_ARE = ["trellis2/datasets", "trellis2/models/__init__.py", "trellis2/mod
                "trellis2/utils/data_utils.py"]
 
 
-def trellis2_source(given, tmp):
-    """The folder holding `trellis2/` and its commit: GIVEN itself (a checkout), or for a bare
-    clone its HEAD's `trellis2/` written under `tmp` by `git archive`."""
-    git = ["git", "-C", str(given)]
-    commit = subprocess.run(git + ["rev-parse", "HEAD"], capture_output=True, text=True)
-    commit = commit.stdout.strip() if commit.returncode == 0 else "unknown"
-    if (given / "trellis2").is_dir():
-        return given, commit
-    src = tmp / "trellis2-src"
-    src.mkdir()
-    tar = subprocess.run(git + ["archive", "HEAD", "trellis2"], capture_output=True, check=True)
-    subprocess.run(["tar", "-x", "-C", str(src)], input=tar.stdout, check=True)
-    return src, commit
-
-
 def import_datasets(checkout, tmp):
     """TRELLIS.2's `SLat`, `SLatShape` and `ImageConditionedSLatShape`, their files linked into
     a package with the stubs."""
-    for name, text in STUBS.items():
-        (tmp / name).parent.mkdir(parents=True, exist_ok=True)
-        (tmp / name).write_text(text)
-    for rel in AS_THEY_ARE:
-        (tmp / rel).parent.mkdir(parents=True, exist_ok=True)
-        os.symlink(checkout / rel, tmp / rel)
-    sys.path[:0] = [str(tmp)]
+    linked_package(tmp, checkout, STUBS, {rel: rel for rel in AS_THEY_ARE})
     from trellis2.datasets import ImageConditionedSLatShape, SLat, SLatShape
     return SLat, SLatShape, ImageConditionedSLatShape
 
@@ -232,7 +211,7 @@ def main():
     binary = os.environ.get("SPARC3D_BIN") or shutil.which("sparc3d") or "sparc3d"
     with tempfile.TemporaryDirectory() as tmp:
         tmp = pathlib.Path(tmp)
-        checkout, commit = trellis2_source(args.trellis2, tmp)
+        checkout, commit = trellis2_source(args.trellis2, tmp, ["trellis2"])
         print(f"TRELLIS.2 at {commit}")
         slat, slat_shape, ic_slat_shape = import_datasets(checkout, tmp)
         roots, root, shas = data_dir_with_scores(export, tmp)
