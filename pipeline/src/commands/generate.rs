@@ -51,24 +51,23 @@ fn definition() -> clap::Command {
 /// Runs `sparc3d generate`.
 pub fn run(args: Args) -> Result<ExitCode> {
     let command = definition();
-    if args.what == What::All {
-        let dir = args
-            .out
-            .context("generate all: name the folder to write into with --out DIR")?;
-        write_all(&command, &dir)?;
-        eprintln!(
-            "man pages and bash, zsh and fish completions written under {}",
-            dir.display()
-        );
-        return Ok(ExitCode::SUCCESS);
-    }
     let bytes = match args.what {
         What::Man => man_page(&command, "sparc3d")?,
         What::Bash => completion(&command, Shell::Bash),
         What::Zsh => completion(&command, Shell::Zsh),
         What::Fish => completion(&command, Shell::Fish),
         What::Reference => reference(&command).into_bytes(),
-        What::All => Vec::new(),
+        What::All => {
+            let dir = args
+                .out
+                .context("generate all: name the folder to write into with --out DIR")?;
+            write_all(&command, &dir)?;
+            eprintln!(
+                "man pages and bash, zsh and fish completions written under {}",
+                dir.display()
+            );
+            return Ok(ExitCode::SUCCESS);
+        }
     };
     match &args.out {
         Some(path) => write_file(path, &bytes)?,
