@@ -23,14 +23,13 @@ import subprocess
 import sys
 import tempfile
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-BIN = os.path.join(ROOT, "target", "release", "sparc3d")
+from benchlib import Results, add_binary_argument, add_record_argument, binary
 
 
-def convert(path, resolution, attributes, scratch):
+def convert(sparc3d, path, resolution, attributes, scratch):
     """(`convert --json` summary, peak RSS in bytes)."""
     out = os.path.join(scratch, "out.ply")
-    cmd = ["/usr/bin/time", "-v", BIN, "convert", path, "-o", out,
+    cmd = ["/usr/bin/time", "-v", sparc3d, "convert", path, "-o", out,
            "--resolution", str(resolution), "--json"]
     if attributes:
         cmd.append("--attributes")
@@ -48,7 +47,11 @@ def main():
     ap.add_argument("items", help="JSON lines of attributes_reference.py --out (their paths)")
     ap.add_argument("--resolution", type=int, default=512)
     ap.add_argument("--limit", type=int, default=0, help="measure the first N items only")
+    add_binary_argument(ap)
+    add_record_argument(ap)
     args = ap.parse_args()
+    sparc3d = binary(args.bin)
+    results = Results("attributes_cost", args.record, sparc3d)
     items = [json.loads(l) for l in open(args.items) if l.strip()]
     items = [i for i in items if "error" not in i and os.path.exists(i["path"])]
     if args.limit:
@@ -57,8 +60,9 @@ def main():
     with tempfile.TemporaryDirectory() as scratch:
         for item in items:
             try:
-                plain, rss_plain = convert(item["path"], args.resolution, False, scratch)
-                coloured, rss_coloured = convert(item["path"], args.resolution, True, scratch)
+                plain, rss_plain = convert(sparc3d, item["path"], args.resolution, False, scratch)
+                coloured, rss_coloured = convert(sparc3d, item["path"], args.resolution, True,
+                                                 scratch)
             except RuntimeError as e:
                 print(f"{item['item']}: {e}", file=sys.stderr)
                 continue
@@ -76,6 +80,7 @@ def main():
                 "rss_ratio": rss_coloured / max(rss_plain, 1),
             }
             rows.append(row)
+            results.add({"resolution": args.resolution, **row})
             print(json.dumps(row), file=sys.stderr)
     print("| item | input faces | active cells | convert s (with / without) | attributes s | "
           "share | peak RSS MiB (with / without) | ratio |")

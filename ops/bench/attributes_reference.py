@@ -7,7 +7,7 @@ images, sit beside it in the package it came from. This script rebuilds each ite
 neighbours from the corpus's package cache (`fetch.sh DEST` leaves the packages in
 DEST/cache): the member's folder out of a Sweet Home 3D `.sh3f` or a wheel, the file in
 place in an unpacked Debian package, a FlightGear model's converted GLB beside its textures.
-It then runs the Rust example `attributes_reference` (sparcubes/examples) on every item to
+It then runs the Rust example `attributes_reference` (ops/bench/rust) on every item to
 read its facts, keeps those with materials, textures or vertex colours, and measures them at
 the resolution given, against both of the example's references (a texel at the closest point;
 the area mean over the cell's surface, `area`). Prints a Markdown table (the one in
@@ -22,13 +22,12 @@ import csv
 import json
 import os
 import shutil
-import subprocess
 import sys
 import tempfile
 import zipfile
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-ROOT = os.path.dirname(os.path.dirname(HERE))
+from benchlib import ROOT, run
+
 EXAMPLE = os.path.join(ROOT, "target", "release", "examples", "attributes_reference")
 
 
@@ -76,7 +75,7 @@ def materialise(row, corpus, scratch):
 
 
 def run_example(resolution, paths):
-    out = subprocess.run([EXAMPLE, str(resolution), *paths], capture_output=True, text=True)
+    out = run([EXAMPLE, str(resolution), *paths])
     return [json.loads(line) for line in out.stdout.splitlines() if line.strip()]
 
 

@@ -12,27 +12,17 @@ Needs `sparc3d` (SPARC3D_BIN or PATH). Prints one line per run and a summary tab
 
 import argparse
 import json
-import os
 import pathlib
 import shutil
 import subprocess
 import sys
-import time
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "tests" / "python"))
 from remote_servers import MotoS3, clean_env  # noqa: E402
 from s3_proxy import S3Proxy  # noqa: E402
 
-
-def sparc3d():
-    return os.environ.get("SPARC3D_BIN") or shutil.which("sparc3d") or sys.exit("no sparc3d")
-
-
-def timed(cmd, env=None):
-    t = time.monotonic()
-    subprocess.run([str(c) for c in cmd], check=True, env=env,
-                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    return time.monotonic() - t
+from benchlib import binary as sparc3d  # noqa: E402
+from benchlib import median, timed  # noqa: E402
 
 
 def main():
@@ -65,7 +55,7 @@ def main():
                 subprocess.run([str(c) for c in [sparc3d(), "init", job, *flags]], check=True, env=env,
                                stderr=subprocess.DEVNULL)
                 proxy.reset()
-                seconds = timed([sparc3d(), "run", job, "--workers", a.workers], env=env)
+                seconds, _ = timed([sparc3d(), "run", job, "--workers", a.workers], env=env)
                 runs[home].append(seconds)
                 if home == "bucket":
                     counts.append(dict(proxy.counts))
@@ -73,7 +63,6 @@ def main():
     finally:
         proxy.close()
         s3.close()
-    median = lambda xs: sorted(xs)[len(xs) // 2]
     f, b = median(runs["folder"]), median(runs["bucket"])
     shards = -(-items // a.shard_size)
     print(f"\n{items} items, {shards} shards, {a.resolution}³, {a.workers} workers, "

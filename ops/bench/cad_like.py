@@ -10,19 +10,39 @@ when curved_share < 0.1 and sharp_len_rel >= 1: flat faces meeting at sharp edge
 
 Needs numpy and trimesh.
 """
-import sys, os, json, numpy as np, trimesh
+import argparse
+import json
+import os
 
-out = {}
-for f in sorted(os.listdir(sys.argv[1])):
-    p = os.path.join(sys.argv[1], f)
+import numpy as np
+import trimesh
+
+
+def measure(path):
+    """The two figures of one mesh (and its face count), or its error."""
     try:
-        m = trimesh.load(p, force='mesh', process=True)
+        m = trimesh.load(path, force="mesh", process=True)
         m.merge_vertices()
         ang = m.face_adjacency_angles
-        el = np.linalg.norm(m.vertices[m.face_adjacency_edges[:, 0]] - m.vertices[m.face_adjacency_edges[:, 1]], axis=1)
+        edges = m.face_adjacency_edges
+        el = np.linalg.norm(m.vertices[edges[:, 0]] - m.vertices[edges[:, 1]], axis=1)
         sharp = el[ang >= np.radians(30)].sum()
         smooth_share = el[(ang > np.radians(1)) & (ang < np.radians(30))].sum() / max(el.sum(), 1e-30)
-        out[f] = {"sharp_len_rel": float(sharp / np.sqrt(m.area)), "curved_share": float(smooth_share), "faces": len(m.faces)}
-    except Exception as e:
-        out[f] = {"error": str(e)}
-json.dump(out, open(sys.argv[2], 'w'), indent=0)
+        return {"sharp_len_rel": float(sharp / np.sqrt(m.area)),
+                "curved_share": float(smooth_share), "faces": len(m.faces)}
+    except Exception as e:  # a mesh trimesh cannot read is recorded, not fatal
+        return {"error": str(e)}
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("corpus", help="folder of meshes")
+    ap.add_argument("out", help="JSON file written: mesh name -> figures")
+    args = ap.parse_args()
+    out = {f: measure(os.path.join(args.corpus, f)) for f in sorted(os.listdir(args.corpus))}
+    with open(args.out, "w") as f:
+        json.dump(out, f, indent=0)
+
+
+if __name__ == "__main__":
+    main()

@@ -34,13 +34,13 @@ mesh2sdf is single-threaded and slow (minutes per mesh at 256); not run in CI.
 import argparse
 import json
 import os
-import statistics
 import subprocess
 import sys
 import tempfile
 import time
 
-MESH_EXTENSIONS = {".obj", ".ply", ".stl", ".off", ".gltf", ".glb"}
+from benchlib import MESH_EXTENSIONS, add_binary_argument, binary, last_json, median
+
 F1_THRESHOLD = 0.005
 
 
@@ -50,7 +50,7 @@ def parse_args(argv=None):
     p.add_argument("--size", type=int, default=256, help="grid resolution of both pipelines")
     p.add_argument("--mesh-scale", type=float, default=0.8, help="mesh2sdf margin (README: 0.8)")
     p.add_argument("--out", default="compare_mesh2sdf", help="output prefix: PREFIX.jsonl, PREFIX.md")
-    p.add_argument("--bin", default="target/release/sparc3d", help="the sparc3d binary")
+    add_binary_argument(p)
     p.add_argument("--timeout", type=float, default=300.0, help="seconds per mesh and pipeline")
     p.add_argument("--samples", type=int, default=100_000, help="points sampled by eval")
     p.add_argument("--limit", type=int, default=0, help="stop after this many meshes (0: all)")
@@ -128,15 +128,10 @@ def export_source(path, dest):
 
 def run_json(cmd, timeout):
     """Runs a command that prints one JSON object last; returns (object, seconds) or raises."""
-    t0 = time.perf_counter()
-    r = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
-    seconds = time.perf_counter() - t0
-    if r.returncode != 0:
-        raise RuntimeError((r.stderr or r.stdout).strip().splitlines()[-1:] or ["exit %d" % r.returncode])
-    lines = [l for l in r.stdout.splitlines() if l.startswith("{")]
-    if not lines:
-        raise RuntimeError("no JSON from %s" % cmd[0])
-    return json.loads(lines[-1]), seconds
+    info, seconds, err = last_json(cmd, timeout)
+    if err:
+        raise RuntimeError(err)
+    return info, seconds
 
 
 def evaluate(args, source, output):
@@ -188,11 +183,6 @@ def f1_at(report, threshold=F1_THRESHOLD):
         if abs(f["threshold"] - threshold) < 1e-9:
             return f["f1"]
     return None
-
-
-def median(xs):
-    xs = [x for x in xs if x is not None]
-    return statistics.median(xs) if xs else None
 
 
 def fmt(x, spec):
@@ -286,9 +276,7 @@ def main():
     if not args.corpus:
         print("give a CORPUS (folder or list) or --summarize JSONL", file=sys.stderr)
         return 2
-    if not os.path.exists(args.bin):
-        print("no sparc3d binary at %s (cargo build --release -p sparc3d, or --bin)" % args.bin, file=sys.stderr)
-        return 2
+    args.bin = binary(args.bin)
     jsonl = args.out + ".jsonl"
     done = {r["mesh"] for r in read_jsonl(jsonl)}
     meshes = list_meshes(args.corpus)

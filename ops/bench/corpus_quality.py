@@ -20,12 +20,11 @@ import concurrent.futures
 import json
 import os
 import statistics
-import subprocess
 import sys
 import tempfile
-import time
 
-MESH_EXTENSIONS = {".obj", ".ply", ".stl", ".off", ".gltf", ".glb"}
+from benchlib import MESH_EXTENSIONS, add_binary_argument, binary, last_json
+
 MODES = {"deform": ["--deform"], "no_deform": ["--no-deform"]}
 
 
@@ -35,34 +34,16 @@ def parse_args():
     p.add_argument("--resolution", type=int, default=256)
     p.add_argument("--samples", type=int, default=100_000)
     p.add_argument("--out", default="corpus_quality", help="output prefix: PREFIX.jsonl, PREFIX.summary.json")
-    p.add_argument("--bin", default="target/release/sparc3d", help="the sparc3d binary")
+    add_binary_argument(p)
     p.add_argument("--timeout", type=float, default=900.0, help="seconds per command")
     p.add_argument("--jobs", type=int, default=1, help="meshes measured at once")
     p.add_argument("--limit", type=int, default=0, help="only the first K meshes (0: all)")
     p.add_argument("--resume", action="store_true", help="skip meshes already in PREFIX.jsonl")
     p.add_argument("--summarize", metavar="JSONL", help="only summarise an existing results file")
-    return p.parse_args()
-
-
-def run_json(cmd, timeout, json_optional=False):
-    """Runs a command that prints JSON on its last stdout line; returns (dict, seconds, error).
-    With json_optional, a successful run that prints no JSON gives an empty dict."""
-    start = time.monotonic()
-    try:
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
-    except subprocess.TimeoutExpired:
-        return None, time.monotonic() - start, f"timeout after {timeout:.0f}s"
-    seconds = time.monotonic() - start
-    if proc.returncode != 0:
-        tail = (proc.stderr or proc.stdout).strip().splitlines()[-3:]
-        return None, seconds, f"exit {proc.returncode}: {' | '.join(tail)}"
-    lines = [l for l in proc.stdout.strip().splitlines() if l.strip()]
-    if json_optional and not lines:
-        return {}, seconds, None
-    try:
-        return json.loads(lines[-1]), seconds, None
-    except (IndexError, json.JSONDecodeError) as e:
-        return None, seconds, f"no JSON on stdout ({e})"
+    args = p.parse_args()
+    if not args.summarize:
+        args.bin = binary(args.bin)
+    return args
 
 
 def find_key(obj, key):
@@ -88,7 +69,7 @@ def measure(args, mesh, workdir):
     record = {"mesh": os.path.basename(mesh), "resolution": args.resolution}
     for mode, flags in MODES.items():
         out = os.path.join(workdir, f"{mode}.ply")
-        convert, t_convert, err = run_json(
+        convert, t_convert, err = last_json(
             [args.bin, "convert", mesh, "-o", out, "--resolution", str(args.resolution), "--json", *flags],
             args.timeout,
             json_optional=True,
@@ -99,7 +80,7 @@ def measure(args, mesh, workdir):
             record[mode] = entry
             continue
         entry["convert"] = convert
-        report, t_eval, err = run_json(
+        report, t_eval, err = last_json(
             [args.bin, "eval", mesh, out, "--resolution", str(args.resolution), "--samples", str(args.samples), "--json"],
             args.timeout,
         )
@@ -114,7 +95,7 @@ def measure(args, mesh, workdir):
     return record
 
 
-def median(values):
+def rounded_median(values):
     values = [v for v in values if v is not None]
     return round(statistics.median(values), 4) if values else None
 
@@ -133,21 +114,21 @@ def summarize(records, resolution):
         summary[mode] = {
             "evaluated": len(ok),
             "failed": len(entries) - len(ok),
-            "median_cd_voxels": median(r["cd_voxels"] for r in ok),
-            "median_cd_floor_voxels": median(r["cd_floor"] * r["options"]["resolution"] for r in ok),
-            "median_cd_surface_voxels": median(r["cd_surface"] * r["options"]["resolution"] for r in ok),
-            "median_anc": median(r["anc"] for r in ok),
-            "median_f1": {str(f["threshold"]): median(x["f1"][i]["f1"] for x in ok) for i, f in enumerate(ok[0]["f1"])} if ok else {},
+            "median_cd_voxels": rounded_median(r["cd_voxels"] for r in ok),
+            "median_cd_floor_voxels": rounded_median(r["cd_floor"] * r["options"]["resolution"] for r in ok),
+            "median_cd_surface_voxels": rounded_median(r["cd_surface"] * r["options"]["resolution"] for r in ok),
+            "median_anc": rounded_median(r["anc"] for r in ok),
+            "median_f1": {str(f["threshold"]): rounded_median(x["f1"][i]["f1"] for x in ok) for i, f in enumerate(ok[0]["f1"])} if ok else {},
             "components_kept": sum(r["components_kept"] for r in ok),
             "components_total": sum(r["components_total"] for r in ok),
             "meshes_all_components_kept": sum(r["components_kept"] == r["components_total"] for r in ok),
             "closed_sources": len(closed),
-            "median_offset_voxels_closed": median(r["offset_voxels"] for r in closed),
+            "median_offset_voxels_closed": rounded_median(r["offset_voxels"] for r in closed),
             "watertight_outputs": sum(w is True for w in watertight),
             "watertight_reported": sum(w is not None for w in watertight),
             "manifold_outputs": sum(m is True for m in manifold),
             "closed_outputs_by_eval": sum(c is True for c in output_closed),
-            "median_convert_seconds": median(e.get("convert_seconds") for e in entries if "convert" in e),
+            "median_convert_seconds": rounded_median(e.get("convert_seconds") for e in entries if "convert" in e),
         }
     pairs = [(r["deform"]["eval"], r["no_deform"]["eval"]) for r in records
              if "eval" in r.get("deform", {}) and "eval" in r.get("no_deform", {})]
@@ -156,7 +137,7 @@ def summarize(records, resolution):
         "deform_better_cd_surface": sum(d["cd_surface"] < n["cd_surface"] for d, n in pairs),
         "deform_better_cd": sum(d["cd"] < n["cd"] for d, n in pairs),
         "deform_better_anc": sum(d["anc"] > n["anc"] for d, n in pairs),
-        "median_cd_surface_ratio": median(d["cd_surface"] / n["cd_surface"] for d, n in pairs if n["cd_surface"] > 0),
+        "median_cd_surface_ratio": rounded_median(d["cd_surface"] / n["cd_surface"] for d, n in pairs if n["cd_surface"] > 0),
     }
     return summary
 

@@ -2,8 +2,9 @@
 """What each command of a job costs as the job grows (docs/PERFORMANCE.md, "Jobs of ten
 million items"). Standard library only.
 
-    ops/bench/job_scale.py --bin target/release/sparc3d [--rows 1000,1000000,10000000]
+    ops/bench/job_scale.py [--bin target/release/sparc3d] [--rows 1000,1000000,10000000]
         [--add 1000000] [--shard-size 256] [--work-dir DIR] [--bucket-rows 1000,1000000]
+        [--json FILE] [--record]
 
 For each N: a synthetic manifest of N rows `id,uri,sha256,license` (`s3://` sources, the shape
 of an Objaverse-XL listing; nothing is fetched), then, each under its own clock and with the
@@ -23,7 +24,8 @@ their bodies, up and down, beside its time and memory. `ls` reads a local copy o
 finished shards and the whole frozen manifest (every slice, downloaded once).
 
 Then `failures`, `verify`, `retry`, `report` and `submit slurm --dry-run` of the same job,
-each alone (a table of their own). Prints Markdown tables; `--json FILE` keeps the rows.
+each alone (a table of their own). Prints Markdown tables; `--json FILE` keeps the rows,
+`--record` keeps one line a job size under ops/bench/runs/<date>-<machine>/job_scale.jsonl.
 """
 
 import argparse
@@ -37,6 +39,8 @@ import subprocess
 import sys
 import tempfile
 import time
+
+from benchlib import Results, add_binary_argument, add_record_argument, binary
 
 
 def write_manifest(path, rows, start=0):
@@ -175,7 +179,8 @@ def bucket_table(results):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--bin", required=True)
+    add_binary_argument(ap)
+    add_record_argument(ap)
     ap.add_argument("--rows", default="1000,1000000")
     ap.add_argument("--add", type=int, default=1000000)
     ap.add_argument("--shard-size", type=int, default=256)
@@ -183,6 +188,8 @@ def main():
     ap.add_argument("--bucket-rows", default="")
     ap.add_argument("--json")
     a = ap.parse_args()
+    a.bin = binary(a.bin)
+    record = Results("job_scale", a.record, a.bin)
     work = pathlib.Path(a.work_dir or tempfile.mkdtemp(prefix="sparc3d-scale-"))
     work.mkdir(parents=True, exist_ok=True)
     results = [measure(a.bin, int(n), a.add, a.shard_size, work) for n in a.rows.split(",") if n]
@@ -202,6 +209,9 @@ def main():
               for n in a.bucket_rows.split(",") if n]
     if bucket:
         bucket_table(bucket)
+    for home, rows in (("folder", results), ("bucket", bucket)):
+        for r in rows:
+            record.add({"home": home, "shard_size": a.shard_size, **r})
     if a.json:
         pathlib.Path(a.json).write_text(json.dumps({"folder": results, "bucket": bucket},
                                                    indent=2))

@@ -2,8 +2,9 @@
 """Throughput of a whole job by worker count (docs/PERFORMANCE.md, "Every core busy").
 Standard library only.
 
-    ops/bench/job_throughput.py --bin target/release/sparc3d --meshes DIR \\
-        [--resolution 512] [--workers 1,2,4,8,16] [--shard-size 256] [--rounds 2] [--out rows.json]
+    ops/bench/job_throughput.py --meshes DIR [--bin target/release/sparc3d] \\
+        [--resolution 512] [--workers 1,2,4,8,16] [--shard-size 256] [--rounds 2] \\
+        [--out rows.json] [--record]
 
 Builds one manifest of DIR, then for each round and each worker count (interleaved, so that a
 noisy machine weighs on every count alike) makes a fresh job with `sparc3d init` and times
@@ -12,7 +13,8 @@ meshes per hour, the speed-up over the first worker count, CPU/wall of the whole
 (cores kept busy), the summed item time over the wall (items converting at once, as `run`
 reports it) and the peak memory of the whole tree (the sum of its processes' RSS, sampled
 every 50 ms). Every job's content digest must be the same whatever the worker count: the
-script says so, or fails.
+script says so, or fails. --record keeps every job's row under
+ops/bench/runs/<date>-<machine>/job_throughput.jsonl.
 """
 
 import argparse
@@ -27,17 +29,8 @@ import sys
 import tempfile
 import time
 
-
-def fail(msg):
-    print(f"error: {msg}", file=sys.stderr)
-    sys.exit(2)
-
-
-def run_checked(cmd):
-    r = subprocess.run([str(c) for c in cmd], text=True, capture_output=True)
-    if r.returncode != 0:
-        fail(f"{' '.join(map(str, cmd))} exited {r.returncode}: {r.stderr.strip()[-2000:]}")
-    return r
+from benchlib import Results, add_binary_argument, add_record_argument, binary, fail
+from benchlib import run as run_checked
 
 
 def tree_rss_bytes(root_pid):
@@ -119,7 +112,8 @@ def table(rows, counts):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--bin", default=os.environ.get("SPARC3D_BIN", "sparc3d"))
+    add_binary_argument(ap)
+    add_record_argument(ap)
     ap.add_argument("--meshes", required=True, type=pathlib.Path)
     ap.add_argument("--resolution", default="512")
     ap.add_argument("--workers", default="1,2,4,8,16")
@@ -127,18 +121,20 @@ def main():
     ap.add_argument("--rounds", type=int, default=2)
     ap.add_argument("--out", type=pathlib.Path)
     args = ap.parse_args()
-    binary = shutil.which(args.bin) or args.bin
+    sparc3d = binary(args.bin)
+    results = Results("job_throughput", args.record, sparc3d)
     counts = [int(w) for w in args.workers.split(",")]
     rows = []
     with tempfile.TemporaryDirectory() as tmp_name:
         tmp = pathlib.Path(tmp_name)
         manifest = tmp / "manifest.jsonl"
-        run_checked([binary, "manifest", "build", args.meshes, "-o", manifest])
+        run_checked([sparc3d, "manifest", "build", args.meshes, "-o", manifest])
         for k in range(args.rounds):
             for n in counts:
-                row = one_round(binary, manifest, tmp, args, n)
+                row = one_round(sparc3d, manifest, tmp, args, n)
                 row["round"] = k
                 rows.append(row)
+                results.add({"resolution": args.resolution, "shard_size": args.shard_size, **row})
                 print(f"round {k + 1}, {n} workers: {row['wall']:.2f} s", file=sys.stderr)
     digests = {r["digest"] for r in rows}
     if len(digests) != 1:

@@ -23,11 +23,11 @@ import concurrent.futures
 import filecmp
 import json
 import os
-import subprocess
 import sys
 import tempfile
 
-MESH_EXTENSIONS = {".obj", ".ply", ".stl", ".off", ".gltf", ".glb"}
+from benchlib import MESH_EXTENSIONS, last_json
+
 
 
 def parse_args():
@@ -50,29 +50,13 @@ def parse_args():
     return p.parse_args()
 
 
-def last_json(cmd, timeout):
-    """Runs a command that prints JSON on its last stdout line: (dict, error)."""
-    try:
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
-    except subprocess.TimeoutExpired:
-        return None, f"timeout after {timeout:.0f}s"
-    if proc.returncode != 0:
-        tail = (proc.stderr or proc.stdout).strip().splitlines()[-3:]
-        return None, f"exit {proc.returncode}: {' | '.join(tail)}"
-    lines = [line for line in proc.stdout.strip().splitlines() if line.strip()]
-    try:
-        return json.loads(lines[-1]), None
-    except (IndexError, json.JSONDecodeError) as e:
-        return None, f"no JSON on stdout ({e})"
-
-
 def evaluate(args, mesh, out):
     """`eval` of one output at every seed: a list of reports (or errors)."""
     reports = []
     for seed in args.seeds.split(","):
         cmd = [args.b, "eval", mesh, out, "--resolution", str(args.resolution), "--json",
                "--seed", seed.strip(), "--samples", str(args.samples)]
-        report, err = last_json(cmd, args.timeout)
+        report, _, err = last_json(cmd, args.timeout)
         reports.append({"seed": int(seed), "error": err} if err else {"seed": int(seed), **report})
     return reports
 
@@ -87,7 +71,7 @@ def measure(args, mesh):
             cmd = [binary, "convert", mesh, "-o", out, "--resolution", str(args.resolution), "--json"]
             if side == "b":
                 cmd += args.b_flags.split()
-            summary, err = last_json(cmd, args.timeout)
+            summary, _, err = last_json(cmd, args.timeout)
             record[side] = {"error": err} if err else {"convert": summary}
             outs[side] = out if not err else None
         if not (outs["a"] and outs["b"]):

@@ -9,7 +9,7 @@
 #   ops/bench/remote_vs_local.sh MESH_DIR OUT_DIR [ROUNDS] [RESOLUTION] [WORKERS]
 set -euo pipefail
 meshes=$(realpath "$1") out=$2 rounds=${3:-3} res=${4:-512} workers=${5:-2}
-bin=${SPARC3D_BIN:-sparc3d}
+bin=$(python3 "$(dirname "$0")/benchlib.py" binary)
 mkdir -p "$out"
 "$bin" manifest build "$meshes" -o "$out/local.csv" >/dev/null 2>&1
 port=$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')

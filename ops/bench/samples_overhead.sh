@@ -10,7 +10,7 @@
 # FORMATS="vecset-npz trellis2" exports only those layouts (default: all four).
 set -euo pipefail
 meshes=$1 out=$2 res=${3:-512} workers=${4:-2}
-bin=${SPARC3D_BIN:-sparc3d}
+bin=$(python3 "$(dirname "$0")/benchlib.py" binary)
 mkdir -p "$out"
 "$bin" manifest build "$meshes" -o "$out/manifest.csv" >/dev/null
 cat > "$out/samples.toml" <<TOML

@@ -29,9 +29,8 @@ import subprocess
 import sys
 import tempfile
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-BIN = os.path.join(ROOT, "target", "release", "sparc3d")
-MESH_EXTENSIONS = {".obj", ".ply", ".stl", ".off", ".gltf", ".glb"}
+from benchlib import MESH_EXTENSIONS, Results, add_binary_argument, add_record_argument, binary
+
 NOT_CONVERSION = {"check", "save", "signature"}
 
 
@@ -98,7 +97,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("corpus", help="folder of meshes")
     ap.add_argument("--resolution", type=int, default=256)
-    ap.add_argument("--binary", default=BIN)
+    add_binary_argument(ap)
+    add_record_argument(ap)
     ap.add_argument("--out", help="also write each row as a JSON line here")
     ap.add_argument("--every", type=int, default=1, help="every N-th mesh by name")
     ap.add_argument("--summarize", action="store_true",
@@ -110,14 +110,17 @@ def main():
         return
     paths = sorted(os.path.join(args.corpus, f) for f in os.listdir(args.corpus)
                    if os.path.splitext(f)[1].lower() in MESH_EXTENSIONS)[::args.every]
+    sparc3d = binary(args.bin)
+    results = Results("signature_cost", args.record, sparc3d)
     rows = []
     out = open(args.out, "w") if args.out else None
     with tempfile.TemporaryDirectory() as scratch:
         for n, path in enumerate(paths):
-            row = measure(args.binary, path, args.resolution, n % 2 == 1, scratch)
+            row = measure(sparc3d, path, args.resolution, n % 2 == 1, scratch)
             if row is None:
                 continue
             rows.append(row)
+            results.add({"resolution": args.resolution, **row})
             if out:
                 out.write(json.dumps(row) + "\n")
                 out.flush()

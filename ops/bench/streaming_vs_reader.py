@@ -20,7 +20,6 @@ Without `--job`, converts the meshes of `--meshes` (default: examples/) over and
 
 import argparse
 import json
-import os
 import pathlib
 import shutil
 import subprocess
@@ -32,9 +31,8 @@ sys.path.insert(0, str(ROOT / "python"))
 import sparc3d_reader as reader  # noqa: E402
 import torch.utils.data  # noqa: E402
 
-
-def sparc3d():
-    return os.environ.get("SPARC3D_BIN") or shutil.which("sparc3d") or sys.exit("no sparc3d")
+from benchlib import binary as sparc3d  # noqa: E402
+from benchlib import median  # noqa: E402
 
 
 def make_job(a):
@@ -106,7 +104,6 @@ def main():
             assert got == n, (name, got, n)
         print(f"round {r + 1}: " + ", ".join(f"{k} {v[-1]:.2f} s" for k, v in seconds.items()),
               flush=True)
-    median = lambda xs: sorted(xs)[len(xs) // 2]
     rate = {k: n / median(v) for k, v in seconds.items()}
     print(f"\n{n} items, {len(reader.shard_paths(job))} shards, {a.rounds} rounds (medians):")
     for k, v in rate.items():

@@ -2,28 +2,24 @@
 """Thread scaling of `sparc3d convert`: the same meshes benchmarked at 1, 2, 4, ... threads
 (docs/PERFORMANCE.md, "Thread scaling"). Standard library only.
 
-    ops/bench/thread_scaling.py --bin target/release/sparc3d --meshes DIR \\
-        [--resolution 1024] [--threads 1,2,4,8,16] [--out rows.json]
+    ops/bench/thread_scaling.py --meshes DIR [--bin target/release/sparc3d] \\
+        [--resolution 1024] [--threads 1,2,4,8,16] [--out rows.json] [--record]
 
 Runs `sparc3d bench DIR --resolution R --threads T` once per thread count (each with its own
 warm-up conversion) and prints a Markdown table: median wall per mesh, the speed-up of the
 median over one thread, the median CPU/wall ratio (cores kept busy) and the peak RSS. --out
-keeps every bench row, with its thread count, as one JSON document.
+keeps every bench row, with its thread count, as one JSON document; --record keeps one line
+a thread count under ops/bench/runs/<date>-<machine>/thread_scaling.jsonl.
 """
 
 import argparse
 import json
-import os
 import pathlib
 import statistics
-import subprocess
 import sys
 import tempfile
 
-
-def fail(msg):
-    print(f"error: {msg}", file=sys.stderr)
-    sys.exit(2)
+from benchlib import Results, add_binary_argument, add_record_argument, binary, fail, run
 
 
 def bench_rows(binary, meshes, resolution, threads):
@@ -32,9 +28,7 @@ def bench_rows(binary, meshes, resolution, threads):
         rows_path = pathlib.Path(tmp) / "rows.jsonl"
         cmd = [binary, "bench", str(meshes), "--resolution", str(resolution),
                "--threads", str(threads), "--timeout", "5m", "--out", str(rows_path)]
-        r = subprocess.run(cmd, text=True, capture_output=True)
-        if r.returncode != 0:
-            fail(f"{' '.join(cmd)} exited {r.returncode}: {r.stderr.strip()[-2000:]}")
+        run(cmd)
         rows = [json.loads(line) for line in rows_path.read_text().splitlines() if line.strip()]
     for row in rows:
         row["threads"] = threads
@@ -56,12 +50,14 @@ def summary(rows):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--bin", default=os.environ.get("SPARC3D_BIN", "sparc3d"))
+    add_binary_argument(ap)
+    add_record_argument(ap)
     ap.add_argument("--meshes", required=True, type=pathlib.Path)
     ap.add_argument("--resolution", type=int, default=1024)
     ap.add_argument("--threads", default="1,2,4,8,16")
     ap.add_argument("--out", type=pathlib.Path)
     args = ap.parse_args()
+    sparc3d = binary(args.bin)
     try:
         counts = [int(t) for t in args.threads.split(",")]
     except ValueError:
@@ -69,16 +65,18 @@ def main():
     if not args.meshes.exists():
         fail(f"--meshes {args.meshes}: no such file or folder")
     all_rows, table = [], []
+    results = Results("thread_scaling", args.record, sparc3d)
     for t in counts:
-        rows = bench_rows(args.bin, args.meshes, args.resolution, t)
+        rows = bench_rows(sparc3d, args.meshes, args.resolution, t)
         all_rows += rows
         s = summary(rows)
         if s is None:
             fail(f"no mesh converted at {t} threads")
         table.append((t, s))
+        results.add({"resolution": args.resolution, "threads": t, **s})
         print(f"{t} threads: median wall {s['median_wall']:.3f} s", file=sys.stderr, flush=True)
     base = table[0][1]["median_wall"]
-    print(f"| threads | meshes | median wall (s) | speed-up | total wall (s) | CPU/wall | peak RSS (MB) |")
+    print("| threads | meshes | median wall (s) | speed-up | total wall (s) | CPU/wall | peak RSS (MB) |")
     print("| ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
     for t, s in table:
         print(f"| {t} | {s['meshes']} | {s['median_wall']:.3f} | {base / s['median_wall']:.2f} "

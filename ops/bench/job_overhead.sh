@@ -7,7 +7,7 @@
 # Usage: bench_overhead.sh MESH_DIR [RESOLUTION=256] [WORKERS=1] [SHARD_SIZE=16]
 set -euo pipefail
 DIR=$1; RES=${2:-256}; WORKERS=${3:-1}; SHARD=${4:-16}
-BIN=${SPARC3D_BIN:-$(dirname "$0")/../../target/release/sparc3d}
+BIN=$(python3 "$(dirname "$0")/benchlib.py" binary)
 WORK=$(mktemp -d)
 trap 'rm -rf "$WORK"' EXIT
 "$BIN" manifest build "$DIR" -o "$WORK/m.jsonl" 2>/dev/null

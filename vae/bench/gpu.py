@@ -2,7 +2,7 @@
 """The VAE on a GPU at 256³ for a fixed few minutes: steps/s, cells (voxels)/s, peak GPU
 memory, and the metrics of items it never saw (docs/VAE.md, "GPU").
 
-    SPARC3D_BIN=sparc3d ops/bench/vae_gpu.py --data JOB_OR_MESHES --work out/vae-gpu \\
+    SPARC3D_BIN=sparc3d vae/bench/gpu.py --data JOB_OR_MESHES --work out/vae-gpu \\
         [--minutes 5] [--resolution 256] [--unseen 16] [--config vae.toml] [--procs 1]
 
 --data is a converted job (a folder with job.json, at any resolution) or a folder of meshes,
@@ -29,17 +29,16 @@ import subprocess
 import sys
 import time
 
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "ops" / "bench"))
+from benchlib import binary as sparc3d_binary  # noqa: E402
+from benchlib import fail  # noqa: E402
+
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 
 #: GPU settings on top of --config: a bigger global batch, a cell budget sized for tens of GB
 #: (about 6 KB per cell measured on an H100, docs/VAE.md "GPU"), torch's own thread count.
 GPU_TRAIN = {"batch_size": 8, "max_cells_per_batch": 3_000_000, "threads": 0,
              "checkpoint_every": 500, "log_every": 10}
-
-
-def fail(msg):
-    print(f"error: {msg}", file=sys.stderr)
-    sys.exit(2)
 
 
 def env():
@@ -108,9 +107,7 @@ def main():
     ap.add_argument("--device", default="cuda", choices=["cuda", "cpu"],
                     help="cpu: a dry run of the script itself on a machine without a GPU")
     args = ap.parse_args()
-    binary = os.environ.get("SPARC3D_BIN") or shutil.which("sparc3d")
-    if not binary:
-        fail("no sparc3d binary: set SPARC3D_BIN or put sparc3d on PATH")
+    binary = sparc3d_binary()
     import torch
 
     if args.device == "cuda" and not torch.cuda.is_available():

@@ -5,7 +5,7 @@ part as its own job, train `sparc3d-vae` on the training job for a time budget, 
 reconstructions of the unseen items and of as many training items against their Sparcubes
 meshes and sources.
 
-    ops/bench/vae_dev_corpus.py --job dev64 --work out/vae-dev --train 128 --unseen 16 \\
+    vae/bench/dev_corpus.py --job dev64 --work out/vae-dev --train 128 --unseen 16 \\
         --minutes 30 --steps-per-second 0.75 [--config vae.toml] [--run NAME] [--steps S] \\
         [--init-from RUN] [--unseen-only]
 
@@ -14,9 +14,9 @@ all of the corpus's ok items (up to `--train`) are trained on, and every ok item
 unseen. `vae_heldout_manifest.tsv` beside this script names 24 such meshes (the dev corpus's
 fetch script takes it as its MANIFEST argument; docs/VAE.md, "Measured: round three"):
 
-    fetch.sh corpus ops/bench/vae_heldout_manifest.tsv
+    fetch.sh corpus vae/bench/vae_heldout_manifest.tsv
     sparc3d run corpus/vae_heldout --job held64 --resolution 64
-    ops/bench/vae_dev_corpus.py --job dev64 --work out --train 1000 --unseen-job held64 \
+    vae/bench/dev_corpus.py --job dev64 --work out --train 1000 --unseen-job held64 \
         --steps 2800 --run base
 
 Several runs may share one WORK folder (`--run NAME`: WORK/NAME/ holds the run, its
@@ -34,23 +34,20 @@ evaluation summaries.
 import argparse
 import hashlib
 import json
-import os
 import pathlib
 import resource
-import shutil
 import struct
 import subprocess
 import sys
 import time
 
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "ops" / "bench"))
+from benchlib import binary as sparc3d  # noqa: E402
+
 
 def sample_key(seed, item_id):
     """The key of pipeline/src/rows/sample.rs: first 8 bytes, big-endian, of sha256(seed_le ‖ id)."""
     return int.from_bytes(hashlib.sha256(struct.pack("<Q", seed) + item_id.encode()).digest()[:8], "big")
-
-
-def sparc3d():
-    return os.environ.get("SPARC3D_BIN") or shutil.which("sparc3d") or sys.exit("no sparc3d binary")
 
 
 def run(cmd, **kw):

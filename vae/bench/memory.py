@@ -4,7 +4,7 @@ size, for docs/VAE.md's memory notes. Each measurement runs in a fresh process o
 items of the job (the worst batch) and reports the process's peak RSS, the RSS before the step
 (torch, the model, the data) and the cells in the batch.
 
-    ops/bench/vae_memory.py --data job64 job128 job256 --batch-sizes 1 4 [--config vae.toml]
+    vae/bench/memory.py --data job64 job128 job256 --batch-sizes 1 4 [--config vae.toml]
 """
 
 import argparse

@@ -31,7 +31,7 @@ use std::path::Path;
 use std::process::ExitCode;
 use std::time::Instant;
 
-#[path = "../tests/support/barycentric.rs"]
+#[path = "../../../sparcubes/tests/support/barycentric.rs"]
 mod barycentric;
 use barycentric::{barycentric_by_areas, doubled_area};
 
