@@ -17,6 +17,7 @@ import os
 import pathlib
 import platform
 import shutil
+import signal
 import statistics
 import subprocess
 import sys
@@ -109,15 +110,38 @@ def last_json(cmd, timeout=None, json_optional=False):
         return None, seconds, f"no JSON on stdout ({e})"
 
 
-def timed(cmd, env=None):
-    """Runs `cmd` (output discarded): (wall seconds, peak RSS in KB from wait4); ends the
-    script when it fails."""
+def peak_kb(pid):
+    """The peak resident set of a running process (VmHWM), in KB; 0 when it cannot be read."""
+    try:
+        with open(f"/proc/{pid}/status", encoding="utf-8") as f:
+            for line in f:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1])
+    except (OSError, ValueError):
+        pass
+    return 0
+
+
+def timed(cmd, until=None, env=None):
+    """Runs `cmd`: (seconds to its end, or to the first stdout line holding `until`, when it
+    is stopped), (seconds to its first stdout line, None without one), its peak resident set
+    in KB (from wait4, or VmHWM when it was stopped); ends the script when it fails."""
     t0 = time.monotonic()
     try:
-        p = subprocess.Popen([str(c) for c in cmd], stdout=subprocess.DEVNULL,
+        p = subprocess.Popen([str(c) for c in cmd], stdout=subprocess.PIPE,
                              stderr=subprocess.PIPE, text=True, env=env)
     except OSError as e:
         fail(f"{command_line(cmd)}: {e}")
+    first = None
+    for line in p.stdout:
+        if first is None:
+            first = time.monotonic() - t0
+        if until is not None and until in line:
+            at = time.monotonic() - t0
+            peak = peak_kb(p.pid)
+            p.send_signal(signal.SIGTERM)
+            p.communicate(timeout=60)
+            return at, first, peak
     err = p.stderr.read()
     _, status, usage = os.wait4(p.pid, 0)
     seconds = time.monotonic() - t0
@@ -125,7 +149,7 @@ def timed(cmd, env=None):
     p.returncode = code
     if code != 0:
         fail(f"{command_line(cmd)} exited {code}: {err.strip()[-2000:]}")
-    return seconds, usage.ru_maxrss
+    return seconds, first, usage.ru_maxrss
 
 
 def median(values):

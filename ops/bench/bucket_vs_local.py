@@ -55,7 +55,7 @@ def main():
                 subprocess.run([str(c) for c in [sparc3d(), "init", job, *flags]], check=True, env=env,
                                stderr=subprocess.DEVNULL)
                 proxy.reset()
-                seconds, _ = timed([sparc3d(), "run", job, "--workers", a.workers], env=env)
+                seconds, _, _ = timed([sparc3d(), "run", job, "--workers", a.workers], env=env)
                 runs[home].append(seconds)
                 if home == "bucket":
                     counts.append(dict(proxy.counts))

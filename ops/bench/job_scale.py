@@ -34,13 +34,10 @@ import json
 import os
 import pathlib
 import shutil
-import signal
-import subprocess
 import sys
 import tempfile
-import time
 
-from benchlib import Results, add_binary_argument, add_record_argument, binary
+from benchlib import Results, add_binary_argument, add_record_argument, binary, timed
 
 
 def write_manifest(path, rows, start=0):
@@ -51,43 +48,6 @@ def write_manifest(path, rows, start=0):
         for i in range(start, start + rows):
             sha = hashlib.sha256(str(i).encode()).hexdigest()
             f.write(f"obj{i:09d},s3://objaverse-xl/{sha[:2]}/{sha}.glb,{sha},{licences[i % 4]}\n")
-
-
-def peak_kb(pid):
-    try:
-        for line in open(f"/proc/{pid}/status"):
-            if line.startswith("VmHWM:"):
-                return int(line.split()[1])
-    except OSError:
-        pass
-    return 0
-
-
-def timed(cmd, until=None, env=None):
-    """Runs `cmd`; (seconds to the end, or to the first stdout line holding `until`, then
-    stopped), (seconds to the first stdout line), peak KB (the process's maximum resident set
-    from wait4, or VmHWM when it was stopped)."""
-    t0 = time.monotonic()
-    p = subprocess.Popen([str(c) for c in cmd], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                         text=True, env=env)
-    first = None
-    for line in p.stdout:
-        if first is None:
-            first = time.monotonic() - t0
-        if until is not None and until in line:
-            at = time.monotonic() - t0
-            peak = peak_kb(p.pid)
-            p.send_signal(signal.SIGTERM)
-            p.communicate(timeout=60)
-            return at, first, peak
-    err = p.stderr.read()
-    _, status, usage = os.wait4(p.pid, 0)
-    end = time.monotonic() - t0
-    code = os.waitstatus_to_exitcode(status)
-    p.returncode = code
-    if code != 0:
-        sys.exit(f"{' '.join(map(str, cmd))} exited {code}: {err[-2000:]}")
-    return end, first, usage.ru_maxrss
 
 
 # The other commands that read a whole job, each timed alone on the job before any shard is

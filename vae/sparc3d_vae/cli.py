@@ -49,7 +49,13 @@ def parser() -> argparse.ArgumentParser:
                     "latents, decode back to watertight meshes. See docs/VAE.md.")
     ap.add_argument("--version", action="version", version=f"sparc3d-vae {__version__}")
     sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for add in (_train_parser, _encode_parser, _decode_parser, _reconstruct_parser,
+                _evaluate_parser):
+        add(sub)
+    return ap
 
+
+def _train_parser(sub) -> None:
     p = sub.add_parser("train", help="train a VAE on the items of one or more jobs",
                        description="Train (or with --resume continue) a VAE on the ok items of "
                        "jobs, with the settings measured for the jobs' resolution "
@@ -82,6 +88,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--hold-out-seed", type=int, metavar="S", help="their seed (train.hold_out_seed)")
     _device(p)
 
+
+def _encode_parser(sub) -> None:
     p = sub.add_parser("encode", help="write the latents of a job's items as Parquet shards, "
                        "or into a TRELLIS.2 export",
                        description="Encode every ok item of the jobs (the posterior mean and "
@@ -108,6 +116,8 @@ def parser() -> argparse.ArgumentParser:
     _device(p)
     _budget(p)
 
+
+def _decode_parser(sub) -> None:
     p = sub.add_parser("decode", help="decode latents to meshes",
                        description="Decode latents (their mean) to pruned sparse cubes, extract "
                        "each mesh with `sparc3d extract` and close its holes (paper §3.4): "
@@ -133,6 +143,8 @@ def parser() -> argparse.ArgumentParser:
     _budget(p)
     _sparc3d(p)
 
+
+def _reconstruct_parser(sub) -> None:
     p = sub.add_parser("reconstruct", help="one item of a job through the VAE to a mesh",
                        description="Encode an item (posterior mean), decode it, extract the "
                        "mesh with `sparc3d extract` and fill its holes.")
@@ -146,6 +158,8 @@ def parser() -> argparse.ArgumentParser:
     _budget(p)
     _sparc3d(p)
 
+
+def _evaluate_parser(sub) -> None:
     p = sub.add_parser("evaluate", help="CD / ANC / F1 and watertightness of reconstructions",
                        description="Reconstruct a seeded sample of items (the sample of "
                        "`sparc3d eval JOB --sample N --sample-seed S`) and measure each with "
@@ -163,7 +177,6 @@ def parser() -> argparse.ArgumentParser:
     _device(p)
     _budget(p)
     _sparc3d(p)
-    return ap
 
 
 def main(argv: Optional[List[str]] = None) -> int:

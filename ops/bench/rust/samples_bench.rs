@@ -45,24 +45,8 @@ fn main() -> ExitCode {
     let t = Clock::start();
     let mesh = sparcubes::extract(&conversion.cubes);
     let extract_s = t.secs(2);
-    let n = resolution as f64;
     let count = 250_000u64;
-    // Near: mesh vertices moved by N(0, σ) per axis, σ = 0.005 and 0.05 in normalized units;
-    // volume: uniform in [-1.05, 1.05]³. Both in grid units, as `sample` queries them.
-    let near: Vec<[f64; 3]> = (0..count)
-        .map(|i| {
-            let d = Draw::new(1, 3, i);
-            let v = mesh.positions[(i as usize * 7919) % mesh.positions.len()];
-            let sigma = if i % 2 == 0 { 0.005 } else { 0.05 } * n / 2.0;
-            [0, 1, 2].map(|a| v[a] as f64 + sigma * d.normal(a as u64))
-        })
-        .collect();
-    let volume: Vec<[f64; 3]> = (0..count)
-        .map(|i| {
-            let d = Draw::new(1, 4, i);
-            [0, 1, 2].map(|k| (2.1 * d.uniform(k) - 1.05 + 1.0) * 0.5 * n)
-        })
-        .collect();
+    let (near, volume) = query_points(&mesh, resolution as f64, count);
     let t = Clock::start();
     let index = TriangleIndex::new(&mesh);
     let build_s = t.secs(2);
@@ -77,24 +61,10 @@ fn main() -> ExitCode {
     let (near_in, volume_in) = (sides.inside_batch(&near), sides.inside_batch(&volume));
     let inside = near_in.len() + volume_in.len();
     let sides_s = t.secs(2);
-    // How often the closest triangle's face gives the side, and whether it agrees.
-    let face = |points: &[[f64; 3]],
-                closest: &[sparcubes::queries::closest::ClosestPoint],
-                grid: &[bool]| {
-        let mut answered = 0;
-        let mut differ = 0;
-        for ((p, c), g) in points.iter().zip(closest).zip(grid) {
-            if let Some(f) = index.face_side(*p, c) {
-                answered += 1;
-                differ += usize::from(f != *g);
-            }
-        }
-        format!("{answered} by the face, {differ} differ")
-    };
     let faces = format!(
         "near {}, volume {}",
-        face(&near, &a, &near_in),
-        face(&volume, &b, &volume_in)
+        face_sides(&index, &near, &a, &near_in),
+        face_sides(&index, &volume, &b, &volume_in)
     );
     let samples = SampleParams {
         surface: count as usize,
@@ -116,14 +86,7 @@ fn main() -> ExitCode {
     let layout = if args.get(2).is_some_and(|a| a == "--no-layout") {
         String::new()
     } else {
-        let t = Clock::start();
-        let sdf = sparcubes::products::truncated_sdf::truncated_sdf(&conversion.cubes, 4.0);
-        format!(
-            "; truncated sdf {} ({} points, checksum {:.3})",
-            t.secs(2),
-            sdf.sdf.len(),
-            sdf.sdf.iter().map(|&v| v as f64).sum::<f64>(),
-        )
+        truncated_sdf_line(&conversion.cubes)
     };
     let check: f64 = a.iter().chain(&b).map(|c| c.distance).sum();
     println!(
@@ -136,4 +99,56 @@ fn main() -> ExitCode {
         drawn.volume_sdf.len(),
     );
     ExitCode::SUCCESS
+}
+
+/// `count` near points (mesh vertices moved by N(0, σ) per axis, σ = 0.005 and 0.05 in
+/// normalized units) and `count` volume points (uniform in [-1.05, 1.05]³), both in grid units
+/// of a grid of `n`, as `sample` queries them.
+fn query_points(mesh: &sparcubes::TriMesh, n: f64, count: u64) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
+    let near = (0..count)
+        .map(|i| {
+            let d = Draw::new(1, 3, i);
+            let v = mesh.positions[(i as usize * 7919) % mesh.positions.len()];
+            let sigma = if i % 2 == 0 { 0.005 } else { 0.05 } * n / 2.0;
+            [0, 1, 2].map(|a| v[a] as f64 + sigma * d.normal(a as u64))
+        })
+        .collect();
+    let volume = (0..count)
+        .map(|i| {
+            let d = Draw::new(1, 4, i);
+            [0, 1, 2].map(|k| (2.1 * d.uniform(k) - 1.05 + 1.0) * 0.5 * n)
+        })
+        .collect();
+    (near, volume)
+}
+
+/// How often the closest triangle's face gives the side of a point, and how often that
+/// disagrees with the grid's side.
+fn face_sides(
+    index: &TriangleIndex,
+    points: &[[f64; 3]],
+    closest: &[sparcubes::queries::closest::ClosestPoint],
+    grid: &[bool],
+) -> String {
+    let mut answered = 0;
+    let mut differ = 0;
+    for ((p, c), g) in points.iter().zip(closest).zip(grid) {
+        if let Some(f) = index.face_side(*p, c) {
+            answered += 1;
+            differ += usize::from(f != *g);
+        }
+    }
+    format!("{answered} by the face, {differ} differ")
+}
+
+/// The truncated SDF of a 4-voxel band, timed, as the end of the printed line.
+fn truncated_sdf_line(cubes: &sparcubes::SparseCubes) -> String {
+    let t = Clock::start();
+    let sdf = sparcubes::products::truncated_sdf::truncated_sdf(cubes, 4.0);
+    format!(
+        "; truncated sdf {} ({} points, checksum {:.3})",
+        t.secs(2),
+        sdf.sdf.len(),
+        sdf.sdf.iter().map(|&v| v as f64).sum::<f64>(),
+    )
 }

@@ -4,11 +4,13 @@
 //! all go through it; each asks only for the steps it needs ([`Steps`]).
 
 use super::appearance::{appearance_products, Source};
+use crate::item::quality::SourceFacts;
 use sparc3d_schema::{
-    AttributeTensors, EncodedTensor, QualityFacts, RowTensors, SampleTensors, SchemaError,
+    AttributeTensors, EncodedTensor, QualityFacts, RowRenders, RowTensors, SampleTensors,
+    SchemaError,
 };
 use sparcubes::attributes::CellAttributes;
-use sparcubes::io::{Buffers, LoadStats};
+use sparcubes::io::{Buffers, LoadStats, LoadedMesh};
 use sparcubes::products::shape_signature::{signature_of, surface_pass};
 use sparcubes::samples::{SampleParams, Samples};
 use sparcubes::{Conversion, TriMesh};
@@ -41,29 +43,15 @@ pub fn convert_bytes(
 ) -> Result<Converted, Box<Failed>> {
     let mut seconds = StageSeconds::default();
     let fail = |error, seconds| Box::new(Failed { error, seconds });
-    let t = started;
     let loaded = sparcubes::io::load_read_with(&bytes, path, buffers);
     let kept = (steps.attributes.is_some() || steps.renders.is_some()).then_some(bytes);
-    let (source, load_stats) = match loaded {
-        Ok(loaded) => (loaded.mesh, loaded.stats),
+    let input = match loaded {
+        Ok(loaded) => measure_input(loaded, &steps, started, &mut seconds),
         Err(e) => return Err(fail(StageError::Load(e), seconds)),
     };
-    let quality_started = Instant::now();
-    let source_facts = steps
-        .quality
-        .then(|| crate::item::quality::source_facts(&source));
-    let quality_s = quality_started.elapsed().as_secs_f64();
-    let input_components = match &source_facts {
-        Some(f) => Some(f.components),
-        None => steps
-            .input_components
-            .then(|| sparcubes::topology::component_count(&sparcubes::topology::weld(&source))),
-    };
-    seconds.timings.load_s = t.elapsed().as_secs_f64() - quality_s;
-    seconds.add("load", seconds.timings.load_s);
 
     let t = Instant::now();
-    let conversion = match sparcubes::convert(&source, steps.params) {
+    let conversion = match sparcubes::convert(&input.source, steps.params) {
         Ok(c) => c,
         Err(e) => return Err(fail(StageError::Convert(e), seconds)),
     };
@@ -73,27 +61,20 @@ pub fn convert_bytes(
     seconds
         .in_order
         .extend(seconds.timings.stages.iter().cloned());
-    let input_faces = source.triangles.len() as u64;
-    let input_vertices = source.positions.len() as u64;
-    drop(source);
+    let input_faces = input.source.triangles.len() as u64;
+    let input_vertices = input.source.positions.len() as u64;
+    drop(input.source);
 
-    let t = Instant::now();
-    let extract = steps.extract || steps.samples.is_some() || steps.signature;
-    let mut mesh = extract.then(|| sparcubes::extract(&conversion.cubes));
-    seconds.timings.extract_s = t.elapsed().as_secs_f64();
-    if extract {
-        seconds.add("extract", seconds.timings.extract_s);
-    }
+    let mut mesh = extract_stage(&steps, &conversion, &mut seconds);
     let output_faces = mesh
         .as_ref()
         .filter(|_| steps.extract)
         .map(|m| m.triangles.len() as u64);
-    let source = source_facts.map(|facts| (facts, quality_s));
     let (quality, signature) = measure_output(
         &steps,
         mesh.as_ref(),
-        source,
-        &load_stats,
+        input.facts,
+        &input.load_stats,
         &conversion,
         &mut seconds,
     );
@@ -119,29 +100,20 @@ pub fn convert_bytes(
     if !(steps.keep_mesh || store_mesh) {
         mesh = None;
     }
-
-    let tensors = match steps.encode {
-        None => None,
-        Some(encoding) => {
-            let t = Instant::now();
-            let drawn = samples.as_ref().zip(steps.samples);
-            let cells = attributes.as_ref().map(|a| &a.0);
-            match encode(&conversion, mesh.as_ref(), drawn, cells, encoding) {
-                Ok(mut tensors) => {
-                    tensors.renders = renders;
-                    seconds.timings.encode_s = t.elapsed().as_secs_f64();
-                    seconds.add("encode", seconds.timings.encode_s);
-                    Some(tensors)
-                }
-                Err(e) => return Err(fail(StageError::Encode(e), seconds)),
-            }
-        }
+    let products = Products {
+        mesh: mesh.as_ref(),
+        samples: samples.as_ref(),
+        cells: attributes.as_ref().map(|a| &a.0),
+    };
+    let tensors = match encode_stage(&steps, &conversion, products, renders, &mut seconds) {
+        Ok(tensors) => tensors,
+        Err(e) => return Err(fail(StageError::Encode(e), seconds)),
     };
     Ok(Converted {
-        load_stats,
+        load_stats: input.load_stats,
         input_faces,
         input_vertices,
-        input_components,
+        input_components: input.components,
         conversion,
         output_faces,
         mesh: if steps.keep_mesh { mesh } else { None },
@@ -151,6 +123,90 @@ pub fn convert_bytes(
         signature,
         seconds,
     })
+}
+
+/// The loaded source with what is measured of it before the conversion.
+struct Input {
+    source: TriMesh,
+    load_stats: LoadStats,
+    /// The source's quality facts and the seconds they took, when asked for.
+    facts: Option<(SourceFacts, f64)>,
+    components: Option<u64>,
+}
+
+/// The source's quality facts and component count as `steps` asks; the load stage's time is
+/// from `started` to now, less the facts' own time (counted in the stage `quality`).
+fn measure_input(
+    loaded: LoadedMesh,
+    steps: &Steps,
+    started: Instant,
+    seconds: &mut StageSeconds,
+) -> Input {
+    let source = loaded.mesh;
+    let quality_started = Instant::now();
+    let facts = steps
+        .quality
+        .then(|| crate::item::quality::source_facts(&source));
+    let quality_s = quality_started.elapsed().as_secs_f64();
+    let components = match &facts {
+        Some(f) => Some(f.components),
+        None => steps
+            .input_components
+            .then(|| sparcubes::topology::component_count(&sparcubes::topology::weld(&source))),
+    };
+    seconds.timings.load_s = started.elapsed().as_secs_f64() - quality_s;
+    seconds.add("load", seconds.timings.load_s);
+    Input {
+        source,
+        load_stats: loaded.stats,
+        facts: facts.map(|f| (f, quality_s)),
+        components,
+    }
+}
+
+/// The extracted mesh, when `steps` extract, draw samples or read a signature (all three
+/// read it), timed as the stage `extract`.
+fn extract_stage(
+    steps: &Steps,
+    conversion: &Conversion,
+    seconds: &mut StageSeconds,
+) -> Option<TriMesh> {
+    let t = Instant::now();
+    let extract = steps.extract || steps.samples.is_some() || steps.signature;
+    let mesh = extract.then(|| sparcubes::extract(&conversion.cubes));
+    seconds.timings.extract_s = t.elapsed().as_secs_f64();
+    if extract {
+        seconds.add("extract", seconds.timings.extract_s);
+    }
+    mesh
+}
+
+/// What the conversion's later stages made, for the encoder.
+struct Products<'a> {
+    mesh: Option<&'a TriMesh>,
+    samples: Option<&'a Samples>,
+    cells: Option<&'a CellAttributes>,
+}
+
+/// The tensors of a row, when `steps` encode, with the condition views beside them, timed
+/// as the stage `encode`.
+fn encode_stage(
+    steps: &Steps,
+    conversion: &Conversion,
+    products: Products,
+    renders: Option<RowRenders>,
+    seconds: &mut StageSeconds,
+) -> Result<Option<RowTensors>, SchemaError> {
+    let Some(encoding) = steps.encode else {
+        return Ok(None);
+    };
+    let t = Instant::now();
+    let drawn = products.samples.zip(steps.samples);
+    let mut tensors = encode(conversion, products.mesh, drawn, products.cells, encoding)?;
+    tensors.renders = renders;
+    seconds.timings.encode_s = t.elapsed().as_secs_f64();
+    seconds.add("encode", seconds.timings.encode_s);
+    Ok(Some(tensors))
 }
 
 /// The quality facts (given the `source`'s, measured in `seconds` before the conversion) and
@@ -163,7 +219,7 @@ pub fn convert_bytes(
 fn measure_output(
     steps: &Steps,
     mesh: Option<&TriMesh>,
-    source: Option<(crate::item::quality::SourceFacts, f64)>,
+    source: Option<(SourceFacts, f64)>,
     load_stats: &LoadStats,
     conversion: &Conversion,
     seconds: &mut StageSeconds,

@@ -3,7 +3,7 @@
 
 use super::appearance::render_request;
 use super::convert::convert_bytes;
-use super::steps::{Encoding, Failed, Steps};
+use super::steps::{Converted, Encoding, Failed, Steps};
 use sparc3d_schema::{ErrorClass, FrozenItem, ItemStatus, JobConfig, RowCounts, ShardRow};
 use sparcubes::io::Buffers;
 use sparcubes::materials::TextureBudget;
@@ -53,33 +53,16 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig, memory_bytes: u64) ->
         Some(_) => Buffers::Relative(&read_remote),
         None => Buffers::Folder,
     };
-    let steps = Steps {
-        params,
-        input_components: true,
-        extract: config.extract_mesh,
-        samples: config.samples.enabled.then_some(&config.samples.params),
-        keep_mesh: false,
-        encode: Some(Encoding {
-            zstd_level: config.zstd_level,
-            store_mesh: config.store_mesh,
-        }),
-        attributes: config
-            .attributes
-            .enabled
-            .then(|| TextureBudget::within_item_memory(memory_bytes)),
-        quality: config.quality,
-        signature: config.shape_signature,
-        renders: match render_request(&config.renders, &sha) {
-            Ok(r) => r,
-            Err(message) => {
-                let elapsed = started.elapsed().as_secs_f64();
-                return failed(
-                    ErrorClass::Geometry(sparcubes::ErrorClass::InvalidParams),
-                    message,
-                    elapsed,
-                );
-            }
-        },
+    let steps = match steps_of(config, memory_bytes, &sha) {
+        Ok(steps) => steps,
+        Err(message) => {
+            let elapsed = started.elapsed().as_secs_f64();
+            return failed(
+                ErrorClass::Geometry(sparcubes::ErrorClass::InvalidParams),
+                message,
+                elapsed,
+            );
+        }
     };
     let done = match convert_bytes(bytes, path, buffers, steps, started) {
         Ok(done) => done,
@@ -102,6 +85,38 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig, memory_bytes: u64) ->
         row.timings = done.seconds.timings;
         return row;
     }
+    ok_row(item, params.resolution, sha, done)
+}
+
+/// What a job's `config` asks of each item's conversion; an item whose condition views
+/// cannot be asked for (`render_request`) gets the reason.
+fn steps_of<'a>(
+    config: &'a JobConfig,
+    memory_bytes: u64,
+    sha256: &str,
+) -> Result<Steps<'a>, String> {
+    Ok(Steps {
+        params: &config.params,
+        input_components: true,
+        extract: config.extract_mesh,
+        samples: config.samples.enabled.then_some(&config.samples.params),
+        keep_mesh: false,
+        encode: Some(Encoding {
+            zstd_level: config.zstd_level,
+            store_mesh: config.store_mesh,
+        }),
+        attributes: config
+            .attributes
+            .enabled
+            .then(|| TextureBudget::within_item_memory(memory_bytes)),
+        quality: config.quality,
+        signature: config.shape_signature,
+        renders: render_request(&config.renders, sha256)?,
+    })
+}
+
+/// The `ok` row of an item converted from the bytes whose sha256 is `sha`.
+fn ok_row(item: &FrozenItem, resolution: u32, sha: String, done: Converted) -> ShardRow {
     let cubes = &done.conversion.cubes;
     let stats = &done.conversion.stats;
     ShardRow {
@@ -114,7 +129,7 @@ pub fn convert_item(item: &FrozenItem, config: &JobConfig, memory_bytes: u64) ->
         error_message: None,
         stderr_tail: None,
         attempts: 1,
-        resolution: params.resolution,
+        resolution,
         normalization: Some(cubes.normalization),
         counts: Some(RowCounts {
             input_faces: done.input_faces,
