@@ -6,6 +6,7 @@
 //! vertex, and the throughput in meshes per hour per core.
 
 pub mod dedup;
+pub mod measured;
 pub mod one;
 
 use crate::util::units::parse_duration;
@@ -48,14 +49,7 @@ pub struct Args {
     #[arg(long)]
     pub no_warmup: bool,
     #[command(flatten)]
-    pub conversion: crate::flags::conversion::ConversionArgs,
-    /// zstd level of the encoded tensors.
-    #[arg(long, default_value_t = 3)]
-    pub zstd_level: i32,
-    /// Also render each mesh's condition views with this recipe (`trellis`, `trellis2`;
-    /// docs/RENDERS.md): the stage `renders` and the seconds a view.
-    #[arg(long, value_parser = crate::commands::render::parse_recipe)]
-    pub renders: Option<sparc3d_render::cond::Recipe>,
+    pub measured: measured::MeasuredConversion,
 }
 
 /// Median, 95th percentile (nearest rank), maximum and mean of a sample.
@@ -201,14 +195,9 @@ fn bench_mesh(exe: &Path, path: &Path, resolution: u32, args: &Args) -> BenchRow
         .arg(path)
         .arg("--resolution")
         .arg(resolution.to_string())
-        .arg("--zstd-level")
-        .arg(args.zstd_level.to_string())
+        .args(args.measured.as_flags())
         .stdin(Stdio::null())
         .stdout(Stdio::piped());
-    cmd.args(args.conversion.as_flags());
-    if let Some(recipe) = args.renders {
-        cmd.arg("--renders").arg(recipe.name());
-    }
     if let Some(t) = args.threads {
         cmd.env("RAYON_NUM_THREADS", t.to_string());
     }

@@ -19,14 +19,7 @@ pub struct Args {
     #[command(flatten)]
     pub resolution: crate::flags::resolution::ResolutionArg,
     #[command(flatten)]
-    pub conversion: crate::flags::conversion::ConversionArgs,
-    /// zstd level of the encoded tensors (the job default is 3).
-    #[arg(long, default_value_t = 3)]
-    pub zstd_level: i32,
-    /// Also render the condition views with this recipe's cameras, count and size
-    /// (`trellis`, `trellis2`), timed as the stage `renders` and per view.
-    #[arg(long, value_parser = crate::commands::render::parse_recipe)]
-    pub renders: Option<sparc3d_render::cond::Recipe>,
+    pub measured: super::measured::MeasuredConversion,
 }
 
 /// Compressed bytes of each stored tensor (zstd frames as `sparc3d-schema` encodes them).
@@ -133,7 +126,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
 
 fn measure(args: &Args, row: &mut BenchRow) -> anyhow::Result<()> {
     let name = args.input.display();
-    let params = args.conversion.params(args.resolution.get());
+    let params = args.measured.conversion.params(args.resolution.get());
     let steps = Steps {
         params: &params,
         input_components: false,
@@ -141,13 +134,13 @@ fn measure(args: &Args, row: &mut BenchRow) -> anyhow::Result<()> {
         samples: None,
         keep_mesh: false,
         encode: Some(Encoding {
-            zstd_level: args.zstd_level,
+            zstd_level: args.measured.zstd_level,
             store_mesh: false,
         }),
         attributes: None,
         quality: false,
         signature: false,
-        renders: match args.renders {
+        renders: match args.measured.renders {
             Some(recipe) => Some(render_request(&args.input, recipe)?),
             None => None,
         },
