@@ -56,20 +56,21 @@ pub struct Args {
 
 /// `--format`'s parser: the consumers' names, each with its `--help` line.
 fn consumer_parser() -> impl clap::builder::TypedValueParser<Value = Consumer> {
-    let values = Consumer::ALL.map(|c| clap::builder::PossibleValue::new(c.name()).help(c.about()));
-    clap::builder::PossibleValuesParser::new(values).map(|name| {
-        Consumer::from_name(&name).unwrap_or(Consumer::Vecset) // clap only passes listed names
+    let values = Consumer::ALL
+        .iter()
+        .map(|c| clap::builder::PossibleValue::new(c.name()).help(c.about()));
+    clap::builder::PossibleValuesParser::new(values).try_map(|name| {
+        Consumer::from_name(&name).ok_or_else(|| format!("no consumer named {name}"))
     })
 }
 
 /// `--frame`'s parser.
 fn frame_parser() -> impl clap::builder::TypedValueParser<Value = Frame> {
-    let frames = [Frame::Consumer, Frame::Normalized, Frame::Source];
-    clap::builder::PossibleValuesParser::new(frames.map(|f| f.name())).map(move |name| {
-        frames
+    clap::builder::PossibleValuesParser::new(Frame::ALL.map(|f| f.name())).try_map(|name| {
+        Frame::ALL
             .into_iter()
             .find(|f| f.name() == name)
-            .unwrap_or(Frame::Consumer)
+            .ok_or_else(|| format!("no frame named {name}"))
     })
 }
 
