@@ -2,7 +2,8 @@
 //! what [`sparcubes`] computes for one item (its sparse cubes, its samples) and nothing else:
 //! the geometry stays in `sparcubes`, which knows nothing of who reads it; here live each
 //! consumer's recipe (which of our arrays, in which frame, with which sign and index range),
-//! its folder layout and file names, and its listing files.
+//! its folder layout and file names, and its listing files; and the writing of an export
+//! folder ([`export`]: staged beside its destination, recorded, moved into place).
 //!
 //! A consumer module describes itself in one `SPEC` ([`consumer::Spec`]): its name, `--help`
 //! line, frames, what it reads, its preset, and its functions: `files` (one item's files),
@@ -20,6 +21,7 @@ pub mod cubvh;
 pub mod direct3d_s2;
 pub mod dora;
 mod error;
+pub mod export;
 pub mod frame;
 pub mod hunyuan3d;
 pub mod npz;
