@@ -10,12 +10,32 @@
 //! (in cubvh's [−1, 1] frame, δ = 2/N · √3 / 127, [`encode`]). Stored files pack a cell's 8
 //! bytes into a little-endian `u64` (corner 0 in the low byte) and the cell as `x·N² + y·N + z`.
 
+use crate::consumer::{
+    grid_views, needs_no_samples, no_listing, takes_any_job, Reads, Spec, Views,
+};
+use crate::Frame;
 use crate::{identity_arrays, npz::Array, npz_file, Item, ItemExport, Result};
 use sparcubes::products::corners::corner_values;
 use sparcubes::SparseCubes;
 
 /// `--help` line.
 pub const ABOUT: &str = "cubvh's sparse voxels: <item>.npz (active_cells, active_cells_sdf, packed u64); checked against test/sparse_voxel.py";
+
+/// cubvh as the export, `--for` and `--help` know it.
+pub const SPEC: Spec = Spec {
+    name: "cubvh",
+    title: "cubvh",
+    about: ABOUT,
+    frames: &[Frame::Consumer],
+    reads: Reads::CUBES,
+    // It reads any job: no preset.
+    preset: None,
+    missing: needs_no_samples,
+    check: takes_any_job,
+    files,
+    views: Views::Plain(grid_views),
+    listing: no_listing,
+};
 
 /// One `<stem>.npz` with `active_cells` and `active_cells_sdf`.
 pub fn files(item: &Item) -> Result<ItemExport> {

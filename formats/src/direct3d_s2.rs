@@ -12,12 +12,44 @@
 //! so the indices are written as they are, with no resampling. Any other job is refused in the
 //! consumer frame ([`check`]); `--frame normalized` writes it in the job's own frame.
 
+use crate::consumer::{grid_views, needs_no_samples, no_listing, PresetSpec, Reads, Spec, Views};
+use crate::preset::{GridPreset, Settings};
 use crate::{identity_arrays, npz::Array, npz_file, Frame, Item, ItemExport, JobCheck, Result};
 use sparcubes::products::truncated_sdf::truncated_sdf;
 use sparcubes::Params;
 
 /// `--help` line.
 pub const ABOUT: &str = "Direct3D-S2's sparse SDF: <item>.npz (sparse_index, sparse_sdf; a job with object_span = 0.95); checked against SparseSDFVAE.encode, sparse2mesh";
+
+/// Direct3D-S2 as the export, `--for` and `--help` know it.
+pub const SPEC: Spec = Spec {
+    name: "direct3d-s2",
+    title: "Direct3D-S2",
+    about: ABOUT,
+    frames: &[Frame::Consumer, Frame::Normalized],
+    reads: Reads::CUBES,
+    preset: Some(PresetSpec {
+        help: "its span; N its resolution",
+        samples: false,
+        renders: None,
+        grid: Some(GridPreset {
+            form: "[@N]",
+            required: false,
+            accept: |_, _| Ok(()),
+            params: |grid| Settings {
+                resolution: grid,
+                object_span: Some(OBJECT_SPAN),
+                ..Settings::NONE
+            },
+            misfit: |_, _| None,
+        }),
+    }),
+    missing: needs_no_samples,
+    check,
+    files,
+    views: Views::Plain(grid_views),
+    listing: no_listing,
+};
 
 /// The share of its cube Direct3D-S2's objects span: ±0.95 of [−1, 1] (`utils/mesh.py`
 /// L14-23), the `params.object_span` a job needs for this export.
@@ -36,7 +68,7 @@ pub const RESOLUTIONS: [u32; 2] = [512, 1024];
 /// The preset `--for` takes to make a job for Direct3D-S2 at `resolution`: `direct3d-s2@N`
 /// at one of its [`RESOLUTIONS`], else `direct3d-s2` (its span alone).
 fn preset_name(resolution: u32) -> String {
-    let name = crate::Consumer::Direct3dS2.name();
+    let name = SPEC.name;
     match RESOLUTIONS.contains(&resolution) {
         true => format!("{name}@{resolution}"),
         false => name.to_string(),

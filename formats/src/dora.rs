@@ -23,10 +23,12 @@
 //! `val.json` and `test.json` a few of them (`split_lists`).
 
 use crate::arrays::{floats, point_distance_rows, point_normal_rows, Width};
+use crate::consumer::{takes_any_job, PresetSpec, Reads, Spec, Views};
 use crate::select::{
     block_needs, block_rows, missing_needs, require_sharp, rows_in_cube, sharp_near_needs,
     sharp_near_rows, surface_and_sharp_needs, Need,
 };
+use crate::Frame;
 use crate::{npz::Array, npz_file, Error, ExportFile, Item, ItemExport, Listed, Placement, Result};
 use sparcubes::samples::{farthest_points, SampleParams, Samples};
 use std::path::Path;
@@ -34,6 +36,21 @@ use std::path::Path;
 /// `--help` line.
 pub const ABOUT: &str =
     "Dora: <item>.npz (fps_coarse_surface, fps_sharp_surface, sharp_near_surface, rand_points; f32, sdf > 0 inside) + train/val/test.json; checked against craftsman/data/objaverse.py ObjaverseDataset";
+
+/// Dora as the export, `--for` and `--help` know it.
+pub const SPEC: Spec = Spec {
+    name: "dora",
+    title: "Dora",
+    about: ABOUT,
+    frames: &Frame::ALL,
+    reads: Reads::SAMPLES,
+    preset: Some(PresetSpec::SAMPLES),
+    missing,
+    check: takes_any_job,
+    files,
+    views: Views::Plain(|item| item.placement(HALF_EXTENT)),
+    listing,
+};
 
 /// Farthest-point samples per surface kind (`point_number // 2`, L123, README's 65536).
 const FPS_ROWS: usize = 32_768;

@@ -1,6 +1,6 @@
 //! The errors of writing an export.
 
-/// Why an item (or a listing) could not be written in a consumer's layout.
+/// Why an item, a listing or the export folder could not be written in a consumer's layout.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
     /// The item lacks what the consumer needs (samples, enough points).
@@ -16,6 +16,15 @@ pub enum Error {
     /// The item's stored data cannot be turned into the layout.
     #[error("{0}")]
     Invalid(String),
+    /// A file or folder of the export could not be written, read or moved.
+    #[error("{context}")]
+    Io {
+        /// What was being done, with the path (`writing out/x.npz`).
+        context: String,
+        /// The underlying error.
+        #[source]
+        source: std::io::Error,
+    },
 }
 
 /// A result with [`Error`].

@@ -19,6 +19,9 @@ pub enum Frame {
 }
 
 impl Frame {
+    /// Every frame, in the order of `--frame`'s values.
+    pub const ALL: [Frame; 3] = [Frame::Consumer, Frame::Normalized, Frame::Source];
+
     /// The name `--frame` takes.
     pub fn name(self) -> &'static str {
         match self {

@@ -24,17 +24,37 @@
 //! export's frame ([`crate::renders`]).
 
 use crate::arrays::{floats, placed, point_normal_rows, Width};
+use crate::consumer::{no_listing, takes_any_job, PresetSpec, Reads, Spec, Views};
 use crate::renders::SourceToExport;
 use crate::select::{
     block_needs, block_rows, missing_needs, require_sharp, rows_in_cube, sharp_near_needs,
     sharp_near_rows, surface_and_sharp_needs, Need,
 };
+use crate::Frame;
 use crate::{npz::Array, npz_file, Item, ItemExport, Placement, Result};
 use sparcubes::samples::SampleParams;
 
 /// `--help` line.
 pub const ABOUT: &str =
     "Hunyuan3D-2.1: <item>/geo_data/<item>_surface.npz and _sdf.npz (f16, label > 0 inside), and with [renders] <item>/render_cond/000.png …; checked against hy3dshape/data/dit_asl.py AlignedShapeLatentDataset";
+
+/// Hunyuan3D-2.1 as the export, `--for` and `--help` know it.
+pub const SPEC: Spec = Spec {
+    name: "hunyuan3d-2.1",
+    title: "Hunyuan3D-2.1",
+    about: ABOUT,
+    frames: &Frame::ALL,
+    reads: Reads::SAMPLES,
+    preset: Some(PresetSpec {
+        renders: Some(RENDERS),
+        ..PresetSpec::SAMPLES
+    }),
+    missing,
+    check: takes_any_job,
+    files,
+    views: Views::Own,
+    listing: no_listing,
+};
 
 /// Rows of `random_surface` and `sharp_surface` (`499712 // 4`, L143).
 const SURFACE_ROWS: usize = 124_928;

@@ -2,22 +2,26 @@
 //! what [`sparcubes`] computes for one item (its sparse cubes, its samples) and nothing else:
 //! the geometry stays in `sparcubes`, which knows nothing of who reads it; here live each
 //! consumer's recipe (which of our arrays, in which frame, with which sign and index range),
-//! its folder layout and file names, and its listing files.
+//! its folder layout and file names, and its listing files; and the writing of an export
+//! folder ([`export`]: staged beside its destination, recorded, moved into place).
 //!
-//! A consumer module exposes the same functions, which [`Consumer`] dispatches to:
-//! `files` (one item's files), `listing` (the files that list the items, when the consumer
-//! reads one), `missing` (the `[samples]` keys a job lacks for it) and, for the grid
-//! consumers, `check` (the job settings its frame needs). Adding a consumer is one
-//! file and one variant. docs/FORMAT.md ("Exports") has the table of consumers, files and the
-//! loaders each was checked against.
+//! A consumer module describes itself in one `SPEC` ([`consumer::Spec`]): its name, `--help`
+//! line, frames, what it reads, its preset, and its functions: `files` (one item's files),
+//! `listing` (the files that list the items), `missing` (the `[samples]` keys a job lacks for
+//! it), `check` (the job settings its frame needs). [`Consumer`] is a handle on one, and
+//! [`Consumer::ALL`] the table of them; adding a consumer is one file and one entry there
+//! (ARCHITECTURE.md, "Adding a consumer"). docs/FORMAT.md ("Exports") has the table of
+//! consumers, files and the loaders each was checked against.
 
 #![deny(missing_docs)]
 
 mod arrays;
+pub mod consumer;
 pub mod cubvh;
 pub mod direct3d_s2;
 pub mod dora;
 mod error;
+pub mod export;
 pub mod frame;
 pub mod hunyuan3d;
 pub mod npz;
@@ -31,192 +35,15 @@ pub mod triposg;
 pub mod vecset;
 pub mod vxz;
 
+pub use consumer::Consumer;
 pub use error::{Error, Result};
 pub use frame::{Frame, Placement};
 
 use sparcubes::attributes::CellAttributes;
 use sparcubes::cubes::SparseCubes;
 use sparcubes::samples::{SampleParams, Samples};
-use sparcubes::Params;
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
-
-/// A codebase whose loader reads our exports as they are.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
-pub enum Consumer {
-    /// Hunyuan3D-2.1's surface and SDF samples.
-    Hunyuan3d21,
-    /// Dora's FPS surfaces and SDF samples.
-    Dora,
-    /// Step1X-3D's surfaces and SDF samples.
-    Step1x3d,
-    /// TripoSG's surface points.
-    Triposg,
-    /// Our own vector-set samples, one `.npz` per item, in the job's frames.
-    Vecset,
-    /// Direct3D-S2's sparse SDF.
-    Direct3dS2,
-    /// TRELLIS.2's flexible dual grid.
-    Trellis2,
-    /// cubvh's sparse voxels.
-    Cubvh,
-}
-
-impl Consumer {
-    /// Every consumer, in the order of `sparc3d export --help`.
-    pub const ALL: [Consumer; 8] = [
-        Consumer::Hunyuan3d21,
-        Consumer::Dora,
-        Consumer::Step1x3d,
-        Consumer::Triposg,
-        Consumer::Vecset,
-        Consumer::Direct3dS2,
-        Consumer::Trellis2,
-        Consumer::Cubvh,
-    ];
-
-    /// The name `--format` takes.
-    pub fn name(self) -> &'static str {
-        match self {
-            Consumer::Hunyuan3d21 => "hunyuan3d-2.1",
-            Consumer::Dora => "dora",
-            Consumer::Step1x3d => "step1x-3d",
-            Consumer::Triposg => "triposg",
-            Consumer::Vecset => "vecset-npz",
-            Consumer::Direct3dS2 => "direct3d-s2",
-            Consumer::Trellis2 => "trellis2",
-            Consumer::Cubvh => "cubvh",
-        }
-    }
-
-    /// One line for `--help`: what it writes.
-    pub fn about(self) -> &'static str {
-        match self {
-            Consumer::Hunyuan3d21 => hunyuan3d::ABOUT,
-            Consumer::Dora => dora::ABOUT,
-            Consumer::Step1x3d => step1x3d::ABOUT,
-            Consumer::Triposg => triposg::ABOUT,
-            Consumer::Vecset => vecset::ABOUT,
-            Consumer::Direct3dS2 => direct3d_s2::ABOUT,
-            Consumer::Trellis2 => trellis2::ABOUT,
-            Consumer::Cubvh => cubvh::ABOUT,
-        }
-    }
-
-    /// The consumer named `name` ([`Consumer::name`]).
-    pub fn from_name(name: &str) -> Option<Consumer> {
-        Consumer::ALL.into_iter().find(|c| c.name() == name)
-    }
-
-    /// The frames this consumer's files can be written in; the first is its default.
-    pub fn frames(self) -> &'static [Frame] {
-        match self {
-            Consumer::Hunyuan3d21 | Consumer::Dora | Consumer::Step1x3d | Consumer::Triposg => {
-                &[Frame::Consumer, Frame::Normalized, Frame::Source]
-            }
-            Consumer::Vecset => &[Frame::Normalized, Frame::Source],
-            Consumer::Direct3dS2 | Consumer::Trellis2 => &[Frame::Consumer, Frame::Normalized],
-            Consumer::Cubvh => &[Frame::Consumer],
-        }
-    }
-
-    /// Whether this consumer's files are made from the stored samples (the grid layouts are
-    /// made from the sparse cubes alone, so their export need not decode the sample columns).
-    pub fn reads_samples(self) -> bool {
-        !matches!(
-            self,
-            Consumer::Direct3dS2 | Consumer::Trellis2 | Consumer::Cubvh
-        )
-    }
-
-    /// Whether this consumer writes the stored appearance (the `[attributes]` columns) beside
-    /// the shape: TRELLIS.2's PBR voxels; the export decodes those columns only for it.
-    pub fn reads_attributes(self) -> bool {
-        matches!(self, Consumer::Trellis2)
-    }
-
-    /// The `[samples]` keys a job with `samples` (None: samples off) lacks for this consumer,
-    /// each with what it needs (empty when nothing is missing).
-    pub fn missing(self, samples: Option<&SampleParams>) -> Vec<String> {
-        match self {
-            Consumer::Hunyuan3d21 => hunyuan3d::missing(samples),
-            Consumer::Dora => dora::missing(samples),
-            Consumer::Step1x3d => step1x3d::missing(samples),
-            Consumer::Triposg => triposg::missing(samples),
-            Consumer::Vecset => vecset::missing(samples),
-            Consumer::Direct3dS2 | Consumer::Trellis2 | Consumer::Cubvh => Vec::new(),
-        }
-    }
-
-    /// What this consumer says of a job converted with `params`, written in `frame`, before
-    /// anything is written: the settings it needs and the warnings to show.
-    pub fn check(self, params: &Params, frame: Frame) -> JobCheck {
-        match self {
-            Consumer::Direct3dS2 => direct3d_s2::check(params, frame),
-            Consumer::Trellis2 => trellis2::check(params, frame),
-            // Samples move into a consumer's cube exactly, whatever the job's span.
-            Consumer::Hunyuan3d21
-            | Consumer::Dora
-            | Consumer::Step1x3d
-            | Consumer::Triposg
-            | Consumer::Vecset
-            | Consumer::Cubvh => JobCheck::default(),
-        }
-    }
-
-    /// The files of one item, paths relative to the export folder: the consumer's own, and
-    /// for a consumer without a layout of condition views, the item's views in the plain
-    /// multi-view layout ([`renders::plain`]) when the job rendered them.
-    pub fn files(self, item: &Item) -> Result<ItemExport> {
-        let mut export = self.own_files(item)?;
-        if let Some(place) = self.plain_views_frame(item) {
-            export.files.extend(renders::plain(item, &place)?);
-        }
-        Ok(export)
-    }
-
-    /// The frame of the geometry a consumer without its own layout of condition views
-    /// writes, for the cameras of [`renders::plain`]; `None` for those with one (Hunyuan3D-2.1,
-    /// Step1X-3D, TRELLIS.2).
-    fn plain_views_frame(self, item: &Item) -> Option<Placement> {
-        match self {
-            Consumer::Dora => Some(item.placement(dora::HALF_EXTENT)),
-            Consumer::Triposg => Some(item.placement(triposg::HALF_EXTENT)),
-            Consumer::Vecset => Some(vecset::placement(item)),
-            Consumer::Direct3dS2 | Consumer::Cubvh => Some(Placement::grid(item.cubes.resolution)),
-            Consumer::Hunyuan3d21 | Consumer::Step1x3d | Consumer::Trellis2 => None,
-        }
-    }
-
-    /// The consumer's own files of one item.
-    fn own_files(self, item: &Item) -> Result<ItemExport> {
-        match self {
-            Consumer::Hunyuan3d21 => hunyuan3d::files(item),
-            Consumer::Dora => dora::files(item),
-            Consumer::Step1x3d => step1x3d::files(item),
-            Consumer::Triposg => triposg::files(item),
-            Consumer::Vecset => vecset::files(item),
-            Consumer::Direct3dS2 => direct3d_s2::files(item),
-            Consumer::Trellis2 => trellis2::files(item),
-            Consumer::Cubvh => cubvh::files(item),
-        }
-    }
-
-    /// The listing files of the items written (in item order), when this consumer reads one;
-    /// `root` is where the export folder ends up (absolute), for listings of paths.
-    pub fn listing(self, items: &[Listed], root: &Path) -> Result<Vec<ExportFile>> {
-        match self {
-            Consumer::Dora => dora::listing(items, root),
-            Consumer::Step1x3d => step1x3d::listing(items),
-            Consumer::Trellis2 => trellis2::listing(items, root),
-            Consumer::Hunyuan3d21
-            | Consumer::Triposg
-            | Consumer::Vecset
-            | Consumer::Direct3dS2
-            | Consumer::Cubvh => Ok(Vec::new()),
-        }
-    }
-}
+use std::path::PathBuf;
 
 /// One item to export: what the job stored for it.
 #[derive(Debug, Clone, Copy)]

@@ -1,8 +1,10 @@
 //! Presets: the job settings a consumer needs, as `sparc3d init --for CONSUMER` (and
 //! `run DIR --job OUT --for CONSUMER`) sets them, so a job is made for a consumer in one flag.
-//! The values come from the consumer's own module, the one place its frame is described
-//! ([`trellis2::job_for_grid`], [`direct3d_s2::OBJECT_SPAN`]), which also names, in its
-//! export's checks, the preset that fits a job that does not.
+//! Each consumer states its own in its `SPEC` ([`crate::consumer::Spec::preset`], `None` for
+//! one that has none), the one place its frame is described
+//! ([`crate::trellis2::job_for_grid`], [`crate::direct3d_s2::OBJECT_SPAN`]), which also names,
+//! in its export's checks, the preset that fits a job that does not; here they are parsed,
+//! listed and merged into a config.
 //!
 //! - `trellis2@G`: TRELLIS.2's dual grid of G exactly: `resolution = G + 6` and
 //!   `output_span = 0.99999·G/(G + 6)`, the output's box framed as TRELLIS.2's `read_mesh`
@@ -14,8 +16,10 @@
 //!
 //! cubvh reads any job and has none.
 
-use crate::{direct3d_s2, trellis2, Consumer, Error, Result};
+use crate::consumer::PresetSpec;
+use crate::{Consumer, Error, Result};
 use serde_json::{json, Map, Value};
+use sparcubes::Params;
 
 /// A consumer, and for the grid consumers the size of its grid.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -43,6 +47,17 @@ pub struct Settings {
     pub renders: Option<RenderRecipe>,
 }
 
+impl Settings {
+    /// Nothing set (the [`Default`], for constants).
+    pub const NONE: Settings = Settings {
+        resolution: None,
+        object_span: None,
+        output_span: None,
+        samples: false,
+        renders: None,
+    };
+}
+
 /// A consumer's condition views: whose cameras and lights, how many, how large.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct RenderRecipe {
@@ -52,6 +67,27 @@ pub struct RenderRecipe {
     pub views: u32,
     /// Side of a view in pixels.
     pub size: u32,
+}
+
+/// The grid of a preset `NAME@G`, as its consumer states it: how it is written, which it
+/// takes, what it sets.
+#[derive(Debug, Clone, Copy)]
+pub struct GridPreset {
+    /// How [`Preset::forms`] writes it after the name: `@G`, or `[@N]` where it is optional.
+    pub form: &'static str,
+    /// Whether `--for NAME` must name it (such presets come first in `--for`'s help).
+    pub required: bool,
+    /// The error for a preset `text` with a grid (a whole number, 8 to the largest
+    /// resolution) or none (`None`) that the consumer does not take: one it needs, or one
+    /// too large; the error names the forms it takes.
+    pub accept: fn(&str, Option<u32>) -> Result<()>,
+    /// The `params` keys a grid (or none) sets (`resolution`, `object_span`, `output_span`;
+    /// samples and renders are the [`PresetSpec`]'s).
+    pub params: fn(Option<u32>) -> Settings,
+    /// What a job made with this preset at grid G lacks when a config key or flag changed
+    /// its settings, said in the preset's own terms rather than as the export's check says
+    /// it; `None` to let the check speak.
+    pub misfit: fn(u32, &Params) -> Option<String>,
 }
 
 impl Preset {
@@ -68,48 +104,64 @@ impl Preset {
                 Self::forms()
             )));
         };
-        let preset = Preset { consumer, grid };
-        match (consumer, grid) {
-            (Consumer::Cubvh, _) => Err(Error::Invalid(format!(
-                "--for {text}: cubvh reads any job, it has no preset; presets: {}",
+        let Some(spec) = consumer.spec().preset else {
+            return Err(Error::Invalid(format!(
+                "--for {text}: {name} reads any job, it has no preset; presets: {}",
                 Self::forms()
-            ))),
-            (Consumer::Trellis2, None) => Err(Error::Invalid(format!(
-                "--for {text}: name TRELLIS.2's grid, e.g. trellis2@256, trellis2@512 or \
-                 trellis2@1024 (the job converts at G + 6 and the export cuts the 3 free cells \
-                 of each side off)"
-            ))),
-            (Consumer::Trellis2, Some(g)) if g > trellis2::MAX_GRID => {
-                Err(Error::Invalid(format!(
-                "--for {text}: TRELLIS.2's grid is at most {} here (the job converts at G + 6, \
-                 and the largest resolution is {}); use trellis2@{} or a smaller grid",
-                trellis2::MAX_GRID,
-                sparcubes::params::MAX_RESOLUTION,
-                trellis2::MAX_GRID
-            )))
+            )));
+        };
+        match (spec.grid, grid) {
+            (Some(g), grid) => (g.accept)(text, grid)?,
+            (None, Some(_)) => {
+                return Err(Error::Invalid(format!(
+                    "--for {text}: {name} has no grid to name; use --for {name}"
+                )))
             }
-            (Consumer::Trellis2 | Consumer::Direct3dS2, _) | (_, None) => Ok(preset),
-            (_, Some(_)) => Err(Error::Invalid(format!(
-                "--for {text}: {name} has no grid to name; use --for {name}"
-            ))),
+            (None, None) => {}
         }
+        Ok(Preset { consumer, grid })
     }
 
     /// Every form [`Preset::parse`] takes, for messages.
     pub fn forms() -> String {
-        let mut forms: Vec<String> = Consumer::ALL
-            .into_iter()
-            .filter(|c| *c != Consumer::Cubvh)
-            .map(|c| c.name().to_string())
+        let forms: Vec<String> = with_presets()
+            .map(|(c, spec)| format!("{}{}", c.name(), spec.grid.map_or("", |g| g.form)))
             .collect();
-        for f in &mut forms {
-            if f == Consumer::Trellis2.name() {
-                f.push_str("@G");
-            } else if f == Consumer::Direct3dS2.name() {
-                f.push_str("[@N]");
+        forms.join(", ")
+    }
+
+    /// `--for`'s list of presets, each form with what it does, those that need a grid first:
+    /// "`trellis2@G` (TRELLIS.2's grid of G exactly), ..., `vecset-npz` (samples on)".
+    pub fn help() -> String {
+        let mut out = String::new();
+        let presets = in_help_order();
+        for (i, (c, spec)) in presets.iter().enumerate() {
+            let form = spec.grid.map_or("", |g| g.form);
+            if i > 0 {
+                out.push_str(", ");
+            }
+            out.push_str(&format!("`{}{form}`", c.name()));
+            let next = presets.get(i + 1).map(|(_, s)| s.help);
+            if next != Some(spec.help) {
+                out.push_str(&format!(" ({})", spec.help));
             }
         }
-        forms.join(", ")
+        out
+    }
+
+    /// The presets' condition views, for `--renders`' help, in the order of [`Preset::help`]:
+    /// "TRELLIS.2's 16 views of 1024², Hunyuan3D-2.1's 24 of 512², ...".
+    pub fn renders_help() -> String {
+        let views: Vec<String> = in_help_order()
+            .into_iter()
+            .filter_map(|(c, spec)| Some((c.spec().title, spec.renders?)))
+            .enumerate()
+            .map(|(i, (title, r))| {
+                let views = if i == 0 { " views" } else { "" };
+                format!("{title}'s {}{views} of {}²", r.views, r.size)
+            })
+            .collect();
+        views.join(", ")
     }
 
     /// The text [`Preset::parse`] reads back (what a job's config stores as `preset`).
@@ -122,38 +174,43 @@ impl Preset {
 
     /// What the preset sets.
     pub fn settings(&self) -> Settings {
-        match (self.consumer, self.grid) {
-            (Consumer::Trellis2, Some(g)) => {
-                let (resolution, span) = trellis2::job_for_grid(g);
-                Settings {
-                    resolution: Some(resolution),
-                    output_span: Some(span),
-                    renders: Some(trellis2::RENDERS),
-                    ..Settings::default()
-                }
-            }
-            (Consumer::Direct3dS2, grid) => Settings {
-                resolution: grid,
-                object_span: Some(direct3d_s2::OBJECT_SPAN),
-                ..Settings::default()
-            },
-            (Consumer::Trellis2 | Consumer::Cubvh, _) => Settings::default(),
-            (Consumer::Hunyuan3d21, _) => Settings {
-                samples: true,
-                renders: Some(crate::hunyuan3d::RENDERS),
-                ..Settings::default()
-            },
-            (Consumer::Step1x3d, _) => Settings {
-                samples: true,
-                renders: Some(crate::step1x3d::RENDERS),
-                ..Settings::default()
-            },
-            _ => Settings {
-                samples: true,
-                ..Settings::default()
-            },
+        let Some(spec) = self.consumer.spec().preset else {
+            return Settings::default();
+        };
+        let params = spec.grid.map(|g| (g.params)(self.grid)).unwrap_or_default();
+        Settings {
+            samples: spec.samples,
+            renders: spec.renders,
+            ..params
         }
     }
+
+    /// What a job made with this preset lacks, in the preset's own terms, when a config key
+    /// or flag changed what it set ([`GridPreset::misfit`]); `None` to let the consumer's
+    /// check speak.
+    pub fn misfit(&self, params: &Params) -> Option<String> {
+        let grid = self.consumer.spec().preset?.grid?;
+        (grid.misfit)(self.grid?, params)
+    }
+}
+
+/// The consumers with a preset, in table order.
+fn with_presets() -> impl Iterator<Item = (Consumer, PresetSpec)> {
+    Consumer::ALL
+        .iter()
+        .filter_map(|c| Some((*c, c.spec().preset?)))
+}
+
+/// The consumers with a preset, those whose preset needs a grid first, then those with an
+/// optional grid, then the rest, each group in table order.
+fn in_help_order() -> Vec<(Consumer, PresetSpec)> {
+    let mut presets: Vec<_> = with_presets().collect();
+    presets.sort_by_key(|(_, spec)| match spec.grid {
+        Some(g) if g.required => 0,
+        Some(_) => 1,
+        None => 2,
+    });
+    presets
 }
 
 impl Settings {
@@ -201,8 +258,7 @@ fn parse_grid(text: &str, g: &str) -> Result<u32> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::Frame;
-    use sparcubes::Params;
+    use crate::{trellis2, Frame};
 
     /// The params a preset's settings give over the defaults.
     fn params_of(s: Settings) -> Params {
@@ -232,8 +288,9 @@ mod tests {
         }
         let t = Preset::parse("trellis2@128").map(|p| p.settings());
         assert_eq!(t.ok().and_then(|s| s.resolution), Some(134));
-        for c in [Consumer::Dora, Consumer::Step1x3d, Consumer::Triposg] {
-            let s = Preset::parse(c.name()).map(|p| p.settings());
+        for name in ["dora", "step1x-3d", "triposg"] {
+            let c = Consumer::from_name(name).unwrap_or_else(|| panic!("{name}"));
+            let s = Preset::parse(name).map(|p| p.settings());
             assert!(
                 s.is_ok_and(|s| s.samples && s.object_span.is_none()),
                 "{c:?}"
@@ -242,6 +299,38 @@ mod tests {
             let d = sparcubes::samples::SampleParams::default();
             assert!(c.missing(Some(&d)).is_empty(), "{c:?}");
         }
+    }
+
+    #[test]
+    fn every_consumer_of_samples_has_a_preset_that_draws_them() {
+        for c in Consumer::ALL {
+            let preset = c.spec().preset;
+            let draws = preset.is_some_and(|p| p.samples);
+            assert_eq!(draws, c.reads_samples(), "{c:?}");
+            let grid = preset.and_then(|p| p.grid);
+            if let Some(g) = grid {
+                // A required grid is refused when missing, an optional one taken.
+                assert_eq!((g.accept)(c.name(), None).is_err(), g.required, "{c:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_help_texts_list_every_preset_from_the_table() {
+        assert_eq!(
+            Preset::help(),
+            "`trellis2@G` (TRELLIS.2's grid of G exactly), `direct3d-s2[@N]` (its span; N its \
+             resolution), `hunyuan3d-2.1`, `dora`, `step1x-3d`, `triposg`, `vecset-npz` \
+             (samples on)"
+        );
+        assert_eq!(
+            Preset::renders_help(),
+            "TRELLIS.2's 16 views of 1024², Hunyuan3D-2.1's 24 of 512², Step1X-3D's 20 of 512²"
+        );
+        assert_eq!(
+            Preset::forms(),
+            "hunyuan3d-2.1, dora, step1x-3d, triposg, vecset-npz, direct3d-s2[@N], trellis2@G"
+        );
     }
 
     #[test]

@@ -16,15 +16,35 @@
 //! key, never reads made-up rows; the export counts those items.
 
 use crate::arrays::{floats, point_normal_rows, Width};
+use crate::consumer::{takes_any_job, PresetSpec, Reads, Spec, Views};
 use crate::dora::{self, near_and_volume, near_and_volume_needs, signed_array};
 use crate::renders::SourceToExport;
 use crate::select::{has_sharp, missing_needs, surface_and_sharp_needs};
+use crate::Frame;
 use crate::{npz::Array, npz_file, ExportFile, Item, ItemExport, Listed, Result};
 use sparcubes::samples::SampleParams;
 
 /// `--help` line.
 pub const ABOUT: &str =
     "Step1X-3D: surfaces/<item>.npz (surface, sharp_surface, near_surface_points, volume_rand_points; f32, sdf > 0 inside) + train/val/test.json, and with [renders] images/<item>/NNNN_rgb.png; checked against step1x3d_geometry/data/base.py BaseDataset";
+
+/// Step1X-3D as the export, `--for` and `--help` know it.
+pub const SPEC: Spec = Spec {
+    name: "step1x-3d",
+    title: "Step1X-3D",
+    about: ABOUT,
+    frames: &Frame::ALL,
+    reads: Reads::SAMPLES,
+    preset: Some(PresetSpec {
+        renders: Some(RENDERS),
+        ..PresetSpec::SAMPLES
+    }),
+    missing,
+    check: takes_any_job,
+    files,
+    views: Views::Own,
+    listing: |items, _| listing(items),
+};
 
 /// Rows of `surface` and of `sharp_surface`.
 const SURFACE_ROWS: usize = 124_928;

@@ -72,7 +72,9 @@
 
 pub mod pbr;
 
+use crate::consumer::{needs_no_samples, PresetSpec, Reads, Spec, Views};
 use crate::pickle::{self, Value};
+use crate::preset::{GridPreset, Settings};
 use crate::vxz::{self, Attr};
 use crate::{Error, ExportFile, Frame, Item, ItemExport, JobCheck, Listed, Result};
 use sparcubes::products::dual_vertices::dual_vertices;
@@ -83,6 +85,35 @@ use std::path::{Path, PathBuf};
 /// `--help` line.
 pub const ABOUT: &str =
     "TRELLIS.2's dual grid dataset: dual_grid_<G>/<sha256>.vxz, mesh_dumps/, metadata.csv, data_dir.json (exact for a job at G + 6, docs/FORMAT.md), with [attributes] pbr_voxels_<G>/<sha256>.vxz on the same voxels, and with [renders] renders_cond/<sha256>/ (views and transforms.json); checked against trellis2/datasets/flexi_dual_grid.py FlexiDualGridDataset and sparse_voxel_pbr.py SparseVoxelPbrDataset";
+
+/// TRELLIS.2 as the export, `--for` and `--help` know it.
+pub const SPEC: Spec = Spec {
+    name: "trellis2",
+    title: "TRELLIS.2",
+    about: ABOUT,
+    frames: &[Frame::Consumer, Frame::Normalized],
+    reads: Reads {
+        samples: false,
+        attributes: true,
+    },
+    preset: Some(PresetSpec {
+        help: "TRELLIS.2's grid of G exactly",
+        samples: false,
+        renders: Some(RENDERS),
+        grid: Some(GridPreset {
+            form: "@G",
+            required: true,
+            accept: accept_grid,
+            params: preset_params,
+            misfit: preset_misfit,
+        }),
+    }),
+    missing: needs_no_samples,
+    check,
+    files,
+    views: Views::Own,
+    listing,
+};
 
 /// The share of the grid TRELLIS.2 scales a mesh's longest side to (`dual_grid.py` L36-56,
 /// `flexi_dual_grid.py` `read_mesh`).
@@ -182,6 +213,37 @@ pub const MAX_GRID: u32 = sparcubes::params::MAX_RESOLUTION - 2 * FREE_CELLS;
 /// exactly: `size + 6` and [`output_span_for`] (what `--for trellis2@size` sets).
 pub fn job_for_grid(size: u32) -> (u32, f64) {
     (size + 2 * FREE_CELLS, output_span_for(size))
+}
+
+/// `--for trellis2@G`'s grid: required, and at most [`MAX_GRID`].
+fn accept_grid(text: &str, grid: Option<u32>) -> Result<()> {
+    match grid {
+        None => Err(Error::Invalid(format!(
+            "--for {text}: name TRELLIS.2's grid, e.g. trellis2@256, trellis2@512 or \
+             trellis2@1024 (the job converts at G + 6 and the export cuts the 3 free cells \
+             of each side off)"
+        ))),
+        Some(g) if g > MAX_GRID => Err(Error::Invalid(format!(
+            "--for {text}: TRELLIS.2's grid is at most {MAX_GRID} here (the job converts at \
+             G + 6, and the largest resolution is {}); use trellis2@{MAX_GRID} or a smaller grid",
+            sparcubes::params::MAX_RESOLUTION
+        ))),
+        Some(_) => Ok(()),
+    }
+}
+
+/// What `--for trellis2@G` sets: the job of [`job_for_grid`] (nothing without a grid, which
+/// [`accept_grid`] refuses).
+fn preset_params(grid: Option<u32>) -> Settings {
+    let Some(g) = grid else {
+        return Settings::NONE;
+    };
+    let (resolution, span) = job_for_grid(g);
+    Settings {
+        resolution: Some(resolution),
+        output_span: Some(span),
+        ..Settings::NONE
+    }
 }
 
 /// What a job made with `--for trellis2@grid` lacks for TRELLIS.2's frame when a config key

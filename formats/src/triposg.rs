@@ -6,13 +6,30 @@
 //! it decodes in ±1.005 (L54), so the frame is the centred cube with the longest side on ±1.
 
 use crate::arrays::placed;
+use crate::consumer::{no_listing, takes_any_job, PresetSpec, Reads, Spec, Views};
 use crate::pickle::{f32_rows, npy_of_object, Value};
 use crate::select::{missing_needs, Need};
+use crate::Frame;
 use crate::{Error, ExportFile, Item, ItemExport, Result};
 use sparcubes::samples::SampleParams;
 
 /// `--help` line.
 pub const ABOUT: &str = "TripoSG: <item>.npy (pickled dict: surface_points, surface_normals; f32); checked against scripts/inference_vae.py load_surface";
+
+/// TripoSG as the export, `--for` and `--help` know it.
+pub const SPEC: Spec = Spec {
+    name: "triposg",
+    title: "TripoSG",
+    about: ABOUT,
+    frames: &Frame::ALL,
+    reads: Reads::SAMPLES,
+    preset: Some(PresetSpec::SAMPLES),
+    missing,
+    check: takes_any_job,
+    files,
+    views: Views::Plain(|item| item.placement(HALF_EXTENT)),
+    listing: no_listing,
+};
 
 /// Rows its VAE script draws.
 const SURFACE_ROWS: usize = 204_800;

@@ -4,6 +4,7 @@
 //! the source mesh's frame (f32). For readers of our own layout (`sparc3d_reader.iter_export`).
 
 use crate::arrays::{floats, placed, Width};
+use crate::consumer::{no_listing, takes_any_job, PresetSpec, Reads, Spec, Views};
 use crate::npz::Array;
 use crate::select::missing_needs;
 use crate::{identity_arrays, npz_file, Frame, Item, ItemExport, Placement, Result};
@@ -12,6 +13,21 @@ use sparcubes::samples::{Precision, SampleParams};
 /// `--help` line.
 pub const ABOUT: &str =
     "our vector-set samples: surface, sharp, near, volume (points, normals, signed distances); read by sparc3d_reader.iter_export";
+
+/// Our vector-set layout as the export, `--for` and `--help` know it.
+pub const SPEC: Spec = Spec {
+    name: "vecset-npz",
+    title: "sparc3d_reader",
+    about: ABOUT,
+    frames: &[Frame::Normalized, Frame::Source],
+    reads: Reads::SAMPLES,
+    preset: Some(PresetSpec::SAMPLES),
+    missing,
+    check: takes_any_job,
+    files,
+    views: Views::Plain(placement),
+    listing: no_listing,
+};
 
 /// `samples.enabled` when the job draws no samples.
 pub fn missing(samples: Option<&SampleParams>) -> Vec<String> {

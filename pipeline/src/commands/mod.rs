@@ -7,7 +7,6 @@ pub mod convert;
 pub mod dedup;
 pub mod eval;
 pub mod export;
-mod export_debris;
 pub mod extract;
 pub mod failures;
 pub mod fill_holes;

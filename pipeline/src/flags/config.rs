@@ -2,6 +2,7 @@
 //! (`init`, `run --job`); the config itself is built from them by `job/config.rs`.
 
 use crate::util::units::with_default;
+use sparc3d_formats::preset::Preset;
 use sparc3d_schema::JobConfig;
 use std::path::PathBuf;
 
@@ -20,16 +21,24 @@ pub struct ConfigArgs {
     /// Config file (TOML) with any of the job config's keys.
     #[arg(long)]
     pub config: Option<PathBuf>,
-    /// Make the job for a consumer (docs/FORMAT.md, "Presets"): `trellis2@G` (TRELLIS.2's
-    /// grid of G exactly), `direct3d-s2[@N]` (its span; N its resolution), `hunyuan3d-2.1`,
-    /// `dora`, `step1x-3d`, `triposg`, `vecset-npz` (samples on). The config file's keys and
-    /// the other flags win over it; job.json records it as `preset`.
-    #[arg(long = "for", value_name = "CONSUMER")]
+    /// Make the job for a consumer (docs/FORMAT.md, "Presets"): each preset with what it
+    /// sets, from the consumers' table (`Preset::help`). The config file's keys and the
+    /// other flags win over it; job.json records it as `preset`.
+    #[arg(long = "for", value_name = "CONSUMER", help = format!(
+        "Make the job for a consumer (docs/FORMAT.md, \"Presets\"): {}. The config file's \
+         keys and the other flags win over it; job.json records it as `preset`",
+        Preset::help()
+    ))]
     pub preset: Option<String>,
     /// Render each item's condition views with the conversion (`[renders] enabled = true`,
-    /// docs/RENDERS.md), with the `--for` consumer's recipe (TRELLIS.2's 16 views of 1024²,
-    /// Hunyuan3D-2.1's 24 of 512², Step1X-3D's 20 of 512²) unless the config file sets one.
-    #[arg(long)]
+    /// docs/RENDERS.md), with the `--for` consumer's recipe (each preset's views, from the
+    /// consumers' table: `Preset::renders_help`) unless the config file sets one.
+    #[arg(long, help = format!(
+        "Render each item's condition views with the conversion (`[renders] enabled = true`, \
+         docs/RENDERS.md), with the `--for` consumer's recipe ({}) unless the config file \
+         sets one",
+        Preset::renders_help()
+    ))]
     pub renders: bool,
 }
 

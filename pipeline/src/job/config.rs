@@ -101,13 +101,7 @@ fn warn_misfit(preset: Preset, config: &JobConfig) {
     let samples = &config.samples;
     let mut lines = consumer.missing(samples.enabled.then_some(&samples.params));
     let check = consumer.check(&config.params, sparc3d_formats::Frame::Consumer);
-    let own_grid = match (consumer, preset.grid) {
-        (sparc3d_formats::Consumer::Trellis2, Some(g)) => {
-            sparc3d_formats::trellis2::preset_misfit(g, &config.params)
-        }
-        _ => None,
-    };
-    match own_grid {
+    match preset.misfit(&config.params) {
         Some(line) => lines.push(line),
         None => lines.extend(check.required),
     }

@@ -7,15 +7,19 @@
 //! the destination when nothing is there (a kill between the two renames of an export made
 //! before the swap was one step). [`exchange`] swaps the finished export and the earlier one
 //! in one step (`renameat2` with `RENAME_EXCHANGE`), so the destination always holds a whole
-//! export.
+//! export. Neither prints: what [`clear`] did comes back as lines for the caller to show.
 
-use anyhow::{Context, Result};
+use super::folder::io;
+use super::RECORD;
+use crate::Result;
 use std::path::Path;
 
-/// Clears the debris of killed exports of `out` beside it; says on stderr what it did.
-pub(super) fn clear(out: &Path, record: &str) -> Result<()> {
+/// Clears the debris of killed exports of `out` beside it; returns the lines that say what
+/// it did (`note: …`, `warning: …`), in the order it did it.
+pub fn clear(out: &Path) -> Result<Vec<String>> {
+    let mut said = Vec::new();
     let Some(name) = out.file_name() else {
-        return Ok(());
+        return Ok(said);
     };
     let parent = match out.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
@@ -23,7 +27,7 @@ pub(super) fn clear(out: &Path, record: &str) -> Result<()> {
     };
     let prefix = format!(".{}.", name.to_string_lossy());
     let Ok(entries) = std::fs::read_dir(parent) else {
-        return Ok(());
+        return Ok(said);
     };
     for entry in entries.flatten() {
         let file = entry.file_name().to_string_lossy().into_owned();
@@ -36,38 +40,39 @@ pub(super) fn clear(out: &Path, record: &str) -> Result<()> {
         if !matches!(kind, "partial" | "old") || pid == std::process::id() || alive(pid) {
             continue;
         }
-        clear_one(&entry.path(), kind, pid, out, record)?;
+        said.push(clear_one(&entry.path(), kind, pid, out)?);
     }
-    Ok(())
+    Ok(said)
 }
 
-/// Restores or removes one folder a killed export (process `pid`) left.
-fn clear_one(path: &Path, kind: &str, pid: u32, out: &Path, record: &str) -> Result<()> {
-    if kind == "old" && !out.exists() && path.join(record).is_file() {
-        std::fs::rename(path, out)
-            .with_context(|| format!("restoring {} to {}", path.display(), out.display()))?;
-        eprintln!(
+/// Restores or removes one folder a killed export (process `pid`) left; what it did.
+fn clear_one(path: &Path, kind: &str, pid: u32, out: &Path) -> Result<String> {
+    if kind == "old" && !out.exists() && path.join(RECORD).is_file() {
+        std::fs::rename(path, out).map_err(io(format!(
+            "restoring {} to {}",
+            path.display(),
+            out.display()
+        )))?;
+        return Ok(format!(
             "note: {} was missing: the earlier export, which a killed export (process {pid}) \
              had moved aside to {}, is back in its place",
             out.display(),
             path.display()
-        );
-        return Ok(());
+        ));
     }
     // One that cannot be removed (read-only) is said and left: it takes nothing from the
     // export about to be made, whose own folders have this process's id.
-    match std::fs::remove_dir_all(path) {
-        Ok(()) => eprintln!(
+    Ok(match std::fs::remove_dir_all(path) {
+        Ok(()) => format!(
             "note: removed {}, left by an export that was killed (process {pid} is gone)",
             path.display()
         ),
-        Err(e) => eprintln!(
+        Err(e) => format!(
             "warning: {}, left by an export of process {pid} (gone), could not be removed \
              ({e}): remove it by hand",
             path.display()
         ),
-    }
-    Ok(())
+    })
 }
 
 /// Whether process `pid` exists on this host (signal 0; a process of another user counts).
@@ -105,6 +110,8 @@ pub(super) fn exchange(a: &Path, b: &Path) -> Result<bool> {
     let e = std::io::Error::last_os_error();
     match e.raw_os_error() {
         Some(libc::EINVAL | libc::ENOSYS | libc::EOPNOTSUPP) => Ok(false),
-        _ => Err(e).with_context(|| format!("swapping {} and {}", a.display(), b.display())),
+        _ => Err(io(format!("swapping {} and {}", a.display(), b.display()))(
+            e,
+        )),
     }
 }
