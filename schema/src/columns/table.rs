@@ -360,10 +360,18 @@ fn value_at(a: &ArrayRef, name: &str, kind: Kind, i: usize) -> Result<Option<Val
 
 #[cfg(test)]
 mod tests {
-    use super::{Group, Role};
+    use super::Kind::{F64, U64};
+    use super::Role::{Added, Always};
+    use super::{Column, Group, Role};
     use crate::columns::attributes::FACTS;
     use crate::columns::quality::QUALITY;
     use crate::columns::signature::SIGNATURE;
+    use crate::row::quality::QualityFacts;
+    use crate::row::ShardRow;
+    use arrow_array::RecordBatch;
+    use arrow_schema::Schema;
+    use sha2::Digest;
+    use std::sync::Arc;
 
     /// A group's columns by role: (name, rank) of the founding ones, names of the others.
     fn roles<F: Default>(g: &Group<F>) -> (Vec<(&str, u8)>, Vec<&str>) {
@@ -423,5 +431,65 @@ mod tests {
         check(&QUALITY);
         check(&FACTS);
         check(&SIGNATURE);
+    }
+
+    const EDGES: Column<QualityFacts> = stored!("probe_edges", U64, Always(0), boundary_edges);
+
+    /// A small group over quality facts as its first shards held it (one column), and as it
+    /// is once a column is added: one more table row, `Added`, over an `Option` field.
+    static FIRST: Group<QualityFacts> = Group {
+        tag: "probe",
+        of: |row| row.quality.as_ref(),
+        columns: &[EDGES],
+    };
+    static GROWN: Group<QualityFacts> = Group {
+        tag: "probe",
+        of: |row| row.quality.as_ref(),
+        columns: &[EDGES, stored!("probe_volume", F64, Added, output_volume)],
+    };
+
+    fn batch(g: &Group<QualityFacts>, rows: &[ShardRow]) -> crate::Result<RecordBatch> {
+        let schema = Arc::new(Schema::new(g.fields()));
+        Ok(RecordBatch::try_new(schema, g.arrays(rows)?)?)
+    }
+
+    fn digest(g: &Group<QualityFacts>, rows: &[ShardRow]) -> Vec<u8> {
+        let mut h = sha2::Sha256::new();
+        for r in rows {
+            crate::row::digest::group(&mut h, g, r);
+        }
+        h.finalize().to_vec()
+    }
+
+    /// What the rule promises, on a group that grows a column: a shard written before the
+    /// column reads the new fact as absent and the rest as written, and its rows feed the
+    /// digest what they fed before; a row with the new fact feeds it too, and a reader of the
+    /// first table reads a newer shard without it.
+    #[test]
+    fn a_column_added_to_a_group_leaves_older_shards_as_they_were() -> crate::Result<()> {
+        let mut rows = crate::columns::arrow::tests::sample_rows();
+        let facts = QualityFacts {
+            boundary_edges: 7,
+            output_volume: Some(0.5),
+            ..QualityFacts::default()
+        };
+        rows[0].quality = Some(facts.clone());
+        let older = batch(&FIRST, &rows)?;
+        assert_eq!(older.num_columns(), 1);
+        let read = GROWN.read(&older, 0)?;
+        let absent = QualityFacts {
+            output_volume: None,
+            ..facts.clone()
+        };
+        assert_eq!(read, Some(absent.clone()));
+        assert_eq!(GROWN.read(&older, 1)?, None, "the failed row has none");
+        let mut as_read = rows.clone();
+        as_read[0].quality = Some(absent);
+        assert_eq!(digest(&GROWN, &as_read), digest(&FIRST, &rows));
+        assert_ne!(digest(&GROWN, &rows), digest(&FIRST, &rows));
+        let newer = batch(&GROWN, &rows)?;
+        assert_eq!(GROWN.read(&newer, 0)?, Some(facts));
+        assert_eq!(FIRST.read(&newer, 0)?.map(|q| q.boundary_edges), Some(7));
+        Ok(())
     }
 }
