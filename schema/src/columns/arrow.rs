@@ -93,7 +93,7 @@ pub fn schema_for(provenance: &[String], sections: Sections) -> SchemaRef {
         f.extend(crate::columns::signature::SIGNATURE.fields());
     }
     if sections.renders {
-        f.extend(crate::columns::renders::fields());
+        f.extend(crate::columns::renders::RENDERS.fields());
     }
     for name in provenance {
         f.push(Field::new(c::provenance_column(name), Utf8, true));
@@ -234,7 +234,7 @@ pub fn rows_to_batch_for(
         cols.extend(crate::columns::signature::SIGNATURE.arrays(rows)?);
     }
     if sections.renders {
-        cols.extend(crate::columns::renders::columns(rows));
+        cols.extend(crate::columns::renders::RENDERS.arrays(rows)?);
     }
     for name in provenance {
         cols.push(strs(&|r| r.provenance.get(name).map(String::as_str)));
@@ -398,7 +398,7 @@ pub fn batch_to_rows(batch: &RecordBatch) -> Result<Vec<ShardRow>> {
                 mesh_faces: read_tensor(batch, "mesh_faces", i)?,
                 samples: SampleTensors::from_lookup(|stem| read_tensor(batch, stem, i))?,
                 attributes: crate::columns::attributes::tensors_at(batch, i)?,
-                renders: crate::columns::renders::renders_at(batch, i)?,
+                renders: crate::columns::renders::RENDERS.read(batch, i)?,
                 ..t
             }),
             None => None,

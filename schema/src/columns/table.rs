@@ -1,5 +1,5 @@
 //! Column groups declared once. A group of optional columns (the quality columns, the
-//! appearance facts, the shape signature) is one [`Group`]: a static table of [`Column`]s in
+//! appearance facts, the shape signature, the render columns) is one [`Group`]: a static table of [`Column`]s in
 //! column order, each naming its column, its Arrow type ([`Kind`]), how a row's value is got
 //! and put back, and what it is to the content digest ([`Role`]). The Arrow fields
 //! ([`Group::fields`]), the arrays over rows ([`Group::arrays`]), the read-back
@@ -29,10 +29,11 @@
 
 use crate::error::{Result, SchemaError};
 use crate::row::ShardRow;
-use arrow_array::types::Float32Type;
+use arrow_array::builder::{LargeBinaryBuilder, ListBuilder};
+use arrow_array::types::{Float32Type, Float64Type};
 use arrow_array::{
-    Array, ArrayRef, BooleanArray, FixedSizeListArray, Float32Array, Float64Array, RecordBatch,
-    StringArray, UInt32Array, UInt64Array,
+    Array, ArrayRef, BooleanArray, FixedSizeListArray, Float32Array, Float64Array,
+    LargeBinaryArray, ListArray, RecordBatch, StringArray, UInt32Array, UInt64Array,
 };
 use arrow_schema::{DataType, Field};
 use std::sync::Arc;
@@ -53,6 +54,14 @@ pub enum Kind {
     Joined(char),
     /// `fixed_size_list<float32>[n]`.
     F32s(usize),
+    /// `utf8`, one text; fed length-prefixed.
+    Text,
+    /// `utf8`: a list of entries one a line (empty text: no entry); fed entry by entry.
+    Lines,
+    /// `list<large_binary>`: blobs (PNG files); fed as their count, then each blob.
+    Blobs,
+    /// `list<float64>`.
+    F64s,
 }
 
 impl Kind {
@@ -63,13 +72,20 @@ impl Kind {
             Kind::U64 => DataType::UInt64,
             Kind::F64 => DataType::Float64,
             Kind::Bool => DataType::Boolean,
-            Kind::Joined(_) => DataType::Utf8,
+            Kind::Joined(_) | Kind::Text | Kind::Lines => DataType::Utf8,
+            Kind::Blobs => list_of(DataType::LargeBinary),
+            Kind::F64s => list_of(DataType::Float64),
             Kind::F32s(n) => {
                 let item = Arc::new(Field::new("item", DataType::Float32, true));
                 DataType::FixedSizeList(item, n as i32)
             }
         }
     }
+}
+
+/// A `list<item>` type whose items are nullable, as Arrow's list builders make them.
+fn list_of(item: DataType) -> DataType {
+    DataType::List(Arc::new(Field::new("item", item, true)))
 }
 
 /// One row's value in a group's column.
@@ -83,10 +99,16 @@ pub enum Value {
     F64(f64),
     /// Of a [`Kind::Bool`] column.
     Bool(bool),
-    /// Of a [`Kind::Joined`] column.
+    /// Of a [`Kind::Joined`] or [`Kind::Lines`] column.
     Entries(Vec<String>),
     /// Of a [`Kind::F32s`] column.
     F32s(Vec<f32>),
+    /// Of a [`Kind::Text`] column.
+    Text(String),
+    /// Of a [`Kind::Blobs`] column.
+    Blobs(Vec<Vec<u8>>),
+    /// Of a [`Kind::F64s`] column.
+    F64s(Vec<f64>),
 }
 
 /// A type a group's facts hold in a column: what it stores, and how it is put back.
@@ -124,6 +146,9 @@ scalar!(f64, F64, |x: &f64| *x);
 scalar!(bool, Bool, |x: &bool| *x);
 scalar!(Vec<String>, Entries, |x: &Vec<String>| x.clone());
 scalar!(Vec<f32>, F32s, |x: &Vec<f32>| x.clone());
+scalar!(String, Text, |x: &String| x.clone());
+scalar!(Vec<Vec<u8>>, Blobs, |x: &Vec<Vec<u8>>| x.clone());
+scalar!(Vec<f64>, F64s, |x: &Vec<f64>| x.clone());
 
 impl<T: Scalar> Scalar for Option<T> {
     fn value(&self) -> Option<Value> {
@@ -150,6 +175,9 @@ pub enum Role {
     /// absent when null or missing; fed after every ranked column, as its name and its value,
     /// only where the row holds one.
     Added,
+    /// A founding column whose value depends on the run (seconds), like the timings: read
+    /// back as an [`Role::Always`] column is, never fed.
+    Run,
     /// Follows from other columns (or the row): written, neither read back nor fed.
     Derived,
 }
@@ -246,7 +274,7 @@ impl<F: Default> Group<F> {
             };
             match (value, c.role) {
                 (Some(v), _) => set(&mut facts, v).ok_or_else(|| wrong(c.name, "another kind"))?,
-                (None, Role::Always(_)) => return Ok(None),
+                (None, Role::Always(_) | Role::Run) => return Ok(None),
                 (None, _) => {}
             }
         }
@@ -261,7 +289,7 @@ impl<F: Default> Group<F> {
             .iter()
             .filter_map(|c| match c.role {
                 Role::Always(n) | Role::Nullable(n) => Some((n, c)),
-                Role::Added | Role::Derived => None,
+                Role::Added | Role::Run | Role::Derived => None,
             })
             .collect();
         ranked.sort_by_key(|(n, _)| *n);
@@ -297,9 +325,19 @@ fn array(name: &str, kind: Kind, values: impl Iterator<Item = Option<Value>>) ->
         Kind::U64 => Arc::new(UInt64Array::from(typed::<u64>(name, values)?)),
         Kind::F64 => Arc::new(Float64Array::from(typed::<f64>(name, values)?)),
         Kind::Bool => Arc::new(BooleanArray::from(typed::<bool>(name, values)?)),
-        Kind::Joined(sep) => {
+        Kind::Text => Arc::new(StringArray::from(typed::<String>(name, values)?)),
+        Kind::Blobs => blobs(typed::<Vec<Vec<u8>>>(name, values)?),
+        Kind::F64s => Arc::new(ListArray::from_iter_primitive::<Float64Type, _, _>(
+            typed::<Vec<f64>>(name, values)?
+                .into_iter()
+                .map(|s| s.map(|s| s.into_iter().map(Some).collect::<Vec<_>>())),
+        )),
+        Kind::Joined(_) | Kind::Lines => {
             let entries = typed::<Vec<String>>(name, values)?;
-            let sep = sep.to_string();
+            let sep = match kind {
+                Kind::Joined(sep) => sep.to_string(),
+                _ => "\n".to_string(),
+            };
             Arc::new(StringArray::from(
                 entries
                     .into_iter()
@@ -318,6 +356,24 @@ fn array(name: &str, kind: Kind, values: impl Iterator<Item = Option<Value>>) ->
             Arc::new(FixedSizeListArray::from_iter_primitive::<Float32Type, _, _>(values, n as i32))
         }
     })
+}
+
+/// A `list<large_binary>` array over rows' blobs (`None`: null).
+fn blobs(rows: Vec<Option<Vec<Vec<u8>>>>) -> ArrayRef {
+    let item = Arc::new(Field::new("item", DataType::LargeBinary, true));
+    let mut list = ListBuilder::new(LargeBinaryBuilder::new()).with_field(item);
+    for row in rows {
+        match row {
+            Some(blobs) => {
+                for b in &blobs {
+                    list.values().append_value(b);
+                }
+                list.append(true);
+            }
+            None => list.append(false),
+        }
+    }
+    Arc::new(list.finish())
 }
 
 /// The array `a` as `T`, an error naming the column when it is of another type.
@@ -345,6 +401,25 @@ fn value_at(a: &ArrayRef, name: &str, kind: Kind, i: usize) -> Result<Option<Val
                 .map(str::to_string)
                 .collect(),
         ),
+        Kind::Text => Value::Text(cast::<StringArray>(a, name)?.value(i).to_string()),
+        Kind::Lines => Value::Entries(match cast::<StringArray>(a, name)?.value(i) {
+            "" => Vec::new(),
+            text => text.split('\n').map(str::to_string).collect(),
+        }),
+        Kind::Blobs => {
+            let items = cast::<ListArray>(a, name)?.value(i);
+            let blobs = cast::<LargeBinaryArray>(&items, name)?;
+            Value::Blobs(
+                blobs
+                    .iter()
+                    .map(|b| b.unwrap_or_default().to_vec())
+                    .collect(),
+            )
+        }
+        Kind::F64s => {
+            let items = cast::<ListArray>(a, name)?.value(i);
+            Value::F64s(cast::<Float64Array>(&items, name)?.values().to_vec())
+        }
         Kind::F32s(n) => {
             let list = cast::<FixedSizeListArray>(a, name)?;
             if list.value_length() != n as i32 {
@@ -365,6 +440,7 @@ mod tests {
     use super::{Column, Group, Role};
     use crate::columns::attributes::FACTS;
     use crate::columns::quality::QUALITY;
+    use crate::columns::renders::RENDERS;
     use crate::columns::signature::SIGNATURE;
     use crate::row::quality::QualityFacts;
     use crate::row::ShardRow;
@@ -380,7 +456,7 @@ mod tests {
         for c in g.columns {
             match c.role {
                 Role::Always(n) | Role::Nullable(n) => founding.push((c.name, n)),
-                Role::Added | Role::Derived => others.push(c.name),
+                Role::Added | Role::Run | Role::Derived => others.push(c.name),
             }
         }
         (founding, others)
@@ -410,6 +486,9 @@ mod tests {
             .enumerate()
             .all(|(i, c)| usize::from(c.1) == i));
         assert_eq!(roles(&SIGNATURE).0, [("shape_signature", 0)]);
+        let (renders, others) = roles(&RENDERS);
+        assert_eq!(renders, [("render_views", 0), ("render_transforms", 1)]);
+        assert_eq!(others, ["render_seconds", "render_not_read"]);
     }
 
     /// Each group's ranks are 0, 1, … once each, derived columns are not read back and every
@@ -431,6 +510,7 @@ mod tests {
         check(&QUALITY);
         check(&FACTS);
         check(&SIGNATURE);
+        check(&RENDERS);
     }
 
     const EDGES: Column<QualityFacts> = stored!("probe_edges", U64, Always(0), boundary_edges);

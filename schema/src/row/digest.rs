@@ -55,13 +55,22 @@ fn bytes(kind: Kind, v: &Value) -> Vec<u8> {
             _ => e.concat().into_bytes(),
         },
         Value::F32s(s) => s.iter().flat_map(|x| x.to_le_bytes()).collect(),
+        Value::F64s(s) => s.iter().flat_map(|x| x.to_le_bytes()).collect(),
+        Value::Text(t) => t.as_bytes().to_vec(),
+        Value::Blobs(b) => b.concat(),
     }
 }
 
-/// Feeds a value bare: its bytes, length-prefixed for text (whose length varies).
+/// Feeds a value bare: its bytes, length-prefixed for text (whose length varies); the entries
+/// of a [`Kind::Lines`] column one by one; blobs as their count, then each.
 fn bare(h: &mut Sha256, kind: Kind, v: &Value) {
-    match v {
-        Value::Entries(_) => field(h, &bytes(kind, v)),
+    match (kind, v) {
+        (Kind::Lines, Value::Entries(e)) => e.iter().for_each(|x| field(h, x.as_bytes())),
+        (_, Value::Blobs(b)) => {
+            h.update((b.len() as u64).to_le_bytes());
+            b.iter().for_each(|x| field(h, x));
+        }
+        (_, Value::Entries(_) | Value::Text(_)) => field(h, &bytes(kind, v)),
         _ => h.update(bytes(kind, v)),
     }
 }
@@ -71,6 +80,9 @@ fn is_empty(v: &Value) -> bool {
     match v {
         Value::Entries(e) => e.is_empty(),
         Value::F32s(s) => s.is_empty(),
+        Value::F64s(s) => s.is_empty(),
+        Value::Blobs(b) => b.is_empty(),
+        Value::Text(t) => t.is_empty(),
         _ => false,
     }
 }
@@ -133,23 +145,7 @@ pub fn update_row(h: &mut Sha256, row: &ShardRow) {
     group(h, &crate::columns::attributes::FACTS, row);
     group(h, &crate::columns::quality::QUALITY, row);
     group(h, &crate::columns::signature::SIGNATURE, row);
-    // Rows without renders digest as before they existed; each view's seconds are run-
-    // dependent, like the timings, and left out.
-    if let Some(r) = row.tensors.as_ref().and_then(|t| t.renders.as_ref()) {
-        field(h, crate::columns::RENDER_VIEWS.as_bytes());
-        h.update((r.views.len() as u64).to_le_bytes());
-        for v in &r.views {
-            field(h, &v.png);
-        }
-        field(h, r.transforms.as_bytes());
-        // Views that drew all of the appearance digest as before the column existed.
-        if !r.not_read.is_empty() {
-            field(h, crate::columns::RENDER_NOT_READ.as_bytes());
-            for entry in &r.not_read {
-                field(h, entry.as_bytes());
-            }
-        }
-    }
+    group(h, &crate::columns::renders::RENDERS, row);
     // Rows without provenance leave the digest as it was before provenance columns existed.
     if !row.provenance.is_empty() {
         field(h, crate::columns::PROVENANCE_PREFIX.as_bytes());
