@@ -1,7 +1,7 @@
 //! Column groups declared once. A group of optional columns (the quality columns, the
-//! appearance facts, the shape signature, the render columns) is one [`Group`]: a static table of [`Column`]s in
-//! column order, each naming its column, its Arrow type ([`Kind`]), how a row's value is got
-//! and put back, and what it is to the content digest ([`Role`]). The Arrow fields
+//! appearance facts, the shape signature, the render columns) is one [`Group`]: a static table
+//! of [`Column`]s in column order, each naming its column, its Arrow type ([`Kind`]), how a
+//! row's value is got and put back, and what it is to the content digest ([`Role`]). The Arrow fields
 //! ([`Group::fields`]), the arrays over rows ([`Group::arrays`]), the read-back
 //! ([`Group::read`]) and the digest's feed (`crate::row::digest`, in [`Group::fed`]'s order)
 //! all derive from that one table; nothing else lists the group's columns.
