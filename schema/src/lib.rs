@@ -25,10 +25,15 @@ pub use row::{
     SampleTensors, ShardRow,
 };
 
-/// Version of the shard format; bumped on any change to columns or encodings. Version 2 stores
-/// tensor bytes in byte planes (version 1: row-major); version 3 puts zstd's content checksum
-/// in every tensor blob, so any zstd decoder fails loudly on a damaged blob, and adds the
-/// optional vector-set sample columns with the `<f2` and `<u1` dtypes.
+/// Version of the shard format; bumped when a stored column changes its type, encoding or
+/// meaning, so that a job is never a mix of versions. Version 2 stores tensor bytes in byte
+/// planes (version 1: row-major); version 3 puts zstd's content checksum in every tensor blob,
+/// so any zstd decoder fails loudly on a damaged blob, and adds the optional vector-set sample
+/// columns with the `<f2` and `<u1` dtypes. Adding columns does not bump it: a new group of
+/// columns comes behind a config key whose absence reads as off, and a new column in a group
+/// is optional on read, so a shard written before either reads as it always did and recomputes
+/// the content digest it was written with (the rule: [`columns::table`], "How the schema
+/// evolves").
 pub const SCHEMA_VERSION: u32 = 3;
 
 /// Version of the tool that wrote a file (the workspace version).

@@ -87,13 +87,13 @@ pub fn schema_for(provenance: &[String], sections: Sections) -> SchemaRef {
         f.extend(crate::columns::attributes::fields());
     }
     if sections.quality {
-        f.extend(crate::columns::quality::fields());
+        f.extend(crate::columns::quality::QUALITY.fields());
     }
     if sections.signature {
-        f.push(crate::columns::signature::field());
+        f.extend(crate::columns::signature::SIGNATURE.fields());
     }
     if sections.renders {
-        f.extend(crate::columns::renders::fields());
+        f.extend(crate::columns::renders::RENDERS.fields());
     }
     for name in provenance {
         f.push(Field::new(c::provenance_column(name), Utf8, true));
@@ -225,18 +225,16 @@ pub fn rows_to_batch_for(
         cols.extend(tensor_arrays(&ts));
     }
     if sections.attributes {
-        cols.extend(crate::columns::attributes::columns(rows));
+        cols.extend(crate::columns::attributes::columns(rows)?);
     }
     if sections.quality {
-        cols.extend(crate::columns::quality::columns(rows));
+        cols.extend(crate::columns::quality::QUALITY.arrays(rows)?);
     }
     if sections.signature {
-        let signatures: Vec<Option<&[f32]>> =
-            rows.iter().map(|r| r.shape_signature.as_deref()).collect();
-        cols.push(crate::columns::signature::column(&signatures)?);
+        cols.extend(crate::columns::signature::SIGNATURE.arrays(rows)?);
     }
     if sections.renders {
-        cols.extend(crate::columns::renders::columns(rows));
+        cols.extend(crate::columns::renders::RENDERS.arrays(rows)?);
     }
     for name in provenance {
         cols.push(strs(&|r| r.provenance.get(name).map(String::as_str)));
@@ -377,7 +375,6 @@ pub fn batch_to_rows(batch: &RecordBatch) -> Result<Vec<ShardRow>> {
         .collect::<Result<_>>()?;
     let stages = col::<StringArray>(batch, c::TIME_STAGES)?;
     let provenance = provenance_columns(batch)?;
-    let signatures = crate::columns::signature::read(batch)?;
     let mut rows = Vec::with_capacity(batch.num_rows());
     for i in 0..batch.num_rows() {
         let normalization = normalization_at(&norm, i);
@@ -401,7 +398,7 @@ pub fn batch_to_rows(batch: &RecordBatch) -> Result<Vec<ShardRow>> {
                 mesh_faces: read_tensor(batch, "mesh_faces", i)?,
                 samples: SampleTensors::from_lookup(|stem| read_tensor(batch, stem, i))?,
                 attributes: crate::columns::attributes::tensors_at(batch, i)?,
-                renders: crate::columns::renders::renders_at(batch, i)?,
+                renders: crate::columns::renders::RENDERS.read(batch, i)?,
                 ..t
             }),
             None => None,
@@ -434,9 +431,9 @@ pub fn batch_to_rows(batch: &RecordBatch) -> Result<Vec<ShardRow>> {
                 .iter()
                 .filter_map(|(name, a)| Some((name.clone(), opt_str(a, i)?)))
                 .collect(),
-            appearance: crate::columns::attributes::facts_at(batch, i),
-            quality: crate::columns::quality::facts_at(batch, i),
-            shape_signature: signatures.as_ref().and_then(|s| s[i].clone()),
+            appearance: crate::columns::attributes::FACTS.read(batch, i)?,
+            quality: crate::columns::quality::QUALITY.read(batch, i)?,
+            shape_signature: crate::columns::signature::SIGNATURE.read(batch, i)?,
         });
     }
     Ok(rows)

@@ -3,32 +3,39 @@
 //! per-item facts about the source's materials (docs/FORMAT.md, "Attributes").
 
 use crate::columns as c;
+use crate::columns::table::Kind::{Bool, Joined, U32, U64};
+use crate::columns::table::Role::Always;
+use crate::columns::table::{derived, stored, Group, Value};
 use crate::error::Result;
 use crate::row::tensor::EncodedTensor;
 use crate::row::{AppearanceFacts, AttributeTensors, ShardRow};
-use arrow_array::{
-    Array, ArrayRef, BooleanArray, RecordBatch, StringArray, UInt32Array, UInt64Array,
-};
-use arrow_schema::{DataType, Field};
-use std::sync::Arc;
+use arrow_array::{ArrayRef, RecordBatch};
+use arrow_schema::Field;
 
-/// The appearance columns' fields, in order: the tensor triples, then the facts.
+/// The appearance facts' columns, in column order (after the attribute tensors'); `textured`
+/// follows from `textures`. The evolution rule is [`crate::columns::table`]'s.
+pub static FACTS: Group<AppearanceFacts> = Group {
+    tag: "appearance",
+    of: |row| row.appearance.as_ref(),
+    columns: &[
+        stored!(c::MATERIALS, U32, Always(0), materials),
+        derived!(c::TEXTURED, Bool, |_, a| Some(Value::Bool(a.textures > 0))),
+        stored!(c::TEXTURES, U32, Always(1), textures),
+        stored!(c::TEXTURE_MAX_SIZE, U32, Always(2), texture_max_size),
+        stored!(c::ALPHA_MODES, Joined(','), Always(3), alpha_modes),
+        stored!(c::VERTEX_COLORS, Bool, Always(4), vertex_colors),
+        stored!(c::APPEARANCE_NOT_READ, Joined('\n'), Always(5), not_read),
+        stored!(c::NEAREST_CELLS, U64, Always(6), nearest_cells),
+    ],
+};
+
+/// The appearance columns' fields, in order: the tensor triples, then the facts ([`FACTS`]).
 pub fn fields() -> Vec<Field> {
-    use DataType::*;
     let mut f = Vec::new();
     for t in c::ATTRIBUTE_TENSORS {
         f.extend(crate::columns::tensors::tensor_fields(t));
     }
-    f.extend([
-        Field::new(c::MATERIALS, UInt32, true),
-        Field::new(c::TEXTURED, Boolean, true),
-        Field::new(c::TEXTURES, UInt32, true),
-        Field::new(c::TEXTURE_MAX_SIZE, UInt32, true),
-        Field::new(c::ALPHA_MODES, Utf8, true),
-        Field::new(c::VERTEX_COLORS, Boolean, true),
-        Field::new(c::APPEARANCE_NOT_READ, Utf8, true),
-        Field::new(c::NEAREST_CELLS, UInt64, true),
-    ]);
+    f.extend(FACTS.fields());
     f
 }
 
@@ -38,48 +45,14 @@ fn tensor_of<'a>(row: &'a ShardRow, stem: &str) -> Option<&'a EncodedTensor> {
 }
 
 /// The appearance columns of `rows`, in the order of [`fields`].
-pub fn columns(rows: &[ShardRow]) -> Vec<ArrayRef> {
+pub fn columns(rows: &[ShardRow]) -> Result<Vec<ArrayRef>> {
     let mut cols = Vec::new();
     for stem in c::ATTRIBUTE_TENSORS {
         let ts: Vec<Option<&EncodedTensor>> = rows.iter().map(|r| tensor_of(r, stem)).collect();
         cols.extend(crate::columns::tensors::tensor_arrays(&ts));
     }
-    let facts: Vec<Option<&AppearanceFacts>> = rows.iter().map(|r| r.appearance.as_ref()).collect();
-    let u32s = |f: &dyn Fn(&AppearanceFacts) -> u32| -> ArrayRef {
-        Arc::new(UInt32Array::from(
-            facts.iter().map(|a| a.map(f)).collect::<Vec<_>>(),
-        ))
-    };
-    let bools = |f: &dyn Fn(&AppearanceFacts) -> bool| -> ArrayRef {
-        Arc::new(BooleanArray::from(
-            facts.iter().map(|a| a.map(f)).collect::<Vec<_>>(),
-        ))
-    };
-    let strs = |f: &dyn Fn(&AppearanceFacts) -> String| -> ArrayRef {
-        Arc::new(StringArray::from(
-            facts.iter().map(|a| a.map(f)).collect::<Vec<_>>(),
-        ))
-    };
-    cols.extend([
-        u32s(&|a| a.materials),
-        bools(&|a| a.textures > 0),
-        u32s(&|a| a.textures),
-        u32s(&|a| a.texture_max_size),
-        strs(&|a| a.alpha_modes.join(",")),
-        bools(&|a| a.vertex_colors),
-        strs(&|a| a.not_read.join("\n")),
-        Arc::new(UInt64Array::from(
-            facts
-                .iter()
-                .map(|a| a.map(|a| a.nearest_cells))
-                .collect::<Vec<_>>(),
-        )),
-    ]);
-    cols
-}
-
-fn get<'a, T: 'static>(batch: &'a RecordBatch, name: &str) -> Option<&'a T> {
-    batch.column_by_name(name)?.as_any().downcast_ref::<T>()
+    cols.extend(FACTS.arrays(rows)?);
+    Ok(cols)
 }
 
 /// The attribute tensors of row `i` of a batch, `None` when the batch has no such columns or
@@ -89,39 +62,6 @@ pub fn tensors_at(batch: &RecordBatch, i: usize) -> Result<Option<AttributeTenso
         return Ok(None);
     }
     AttributeTensors::from_lookup(|stem| crate::columns::tensors::read_tensor(batch, stem, i))
-}
-
-/// The appearance facts of row `i`, `None` when the batch has no such columns or the row none.
-pub fn facts_at(batch: &RecordBatch, i: usize) -> Option<AppearanceFacts> {
-    let u32_at = |name: &str| {
-        get::<UInt32Array>(batch, name)
-            .filter(|a| a.is_valid(i))
-            .map(|a| a.value(i))
-    };
-    let str_at = |name: &str| {
-        get::<StringArray>(batch, name)
-            .filter(|a| a.is_valid(i))
-            .map(|a| a.value(i).to_string())
-    };
-    let split = |s: String, sep: char| -> Vec<String> {
-        s.split(sep)
-            .filter(|p| !p.is_empty())
-            .map(str::to_string)
-            .collect()
-    };
-    Some(AppearanceFacts {
-        materials: u32_at(c::MATERIALS)?,
-        textures: u32_at(c::TEXTURES)?,
-        texture_max_size: u32_at(c::TEXTURE_MAX_SIZE)?,
-        alpha_modes: split(str_at(c::ALPHA_MODES)?, ','),
-        vertex_colors: get::<BooleanArray>(batch, c::VERTEX_COLORS)
-            .filter(|a| a.is_valid(i))
-            .map(|a| a.value(i))?,
-        not_read: split(str_at(c::APPEARANCE_NOT_READ)?, '\n'),
-        nearest_cells: get::<UInt64Array>(batch, c::NEAREST_CELLS)
-            .filter(|a| a.is_valid(i))
-            .map(|a| a.value(i))?,
-    })
 }
 
 #[cfg(test)]

@@ -5,6 +5,7 @@ pub mod attributes;
 pub mod quality;
 pub mod renders;
 pub mod signature;
+pub mod table;
 mod tensors;
 
 /// Position of the item in the frozen manifest (`u64`); rows are sorted by it.

@@ -2,11 +2,11 @@
 //! (docs/FORMAT.md, "Quality columns").
 
 use crate::columns as c;
+use crate::columns::table::Kind::{F64, U64};
+use crate::columns::table::Role::{Always, Nullable};
+use crate::columns::table::{derived, stored, Group, Value};
 use crate::row::quality::QualityFacts;
-use crate::row::{RowCounts, ShardRow};
-use arrow_array::{Array, ArrayRef, Float64Array, RecordBatch, UInt64Array};
-use arrow_schema::{DataType, Field};
-use std::sync::Arc;
+use crate::row::RowCounts;
 
 /// The share of the stored vertices that belong to a thin shell around an open part:
 /// `shell_vertices / active_vertices` (0 when nothing is stored).
@@ -17,94 +17,37 @@ pub fn shell_share(k: &RowCounts) -> f64 {
     k.shell_vertices as f64 / k.active_vertices as f64
 }
 
-/// The quality columns' fields, in order.
-pub fn fields() -> Vec<Field> {
-    use DataType::*;
-    let u64s = [
-        c::INPUT_BOUNDARY_EDGES,
-        c::INPUT_NON_MANIFOLD_EDGES,
-        c::INPUT_DEGENERATE_FACES,
-        c::INPUT_DUPLICATE_FACES,
-    ];
-    let f64s = [
-        c::EXTENT_X,
-        c::EXTENT_Y,
-        c::EXTENT_Z,
-        c::ASPECT,
-        c::SURFACE_AREA,
-        c::OUTPUT_VOLUME,
-        c::SHELL_SHARE,
-    ];
-    let mut f: Vec<Field> = u64s.map(|n| Field::new(n, UInt64, true)).into();
-    f.extend(f64s.map(|n| Field::new(n, Float64, true)));
-    f.push(Field::new(c::SEALED_POCKETS, UInt64, true));
-    f.push(Field::new(c::OUTPUT_COMPONENTS, UInt64, true));
-    f
-}
-
-/// The quality columns of `rows`, in the order of [`fields`].
-pub fn columns(rows: &[ShardRow]) -> Vec<ArrayRef> {
-    let u64s = |f: &dyn Fn(&ShardRow, &QualityFacts) -> Option<u64>| -> ArrayRef {
-        let v: Vec<Option<u64>> = rows
-            .iter()
-            .map(|r| r.quality.as_ref().and_then(|q| f(r, q)))
-            .collect();
-        Arc::new(UInt64Array::from(v))
-    };
-    let f64s = |f: &dyn Fn(&ShardRow, &QualityFacts) -> Option<f64>| -> ArrayRef {
-        let v: Vec<Option<f64>> = rows
-            .iter()
-            .map(|r| r.quality.as_ref().and_then(|q| f(r, q)))
-            .collect();
-        Arc::new(Float64Array::from(v))
-    };
-    vec![
-        u64s(&|_, q| Some(q.boundary_edges)),
-        u64s(&|_, q| Some(q.non_manifold_edges)),
-        u64s(&|_, q| Some(q.degenerate_faces)),
-        u64s(&|_, q| Some(q.duplicate_faces)),
-        f64s(&|_, q| Some(q.extent[0])),
-        f64s(&|_, q| Some(q.extent[1])),
-        f64s(&|_, q| Some(q.extent[2])),
-        f64s(&|_, q| q.aspect()),
-        f64s(&|_, q| Some(q.surface_area)),
-        f64s(&|_, q| q.output_volume),
-        f64s(&|r, _| r.counts.as_ref().map(shell_share)),
-        u64s(&|_, q| Some(q.sealed_pockets)),
-        u64s(&|_, q| q.output_components),
-    ]
-}
-
-fn get<'a, T: 'static>(batch: &'a RecordBatch, name: &str) -> Option<&'a T> {
-    batch.column_by_name(name)?.as_any().downcast_ref::<T>()
-}
-
-/// The quality facts of row `i`, `None` when the batch has no such columns (a shard of a job
-/// without them) or the row none (a failed row). The derived columns (`aspect`,
-/// `shell_share`) are not read: they follow from the others.
-pub fn facts_at(batch: &RecordBatch, i: usize) -> Option<QualityFacts> {
-    let u = |name: &str| {
-        get::<UInt64Array>(batch, name)
-            .filter(|a| a.is_valid(i))
-            .map(|a| a.value(i))
-    };
-    let f = |name: &str| {
-        get::<Float64Array>(batch, name)
-            .filter(|a| a.is_valid(i))
-            .map(|a| a.value(i))
-    };
-    Some(QualityFacts {
-        boundary_edges: u(c::INPUT_BOUNDARY_EDGES)?,
-        non_manifold_edges: u(c::INPUT_NON_MANIFOLD_EDGES)?,
-        degenerate_faces: u(c::INPUT_DEGENERATE_FACES)?,
-        duplicate_faces: u(c::INPUT_DUPLICATE_FACES)?,
-        extent: [f(c::EXTENT_X)?, f(c::EXTENT_Y)?, f(c::EXTENT_Z)?],
-        surface_area: f(c::SURFACE_AREA)?,
-        output_volume: f(c::OUTPUT_VOLUME),
-        output_components: u(c::OUTPUT_COMPONENTS),
-        sealed_pockets: u(c::SEALED_POCKETS)?,
-    })
-}
+/// The quality columns, in column order: [`QualityFacts`] and the two columns that follow
+/// from them (`aspect`) or from the row's counts (`shell_share`). The digest feeds the ranked
+/// columns by rank (`sealed_pockets` among the counts, as it always was) and leaves the derived
+/// ones out. The evolution rule is [`crate::columns::table`]'s: a new quality column is one
+/// more row at the end, `Role::Added`, over an `Option` field of [`QualityFacts`].
+pub static QUALITY: Group<QualityFacts> = Group {
+    tag: "quality",
+    of: |row| row.quality.as_ref(),
+    columns: &[
+        stored!(c::INPUT_BOUNDARY_EDGES, U64, Always(0), boundary_edges),
+        stored!(
+            c::INPUT_NON_MANIFOLD_EDGES,
+            U64,
+            Always(1),
+            non_manifold_edges
+        ),
+        stored!(c::INPUT_DEGENERATE_FACES, U64, Always(2), degenerate_faces),
+        stored!(c::INPUT_DUPLICATE_FACES, U64, Always(3), duplicate_faces),
+        stored!(c::EXTENT_X, F64, Always(5), extent[0]),
+        stored!(c::EXTENT_Y, F64, Always(6), extent[1]),
+        stored!(c::EXTENT_Z, F64, Always(7), extent[2]),
+        derived!(c::ASPECT, F64, |_, q| q.aspect().map(Value::F64)),
+        stored!(c::SURFACE_AREA, F64, Always(8), surface_area),
+        stored!(c::OUTPUT_VOLUME, F64, Nullable(9), output_volume),
+        derived!(c::SHELL_SHARE, F64, |r, _| {
+            r.counts.as_ref().map(|k| Value::F64(shell_share(k)))
+        }),
+        stored!(c::SEALED_POCKETS, U64, Always(4), sealed_pockets),
+        stored!(c::OUTPUT_COMPONENTS, U64, Nullable(10), output_components),
+    ],
+};
 
 #[cfg(test)]
 mod tests {
@@ -114,6 +57,12 @@ mod tests {
     };
     use crate::error::Result;
     use crate::row::digest::rows_digest;
+    use crate::row::ShardRow;
+    use arrow_array::{Array, Float64Array, RecordBatch};
+
+    fn get<'a>(batch: &'a RecordBatch, name: &str) -> Option<&'a Float64Array> {
+        batch.column_by_name(name)?.as_any().downcast_ref()
+    }
 
     fn facts() -> QualityFacts {
         QualityFacts {
@@ -140,10 +89,10 @@ mod tests {
         };
         let batch = rows_to_batch_for(&rows, &[], on)?;
         assert_eq!(batch.num_columns(), schema().fields().len() + 13);
-        let aspect = get::<Float64Array>(&batch, c::ASPECT).map(|a| (a.value(0), a.is_null(1)));
+        let aspect = get(&batch, c::ASPECT).map(|a| (a.value(0), a.is_null(1)));
         assert_eq!(aspect, Some((4.0, true)));
         // sample_rows' ok row stores 2 active vertices, none of them shell.
-        let share = get::<Float64Array>(&batch, c::SHELL_SHARE).map(|a| a.value(0));
+        let share = get(&batch, c::SHELL_SHARE).map(|a| a.value(0));
         assert_eq!(share, Some(0.0));
         let back = batch_to_rows(&batch)?;
         assert_eq!(back, rows);
@@ -153,6 +102,58 @@ mod tests {
         assert_eq!(rows_to_batch(&plain)?.schema(), schema());
         let old = batch_to_rows(&rows_to_batch(&plain)?)?;
         assert_eq!(old, plain);
+        Ok(())
+    }
+
+    /// The rows with quality facts, written with the quality columns and read back without
+    /// the column `dropped`: a shard of an older shape.
+    fn read_without(dropped: &str) -> Result<(Vec<ShardRow>, Vec<ShardRow>)> {
+        let mut rows = crate::columns::arrow::tests::sample_rows();
+        rows[0].quality = Some(facts());
+        let on = Sections {
+            quality: true,
+            ..Sections::default()
+        };
+        let batch = rows_to_batch_for(&rows, &[], on)?;
+        let schema = batch.schema();
+        let keep: Vec<usize> = (0..schema.fields().len())
+            .filter(|&i| schema.field(i).name() != dropped)
+            .collect();
+        assert_eq!(
+            keep.len(),
+            schema.fields().len() - 1,
+            "{dropped} is a column"
+        );
+        Ok((rows, batch_to_rows(&batch.project(&keep)?)?))
+    }
+
+    /// A shard lacking a nullable column (`output_volume`) reads with that fact absent and the
+    /// rest as written; its digest is that of the rows with the fact absent.
+    #[test]
+    fn a_shard_without_a_nullable_quality_column_reads_that_fact_as_absent() -> Result<()> {
+        let (mut rows, back) = read_without(c::OUTPUT_VOLUME)?;
+        if let Some(q) = rows[0].quality.as_mut() {
+            q.output_volume = None;
+        }
+        assert_eq!(back, rows);
+        assert_eq!(rows_digest(&back), rows_digest(&rows));
+        Ok(())
+    }
+
+    /// A shard lacking a founding column (`input_duplicate_faces`) reads as rows without
+    /// quality facts, as it always did; so it digests as rows of a job without the columns.
+    /// This is why a new column is `Role::Added`, never `Always` (crate::columns::table).
+    #[test]
+    fn a_shard_without_a_founding_quality_column_reads_without_quality() -> Result<()> {
+        let (mut rows, back) = read_without(c::INPUT_DUPLICATE_FACES)?;
+        rows[0].quality = None;
+        assert_eq!(back, rows);
+        assert_eq!(rows_digest(&back), rows_digest(&rows));
+        // The derived columns are not read: a shard without them reads as one with them.
+        for derived in [c::ASPECT, c::SHELL_SHARE] {
+            let (rows, back) = read_without(derived)?;
+            assert_eq!(back, rows);
+        }
         Ok(())
     }
 

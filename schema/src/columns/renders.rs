@@ -4,142 +4,57 @@
 //! has no such columns and reads as rows without renders.
 
 use crate::columns as c;
-use crate::error::{Result, SchemaError};
-use crate::row::{RenderedView, RowRenders, ShardRow};
-use arrow_array::builder::{LargeBinaryBuilder, ListBuilder};
-use arrow_array::types::Float64Type;
-use arrow_array::{
-    Array, ArrayRef, Float64Array, LargeBinaryArray, ListArray, RecordBatch, StringArray,
-};
-use arrow_schema::{DataType, Field};
-use std::sync::Arc;
+use crate::columns::table::Kind::{Blobs, F64s, Lines, Text};
+use crate::columns::table::Role::{Added, Always, Run};
+use crate::columns::table::{stored, Column, Group, Scalar, Value};
+use crate::row::{RenderedView, RowRenders};
 
-/// The render columns' fields, in order: views (`list<large_binary>`, a PNG each), seconds
-/// (`list<float64>`), `transforms.json` and what was not read (`utf8`); null in rows without
-/// renders.
-pub fn fields() -> Vec<Field> {
-    let png = Arc::new(Field::new("item", DataType::LargeBinary, true));
-    let seconds = Arc::new(Field::new("item", DataType::Float64, true));
-    vec![
-        Field::new(c::RENDER_VIEWS, DataType::List(png), true),
-        Field::new(c::RENDER_SECONDS, DataType::List(seconds), true),
-        Field::new(c::RENDER_TRANSFORMS, DataType::Utf8, true),
-        Field::new(c::RENDER_NOT_READ, DataType::Utf8, true),
-    ]
-}
-
-fn renders_of(row: &ShardRow) -> Option<&RowRenders> {
-    row.tensors.as_ref()?.renders.as_ref()
-}
-
-/// The render columns of `rows`, in the order of [`fields`].
-pub fn columns(rows: &[ShardRow]) -> Vec<ArrayRef> {
-    let mut views = ListBuilder::new(LargeBinaryBuilder::new()).with_field(Arc::new(Field::new(
-        "item",
-        DataType::LargeBinary,
-        true,
-    )));
-    for r in rows.iter().map(renders_of) {
-        match r {
-            Some(r) => {
-                for v in &r.views {
-                    views.values().append_value(&v.png);
+/// The render columns, in column order: views (`list<large_binary>`, a PNG each), seconds
+/// (`list<float64>`, one a view), `transforms.json` (`utf8`) and what was not read (`utf8`,
+/// one entry a line; added after the group's first shards, so a shard without it reads as
+/// views that drew everything); null in rows without renders. The digest feeds the views'
+/// bytes, the transforms and what was not read, never the seconds (run-dependent). The
+/// evolution rule is [`crate::columns::table`]'s.
+pub static RENDERS: Group<RowRenders> = Group {
+    tag: c::RENDER_VIEWS,
+    of: |row| row.tensors.as_ref()?.renders.as_ref(),
+    columns: &[
+        Column {
+            name: c::RENDER_VIEWS,
+            kind: Blobs,
+            role: Always(0),
+            get: |_, r| {
+                Some(Value::Blobs(
+                    r.views.iter().map(|v| v.png.clone()).collect(),
+                ))
+            },
+            set: Some(|r, v| {
+                let pngs = Vec::<Vec<u8>>::from_value(v)?;
+                r.views = pngs
+                    .into_iter()
+                    .map(|png| RenderedView { png, seconds: 0.0 })
+                    .collect();
+                Some(())
+            }),
+        },
+        Column {
+            name: c::RENDER_SECONDS,
+            kind: F64s,
+            role: Run,
+            get: |_, r| Some(Value::F64s(r.views.iter().map(|v| v.seconds).collect())),
+            // After the views (column order): one float a view, or the row is refused.
+            set: Some(|r, v| {
+                let seconds = Vec::<f64>::from_value(v).filter(|s| s.len() == r.views.len())?;
+                for (view, s) in r.views.iter_mut().zip(seconds) {
+                    view.seconds = s;
                 }
-                views.append(true);
-            }
-            None => views.append(false),
-        }
-    }
-    let seconds = ListArray::from_iter_primitive::<Float64Type, _, _>(rows.iter().map(|row| {
-        renders_of(row).map(|r| r.views.iter().map(|v| Some(v.seconds)).collect::<Vec<_>>())
-    }));
-    let transforms: Vec<Option<&str>> = rows
-        .iter()
-        .map(|row| renders_of(row).map(|r| r.transforms.as_str()))
-        .collect();
-    let not_read: Vec<Option<String>> = rows
-        .iter()
-        .map(|row| renders_of(row).map(|r| r.not_read.join("\n")))
-        .collect();
-    vec![
-        Arc::new(views.finish()),
-        Arc::new(seconds),
-        Arc::new(StringArray::from(transforms)),
-        Arc::new(StringArray::from(not_read)),
-    ]
-}
-
-/// The renders of row `i` of a batch: `None` when the batch has no render columns (a job
-/// without `[renders]`) or the row none; an error when the columns disagree.
-pub fn renders_at(batch: &RecordBatch, i: usize) -> Result<Option<RowRenders>> {
-    let Some(views) = batch.column_by_name(c::RENDER_VIEWS) else {
-        return Ok(None);
-    };
-    let wrong = |name: &str, reason: String| SchemaError::Column {
-        name: name.into(),
-        reason,
-    };
-    let list = |name: &str, a: &ArrayRef| -> Result<ListArray> {
-        a.as_any()
-            .downcast_ref::<ListArray>()
-            .cloned()
-            .ok_or_else(|| wrong(name, "not a list".into()))
-    };
-    let views = list(c::RENDER_VIEWS, views)?;
-    if !views.is_valid(i) {
-        return Ok(None);
-    }
-    let seconds = batch
-        .column_by_name(c::RENDER_SECONDS)
-        .ok_or_else(|| wrong(c::RENDER_SECONDS, "missing beside render_views".into()))?;
-    let seconds = list(c::RENDER_SECONDS, seconds)?;
-    let transforms = batch
-        .column_by_name(c::RENDER_TRANSFORMS)
-        .and_then(|a| a.as_any().downcast_ref::<StringArray>())
-        .filter(|a| a.is_valid(i))
-        .ok_or_else(|| wrong(c::RENDER_TRANSFORMS, format!("no transforms in row {i}")))?;
-    let pngs = views.value(i);
-    let pngs = pngs
-        .as_any()
-        .downcast_ref::<LargeBinaryArray>()
-        .ok_or_else(|| wrong(c::RENDER_VIEWS, "views are not large_binary".into()))?;
-    let secs = seconds.value(i);
-    let secs = secs
-        .as_any()
-        .downcast_ref::<Float64Array>()
-        .filter(|s| s.len() == pngs.len())
-        .ok_or_else(|| {
-            wrong(
-                c::RENDER_SECONDS,
-                format!("row {i}: not one float64 a view ({} views)", pngs.len()),
-            )
-        })?;
-    let views = (0..pngs.len())
-        .map(|v| RenderedView {
-            png: pngs.value(v).to_vec(),
-            seconds: secs.value(v),
-        })
-        .collect();
-    Ok(Some(RowRenders {
-        views,
-        transforms: transforms.value(i).to_string(),
-        not_read: not_read_at(batch, i),
-    }))
-}
-
-/// Row `i`'s `render_not_read` entries: none when the column is absent (a shard written
-/// before it) or empty.
-fn not_read_at(batch: &RecordBatch, i: usize) -> Vec<String> {
-    batch
-        .column_by_name(c::RENDER_NOT_READ)
-        .and_then(|a| a.as_any().downcast_ref::<StringArray>())
-        .filter(|a| a.is_valid(i))
-        .map(|a| a.value(i))
-        .filter(|text| !text.is_empty())
-        .map_or(Vec::new(), |text| {
-            text.split('\n').map(str::to_string).collect()
-        })
-}
+                Some(())
+            }),
+        },
+        stored!(c::RENDER_TRANSFORMS, Text, Always(1), transforms),
+        stored!(c::RENDER_NOT_READ, Lines, Added, not_read),
+    ],
+};
 
 #[cfg(test)]
 mod tests {

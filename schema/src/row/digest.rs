@@ -2,6 +2,7 @@
 //! (timings, attempts, captured stderr), so that two runs of the same job agree whatever the
 //! number of workers or interruptions.
 
+use crate::columns::table::{Group, Kind, Role, Value};
 use crate::hex::hex;
 use crate::row::ShardRow;
 use sha2::{Digest, Sha256};
@@ -18,6 +19,71 @@ fn opt(h: &mut Sha256, v: Option<&[u8]>) {
             field(h, b);
         }
         None => h.update([0]),
+    }
+}
+
+/// Feeds a row's facts of `g`, when it has them, in the order and the way the group's table
+/// says ([`Group::fed`], [`Role`]): its tag, then each fed column.
+pub(crate) fn group<F: Default>(h: &mut Sha256, g: &Group<F>, row: &ShardRow) {
+    let Some(facts) = (g.of)(row) else {
+        return;
+    };
+    field(h, g.tag.as_bytes());
+    for c in g.fed() {
+        let value = (c.get)(row, facts);
+        match (c.role, value) {
+            (Role::Always(_), Some(v)) => bare(h, c.kind, &v),
+            (Role::Nullable(_), v) => opt(h, v.map(|v| bytes(c.kind, &v)).as_deref()),
+            (Role::Added, Some(v)) if !is_empty(&v) => {
+                field(h, c.name.as_bytes());
+                bare(h, c.kind, &v);
+            }
+            _ => {}
+        }
+    }
+}
+
+/// A value's bytes: little-endian numbers, one byte a bool, the joined text of entries.
+fn bytes(kind: Kind, v: &Value) -> Vec<u8> {
+    match v {
+        Value::U32(x) => x.to_le_bytes().to_vec(),
+        Value::U64(x) => x.to_le_bytes().to_vec(),
+        Value::F64(x) => x.to_le_bytes().to_vec(),
+        Value::Bool(b) => vec![u8::from(*b)],
+        Value::Entries(e) => match kind {
+            Kind::Joined(sep) => e.join(&sep.to_string()).into_bytes(),
+            _ => e.concat().into_bytes(),
+        },
+        Value::F32s(s) => s.iter().flat_map(|x| x.to_le_bytes()).collect(),
+        Value::F64s(s) => s.iter().flat_map(|x| x.to_le_bytes()).collect(),
+        Value::Text(t) => t.as_bytes().to_vec(),
+        Value::Blobs(b) => b.concat(),
+    }
+}
+
+/// Feeds a value bare: its bytes, length-prefixed for text (whose length varies); the entries
+/// of a [`Kind::Lines`] column one by one; blobs as their count, then each.
+fn bare(h: &mut Sha256, kind: Kind, v: &Value) {
+    match (kind, v) {
+        (Kind::Lines, Value::Entries(e)) => e.iter().for_each(|x| field(h, x.as_bytes())),
+        (_, Value::Blobs(b)) => {
+            h.update((b.len() as u64).to_le_bytes());
+            b.iter().for_each(|x| field(h, x));
+        }
+        (_, Value::Entries(_) | Value::Text(_)) => field(h, &bytes(kind, v)),
+        _ => h.update(bytes(kind, v)),
+    }
+}
+
+/// Whether a value holds nothing (no entries, no floats): an added column feeds it as absent.
+fn is_empty(v: &Value) -> bool {
+    match v {
+        Value::Entries(e) => e.is_empty(),
+        Value::F32s(s) => s.is_empty(),
+        Value::F64s(s) => s.is_empty(),
+        Value::Blobs(b) => b.is_empty(),
+        Value::Text(t) => t.is_empty(),
+        _ => false,
     }
 }
 
@@ -74,74 +140,12 @@ pub fn update_row(h: &mut Sha256, row: &ShardRow) {
         }
         None => h.update([0]),
     }
-    // Rows without appearance facts leave the digest as it was before they existed (their
-    // attribute tensors are in `tensors` above, only where present).
-    if let Some(a) = &row.appearance {
-        field(h, b"appearance");
-        h.update(a.materials.to_le_bytes());
-        h.update(a.textures.to_le_bytes());
-        h.update(a.texture_max_size.to_le_bytes());
-        field(h, a.alpha_modes.join(",").as_bytes());
-        h.update([u8::from(a.vertex_colors)]);
-        field(h, a.not_read.join("\n").as_bytes());
-        h.update(a.nearest_cells.to_le_bytes());
-    }
-    // Rows without quality facts leave the digest as it was before they existed; the derived
-    // columns (`aspect`, `shell_share`) follow from what is hashed here and in the counts.
-    if let Some(q) = &row.quality {
-        field(h, b"quality");
-        for v in [
-            q.boundary_edges,
-            q.non_manifold_edges,
-            q.degenerate_faces,
-            q.duplicate_faces,
-            q.sealed_pockets,
-        ] {
-            h.update(v.to_le_bytes());
-        }
-        for x in q.extent {
-            h.update(x.to_le_bytes());
-        }
-        h.update(q.surface_area.to_le_bytes());
-        opt(
-            h,
-            q.output_volume
-                .map(f64::to_le_bytes)
-                .as_ref()
-                .map(|b| &b[..]),
-        );
-        opt(
-            h,
-            q.output_components
-                .map(u64::to_le_bytes)
-                .as_ref()
-                .map(|b| &b[..]),
-        );
-    }
-    // Rows without a signature (failed, or written before it existed) digest as before it.
-    if let Some(s) = &row.shape_signature {
-        field(h, crate::columns::SHAPE_SIGNATURE.as_bytes());
-        for x in s {
-            h.update(x.to_le_bytes());
-        }
-    }
-    // Rows without renders digest as before they existed; each view's seconds are run-
-    // dependent, like the timings, and left out.
-    if let Some(r) = row.tensors.as_ref().and_then(|t| t.renders.as_ref()) {
-        field(h, crate::columns::RENDER_VIEWS.as_bytes());
-        h.update((r.views.len() as u64).to_le_bytes());
-        for v in &r.views {
-            field(h, &v.png);
-        }
-        field(h, r.transforms.as_bytes());
-        // Views that drew all of the appearance digest as before the column existed.
-        if !r.not_read.is_empty() {
-            field(h, crate::columns::RENDER_NOT_READ.as_bytes());
-            for entry in &r.not_read {
-                field(h, entry.as_bytes());
-            }
-        }
-    }
+    // The optional groups declared in tables (crate::columns::table): a row without a group
+    // digests as before the group existed.
+    group(h, &crate::columns::attributes::FACTS, row);
+    group(h, &crate::columns::quality::QUALITY, row);
+    group(h, &crate::columns::signature::SIGNATURE, row);
+    group(h, &crate::columns::renders::RENDERS, row);
     // Rows without provenance leave the digest as it was before provenance columns existed.
     if !row.provenance.is_empty() {
         field(h, crate::columns::PROVENANCE_PREFIX.as_bytes());
@@ -192,5 +196,98 @@ mod tests {
         assert_ne!(with_digest, d);
         with[0].provenance.insert("license".into(), "cc-by".into());
         assert_ne!(rows_digest(&with), with_digest);
+    }
+}
+
+#[cfg(test)]
+mod pinned {
+    use super::rows_digest;
+    use crate::row::quality::QualityFacts;
+    use crate::row::{AppearanceFacts, RenderedView, RowRenders, ShardRow};
+
+    /// Sample rows whose ok row has each group `groups` names (`a`ppearance, `q`uality,
+    /// `s`ignature, `r`enders).
+    fn rows_with(groups: &str) -> Vec<ShardRow> {
+        let mut rows = crate::columns::arrow::tests::sample_rows();
+        let ok = &mut rows[0];
+        if groups.contains('a') {
+            ok.appearance = Some(AppearanceFacts {
+                materials: 2,
+                textures: 1,
+                texture_max_size: 512,
+                alpha_modes: vec!["MASK".into(), "OPAQUE".into()],
+                vertex_colors: true,
+                not_read: vec!["material 0: normal texture".into(), "image 1".into()],
+                nearest_cells: 3,
+            });
+        }
+        if groups.contains('q') {
+            ok.quality = Some(QualityFacts {
+                boundary_edges: 4,
+                non_manifold_edges: 1,
+                degenerate_faces: 2,
+                duplicate_faces: 3,
+                extent: [2.0, 1.0, 0.5],
+                surface_area: 7.25,
+                output_volume: Some(0.125),
+                output_components: None,
+                sealed_pockets: 5,
+            });
+        }
+        if groups.contains('s') {
+            ok.shape_signature = Some((0..32).map(|i| i as f32 / 8.0 - 1.0).collect());
+        }
+        if groups.contains('r') {
+            if let Some(t) = ok.tensors.as_mut() {
+                t.renders = Some(RowRenders {
+                    views: vec![RenderedView {
+                        png: vec![1, 2, 3],
+                        seconds: 0.5,
+                    }],
+                    transforms: "{}".into(),
+                    not_read: vec!["texture a.png: not found".into()],
+                });
+            }
+        }
+        rows
+    }
+
+    /// Every group's feed, pinned to the digests the hand-written feeds gave before the
+    /// groups' tables (`crate::columns::table`) existed: the stored digest of every shard
+    /// written since recomputes the same.
+    #[test]
+    fn every_groups_feed_is_pinned() {
+        let digests: Vec<(&str, String)> = ["", "a", "q", "s", "r", "aqsr"]
+            .into_iter()
+            .map(|g| (g, rows_digest(&rows_with(g))))
+            .collect();
+        let pinned = [
+            (
+                "",
+                "0aa7e5b3284caf3716240acdc3b531ae00a83cf38dd61576410191a5caf19d49",
+            ),
+            (
+                "a",
+                "1956d24c6ff211e237a2cf7f4aab07878f30ab610b6c36959e13a210779324ba",
+            ),
+            (
+                "q",
+                "798c2ff506038e9e61123676f0f1be5ad6f8a463e356d1180f3e91d701b3506c",
+            ),
+            (
+                "s",
+                "3466f2ed7dbccfe34074ba8e510d25d055c2f616976a60ae042db51034a4bc9e",
+            ),
+            (
+                "r",
+                "dcdb84571c193c979f577b913adb9b86e64d31fb16eb2feb8d7bac19ab5a17a5",
+            ),
+            (
+                "aqsr",
+                "2f774aacbc6ecd6dd79cdd9d0edcf44cab765a4d8dff7bb6fa4f81491ed8af56",
+            ),
+        ];
+        let found: Vec<(&str, &str)> = digests.iter().map(|(g, d)| (*g, d.as_str())).collect();
+        assert_eq!(found, pinned);
     }
 }

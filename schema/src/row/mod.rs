@@ -84,7 +84,7 @@ pub struct RowTensors {
 
 /// An item's condition views ([`crate::columns::renders`]): a PNG a view, in view order, and
 /// the views' `transforms.json`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct RowRenders {
     /// The views, in order (`000.png`, `001.png`, …).
     pub views: Vec<RenderedView>,

@@ -1,7 +1,7 @@
 //! What the conversion measured of an item's source and output, stored in a row's quality
-//! columns (`quality_columns`; only in the shards of a job with `quality = true`, the default
-//! of jobs made since they exist) so that a lab can choose what to train on (`--where`),
-//! documented in docs/FORMAT.md, "Quality columns".
+//! columns (the table `crate::columns::quality::QUALITY`; only in the shards of a job with
+//! `quality = true`, the default of jobs made since they exist) so that a lab can choose what
+//! to train on (`--where`), documented in docs/FORMAT.md, "Quality columns".
 
 use serde::{Deserialize, Serialize};
 
