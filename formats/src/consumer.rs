@@ -1,104 +1,15 @@
-//! What a consumer is to the rest of the house: the description each consumer module gives of
-//! itself ([`Spec`], its `SPEC`), and the handle ([`Consumer`]) passed around, whose methods
-//! read it. [`Consumer::ALL`] is the table of consumers, the one list of them; names, `--help`
-//! lines, frames, what the export reads, the presets and their help texts all come from the
-//! specs, so a consumer is one module with its `SPEC` plus one entry in that table, and states
-//! everything the export asks of it (no field has a default).
+//! What a consumer is to the rest of the house: the handle ([`Consumer`]) passed around,
+//! whose methods read the consumer's [`Spec`] (its module's `SPEC`). [`Consumer::ALL`] is the
+//! table of consumers, the one list of them; names, `--help` lines, frames, what the export
+//! reads, the presets and their help texts all come from the specs, so a consumer is one
+//! module with its `SPEC` plus one entry in that table, and states everything the export asks
+//! of it (no field has a default).
 
-use crate::preset::{GridPreset, RenderRecipe};
-use crate::{ExportFile, Frame, Item, ItemExport, JobCheck, Listed, Placement, Result};
+pub use crate::spec::{PresetSpec, Reads, Spec, Views};
+use crate::{ExportFile, Frame, Item, ItemExport, JobCheck, Listed, Result};
 use sparcubes::samples::SampleParams;
 use sparcubes::Params;
 use std::path::Path;
-
-/// Everything the export, the presets and the `--help` texts know of one consumer.
-#[derive(Debug)]
-pub struct Spec {
-    /// The name `--format` and `--for` take.
-    pub name: &'static str,
-    /// The codebase's own name, as help texts write it (`TRELLIS.2`).
-    pub title: &'static str,
-    /// One line for `--help`: what it writes.
-    pub about: &'static str,
-    /// The frames its files can be written in; the first is its default.
-    pub frames: &'static [Frame],
-    /// Which stored columns beyond the cubes its files are made from.
-    pub reads: Reads,
-    /// What `--for NAME` sets, `None` for a consumer that reads any job (cubvh).
-    pub preset: Option<PresetSpec>,
-    /// The `[samples]` keys a job with these samples (None: samples off) lacks for it, each
-    /// with what it needs (empty when nothing is missing).
-    pub missing: fn(Option<&SampleParams>) -> Vec<String>,
-    /// What it says of a job converted with these params, written in this frame, before
-    /// anything is written: the settings it needs and the warnings to show.
-    pub check: fn(&Params, Frame) -> JobCheck,
-    /// Its own files of one item, paths relative to the export folder.
-    pub files: fn(&Item) -> Result<ItemExport>,
-    /// Where a job's condition views go.
-    pub views: Views,
-    /// The listing files of the items written (in item order), empty when it reads none;
-    /// the path is where the export folder ends up (absolute), for listings of paths.
-    pub listing: fn(&[Listed], &Path) -> Result<Vec<ExportFile>>,
-}
-
-/// The stored columns beyond the cubes a consumer's files are made from; the export decodes
-/// only those.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Reads {
-    /// The samples (the grid layouts are made from the sparse cubes alone).
-    pub samples: bool,
-    /// The appearance (the `[attributes]` columns): TRELLIS.2's PBR voxels.
-    pub attributes: bool,
-}
-
-impl Reads {
-    /// The cubes alone.
-    pub const CUBES: Reads = Reads {
-        samples: false,
-        attributes: false,
-    };
-    /// The cubes and the samples.
-    pub const SAMPLES: Reads = Reads {
-        samples: true,
-        attributes: false,
-    };
-}
-
-/// Where the condition views of a rendered job go in a consumer's export.
-#[derive(Debug, Clone, Copy)]
-pub enum Views {
-    /// Into its own layout of views, written by its `files` (Hunyuan3D-2.1, Step1X-3D,
-    /// TRELLIS.2).
-    Own,
-    /// Into the plain multi-view layout ([`crate::renders::plain`]), the cameras in the frame
-    /// of the geometry it writes, which this gives.
-    Plain(fn(&Item) -> Placement),
-}
-
-/// What `--for NAME` (or `--for NAME@G`) sets for a consumer.
-#[derive(Debug, Clone, Copy)]
-pub struct PresetSpec {
-    /// What it does, for `--for`'s help (consumers one after the other with the same text
-    /// share it): `samples on`.
-    pub help: &'static str,
-    /// Whether it turns samples on (`samples.enabled = true`, whose defaults serve every
-    /// vector-set consumer).
-    pub samples: bool,
-    /// Its condition views, used when the job renders (`--renders`).
-    pub renders: Option<RenderRecipe>,
-    /// The grid `@G` names, `None` for a preset that takes none.
-    pub grid: Option<GridPreset>,
-}
-
-impl PresetSpec {
-    /// The preset of a vector-set consumer: samples on, no grid, no views of its own.
-    pub const SAMPLES: PresetSpec = PresetSpec {
-        help: "samples on",
-        samples: true,
-        renders: None,
-        grid: None,
-    };
-}
 
 /// A consumer, as the rest of the house passes it: a handle on its [`Spec`].
 #[derive(Clone, Copy)]
@@ -198,27 +109,6 @@ impl std::fmt::Debug for Consumer {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "Consumer({})", self.name())
     }
-}
-
-/// [`Views::Plain`] of a grid consumer: the cameras in the grid's frame.
-pub(crate) fn grid_views(item: &Item) -> Placement {
-    Placement::grid(item.cubes.resolution)
-}
-
-/// [`Spec::missing`] of a consumer made from the cubes alone: nothing.
-pub(crate) fn needs_no_samples(_: Option<&SampleParams>) -> Vec<String> {
-    Vec::new()
-}
-
-/// [`Spec::check`] of a consumer that takes any job: samples move into a consumer's cube
-/// exactly, whatever the job's span, and cubvh's voxels are the job's grid.
-pub(crate) fn takes_any_job(_: &Params, _: Frame) -> JobCheck {
-    JobCheck::default()
-}
-
-/// [`Spec::listing`] of a consumer that reads no listing.
-pub(crate) fn no_listing(_: &[Listed], _: &Path) -> Result<Vec<ExportFile>> {
-    Ok(Vec::new())
 }
 
 #[cfg(test)]

@@ -10,9 +10,7 @@
 //! (in cubvh's [−1, 1] frame, δ = 2/N · √3 / 127, [`encode`]). Stored files pack a cell's 8
 //! bytes into a little-endian `u64` (corner 0 in the low byte) and the cell as `x·N² + y·N + z`.
 
-use crate::consumer::{
-    grid_views, needs_no_samples, no_listing, takes_any_job, Reads, Spec, Views,
-};
+use crate::spec::{grid_views, needs_no_samples, no_listing, takes_any_job, Reads, Spec, Views};
 use crate::Frame;
 use crate::{identity_arrays, npz::Array, npz_file, Item, ItemExport, Result};
 use sparcubes::products::corners::corner_values;

@@ -12,8 +12,8 @@
 //! so the indices are written as they are, with no resampling. Any other job is refused in the
 //! consumer frame ([`check`]); `--frame normalized` writes it in the job's own frame.
 
-use crate::consumer::{grid_views, needs_no_samples, no_listing, PresetSpec, Reads, Spec, Views};
-use crate::preset::{GridPreset, Settings};
+use crate::spec::{grid_views, needs_no_samples, no_listing, PresetSpec, Reads, Spec, Views};
+use crate::spec::{GridPreset, Settings};
 use crate::{identity_arrays, npz::Array, npz_file, Frame, Item, ItemExport, JobCheck, Result};
 use sparcubes::products::truncated_sdf::truncated_sdf;
 use sparcubes::Params;

@@ -23,11 +23,11 @@
 //! `val.json` and `test.json` a few of them (`split_lists`).
 
 use crate::arrays::{floats, point_distance_rows, point_normal_rows, Width};
-use crate::consumer::{takes_any_job, PresetSpec, Reads, Spec, Views};
 use crate::select::{
     block_needs, block_rows, missing_needs, require_sharp, rows_in_cube, sharp_near_needs,
     sharp_near_rows, surface_and_sharp_needs, Need,
 };
+use crate::spec::{takes_any_job, PresetSpec, Reads, Spec, Views};
 use crate::Frame;
 use crate::{npz::Array, npz_file, Error, ExportFile, Item, ItemExport, Listed, Placement, Result};
 use sparcubes::samples::{farthest_points, SampleParams, Samples};

@@ -24,12 +24,12 @@
 //! export's frame ([`crate::renders`]).
 
 use crate::arrays::{floats, placed, point_normal_rows, Width};
-use crate::consumer::{no_listing, takes_any_job, PresetSpec, Reads, Spec, Views};
 use crate::renders::SourceToExport;
 use crate::select::{
     block_needs, block_rows, missing_needs, require_sharp, rows_in_cube, sharp_near_needs,
     sharp_near_rows, surface_and_sharp_needs, Need,
 };
+use crate::spec::{no_listing, takes_any_job, PresetSpec, Reads, Spec, Views};
 use crate::Frame;
 use crate::{npz::Array, npz_file, Item, ItemExport, Placement, Result};
 use sparcubes::samples::SampleParams;
@@ -180,7 +180,7 @@ pub const RENDER_VIEWS: usize = 24;
 
 /// Hunyuan3D-2.1's condition views: TRELLIS's cameras, 24 of 512² (`hy3dshape/tools/render/
 /// render.py` `init_render(resolution=512)` with TRELLIS's `sphere_hammersley_sequence`).
-pub const RENDERS: crate::preset::RenderRecipe = crate::preset::RenderRecipe {
+pub const RENDERS: crate::spec::RenderRecipe = crate::spec::RenderRecipe {
     recipe: "trellis",
     views: RENDER_VIEWS as u32,
     size: 512,

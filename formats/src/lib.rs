@@ -5,7 +5,7 @@
 //! its folder layout and file names, and its listing files; and the writing of an export
 //! folder ([`export`]: staged beside its destination, recorded, moved into place).
 //!
-//! A consumer module describes itself in one `SPEC` ([`consumer::Spec`]): its name, `--help`
+//! A consumer module describes itself in one `SPEC` ([`spec::Spec`]): its name, `--help`
 //! line, frames, what it reads, its preset, and its functions: `files` (one item's files),
 //! `listing` (the files that list the items), `missing` (the `[samples]` keys a job lacks for
 //! it), `check` (the job settings its frame needs). [`Consumer`] is a handle on one, and
@@ -29,6 +29,7 @@ pub mod pickle;
 pub mod preset;
 pub mod renders;
 mod select;
+pub mod spec;
 pub mod step1x3d;
 pub mod trellis2;
 pub mod triposg;

@@ -1,6 +1,6 @@
 //! Presets: the job settings a consumer needs, as `sparc3d init --for CONSUMER` (and
 //! `run DIR --job OUT --for CONSUMER`) sets them, so a job is made for a consumer in one flag.
-//! Each consumer states its own in its `SPEC` ([`crate::consumer::Spec::preset`], `None` for
+//! Each consumer states its own in its `SPEC` ([`crate::spec::Spec::preset`], `None` for
 //! one that has none), the one place its frame is described
 //! ([`crate::trellis2::job_for_grid`], [`crate::direct3d_s2::OBJECT_SPAN`]), which also names,
 //! in its export's checks, the preset that fits a job that does not; here they are parsed,
@@ -16,9 +16,9 @@
 //!
 //! cubvh reads any job and has none.
 
-use crate::consumer::PresetSpec;
+use crate::spec::PresetSpec;
+pub use crate::spec::{GridPreset, RenderRecipe, Settings};
 use crate::{Consumer, Error, Result};
-use serde_json::{json, Map, Value};
 use sparcubes::Params;
 
 /// A consumer, and for the grid consumers the size of its grid.
@@ -28,66 +28,6 @@ pub struct Preset {
     pub consumer: Consumer,
     /// Its grid: TRELLIS.2's G (required), Direct3D-S2's resolution (optional).
     pub grid: Option<u32>,
-}
-
-/// The job settings a preset sets; every other key keeps its default.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct Settings {
-    /// `params.resolution`.
-    pub resolution: Option<u32>,
-    /// `params.object_span`.
-    pub object_span: Option<f64>,
-    /// `params.output_span`.
-    pub output_span: Option<f64>,
-    /// `samples.enabled = true` (the defaults serve every vector-set consumer).
-    pub samples: bool,
-    /// The consumer's condition views (`[renders]` recipe, views and size), used when the
-    /// job renders (`--renders`, `[renders] enabled = true`); a job that does not keeps its
-    /// config and fingerprint, since a disabled section is left out of both.
-    pub renders: Option<RenderRecipe>,
-}
-
-impl Settings {
-    /// Nothing set (the [`Default`], for constants).
-    pub const NONE: Settings = Settings {
-        resolution: None,
-        object_span: None,
-        output_span: None,
-        samples: false,
-        renders: None,
-    };
-}
-
-/// A consumer's condition views: whose cameras and lights, how many, how large.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct RenderRecipe {
-    /// `[renders] recipe` (`trellis`, `trellis2`).
-    pub recipe: &'static str,
-    /// Views per item.
-    pub views: u32,
-    /// Side of a view in pixels.
-    pub size: u32,
-}
-
-/// The grid of a preset `NAME@G`, as its consumer states it: how it is written, which it
-/// takes, what it sets.
-#[derive(Debug, Clone, Copy)]
-pub struct GridPreset {
-    /// How [`Preset::forms`] writes it after the name: `@G`, or `[@N]` where it is optional.
-    pub form: &'static str,
-    /// Whether `--for NAME` must name it (such presets come first in `--for`'s help).
-    pub required: bool,
-    /// The error for a preset `text` with a grid (a whole number, 8 to the largest
-    /// resolution) or none (`None`) that the consumer does not take: one it needs, or one
-    /// too large; the error names the forms it takes.
-    pub accept: fn(&str, Option<u32>) -> Result<()>,
-    /// The `params` keys a grid (or none) sets (`resolution`, `object_span`, `output_span`;
-    /// samples and renders are the [`PresetSpec`]'s).
-    pub params: fn(Option<u32>) -> Settings,
-    /// What a job made with this preset at grid G lacks when a config key or flag changed
-    /// its settings, said in the preset's own terms rather than as the export's check says
-    /// it; `None` to let the check speak.
-    pub misfit: fn(u32, &Params) -> Option<String>,
 }
 
 impl Preset {
@@ -211,37 +151,6 @@ fn in_help_order() -> Vec<(Consumer, PresetSpec)> {
         None => 2,
     });
     presets
-}
-
-impl Settings {
-    /// The settings as a partial job config (`{"params": {...}, "samples": {...}}`), under
-    /// which a config file's keys are merged.
-    pub fn overrides(&self) -> Value {
-        let mut params = Map::new();
-        if let Some(r) = self.resolution {
-            params.insert("resolution".into(), json!(r));
-        }
-        if let Some(s) = self.object_span {
-            params.insert("object_span".into(), json!(s));
-        }
-        if let Some(s) = self.output_span {
-            params.insert("output_span".into(), json!(s));
-        }
-        let mut out = Map::new();
-        if !params.is_empty() {
-            out.insert("params".into(), Value::Object(params));
-        }
-        if self.samples {
-            out.insert("samples".into(), json!({"enabled": true}));
-        }
-        if let Some(r) = self.renders {
-            out.insert(
-                "renders".into(),
-                json!({"recipe": r.recipe, "views": r.views, "size": r.size}),
-            );
-        }
-        Value::Object(out)
-    }
 }
 
 /// The grid of `@G` in `text`: a whole number of at least 8.

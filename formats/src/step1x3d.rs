@@ -16,10 +16,10 @@
 //! key, never reads made-up rows; the export counts those items.
 
 use crate::arrays::{floats, point_normal_rows, Width};
-use crate::consumer::{takes_any_job, PresetSpec, Reads, Spec, Views};
 use crate::dora::{self, near_and_volume, near_and_volume_needs, signed_array};
 use crate::renders::SourceToExport;
 use crate::select::{has_sharp, missing_needs, surface_and_sharp_needs};
+use crate::spec::{takes_any_job, PresetSpec, Reads, Spec, Views};
 use crate::Frame;
 use crate::{npz::Array, npz_file, ExportFile, Item, ItemExport, Listed, Result};
 use sparcubes::samples::SampleParams;
@@ -114,7 +114,7 @@ pub fn files(item: &Item) -> Result<ItemExport> {
 /// Step1X-3D's condition views: its render script is not released; its loader's paths name
 /// 20 views (`0000` … `0019`, issue 61's reading of its data) and `_process_img` resizes each
 /// to 512² (`base.py` L228), so TRELLIS's cameras, 20 of 512².
-pub const RENDERS: crate::preset::RenderRecipe = crate::preset::RenderRecipe {
+pub const RENDERS: crate::spec::RenderRecipe = crate::spec::RenderRecipe {
     recipe: "trellis",
     views: 20,
     size: 512,

@@ -72,9 +72,9 @@
 
 pub mod pbr;
 
-use crate::consumer::{needs_no_samples, PresetSpec, Reads, Spec, Views};
 use crate::pickle::{self, Value};
-use crate::preset::{GridPreset, Settings};
+use crate::spec::{needs_no_samples, PresetSpec, Reads, Spec, Views};
+use crate::spec::{GridPreset, Settings};
 use crate::vxz::{self, Attr};
 use crate::{Error, ExportFile, Frame, Item, ItemExport, JobCheck, Listed, Result};
 use sparcubes::products::dual_vertices::dual_vertices;
@@ -396,7 +396,7 @@ pub const RENDERS_DIR: &str = "renders_cond";
 
 /// TRELLIS.2's condition views: 16 of 1024² with its own lights (`data_toolkit/render_cond.py`
 /// `--num_cond_views` 16, `--cond_resolution` 1024).
-pub const RENDERS: crate::preset::RenderRecipe = crate::preset::RenderRecipe {
+pub const RENDERS: crate::spec::RenderRecipe = crate::spec::RenderRecipe {
     recipe: "trellis2",
     views: 16,
     size: 1024,

@@ -6,9 +6,9 @@
 //! it decodes in ±1.005 (L54), so the frame is the centred cube with the longest side on ±1.
 
 use crate::arrays::placed;
-use crate::consumer::{no_listing, takes_any_job, PresetSpec, Reads, Spec, Views};
 use crate::pickle::{f32_rows, npy_of_object, Value};
 use crate::select::{missing_needs, Need};
+use crate::spec::{no_listing, takes_any_job, PresetSpec, Reads, Spec, Views};
 use crate::Frame;
 use crate::{Error, ExportFile, Item, ItemExport, Result};
 use sparcubes::samples::SampleParams;

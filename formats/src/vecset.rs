@@ -4,9 +4,9 @@
 //! the source mesh's frame (f32). For readers of our own layout (`sparc3d_reader.iter_export`).
 
 use crate::arrays::{floats, placed, Width};
-use crate::consumer::{no_listing, takes_any_job, PresetSpec, Reads, Spec, Views};
 use crate::npz::Array;
 use crate::select::missing_needs;
+use crate::spec::{no_listing, takes_any_job, PresetSpec, Reads, Spec, Views};
 use crate::{identity_arrays, npz_file, Frame, Item, ItemExport, Placement, Result};
 use sparcubes::samples::{Precision, SampleParams};
 

@@ -9,8 +9,7 @@
 //! in one step (`renameat2` with `RENAME_EXCHANGE`), so the destination always holds a whole
 //! export. Neither prints: what [`clear`] did comes back as lines for the caller to show.
 
-use super::folder::io;
-use super::RECORD;
+use super::{io, RECORD};
 use crate::Result;
 use std::path::Path;
 

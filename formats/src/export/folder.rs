@@ -1,7 +1,7 @@
 //! The folder an export is built in, beside its destination, and the move of the finished
 //! export into place.
 
-use super::{debris, RECORD};
+use super::{debris, io, RECORD};
 use crate::{Error, ExportFile, Result};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -84,11 +84,6 @@ impl Staging {
         sync_parent(out)?;
         Ok(replaced.then(|| remove_earlier(&old, out)).flatten())
     }
-}
-
-/// An [`Error::Io`] saying what was being done.
-pub(super) fn io(context: String) -> impl FnOnce(std::io::Error) -> Error {
-    move |source| Error::Io { context, source }
 }
 
 /// An error when `out` exists and is neither empty nor an earlier export (no [`RECORD`]).

@@ -17,3 +17,8 @@ pub use record::{ItemOutcome, Outcome, Record, Written};
 /// The file that marks a folder as a finished export and says what it holds.
 /// Hidden, so a loader that globs the folder for items (Hunyuan3D-2.1's) never meets it.
 pub const RECORD: &str = ".sparc3d-export.json";
+
+/// An [`crate::Error::Io`] saying what was being done.
+pub(crate) fn io(context: String) -> impl FnOnce(std::io::Error) -> crate::Error {
+    move |source| crate::Error::Io { context, source }
+}
