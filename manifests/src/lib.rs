@@ -21,6 +21,7 @@ pub mod freeze;
 pub mod hash;
 pub mod path_column;
 pub mod problems;
+pub mod raw;
 pub mod record;
 pub mod source_id;
 pub mod stream;

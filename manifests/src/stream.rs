@@ -8,8 +8,8 @@
 
 use crate::path_column::{self, PathColumn, ValueSurvey, LISTED_ROWS};
 use crate::problems::Problems;
+use crate::raw::{ext, number_at, string_at, RawRecord};
 use crate::record::{KNOWN_COLUMNS, PATH_COLUMNS};
-use crate::table::{ext, number_at, string_at, RawRecord};
 use anyhow::{bail, Context, Result};
 use arrow_array::RecordBatch;
 use parquet::arrow::arrow_reader::{ParquetRecordBatchReader, ParquetRecordBatchReaderBuilder};

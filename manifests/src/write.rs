@@ -2,8 +2,8 @@
 //! columns `id`, `uri`, `sha256`, `format` and then the provenance columns in name order (only
 //! when some record has any, so a folder's manifest is written as before they existed).
 
+use crate::raw::ext;
 use crate::record::ManifestRecord;
-use crate::table::ext;
 use anyhow::{bail, Context, Result};
 use arrow_array::{Array, RecordBatch, StringArray};
 use parquet::arrow::ArrowWriter;

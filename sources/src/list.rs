@@ -70,8 +70,13 @@ pub(crate) async fn collect(
         out.push(Listed {
             url: root.with_key(meta.location.as_ref()),
             size: meta.size,
-            etag: meta.e_tag.as_deref().map(crate::objects::bare_etag),
+            etag: meta.e_tag.as_deref().map(bare_etag),
         });
     }
     Ok(out)
+}
+
+/// An ETag as listings give it: without its quotes (a GET or HEAD keeps them).
+pub fn bare_etag(etag: &str) -> String {
+    etag.trim_matches('"').to_string()
 }

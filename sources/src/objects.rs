@@ -8,6 +8,7 @@
 
 use crate::error::{FetchError, FetchErrorKind};
 use crate::fetch::Fetcher;
+pub use crate::list::bare_etag;
 use crate::list::Listed;
 use crate::location::RemoteUrl;
 use futures_util::StreamExt;
@@ -76,11 +77,6 @@ pub struct Downloaded {
     /// The ETag of the object read (quotes removed, as in a listing), when the store gives
     /// one.
     pub etag: Option<String>,
-}
-
-/// An ETag as listings give it: without its quotes (a GET or HEAD keeps them).
-pub fn bare_etag(etag: &str) -> String {
-    etag.trim_matches('"').to_string()
 }
 
 /// The objects under one prefix of a bucket (`s3://bucket/jobs/a` holds `jobs/a/...`); keys
