@@ -42,6 +42,13 @@ def _sparc3d(p: argparse.ArgumentParser) -> None:
                    help="the sparc3d binary (default: $SPARC3D_BIN, else sparc3d on PATH)")
 
 
+def _mesh_run(p: argparse.ArgumentParser) -> None:
+    """Where a command that ends in meshes runs: the device, the cell budget, the binary."""
+    _device(p)
+    _budget(p)
+    _sparc3d(p)
+
+
 def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(
         prog="sparc3d-vae",
@@ -139,9 +146,7 @@ def _decode_parser(sub) -> None:
                    help="the job grid of npz latents that carry none (a flow's sample: "
                    "`resolution` in the latent folder's .sparc3d-latents.json); their mesh is "
                    "written in that grid's [-0.5, 0.5] frame")
-    _device(p)
-    _budget(p)
-    _sparc3d(p)
+    _mesh_run(p)
 
 
 def _reconstruct_parser(sub) -> None:
@@ -154,9 +159,7 @@ def _reconstruct_parser(sub) -> None:
     p.add_argument("--no-fill-holes", action="store_true", help="keep the extracted mesh as is")
     p.add_argument("--tensors", type=Path, metavar="cubes.parquet",
                    help="also keep the decoded sparse cubes as a tensor file")
-    _device(p)
-    _budget(p)
-    _sparc3d(p)
+    _mesh_run(p)
 
 
 def _evaluate_parser(sub) -> None:
@@ -174,9 +177,7 @@ def _evaluate_parser(sub) -> None:
                    help="points `sparc3d eval` samples per mesh (default: 100000 up to 128³, "
                         "1000000 above, where fewer lie too far apart to measure a voxel's "
                         "fraction)")
-    _device(p)
-    _budget(p)
-    _sparc3d(p)
+    _mesh_run(p)
 
 
 def main(argv: Optional[List[str]] = None) -> int:
