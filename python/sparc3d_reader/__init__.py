@@ -41,12 +41,13 @@ The package in modules, each with one job: `schema.py` what is shared with the R
 schema version, column names, tensor names, export formats), `tensors.py` the tensor encoding
 and tensor files, `shards.py` which files are read and the checks on each, `items.py` rows as
 items, `dataset.py` the indexable dataset, `streaming.py` the streaming one (its order in
-`stream_order.py`, its DataLoader in `stream_loader.py`), `where.py` filters and
-`selection.py` the rows they select, `torch_classes.py` the two datasets as torch classes, `collate.py` batches, `exports.py` other codebases'
-layouts, `jobs.py` a job (job.json, its frozen manifest), `job_listing.py` which of its shards
-are read, `records.py` a shard against its completion record, `row_checks.py` its rows against
-the manifest, `location.py` folders and bucket URLs. Everything is imported from the package
-itself.
+`stream_order.py`, its DataLoader in `stream_loader.py`), `where.py` filters and `selection.py`
+the rows they select, `torch_classes.py` the two datasets as torch classes, `collate.py`
+batches, `exports.py` other codebases' layouts, `job_file.py` a job (job.json, its frozen
+manifest) and `jobs.py` the names of the checks on its shards, `job_listing.py` which of its
+shards are read, `records.py` a shard against its completion record, `row_checks.py` its rows
+against the manifest, `location.py` folders and bucket URLs. Everything is imported from the
+package itself.
 """
 
 from __future__ import annotations

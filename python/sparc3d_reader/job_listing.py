@@ -18,7 +18,7 @@ from .location import ObjectPath
 from .records import Shard, read_record
 
 if TYPE_CHECKING:
-    from .jobs import Job
+    from .job_file import Job
 
 #: A writer's upload of a shard's data to a bucket, `part-NNNNN.<token>.parquet`: the shard's
 #: data when its record names it (`object`), else a leftover of a writer that lost the race for

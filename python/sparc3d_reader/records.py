@@ -19,7 +19,7 @@ from . import location
 from .location import Location, ObjectPath
 
 if TYPE_CHECKING:
-    from .jobs import Job
+    from .job_file import Job
 
 Verify = Union[bool, str]
 

@@ -16,7 +16,7 @@ from .records import Shard
 from .schema import META_COLUMNS, META_FINGERPRINT, STATUSES
 
 if TYPE_CHECKING:
-    from .jobs import Job
+    from .job_file import Job
 
 # Normalizations the converter can produce (sparcubes/src/normalize.rs): the longest side of a
 # mesh lies in [1e-15, 1e15] and the grid uses at most all of the unit cube, so the scale is at
