@@ -12,7 +12,9 @@ use crate::queries::winding::LazyWindingTree;
 use crate::stages::assemble::{assemble, free_vertices, Core};
 use crate::stages::band::{compute_band, triangle_planes, Band, CORE_REACH};
 use crate::stages::deform::compute_field;
+use crate::stages::extract::extract;
 use crate::stages::flood::{flood_outside, Flood};
+use crate::stages::frame::{first_span, refit, snap, REFITS};
 use crate::stages::inside::classify::classify_regions;
 use crate::stages::inside::nesting::Nesting;
 use crate::stages::inside::regions::{mark_air, Regions};
@@ -128,9 +130,47 @@ impl Stages {
 pub fn convert(mesh: &TriMesh, params: &Params) -> Result<Conversion> {
     params.validate()?;
     match params.output_span {
-        Some(span) => crate::stages::frame::convert_framed(mesh, params, span),
+        Some(span) => convert_framed(mesh, params, span),
         None => convert_at(mesh, params, None),
     }
+}
+
+/// The conversion of `mesh` with its output's box framed to `span` of the grid ([`crate::stages::frame`]'s docs).
+fn convert_framed(mesh: &TriMesh, params: &Params, span: f64) -> Result<Conversion> {
+    let base = Params {
+        output_span: None,
+        object_span: None,
+        ..*params
+    };
+    let first = Params {
+        object_span: Some(first_span(span, params.resolution, params.margin_cells)),
+        ..base
+    };
+    let mut conversion = convert_at(mesh, &first, None)?;
+    let mut earlier = total_seconds(&conversion);
+    let Some(source) = mesh.bounds() else {
+        return Ok(conversion);
+    };
+    for _ in 0..REFITS {
+        let Some(output) = extract(&conversion.cubes).bounds() else {
+            return Ok(conversion);
+        };
+        let fit = refit(&conversion.cubes, output, span, source, base.margin_cells);
+        let mut next = convert_at(mesh, &base, Some(fit))?;
+        let snapped = snap(&mut next.cubes, span).is_ok();
+        next.stats.stage_seconds.push(("frame", earlier));
+        earlier += total_seconds(&next);
+        conversion = next;
+        if snapped {
+            break;
+        }
+    }
+    Ok(conversion)
+}
+
+/// Seconds of every stage of `c`.
+fn total_seconds(c: &Conversion) -> f64 {
+    c.stats.stage_seconds.iter().map(|(_, s)| s).sum()
 }
 
 /// One conversion, with the normalization `fit` (else the source's box fitted to

@@ -25,16 +25,12 @@
 //! whose ends cannot be put there is returned as it is; the export that needs the frame
 //! checks it and says so.
 
-use crate::convert::{convert_at, Conversion};
-use crate::error::Result;
 use crate::grid::cubes::SparseCubes;
 use crate::grid::normalization::Normalization;
-use crate::mesh::TriMesh;
-use crate::params::Params;
 use crate::stages::extract::extract;
 
 /// Conversions after the first, each refitted from the box of the one before.
-const REFITS: usize = 3;
+pub(crate) const REFITS: usize = 3;
 
 /// Room between an end of the source's box and the target in the first conversion, in voxels:
 /// the shell around an open part reaches 0.9 voxel beyond it (`Params::shell_half_thickness`).
@@ -55,44 +51,6 @@ pub const SNAP_TOLERANCE: f64 = 1e-4;
 
 /// A box: lowest and highest corner.
 type Bounds = ([f64; 3], [f64; 3]);
-
-/// The conversion of `mesh` with its output's box framed to `span` of the grid (module docs).
-pub(crate) fn convert_framed(mesh: &TriMesh, params: &Params, span: f64) -> Result<Conversion> {
-    let base = Params {
-        output_span: None,
-        object_span: None,
-        ..*params
-    };
-    let first = Params {
-        object_span: Some(first_span(span, params.resolution, params.margin_cells)),
-        ..base
-    };
-    let mut conversion = convert_at(mesh, &first, None)?;
-    let mut earlier = total_seconds(&conversion);
-    let Some(source) = mesh.bounds() else {
-        return Ok(conversion);
-    };
-    for _ in 0..REFITS {
-        let Some(output) = extract(&conversion.cubes).bounds() else {
-            return Ok(conversion);
-        };
-        let fit = refit(&conversion.cubes, output, span, source, base.margin_cells);
-        let mut next = convert_at(mesh, &base, Some(fit))?;
-        let snapped = snap(&mut next.cubes, span).is_ok();
-        next.stats.stage_seconds.push(("frame", earlier));
-        earlier += total_seconds(&next);
-        conversion = next;
-        if snapped {
-            break;
-        }
-    }
-    Ok(conversion)
-}
-
-/// Seconds of every stage of `c`.
-fn total_seconds(c: &Conversion) -> f64 {
-    c.stats.stage_seconds.iter().map(|(_, s)| s).sum()
-}
 
 /// The source's span of the first conversion: the target less [`FIRST_ROOM`] at each end, at
 /// most what `margin_cells` leaves.
@@ -126,7 +84,7 @@ const PLANE_CLEARANCE: f64 = 0.05;
 /// `c − (N/2 − o)/(s·N)`. σ may shorten that length by up to 0.3 voxel or lengthen it by
 /// 0.1 so that the other axes' ends stay off grid planes ([`best_scale`]); it is lowered where
 /// the `source` box would come closer than `margin` cells to the border.
-fn refit(
+pub(crate) fn refit(
     cubes: &SparseCubes,
     output: Bounds,
     span: f64,
