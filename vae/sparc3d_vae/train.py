@@ -90,7 +90,9 @@ def train(data: List[str], out: Path, config: Optional[Path], steps: Optional[in
         print(start.settings.message(resumed=start.state is not None), file=sys.stderr)
     distributed.init(world, device)
     try:
-        return _loop(start, samples, pool, ids_digest, out, ckpt_path, device, world)
+        result = _loop(start, samples, pool, ids_digest, out, ckpt_path, device, world)
+        distributed.meet(world)  # only on success: a failed peer would leave it waiting
+        return result
     finally:
         distributed.shutdown(world)
 
