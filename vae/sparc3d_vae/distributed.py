@@ -72,16 +72,6 @@ def init(world: World, device: torch.device) -> None:
                                 rank=world.rank, world_size=world.size)
 
 
-def meet(world: World) -> None:
-    """Waits until every rank is here (nothing for a world of one).
-
-    Called before `shutdown` on the way out of a finished run: gloo aborts a process
-    (SIGABRT in its teardown) when one rank destroys the group while a peer still has a
-    collective or a send in flight, as when rank 0 is still writing the last checkpoint."""
-    if world.distributed and dist.is_initialized():
-        dist.barrier()
-
-
 def shutdown(world: World) -> None:
     """Leaves the process group."""
     if world.distributed and dist.is_initialized():
@@ -102,6 +92,7 @@ def all_sum(values: torch.Tensor, world: World) -> torch.Tensor:
 
 
 def barrier(world: World) -> None:
+    """Waits until every rank is here (nothing for a world of one)."""
     if world.distributed:
         dist.barrier()
 

@@ -91,7 +91,10 @@ def train(data: List[str], out: Path, config: Optional[Path], steps: Optional[in
     distributed.init(world, device)
     try:
         result = _loop(start, samples, pool, ids_digest, out, ckpt_path, device, world)
-        distributed.meet(world)  # only on success: a failed peer would leave it waiting
+        # The ranks meet before leaving the group: gloo aborts a process (SIGABRT in its
+        # teardown) when one rank destroys the group while a peer still has a collective or a
+        # send in flight. Only on success: a failed peer would leave the others waiting.
+        distributed.barrier(world)
         return result
     finally:
         distributed.shutdown(world)
